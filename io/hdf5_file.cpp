@@ -1,0 +1,400 @@
+#include "io/hdf5_file.hpp"
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <stdexcept>
+#include <utility>
+
+namespace tissue {
+
+namespace {
+
+// Closes an HDF5 identifier of any kind when it goes out of scope.
+class Handle {
+public:
+  Handle(hid_t id, herr_t (*closer)(hid_t)) : id_(id), closer_(closer) {}
+  Handle(const Handle&) = delete;
+  Handle& operator=(const Handle&) = delete;
+  ~Handle() {
+    if (id_ >= 0) closer_(id_);
+  }
+  hid_t get() const { return id_; }
+  bool ok() const { return id_ >= 0; }
+
+private:
+  hid_t id_;
+  herr_t (*closer_)(hid_t);
+};
+
+// The innermost (first-failing) message of HDF5's error stack: the most specific reason.
+herr_t first_error(unsigned n, const H5E_error2_t* err, void* out) {
+  if (n == 0 && err->desc) *static_cast<std::string*>(out) = err->desc;
+  return 0;
+}
+
+std::string hdf5_reason() {
+  std::string reason;
+  H5Ewalk2(H5E_DEFAULT, H5E_WALK_UPWARD, first_error, &reason);
+  H5Eclear2(H5E_DEFAULT);
+  return reason;
+}
+
+void quiet_hdf5() {
+  // One-line exceptions instead of HDF5's multi-line stack dump on stderr.
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+}
+
+void check_mpi(int rc, const std::string& path, const char* what) {
+  if (rc != MPI_SUCCESS) {
+    char msg[MPI_MAX_ERROR_STRING];
+    int len = 0;
+    MPI_Error_string(rc, msg, &len);
+    throw std::runtime_error(path + ": " + what + " failed: " + std::string(msg, len));
+  }
+}
+
+hid_t file_access(MPI_Comm comm) {
+  hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
+  if (fapl < 0) return fapl;
+  if (H5Pset_fapl_mpio(fapl, comm, MPI_INFO_NULL) < 0) {
+    H5Pclose(fapl);
+    return -1;
+  }
+  return fapl;
+}
+
+}  // namespace
+
+Hdf5File::Hdf5File(std::string path, MPI_Comm comm, bool writable)
+    : path_(std::move(path)), comm_(comm), writable_(writable) {}
+
+Hdf5File Hdf5File::create(const std::string& path, MPI_Comm comm) {
+  quiet_hdf5();
+  Hdf5File f(path, comm, true);
+  Handle fapl(file_access(comm), H5Pclose);
+  if (!fapl.ok()) f.fail("", "cannot set up MPI-IO file access");
+  f.file_ = H5Fcreate((path + ".tmp").c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get());
+  if (f.file_ < 0) f.fail("", "cannot create " + path + ".tmp");
+  return f;
+}
+
+Hdf5File Hdf5File::open(const std::string& path, MPI_Comm comm) {
+  quiet_hdf5();
+  Hdf5File f(path, comm, false);
+  Handle fapl(file_access(comm), H5Pclose);
+  if (!fapl.ok()) f.fail("", "cannot set up MPI-IO file access");
+  f.file_ = H5Fopen(path.c_str(), H5F_ACC_RDONLY, fapl.get());
+  if (f.file_ < 0) f.fail("", "cannot open");
+  return f;
+}
+
+Hdf5File::Hdf5File(Hdf5File&& o) noexcept
+    : path_(std::move(o.path_)), comm_(o.comm_), writable_(o.writable_), file_(std::exchange(o.file_, -1)) {}
+
+Hdf5File& Hdf5File::operator=(Hdf5File&& o) noexcept {
+  if (this != &o) {
+    release();
+    path_ = std::move(o.path_);
+    comm_ = o.comm_;
+    writable_ = o.writable_;
+    file_ = std::exchange(o.file_, -1);
+  }
+  return *this;
+}
+
+Hdf5File::~Hdf5File() { release(); }
+
+void Hdf5File::release() noexcept {
+  if (file_ < 0) return;
+  H5Fclose(file_);
+  file_ = -1;
+  if (writable_) {
+    int rank = 0;
+    MPI_Comm_rank(comm_, &rank);
+    if (rank == 0) std::remove((path_ + ".tmp").c_str());
+  }
+}
+
+void Hdf5File::close() {
+  if (file_ < 0) return;
+  const herr_t rc = H5Fclose(file_);
+  file_ = -1;
+  if (rc < 0) {
+    const std::string reason = hdf5_reason();
+    int rank = 0;
+    MPI_Comm_rank(comm_, &rank);
+    if (writable_ && rank == 0) std::remove((path_ + ".tmp").c_str());
+    throw std::runtime_error(path_ + ": cannot close" + (reason.empty() ? "" : ": " + reason));
+  }
+  if (!writable_) return;
+  // Every rank's data must be on disk before the file appears under its real name.
+  check_mpi(MPI_Barrier(comm_), path_, "MPI_Barrier");
+  int rank = 0;
+  check_mpi(MPI_Comm_rank(comm_, &rank), path_, "MPI_Comm_rank");
+  int err = 0;
+  if (rank == 0 && std::rename((path_ + ".tmp").c_str(), path_.c_str()) != 0) {
+    err = errno ? errno : -1;
+    std::remove((path_ + ".tmp").c_str());
+  }
+  // The broadcast is the second barrier: nobody returns before the rename, and all ranks learn its outcome.
+  check_mpi(MPI_Bcast(&err, 1, MPI_INT, 0, comm_), path_, "MPI_Bcast");
+  if (err) throw std::runtime_error(path_ + ": cannot rename " + path_ + ".tmp into place: " + std::strerror(err));
+}
+
+void Hdf5File::fail(const std::string& object, const std::string& what) const {
+  const std::string reason = hdf5_reason();
+  std::string msg = path_ + ": ";
+  if (!object.empty()) msg += object + ": ";
+  msg += what;
+  if (!reason.empty()) msg += " (" + reason + ")";
+  throw std::runtime_error(msg);
+}
+
+bool Hdf5File::exists(const std::string& object) const {
+  if (file_ < 0) fail(object, "file is closed");
+  if (object.empty() || object[0] != '/') fail(object, "path must be absolute");
+  // H5Lexists fails, rather than answering no, when a parent is missing: walk the path one link at a time.
+  size_t pos = 1;
+  while (pos < object.size()) {
+    size_t next = object.find('/', pos);
+    if (next == std::string::npos) next = object.size();
+    const std::string prefix = object.substr(0, next);
+    const htri_t e = H5Lexists(file_, prefix.c_str(), H5P_DEFAULT);
+    if (e < 0) fail(object, "cannot look up " + prefix);
+    if (e == 0) return false;
+    pos = next + 1;
+  }
+  return true;
+}
+
+void Hdf5File::create_group(const std::string& group) {
+  if (!writable_) fail(group, "file is open read-only");
+  if (exists(group)) return;
+  Handle lcpl(H5Pcreate(H5P_LINK_CREATE), H5Pclose);
+  if (!lcpl.ok() || H5Pset_create_intermediate_group(lcpl.get(), 1) < 0) fail(group, "cannot set up group creation");
+  Handle g(H5Gcreate2(file_, group.c_str(), lcpl.get(), H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
+  if (!g.ok()) fail(group, "cannot create group");
+}
+
+void Hdf5File::write(const std::string& dataset, int64_t global_rows, int width, int64_t offset, int64_t rows,
+                     const double* data) {
+  write_block(dataset, global_rows, width, offset, rows, data, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE);
+}
+
+void Hdf5File::write(const std::string& dataset, int64_t global_rows, int width, int64_t offset, int64_t rows,
+                     const int64_t* data) {
+  write_block(dataset, global_rows, width, offset, rows, data, H5T_STD_I64LE, H5T_NATIVE_INT64);
+}
+
+void Hdf5File::write_block(const std::string& dataset, int64_t global_rows, int width, int64_t offset, int64_t rows,
+                           const void* data, hid_t file_type, hid_t mem_type) {
+  if (!writable_ || file_ < 0) fail(dataset, "file is not open for writing");
+  // Ranks that disagree on the shape, or a block outside it, would hang or corrupt the collective write:
+  // agree first, so that every rank throws the same error.
+  const int bad = offset < 0 || rows < 0 || width <= 0 || offset + rows > global_rows || (rows > 0 && !data);
+  long long mine[5] = {global_rows, -global_rows, width, -width, bad}, all[5];
+  check_mpi(MPI_Allreduce(mine, all, 5, MPI_LONG_LONG, MPI_MAX, comm_), path_, "MPI_Allreduce");
+  if (all[0] != -all[1] || all[2] != -all[3])
+    throw std::runtime_error(path_ + ": " + dataset + ": ranks disagree on the dataset's shape");
+  if (all[4])
+    throw std::runtime_error(path_ + ": " + dataset + ": a rank's row block lies outside [0, " +
+                             std::to_string(global_rows) + ") or has no data");
+
+  const hsize_t dims[2] = {static_cast<hsize_t>(global_rows), static_cast<hsize_t>(width)};
+  Handle file_space(H5Screate_simple(2, dims, nullptr), H5Sclose);
+  if (!file_space.ok()) fail(dataset, "cannot create dataspace");
+  Handle lcpl(H5Pcreate(H5P_LINK_CREATE), H5Pclose);
+  if (!lcpl.ok() || H5Pset_create_intermediate_group(lcpl.get(), 1) < 0) fail(dataset, "cannot set up creation");
+  // Every row is written: skip the fill pass that would otherwise write the whole dataset twice.
+  Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+  if (!dcpl.ok() || H5Pset_fill_time(dcpl.get(), H5D_FILL_TIME_NEVER) < 0) fail(dataset, "cannot set up creation");
+  Handle dset(H5Dcreate2(file_, dataset.c_str(), file_type, file_space.get(), lcpl.get(), dcpl.get(), H5P_DEFAULT),
+              H5Dclose);
+  if (!dset.ok()) fail(dataset, "cannot create dataset");
+
+  const hsize_t start[2] = {static_cast<hsize_t>(offset), 0};
+  const hsize_t count[2] = {static_cast<hsize_t>(rows), static_cast<hsize_t>(width)};
+  // A rank with no rows still takes part in the collective write, with empty selections.
+  const hsize_t mem_dims[2] = {rows > 0 ? count[0] : 1, count[1]};
+  Handle mem_space(H5Screate_simple(2, mem_dims, nullptr), H5Sclose);
+  if (!mem_space.ok()) fail(dataset, "cannot create dataspace");
+  herr_t sel = rows > 0 ? H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr)
+                        : H5Sselect_none(file_space.get());
+  if (sel < 0 || (rows == 0 && H5Sselect_none(mem_space.get()) < 0)) fail(dataset, "cannot select rows");
+
+  Handle dxpl(H5Pcreate(H5P_DATASET_XFER), H5Pclose);
+  if (!dxpl.ok() || H5Pset_dxpl_mpio(dxpl.get(), H5FD_MPIO_COLLECTIVE) < 0) fail(dataset, "cannot set up transfer");
+  const double dummy = 0.0;
+  if (H5Dwrite(dset.get(), mem_type, mem_space.get(), file_space.get(), dxpl.get(), rows > 0 ? data : &dummy) < 0)
+    fail(dataset, "cannot write rows [" + std::to_string(offset) + ", " + std::to_string(offset + rows) + ")");
+}
+
+std::vector<int64_t> Hdf5File::shape(const std::string& dataset) const {
+  if (file_ < 0) fail(dataset, "file is closed");
+  Handle dset(H5Dopen2(file_, dataset.c_str(), H5P_DEFAULT), H5Dclose);
+  if (!dset.ok()) fail(dataset, "no such dataset");
+  Handle space(H5Dget_space(dset.get()), H5Sclose);
+  if (!space.ok()) fail(dataset, "cannot get dataspace");
+  const int rank = H5Sget_simple_extent_ndims(space.get());
+  if (rank < 1 || rank > 2) fail(dataset, "expected a 1-D or 2-D dataset, found rank " + std::to_string(rank));
+  hsize_t dims[2] = {0, 1};
+  if (H5Sget_simple_extent_dims(space.get(), dims, nullptr) < 0) fail(dataset, "cannot get dimensions");
+  return {static_cast<int64_t>(dims[0]), static_cast<int64_t>(rank == 2 ? dims[1] : 1)};
+}
+
+std::vector<double> Hdf5File::read_double(const std::string& dataset, int64_t offset, int64_t rows) const {
+  const auto s = shape(dataset);
+  std::vector<double> out(static_cast<size_t>(rows > 0 ? rows : 0) * s[1]);
+  read_block(dataset, offset, rows, out.data(), H5T_NATIVE_DOUBLE);
+  return out;
+}
+
+std::vector<int64_t> Hdf5File::read_int64(const std::string& dataset, int64_t offset, int64_t rows) const {
+  const auto s = shape(dataset);
+  std::vector<int64_t> out(static_cast<size_t>(rows > 0 ? rows : 0) * s[1]);
+  read_block(dataset, offset, rows, out.data(), H5T_NATIVE_INT64);
+  return out;
+}
+
+void Hdf5File::read_block(const std::string& dataset, int64_t offset, int64_t rows, void* data,
+                          hid_t mem_type) const {
+  Handle dset(H5Dopen2(file_, dataset.c_str(), H5P_DEFAULT), H5Dclose);
+  if (!dset.ok()) fail(dataset, "no such dataset");
+  Handle file_space(H5Dget_space(dset.get()), H5Sclose);
+  if (!file_space.ok()) fail(dataset, "cannot get dataspace");
+  const int ndims = H5Sget_simple_extent_ndims(file_space.get());
+  hsize_t dims[2] = {0, 1};
+  if (ndims < 1 || ndims > 2 || H5Sget_simple_extent_dims(file_space.get(), dims, nullptr) < 0)
+    fail(dataset, "expected a 1-D or 2-D dataset");
+  // Agreed across ranks: one rank throwing alone would leave the others waiting in the collective read.
+  int bad = offset < 0 || rows < 0 || static_cast<hsize_t>(offset + rows) > dims[0], any_bad = 0;
+  check_mpi(MPI_Allreduce(&bad, &any_bad, 1, MPI_INT, MPI_MAX, comm_), path_, "MPI_Allreduce");
+  if (bad)
+    throw std::runtime_error(path_ + ": " + dataset + ": rows [" + std::to_string(offset) + ", " +
+                             std::to_string(offset + rows) + ") lie outside the dataset's " +
+                             std::to_string(dims[0]) + " rows");
+  if (any_bad) throw std::runtime_error(path_ + ": " + dataset + ": another rank asked for rows outside the dataset");
+  const hsize_t start[2] = {static_cast<hsize_t>(offset), 0};
+  const hsize_t count[2] = {static_cast<hsize_t>(rows), ndims == 2 ? dims[1] : 1};
+  const hsize_t mem_dims[2] = {rows > 0 ? count[0] : 1, count[1]};
+  Handle mem_space(H5Screate_simple(ndims, mem_dims, nullptr), H5Sclose);
+  if (!mem_space.ok()) fail(dataset, "cannot create dataspace");
+  herr_t sel = rows > 0 ? H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr)
+                        : H5Sselect_none(file_space.get());
+  if (sel < 0 || (rows == 0 && H5Sselect_none(mem_space.get()) < 0)) fail(dataset, "cannot select rows");
+  Handle dxpl(H5Pcreate(H5P_DATASET_XFER), H5Pclose);
+  if (!dxpl.ok() || H5Pset_dxpl_mpio(dxpl.get(), H5FD_MPIO_COLLECTIVE) < 0) fail(dataset, "cannot set up transfer");
+  double dummy[1];
+  if (H5Dread(dset.get(), mem_type, mem_space.get(), file_space.get(), dxpl.get(), rows > 0 ? data : dummy) < 0)
+    fail(dataset, "cannot read rows [" + std::to_string(offset) + ", " + std::to_string(offset + rows) + ")");
+}
+
+namespace {
+
+hid_t open_object(hid_t file, const std::string& object) { return H5Oopen(file, object.c_str(), H5P_DEFAULT); }
+
+}  // namespace
+
+void Hdf5File::set_attribute(const std::string& object, const std::string& name, const std::string& value) {
+  if (!writable_ || file_ < 0) fail(object, "file is not open for writing");
+  Handle obj(open_object(file_, object), H5Oclose);
+  if (!obj.ok()) fail(object, "no such group or dataset");
+  const htri_t there = H5Aexists(obj.get(), name.c_str());
+  if (there < 0 || (there > 0 && H5Adelete(obj.get(), name.c_str()) < 0))
+    fail(object, "cannot replace attribute " + name);
+  // Variable-length UTF-8, so h5py reads it as str rather than bytes.
+  Handle type(H5Tcopy(H5T_C_S1), H5Tclose);
+  if (!type.ok() || H5Tset_size(type.get(), H5T_VARIABLE) < 0 || H5Tset_cset(type.get(), H5T_CSET_UTF8) < 0)
+    fail(object, "cannot make string type for attribute " + name);
+  Handle space(H5Screate(H5S_SCALAR), H5Sclose);
+  if (!space.ok()) fail(object, "cannot create dataspace for attribute " + name);
+  Handle attr(H5Acreate2(obj.get(), name.c_str(), type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+  if (!attr.ok()) fail(object, "cannot create attribute " + name);
+  const char* s = value.c_str();
+  if (H5Awrite(attr.get(), type.get(), &s) < 0) fail(object, "cannot write attribute " + name);
+}
+
+void Hdf5File::set_attribute(const std::string& object, const std::string& name, double value) {
+  write_numeric_attribute(object, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, &value);
+}
+
+void Hdf5File::set_int64_attribute(const std::string& object, const std::string& name, int64_t value) {
+  write_numeric_attribute(object, name, H5T_STD_I64LE, H5T_NATIVE_INT64, &value);
+}
+
+void Hdf5File::write_numeric_attribute(const std::string& object, const std::string& name, hid_t file_type,
+                                       hid_t mem_type, const void* value) {
+  if (!writable_ || file_ < 0) fail(object, "file is not open for writing");
+  Handle obj(open_object(file_, object), H5Oclose);
+  if (!obj.ok()) fail(object, "no such group or dataset");
+  const htri_t there = H5Aexists(obj.get(), name.c_str());
+  if (there < 0 || (there > 0 && H5Adelete(obj.get(), name.c_str()) < 0))
+    fail(object, "cannot replace attribute " + name);
+  Handle space(H5Screate(H5S_SCALAR), H5Sclose);
+  if (!space.ok()) fail(object, "cannot create dataspace for attribute " + name);
+  Handle attr(H5Acreate2(obj.get(), name.c_str(), file_type, space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+  if (!attr.ok()) fail(object, "cannot create attribute " + name);
+  if (H5Awrite(attr.get(), mem_type, value) < 0) fail(object, "cannot write attribute " + name);
+}
+
+bool Hdf5File::has_attribute(const std::string& object, const std::string& name) const {
+  if (file_ < 0) fail(object, "file is closed");
+  Handle obj(open_object(file_, object), H5Oclose);
+  if (!obj.ok()) fail(object, "no such group or dataset");
+  const htri_t there = H5Aexists(obj.get(), name.c_str());
+  if (there < 0) fail(object, "cannot look up attribute " + name);
+  return there > 0;
+}
+
+void Hdf5File::read_attribute(const std::string& object, const std::string& name, hid_t mem_type, void* value) const {
+  if (file_ < 0) fail(object, "file is closed");
+  Handle attr(H5Aopen_by_name(file_, object.c_str(), name.c_str(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+  if (!attr.ok()) fail(object, "no attribute " + name);
+  Handle space(H5Aget_space(attr.get()), H5Sclose);
+  if (!space.ok() || H5Sget_simple_extent_npoints(space.get()) != 1)
+    fail(object, "attribute " + name + " is not a scalar");
+  if (H5Aread(attr.get(), mem_type, value) < 0) fail(object, "cannot read attribute " + name);
+}
+
+double Hdf5File::double_attribute(const std::string& object, const std::string& name) const {
+  double v = 0.0;
+  read_attribute(object, name, H5T_NATIVE_DOUBLE, &v);
+  return v;
+}
+
+int64_t Hdf5File::int64_attribute(const std::string& object, const std::string& name) const {
+  int64_t v = 0;
+  read_attribute(object, name, H5T_NATIVE_INT64, &v);
+  return v;
+}
+
+std::string Hdf5File::string_attribute(const std::string& object, const std::string& name) const {
+  if (file_ < 0) fail(object, "file is closed");
+  Handle attr(H5Aopen_by_name(file_, object.c_str(), name.c_str(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+  if (!attr.ok()) fail(object, "no attribute " + name);
+  Handle type(H5Aget_type(attr.get()), H5Tclose);
+  if (!type.ok()) fail(object, "cannot get the type of attribute " + name);
+  if (H5Tget_class(type.get()) != H5T_STRING) fail(object, "attribute " + name + " is not a string");
+  const htri_t variable = H5Tis_variable_str(type.get());
+  if (variable < 0) fail(object, "cannot inspect attribute " + name);
+  Handle mem(H5Tcopy(H5T_C_S1), H5Tclose);
+  if (!mem.ok() || H5Tset_cset(mem.get(), H5Tget_cset(type.get())) < 0) fail(object, "cannot read attribute " + name);
+  if (variable) {
+    if (H5Tset_size(mem.get(), H5T_VARIABLE) < 0) fail(object, "cannot read attribute " + name);
+    char* s = nullptr;
+    if (H5Aread(attr.get(), mem.get(), &s) < 0) fail(object, "cannot read attribute " + name);
+    std::string out = s ? s : "";
+    H5free_memory(s);
+    return out;
+  }
+  // Fixed-length (as other writers may use): read the bytes and drop trailing padding.
+  const size_t size = H5Tget_size(type.get());
+  if (size == 0 || H5Tset_size(mem.get(), size) < 0) fail(object, "cannot read attribute " + name);
+  std::string out(size, '\0');
+  if (H5Aread(attr.get(), mem.get(), out.data()) < 0) fail(object, "cannot read attribute " + name);
+  out.resize(std::strlen(out.c_str()));
+  return out;
+}
+
+}  // namespace tissue

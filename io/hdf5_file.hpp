@@ -1,0 +1,95 @@
+// A thin RAII layer over parallel HDF5 for the files tissue writes (snapshots, checkpoints).
+//
+// Every call here is collective over the file's communicator unless it says otherwise: all ranks call it, in the
+// same order, with the same names and global shapes. Data are 2-D datasets [global_rows x width] of double or
+// int64, each rank writing or reading one contiguous block of rows (possibly none) with collective MPI-IO.
+// Every HDF5 failure throws std::runtime_error naming the file and the dataset, in one line (HDF5's own error
+// stack printing is switched off; its innermost message is kept in the exception).
+//
+// Written files appear atomically: create() writes "<path>.tmp", and close() renames it to <path> once every
+// rank has closed it. A created file that is destroyed without close() (an exception unwound past it) is
+// removed, so a failed write leaves no partial output.
+#pragma once
+#include <hdf5.h>
+#include <mpi.h>
+
+#include <cstdint>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+namespace tissue {
+
+class Hdf5File {
+public:
+  // Collective. Create (truncating) <path>.tmp for writing; close() moves it to <path>.
+  static Hdf5File create(const std::string& path, MPI_Comm comm);
+  // Collective. Open an existing file read-only.
+  static Hdf5File open(const std::string& path, MPI_Comm comm);
+
+  Hdf5File(Hdf5File&& other) noexcept;
+  Hdf5File& operator=(Hdf5File&& other) noexcept;
+  Hdf5File(const Hdf5File&) = delete;
+  Hdf5File& operator=(const Hdf5File&) = delete;
+  ~Hdf5File();
+
+  // Collective. Close the file; for a created file, publish it under its final name (barrier, rank 0
+  // renames, barrier). Throws if HDF5 could not flush the file or the rename failed.
+  void close();
+
+  const std::string& path() const { return path_; }
+  MPI_Comm comm() const { return comm_; }
+  bool writable() const { return writable_; }
+
+  // Groups. Paths are absolute ("/molecules"); missing parents are created too. Existing groups are kept.
+  void create_group(const std::string& group);
+  // Whether a group or dataset exists at this absolute path (not collective: metadata only).
+  bool exists(const std::string& object) const;
+
+  // Collective write of a new dataset [global_rows x width]: this rank's rows [offset, offset + rows), row-major,
+  // rows * width values (data may be null when rows == 0). Parent groups are created as needed.
+  void write(const std::string& dataset, int64_t global_rows, int width, int64_t offset, int64_t rows,
+             const double* data);
+  void write(const std::string& dataset, int64_t global_rows, int width, int64_t offset, int64_t rows,
+             const int64_t* data);
+
+  // The shape {rows, width} of a 2-D dataset (a 1-D dataset reads as width 1).
+  std::vector<int64_t> shape(const std::string& dataset) const;
+  // Collective read of rows [offset, offset + rows) of a dataset: rows * width values.
+  std::vector<double> read_double(const std::string& dataset, int64_t offset, int64_t rows) const;
+  std::vector<int64_t> read_int64(const std::string& dataset, int64_t offset, int64_t rows) const;
+
+  // Attributes on a group or dataset ("/" is the file root). Writing replaces an existing attribute.
+  void set_attribute(const std::string& object, const std::string& name, const std::string& value);
+  void set_attribute(const std::string& object, const std::string& name, const char* value) {
+    set_attribute(object, name, std::string(value));
+  }
+  void set_attribute(const std::string& object, const std::string& name, double value);
+  template <typename I, std::enable_if_t<std::is_integral_v<I>, int> = 0>
+  void set_attribute(const std::string& object, const std::string& name, I value) {
+    set_int64_attribute(object, name, static_cast<int64_t>(value));
+  }
+  bool has_attribute(const std::string& object, const std::string& name) const;
+  std::string string_attribute(const std::string& object, const std::string& name) const;
+  double double_attribute(const std::string& object, const std::string& name) const;
+  int64_t int64_attribute(const std::string& object, const std::string& name) const;
+
+private:
+  Hdf5File(std::string path, MPI_Comm comm, bool writable);
+  void set_int64_attribute(const std::string& object, const std::string& name, int64_t value);
+  void write_block(const std::string& dataset, int64_t global_rows, int width, int64_t offset, int64_t rows,
+                   const void* data, hid_t file_type, hid_t mem_type);
+  void write_numeric_attribute(const std::string& object, const std::string& name, hid_t file_type,
+                               hid_t mem_type, const void* value);
+  void read_block(const std::string& dataset, int64_t offset, int64_t rows, void* data, hid_t mem_type) const;
+  void read_attribute(const std::string& object, const std::string& name, hid_t mem_type, void* value) const;
+  [[noreturn]] void fail(const std::string& object, const std::string& what) const;
+  void release() noexcept;  // close without publishing; removes an unpublished tmp file
+
+  std::string path_;
+  MPI_Comm comm_ = MPI_COMM_NULL;
+  bool writable_ = false;
+  hid_t file_ = -1;
+};
+
+}  // namespace tissue

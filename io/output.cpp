@@ -1,0 +1,215 @@
+#include "io/output.hpp"
+
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <stdexcept>
+
+#include "io/hdf5_file.hpp"
+#include "io/snapshot.hpp"
+#include "io/summary.hpp"
+
+namespace tissue {
+
+namespace {
+
+std::vector<std::int64_t> written_connection_ids(const LocalModel& m) {
+  std::vector<std::int64_t> ids;
+  ids.reserve(m.written_here.size());
+  for (int c : m.written_here) ids.push_back(m.connection_id[c]);
+  return ids;
+}
+
+bool wants(const Scene& s, const char* field) {
+  return std::find(s.output.fields.begin(), s.output.fields.end(), field) != s.output.fields.end();
+}
+
+void make_directories(const std::string& path) {
+  std::string partial;
+  for (std::size_t i = 0; i <= path.size(); ++i) {
+    if (i == path.size() || path[i] == '/') {
+      if (!partial.empty() && mkdir(partial.c_str(), 0755) != 0 && errno != EEXIST)
+        throw std::runtime_error(partial + ": cannot create directory: " + std::strerror(errno));
+    }
+    if (i < path.size()) partial += path[i];
+  }
+}
+
+}  // namespace
+
+Output::Output(const Scene& scene, const LocalModel& model)
+    : scene_(scene),
+      model_(model),
+      molecules_(model.comm, std::vector<std::int64_t>(model.id.begin(), model.id.begin() + model.owned),
+                 model.global_molecules),
+      connections_(model.comm, written_connection_ids(model), model.global_connections) {}
+
+void Output::make_directory() {
+  if (directory_made_) return;
+  if (model_.rank == 0) make_directories(scene_.output.directory);
+  MPI_Barrier(model_.comm);
+  directory_made_ = true;
+}
+
+void Output::snapshot(const SolverState& state, const ForceModel& forces, bool final) {
+  make_directory();
+  const double* x = state.x.array();
+  SnapshotFrame frame;
+  frame.step = state.step;
+  frame.time = state.time;
+  frame.title = scene_.title;
+  frame.molecules = model_.global_molecules;
+  frame.connections = model_.global_connections;
+  frame.molecule_offset = molecules_.begin();
+  frame.molecule_rows = molecules_.count();
+  frame.connection_offset = connections_.begin();
+  frame.connection_rows = connections_.count();
+
+  const int n = model_.owned;
+  frame.positions = molecules_.to_natural(x, 3);
+  if (wants(scene_, "displacements")) {
+    std::vector<double> u(3 * n);
+    for (int i = 0; i < 3 * n; ++i) u[i] = x[i] - model_.rest[i];
+    frame.displacements = molecules_.to_natural(u.data(), 3);
+  }
+  if (wants(scene_, "velocities")) frame.velocities = molecules_.to_natural(state.v.data(), 3);
+  if (wants(scene_, "forces")) {
+    // The connection forces on each molecule: they balance the loads at equilibrium and are the reactions at
+    // held molecules (the net force, zero at equilibrium, would show nothing).
+    std::vector<double> f(3 * model_.local);
+    forces.connection_forces(x, f.data());
+    frame.forces = molecules_.to_natural(f.data(), 3);
+  }
+  // Connections: end points (original ids), strain and force of the ones this rank writes.
+  const std::size_t nw = model_.written_here.size();
+  std::vector<std::int64_t> ends(2 * nw);
+  std::vector<double> strain(nw), tension(nw);
+  for (std::size_t w = 0; w < nw; ++w) {
+    const int c = model_.written_here[w];
+    ends[2 * w] = model_.id[model_.end_a[c]], ends[2 * w + 1] = model_.id[model_.end_b[c]];
+    const double* xa = x + 3 * model_.end_a[c];
+    const double* xb = x + 3 * model_.end_b[c];
+    double len = std::sqrt((xb[0] - xa[0]) * (xb[0] - xa[0]) + (xb[1] - xa[1]) * (xb[1] - xa[1]) +
+                           (xb[2] - xa[2]) * (xb[2] - xa[2]));
+    strain[w] = (len - model_.rest_length[c]) / model_.rest_length[c];
+    tension[w] = model_.stiffness[c] * (len - model_.rest_length[c]);
+  }
+  frame.endpoints = connections_.to_natural_ids(ends.data(), 2);
+  if (wants(scene_, "connection_strain")) frame.connection_strain = connections_.to_natural(strain.data(), 1);
+  if (wants(scene_, "connection_force")) frame.connection_force = connections_.to_natural(tension.data(), 1);
+
+  char name[64];
+  if (final) std::snprintf(name, sizeof name, "final.h5");
+  else std::snprintf(name, sizeof name, "snapshot_%08ld.h5", state.step);
+  const std::string dir = scene_.output.directory + "/";
+  XdmfEntry entry = write_snapshot(dir + name, model_.comm, frame);
+  frames_.push_back(entry);
+  if (model_.rank == 0) write_xdmf(dir + "tissue.xdmf", frames_);
+}
+
+void Output::summary(const TensionTest& test, const Measurements& measured, const Measurements& initial,
+                     const SolveReport& report, const SolverState& state, double wall_seconds,
+                     const std::string& failure) {
+  long peak = peak_memory_bytes(), peak_max = 0;
+  MPI_Allreduce(&peak, &peak_max, 1, MPI_LONG, MPI_MAX, model_.comm);
+  if (model_.rank != 0) return;
+  make_directory();
+  using nlohmann::json;
+  auto opt = [](const std::optional<double>& v) { return v ? json(*v) : json(nullptr); };
+  const double target = scene_.body.youngs_modulus;
+  const bool dynamic = report.kind == "dynamic";
+  json s;
+  s["title"] = scene_.title;
+  s["scene"] = scene_.file;
+  s["version"] = TISSUE_VERSION;
+  s["molecules"] = model_.global_molecules;
+  s["connections"] = model_.global_connections;
+  s["ranks"] = model_.size;
+  s["topology"] = model_.shape.topology;
+  s["youngs_modulus_target"] = target;
+  s["youngs_modulus_measured"] = opt(measured.youngs_modulus);
+  s["error_percent"] = measured.youngs_modulus ? json(100.0 * (*measured.youngs_modulus - target) / target)
+                                               : json(nullptr);
+  s["elongation"] = opt(measured.elongation);
+  s["rest_length"] = test.valid ? json(test.rest_length) : json(nullptr);
+  s["cross_section"] = test.valid ? json(test.cross_section) : json(nullptr);
+  s["applied_force"] = test.valid ? json(test.force) : json(nullptr);
+  s["poisson_ratio_measured"] = opt(measured.poisson_ratio);
+  s["calibration"] = {{"method", scene_.calibration.method},
+                      {"divisor", scene_.calibration.method == "divided" ? json(scene_.calibration.divisor)
+                                                                         : json(nullptr)}};
+  s["solver"] = {{"kind", report.kind},
+                 {"iterations", report.iterations},
+                 {"linear_iterations", report.kind == "static" ? json(report.linear_iterations) : json(nullptr)},
+                 {"residual", dynamic ? json(nullptr) : json(report.residual)},
+                 {"residual_history", report.residual_history},
+                 {"converged", report.converged},
+                 {"tolerance", scene_.solver.tolerance},
+                 {"time_step", report.kind == "static" ? json(nullptr) : json(report.time_step)},
+                 {"critical_time_step", report.critical_time_step > 0 ? json(report.critical_time_step)
+                                                                      : json(nullptr)},
+                 {"note", report.note},
+                 {"failure", failure.empty() ? json(nullptr) : json(failure)}};
+  s["time"] = dynamic ? json(state.time) : json(nullptr);
+  s["steps"] = dynamic ? json(state.step) : json(nullptr);
+  s["kinetic_energy"] = dynamic ? json(measured.kinetic_energy) : json(nullptr);
+  s["energy_initial"] = dynamic ? json(report.energy_initial) : json(nullptr);
+  s["energy_final"] = dynamic ? json(report.energy_final) : json(nullptr);
+  s["center_of_mass_initial"] = initial.center_of_mass;
+  s["center_of_mass"] = measured.center_of_mass;
+  s["contact_force"] = scene_.obstacles.empty() ? json(nullptr) : json(Vec3{0, 0, 0});
+  s["partition"] = {{"edge_cut", model_.partition.edge_cut},
+                    {"imbalance", model_.partition.imbalance},
+                    {"ghosts_per_owned", model_.partition.surface_to_volume}};
+  s["wall_seconds"] = wall_seconds;
+  s["peak_memory_bytes"] = peak_max;
+  write_json_atomically(scene_.output.directory + "/summary.json", s);
+}
+
+int info(const std::string& path, MPI_Comm comm) {
+  int rank;
+  MPI_Comm_rank(comm, &rank);
+  struct stat st;
+  if (stat(path.c_str(), &st) != 0) throw InputError(path, "", "no such file");
+  Hdf5File file = [&] {
+    try {
+      return Hdf5File::open(path, comm);
+    } catch (const std::exception& e) {
+      throw InputError(path, "", "not an HDF5 file written by tissue");
+    }
+  }();
+  auto text = [&](const char* name) {
+    return file.has_attribute("/", name) ? file.string_attribute("/", name) : std::string("(absent)");
+  };
+  auto number = [&](const char* name) {
+    return file.has_attribute("/", name) ? std::to_string(file.int64_attribute("/", name)) : std::string("(absent)");
+  };
+  if (!file.has_attribute("/", "kind")) throw InputError(path, "kind", "not a snapshot or checkpoint of tissue");
+  if (rank == 0) {
+    std::printf("%s: a tissue %s\n", path.c_str(), text("kind").c_str());
+    std::printf("  title:       %s\n", text("title").c_str());
+    std::printf("  step:        %s\n", number("step").c_str());
+    std::printf("  time:        %.9g s\n", file.has_attribute("/", "time") ? file.double_attribute("/", "time") : 0.0);
+    std::printf("  molecules:   %s\n", number("molecules").c_str());
+    std::printf("  connections: %s\n", number("connections").c_str());
+    std::printf("  written by:  %s ranks, tissue %s\n", number("ranks").c_str(), text("version").c_str());
+    const char* datasets[] = {"/molecules/positions", "/molecules/displacements", "/molecules/velocities",
+                              "/molecules/forces", "/connections/endpoints", "/connections/strain",
+                              "/connections/force"};
+    std::printf("  datasets:   ");
+    for (const char* d : datasets)
+      if (file.exists(d)) {
+        auto shape = file.shape(d);
+        std::printf(" %s [%lld x %lld]", d, static_cast<long long>(shape[0]),
+                    static_cast<long long>(shape.size() > 1 ? shape[1] : 1));
+      }
+    std::printf("\n");
+  }
+  return 0;
+}
+
+}  // namespace tissue

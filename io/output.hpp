@@ -1,0 +1,37 @@
+// What a run writes to its output directory: HDF5 snapshots (in original molecule order, whatever the
+// partition) with an XDMF index that ParaView plays as a series, and summary.json. The directory is created only
+// when the first file is written, so a run stopped by bad input leaves nothing behind.
+#pragma once
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "io/xdmf.hpp"
+#include "partition/natural_order.hpp"
+#include "src/measure.hpp"
+#include "src/solvers/solver.hpp"
+
+namespace tissue {
+
+class Output {
+public:
+  Output(const Scene& scene, const LocalModel& model);
+  // Collective. DIR/snapshot_<step>.h5, or DIR/final.h5 for the final state; refreshes DIR/tissue.xdmf.
+  void snapshot(const SolverState& state, const ForceModel& forces, bool final = false);
+  // Collective; rank 0 writes DIR/summary.json.
+  void summary(const TensionTest& test, const Measurements& measured, const Measurements& initial,
+               const SolveReport& report, const SolverState& state, double wall_seconds, const std::string& failure);
+
+private:
+  void make_directory();
+  const Scene& scene_;
+  const LocalModel& model_;
+  NaturalOrder molecules_, connections_;
+  std::vector<XdmfEntry> frames_;
+  bool directory_made_ = false;
+};
+
+// `tissue info FILE.h5`: prints what a snapshot or checkpoint holds. Returns the exit code.
+int info(const std::string& path, MPI_Comm comm);
+
+}  // namespace tissue

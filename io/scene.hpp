@@ -1,0 +1,117 @@
+// The scene: what a user asks for, read from a TOML file (see ../shared/interface.md and the README).
+// Everything here is plain data, validated once on reading: the rest of the program trusts it.
+#pragma once
+#include <array>
+#include <map>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace tissue {
+
+// Bad input: one line naming the file, the key and what is wrong. main() prints what() and exits 2.
+class InputError : public std::runtime_error {
+public:
+  InputError(const std::string& file, const std::string& key, const std::string& problem)
+      : std::runtime_error(file + ": " + (key.empty() ? std::string() : key + ": ") + problem) {}
+};
+
+using Vec3 = std::array<double, 3>;
+
+// A box region of a body with its own material (heterogeneous bodies). Bounds are in metres, in the body's
+// own frame (before offset); a molecule belongs to the last region whose closed box holds it.
+struct RegionSpec {
+  Vec3 lo{}, hi{};
+  std::string material = "custom";
+  double youngs_modulus = 0.0;  // Pa
+  double density = 0.0;         // kg/m^3
+};
+
+struct BodySpec {
+  std::string shape = "box";
+  std::array<long, 3> molecules{2, 2, 2};
+  Vec3 spacing{1.0, 1.0, 1.0};  // m; from size / (molecules - 1) when the scene gives size
+  std::string topology = "face-diagonals";
+  std::string material = "custom";
+  double youngs_modulus = 0.0;  // Pa (from the preset unless the scene gives it)
+  double density = 1000.0;      // kg/m^3
+  Vec3 offset{0.0, 0.0, 0.0};   // m, where molecule (0,0,0) sits
+  std::vector<RegionSpec> regions;
+};
+
+struct CalibrationSpec {
+  std::string method = "linear";
+  double divisor = 1.0;                       // C for "divided", start value for "iterative"
+  std::map<std::string, double> stiffness;    // N/m per connection class (edge, face, body, tet), "manual"
+  double tolerance = 1e-6;                    // iterative: relative error in E at which C is accepted
+  long max_updates = 50;                      // iterative: outer updates of C before failing
+};
+
+struct FixSpec {
+  std::string face;              // x- x+ y- y+ z- z+
+  std::string mode = "clamped";  // clamped | roller
+};
+
+struct LoadSpec {
+  std::string face;
+  Vec3 force{0.0, 0.0, 0.0};          // N, total over the face
+  std::string distribution = "traction";  // traction | equal
+};
+
+struct PhysicsSpec {  // absent means off
+  std::optional<Vec3> gravity;      // m/s^2
+  std::optional<double> viscosity;  // N s/m per molecule
+};
+
+struct ObstacleSpec {
+  std::string kind = "plane";  // plane | sphere
+  Vec3 point{}, normal{0, 0, 1};
+  Vec3 center{};
+  double radius = 0.0;
+  double stiffness = 0.0;  // N/m penalty; 0 = chosen from the body
+};
+
+struct SolverSpec {
+  std::string kind = "static";         // static | relaxation | dynamic
+  double tolerance = 1e-10;            // relative force residual (static, relaxation)
+  std::optional<double> time_step;     // s (relaxation, dynamic); absent = from the critical time step
+  long steps = 1000;                   // dynamic: total step count of the run
+  long max_iterations = 0;             // relaxation/static cap; 0 = a default that grows with the lattice
+  long load_steps = 1;                 // static: load increments
+};
+
+struct OutputSpec {
+  std::string directory = "out";
+  long snapshot_every = 0;    // 0: final state only
+  long checkpoint_every = 0;  // 0: none
+  std::vector<std::string> fields{"positions", "displacements", "forces"};  // snapshot datasets
+  bool progress = true;       // the progress line on rank 0
+};
+
+struct Scene {
+  std::string file;  // the path it was read from (for messages)
+  std::string text;  // the TOML text after --set overrides (kept in checkpoints)
+  std::string title;
+  BodySpec body;
+  CalibrationSpec calibration;
+  std::vector<FixSpec> fixes;
+  std::vector<LoadSpec> loads;
+  PhysicsSpec physics;
+  std::vector<ObstacleSpec> obstacles;
+  SolverSpec solver;
+  OutputSpec output;
+};
+
+// Reads and validates a scene. `overrides` are --set "dotted.key=VALUE" strings (VALUE in TOML syntax, a bare
+// word taken as a string). Throws InputError naming file and key for any problem: unreadable file, not TOML,
+// unknown key, wrong type, value out of range, unknown face/topology/method/material/solver.
+Scene read_scene(const std::string& path, const std::vector<std::string>& overrides = {});
+// The same from text already in memory (checkpoints keep the scene text); `name` is used in messages.
+Scene parse_scene(const std::string& text, const std::string& name,
+                  const std::vector<std::string>& overrides = {});
+
+// Faces: "x-" -> axis 0, side 0; "z+" -> axis 2, side 1. Returns false for an unknown name.
+bool parse_face(const std::string& face, int& axis, int& side);
+
+}  // namespace tissue

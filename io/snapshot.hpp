@@ -1,0 +1,45 @@
+// HDF5 snapshots: the state of a run at one step, in original (global id) order, so files do not depend on the
+// partition. Layout:
+//   /molecules/positions, displacements, velocities, forces   [N x 3] double
+//   /connections/endpoints [C x 2] int64 (a < b), strain [C x 1], force [C x 1] double
+//   root attributes: kind = "snapshot", program = "tissue", version, title, step, time, molecules, connections,
+//   ranks (the writer's communicator size)
+// Only the fields a frame holds are written: a scene asks for them, and absent fields cost nothing.
+#pragma once
+#include <mpi.h>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "io/xdmf.hpp"
+
+namespace tissue {
+
+// One rank's share of a snapshot. The blocks are natural-order blocks (see partition/NaturalOrder): this rank
+// holds molecules [molecule_offset, molecule_offset + molecule_rows) and likewise connections; the blocks of
+// all ranks, in rank order, tile 0..N-1 and 0..C-1. A field is written when any rank holds values for it, so
+// a rank with zero rows leaves every vector empty; a rank with rows gives every written field in full.
+// step, time, title, molecules and connections must be the same on every rank (HDF5 metadata is collective).
+struct SnapshotFrame {
+  int64_t step = 0;
+  double time = 0.0;
+  std::string title;
+  int64_t molecules = 0;    // N
+  int64_t connections = 0;  // C
+
+  int64_t molecule_offset = 0, molecule_rows = 0;
+  std::vector<double> positions, displacements, velocities, forces;  // 3 * molecule_rows each, or empty
+
+  int64_t connection_offset = 0, connection_rows = 0;
+  std::vector<int64_t> endpoints;                        // 2 * connection_rows, or empty
+  std::vector<double> connection_strain, connection_force;  // connection_rows, or empty
+};
+
+// Collective over comm. Writes path atomically (path.tmp, renamed when complete). Throws std::invalid_argument
+// (on every rank) when the blocks do not tile 0..N-1 / 0..C-1 or a field has the wrong length, and
+// std::runtime_error for I/O failures. Returns the frame's XDMF entry (file name without directory), the same
+// on every rank, for write_xdmf.
+XdmfEntry write_snapshot(const std::string& path, MPI_Comm comm, const SnapshotFrame& frame);
+
+}  // namespace tissue

@@ -1,0 +1,99 @@
+#include "io/xdmf.hpp"
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iomanip>
+#include <sstream>
+#include <stdexcept>
+
+namespace tissue {
+
+namespace {
+
+std::string xml_escape(const std::string& s) {
+  std::string out;
+  for (char c : s) {
+    switch (c) {
+      case '&': out += "&amp;"; break;
+      case '<': out += "&lt;"; break;
+      case '>': out += "&gt;"; break;
+      case '"': out += "&quot;"; break;
+      default: out += c;
+    }
+  }
+  return out;
+}
+
+// DataType (XDMF 3) only: meshio rejects an item that has both DataType and NumberType.
+void data_item(std::ostream& os, const std::string& h5, const std::string& dataset, int64_t rows, int width,
+               bool integer) {
+  os << "          <DataItem Dimensions=\"" << rows << ' ' << width << "\" DataType=\"" << (integer ? "Int" : "Float")
+     << "\" Precision=\"8\" Format=\"HDF\">" << xml_escape(h5) << ':' << dataset << "</DataItem>\n";
+}
+
+void attribute(std::ostream& os, const char* name, bool vector, bool node, const std::string& h5,
+               const std::string& dataset, int64_t rows) {
+  os << "        <Attribute Name=\"" << name << "\" AttributeType=\"" << (vector ? "Vector" : "Scalar")
+     << "\" Center=\"" << (node ? "Node" : "Cell") << "\">\n";
+  data_item(os, h5, dataset, rows, vector ? 3 : 1, false);
+  os << "        </Attribute>\n";
+}
+
+}  // namespace
+
+void write_xdmf(const std::string& path, const std::vector<XdmfEntry>& frames) {
+  std::ostringstream os;
+  os << std::setprecision(17);
+  os << "<?xml version=\"1.0\" ?>\n"
+     << "<Xdmf Version=\"3.0\">\n"
+     << "  <Domain>\n"
+     << "    <Grid Name=\"tissue\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
+  for (const XdmfEntry& f : frames) {
+    if (f.h5_file.empty() || f.h5_file.find(':') != std::string::npos)
+      throw std::invalid_argument(path + ": snapshot file name '" + f.h5_file + "' is empty or holds ':'");
+    if (f.molecules <= 0 || f.connections <= 0 || !f.positions || !f.endpoints)
+      throw std::invalid_argument(path + ": " + f.h5_file +
+                                  ": a frame needs its mesh: /molecules/positions and /connections/endpoints");
+    // GridType="Uniform" is spelled out: meshio looks for it to find the mesh.
+    os << "      <Grid Name=\"step_" << f.step << "\" GridType=\"Uniform\">\n"
+       << "        <Time Value=\"" << f.time << "\"/>\n"
+       << "        <Topology TopologyType=\"Polyline\" NodesPerElement=\"2\" NumberOfElements=\"" << f.connections
+       << "\">\n";
+    data_item(os, f.h5_file, "/connections/endpoints", f.connections, 2, true);
+    os << "        </Topology>\n"
+       << "        <Geometry GeometryType=\"XYZ\">\n";
+    data_item(os, f.h5_file, "/molecules/positions", f.molecules, 3, false);
+    os << "        </Geometry>\n";
+    if (f.displacements) attribute(os, "displacement", true, true, f.h5_file, "/molecules/displacements", f.molecules);
+    if (f.velocities) attribute(os, "velocity", true, true, f.h5_file, "/molecules/velocities", f.molecules);
+    if (f.forces) attribute(os, "force", true, true, f.h5_file, "/molecules/forces", f.molecules);
+    if (f.connection_strain) attribute(os, "strain", false, false, f.h5_file, "/connections/strain", f.connections);
+    if (f.connection_force)
+      attribute(os, "connection_force", false, false, f.h5_file, "/connections/force", f.connections);
+    os << "      </Grid>\n";
+  }
+  os << "    </Grid>\n"
+     << "  </Domain>\n"
+     << "</Xdmf>\n";
+
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw std::runtime_error(path + ": cannot create " + tmp + ": " + std::strerror(errno));
+    out << os.str();
+    out.close();
+    if (!out) {
+      std::remove(tmp.c_str());
+      throw std::runtime_error(path + ": cannot write " + tmp);
+    }
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    const int err = errno;
+    std::remove(tmp.c_str());
+    throw std::runtime_error(path + ": cannot rename " + tmp + " into place: " + std::strerror(err));
+  }
+}
+
+}  // namespace tissue

@@ -1,0 +1,29 @@
+// The XDMF index of a series of snapshots, so that ParaView (Xdmf3ReaderS) and meshio (xdmf.TimeSeriesReader)
+// open the whole run as one time series. The XML only points into the HDF5 snapshots; it holds no data.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace tissue {
+
+// One frame of the series: a snapshot file and what it holds. Every snapshot must hold /molecules/positions
+// and /connections/endpoints (the mesh); the other fields are listed only when the file has them.
+struct XdmfEntry {
+  std::string h5_file;  // relative to the .xdmf file's directory (a bare file name when they sit together)
+  int64_t step = 0;
+  double time = 0.0;
+  int64_t molecules = 0;
+  int64_t connections = 0;
+  bool positions = true, endpoints = true;                          // the mesh: required by write_xdmf
+  bool displacements = false, velocities = false, forces = false;  // /molecules/...
+  bool connection_strain = false, connection_force = false;         // /connections/strain, /connections/force
+};
+
+// Not collective: call on one rank (rank 0). Writes <path>.tmp and renames it to path, so readers never see a
+// half-written index. Node attributes are named displacement, velocity, force; cell (connection) attributes
+// strain and connection_force. Throws std::runtime_error if the file cannot be written,
+// std::invalid_argument for an entry without its mesh (positions, endpoints).
+void write_xdmf(const std::string& path, const std::vector<XdmfEntry>& frames);
+
+}  // namespace tissue

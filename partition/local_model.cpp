@@ -1,0 +1,115 @@
+#include "partition/local_model.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <unordered_map>
+
+namespace tissue {
+
+LocalModel distribute(const Body& body, const std::vector<int>& part, const PartitionStats& stats, MPI_Comm comm) {
+  LocalModel m;
+  m.comm = comm;
+  MPI_Comm_rank(comm, &m.rank);
+  MPI_Comm_size(comm, &m.size);
+  m.shape.n = body.n, m.shape.h = body.h, m.shape.offset = body.offset, m.shape.topology = body.topology;
+  m.global_molecules = body.molecules();
+  m.global_connections = static_cast<std::int64_t>(body.connections.size());
+  m.partition = stats;
+  if (m.global_molecules * 3 > std::numeric_limits<PetscInt>::max())
+    throw std::runtime_error("the body has more molecules than 32-bit PETSc indices can address");
+
+  // Contiguous renumbering: part by part, original order within a part.
+  const std::int64_t n = body.molecules();
+  std::vector<PetscInt> first(m.size + 1, 0);
+  for (int p : part) ++first[p + 1];
+  for (int r = 0; r < m.size; ++r) first[r + 1] += first[r];
+  std::vector<PetscInt> block_of(n);
+  {
+    std::vector<PetscInt> next(first.begin(), first.end() - 1);
+    for (std::int64_t g = 0; g < n; ++g) block_of[g] = next[part[g]]++;
+  }
+  m.first_block = first[m.rank];
+
+  std::vector<int> degree(n, 0);
+  for (const auto& c : body.connections) ++degree[c.a], ++degree[c.b];
+
+  // Owned molecules, then ghosts in original order.
+  std::unordered_map<std::int64_t, int> local_of;
+  for (std::int64_t g = 0; g < n; ++g)
+    if (part[g] == m.rank) local_of[g] = static_cast<int>(m.id.size()), m.id.push_back(g);
+  m.owned = static_cast<int>(m.id.size());
+  std::vector<std::int64_t> ghosts;
+  std::vector<std::size_t> mine;  // global indices of local connections
+  for (std::size_t c = 0; c < body.connections.size(); ++c) {
+    const auto& con = body.connections[c];
+    bool a = part[con.a] == m.rank, b = part[con.b] == m.rank;
+    if (!a && !b) continue;
+    mine.push_back(c);
+    if (!a) ghosts.push_back(con.a);
+    if (!b) ghosts.push_back(con.b);
+  }
+  std::sort(ghosts.begin(), ghosts.end());
+  ghosts.erase(std::unique(ghosts.begin(), ghosts.end()), ghosts.end());
+  for (auto g : ghosts) local_of[g] = static_cast<int>(m.id.size()), m.id.push_back(g);
+  m.local = static_cast<int>(m.id.size());
+
+  m.block.resize(m.local), m.rest.resize(3 * m.local), m.mass.resize(m.local);
+  m.youngs_modulus.resize(m.local), m.degree.resize(m.local);
+  for (int i = 0; i < m.local; ++i) {
+    std::int64_t g = m.id[i];
+    m.block[i] = block_of[g];
+    Vec3 x = body.rest_position(g);
+    for (int d = 0; d < 3; ++d) m.rest[3 * i + d] = x[d];
+    m.mass[i] = body.mass[g];
+    m.youngs_modulus[i] = body.youngs_modulus[g];
+    m.degree[i] = degree[g];
+  }
+
+  // Tetrahedra incident on each connection (Van Gelder's Eq. 5), summed per connection.
+  std::unordered_map<std::int64_t, int> local_connection;  // key a * n + b
+  const std::size_t nc = mine.size();
+  m.end_a.resize(nc), m.end_b.resize(nc), m.connection_id.resize(nc), m.connection_class.resize(nc);
+  m.rest_length.resize(nc), m.stiffness.assign(nc, 0.0);
+  for (std::size_t l = 0; l < nc; ++l) {
+    const auto& con = body.connections[mine[l]];
+    m.end_a[l] = local_of[con.a], m.end_b[l] = local_of[con.b];
+    m.connection_id[l] = static_cast<std::int64_t>(mine[l]);
+    m.connection_class[l] = con.cls;
+    double len2 = 0;
+    for (int d = 0; d < 3; ++d) {
+      double dx = m.rest[3 * m.end_b[l] + d] - m.rest[3 * m.end_a[l] + d];
+      len2 += dx * dx;
+    }
+    m.rest_length[l] = std::sqrt(len2);
+    if (part[con.a] == m.rank) m.written_here.push_back(static_cast<int>(l));
+    if (!body.tetrahedra.empty()) local_connection[con.a * n + con.b] = static_cast<int>(l);
+  }
+  if (!body.tetrahedra.empty()) {
+    m.tetra_volume.assign(nc, 0.0);
+    for (const auto& t : body.tetrahedra) {
+      Vec3 p[4];
+      for (int v = 0; v < 4; ++v) p[v] = body.rest_position(t[v]);
+      double e[3][3];
+      for (int v = 0; v < 3; ++v)
+        for (int d = 0; d < 3; ++d) e[v][d] = p[v + 1][d] - p[0][d];
+      double vol = std::fabs(e[0][0] * (e[1][1] * e[2][2] - e[1][2] * e[2][1]) -
+                             e[0][1] * (e[1][0] * e[2][2] - e[1][2] * e[2][0]) +
+                             e[0][2] * (e[1][0] * e[2][1] - e[1][1] * e[2][0])) / 6.0;
+      for (int x = 0; x < 4; ++x)
+        for (int y = x + 1; y < 4; ++y) {
+          auto it = local_connection.find(std::min(t[x], t[y]) * n + std::max(t[x], t[y]));
+          if (it != local_connection.end()) m.tetra_volume[it->second] += vol;
+        }
+    }
+  }
+
+  int ghosts_here = m.local - m.owned, owned = std::max(m.owned, 1);
+  double ratio = static_cast<double>(ghosts_here) / owned, worst = 0;
+  MPI_Allreduce(&ratio, &worst, 1, MPI_DOUBLE, MPI_MAX, comm);
+  m.partition.surface_to_volume = worst;
+  return m;
+}
+
+}  // namespace tissue

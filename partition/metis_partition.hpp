@@ -1,0 +1,21 @@
+// Partition: which rank owns each molecule. METIS k-way on the connection graph, run once on rank 0 and
+// broadcast (fine up to tens of millions of molecules; beyond, see README "Scale").
+#pragma once
+#include <mpi.h>
+
+#include <vector>
+
+#include "src/model/body.hpp"
+
+namespace tissue {
+
+struct PartitionStats {
+  long edge_cut = 0;        // connections whose ends sit on different ranks
+  double imbalance = 1.0;   // largest part / mean part
+  double surface_to_volume = 0.0;  // ghost molecules / owned molecules, largest over ranks (set by distribute)
+};
+
+// part[m] = the rank that owns molecule m. One part is handled without METIS (METIS 5.1 crashes on it).
+std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionStats& stats);
+
+}  // namespace tissue

@@ -1,0 +1,171 @@
+//                         tissue: virtual tissue samples, calibrated to a Young's modulus
+//
+// Solves the molecular model of Maciel, Boulic & Thalmann: spherical mass regions (molecules) joined by
+// spring-like connections whose stiffness is set (calibrated) from the tissue's Young's modulus, then loaded as
+// the scene says and brought to equilibrium (static, relaxation) or integrated in time (dynamic). A tension
+// test reports the body's measured modulus, Eq. 3: E = F l0 / (dl A).
+//
+// Sample runs:
+//   build/tissue run run_scripts/scenes/table2.toml
+//   mpirun -np 2 build/tissue run run_scripts/scenes/table2.toml --set calibration.method=divided \
+//          --set calibration.divisor=3.75 --output out/divided
+//   mpirun -np 2 build/tissue run run_scripts/scenes/table2.toml --set solver.kind=relaxation
+//   build/tissue run run_scripts/scenes/table2.toml -- -ksp_type gmres -pc_type hypre -snes_monitor -log_view
+//   build/tissue info out/table2/final.h5
+//
+// Exit codes: 0 success, 2 bad input (one line naming file and key), 3 the solver failed.
+
+#include <petscsys.h>
+
+#include <CLI/CLI.hpp>
+#include <chrono>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "io/output.hpp"
+#include "io/scene.hpp"
+#include "partition/local_model.hpp"
+#include "partition/metis_partition.hpp"
+#include "src/calibration/calibration.hpp"
+#include "src/measure.hpp"
+#include "src/model/body.hpp"
+#include "src/physics/force_model.hpp"
+#include "src/solvers/solver.hpp"
+
+using namespace tissue;
+
+namespace {
+
+int rank_of(MPI_Comm comm) {
+  int r;
+  MPI_Comm_rank(comm, &r);
+  return r;
+}
+
+// Runs one scene end to end. Returns the exit code.
+int run(const std::string& scene_path, const std::vector<std::string>& overrides, const std::string& output) {
+  const MPI_Comm comm = PETSC_COMM_WORLD;
+  const bool root = rank_of(comm) == 0;
+  const auto start = std::chrono::steady_clock::now();
+
+  // 1. Read the scene (every rank reads the same file; a bad one stops every rank with the same line).
+  Scene scene = read_scene(scene_path, overrides);
+  if (!output.empty()) scene.output.directory = output;
+
+  // 2. Build the body: molecules, connections, material and mass per molecule (global numbering).
+  Body body = build_body(scene);
+
+  // 3. Partition the connection graph with METIS and keep this rank's molecules, ghosts and connections.
+  PartitionStats stats;
+  std::vector<int> part = partition_molecules(body, comm, stats);
+  LocalModel model = distribute(body, part, stats, comm);
+  if (root)
+    std::fprintf(stderr, "tissue: %lld molecules, %lld connections on %d ranks; edge cut %ld, imbalance %.3f, "
+                         "ghosts/owned %.3f\n",
+                 static_cast<long long>(model.global_molecules), static_cast<long long>(model.global_connections),
+                 model.size, model.partition.edge_cut, model.partition.imbalance,
+                 model.partition.surface_to_volume);
+  const Body shape = model.shape;
+  const TensionTest test = tension_test(scene, shape);
+  body = Body(), part = std::vector<int>();  // time stepping needs no global body
+
+  // 4. Calibrate: a stiffness per connection from the material (one method per file, chosen by name).
+  const CalibrationStyle* method = find_calibration(scene.calibration.method);
+  method->compute(CalibrationContext{scene, model}, model.stiffness);
+
+  // 5. The force model: the connection forces plus only the terms the scene lists; loads and holds.
+  ForceModel forces(scene, model);
+  const double dt_critical = critical_time_step(forces);  // collective
+  if (root) std::fprintf(stderr, "tissue: critical time step %.6e s\n", dt_critical);
+
+  // 6. Solve, writing snapshots as the scene asks.
+  SolverState state(model);
+  Output out(scene, model);
+  SolverHooks hooks;
+  hooks.snapshot = [&](const SolverState& s) { out.snapshot(s, forces); };
+  SolveReport report;
+  int code = 0;
+  std::string failure;
+  try {
+    report = solve(scene, model, forces, state, hooks);
+    if (!report.converged) {
+      code = 3;
+      failure = report.kind + ": not converged after " + std::to_string(report.iterations) +
+                " iterations (relative residual " + std::to_string(report.residual) + ")";
+    }
+  } catch (const SolverFailure& e) {
+    code = 3, failure = e.what();
+    report.kind = scene.solver.kind;
+  }
+
+  // 7. Measure: Eq. 3, Poisson ratio, centre of mass, kinetic energy.
+  Measurements measured = measure(scene, model, test, state.x.array(), state.v.data());
+  Measurements initial = measure(scene, model, test, model.rest.data(), nullptr);
+
+  // 8. Write the final state (unless it is not finite) and summary.json.
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (failure.find("non-finite") == std::string::npos) out.snapshot(state, forces, /*final=*/true);
+  out.summary(test, measured, initial, report, state, wall, failure);
+  if (root) {
+    if (test.valid && measured.youngs_modulus)
+      std::printf("%s\n  E target %.6g Pa, measured %.6g Pa, error %+.4f %%; elongation %.6e m; %s %ld iterations, "
+                  "residual %.2e\n",
+                  scene.title.c_str(), scene.body.youngs_modulus, *measured.youngs_modulus,
+                  100.0 * (*measured.youngs_modulus - scene.body.youngs_modulus) / scene.body.youngs_modulus,
+                  *measured.elongation, report.kind.c_str(), report.iterations, report.residual);
+    else
+      std::printf("%s\n  %s: %ld steps, kinetic energy %.6e J\n", scene.title.c_str(), report.kind.c_str(),
+                  report.iterations, measured.kinetic_energy);
+    if (code) std::fprintf(stderr, "tissue: %s\n", failure.c_str());
+  }
+  return code;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  // PETSc options follow "--": they go to PETSc untouched, the rest to our command line.
+  std::vector<char*> ours{argv[0]}, petsc{argv[0]};
+  bool after = false;
+  for (int i = 1; i < argc; ++i) {
+    if (!after && std::string(argv[i]) == "--") { after = true; continue; }
+    (after ? petsc : ours).push_back(argv[i]);
+  }
+
+  CLI::App app{"tissue: molecular model of biological soft tissue, calibrated to a Young's modulus.\n"
+               "PETSc options follow --, e.g. tissue run s.toml -- -ksp_type gmres -log_view"};
+  app.require_subcommand(1);
+  std::string scene_path, checkpoint_path, info_path, output;
+  std::vector<std::string> overrides;
+  auto* run_cmd = app.add_subcommand("run", "run a scene");
+  run_cmd->add_option("scene", scene_path, "scene file (TOML)")->required();
+  run_cmd->add_option("--set", overrides, "override a scene key: --set body.molecules=[20,20,20]");
+  run_cmd->add_option("--output", output, "output directory (default: the scene's output.directory)");
+  auto* info_cmd = app.add_subcommand("info", "say what a snapshot or checkpoint holds");
+  info_cmd->add_option("file", info_path, "HDF5 file")->required();
+  try {
+    app.parse(static_cast<int>(ours.size()), ours.data());
+  } catch (const CLI::ParseError& e) {
+    int code = app.exit(e);
+    return code == 0 ? 0 : 2;
+  }
+
+  int petsc_argc = static_cast<int>(petsc.size());
+  char** petsc_argv = petsc.data();
+  PetscCall(PetscInitialize(&petsc_argc, &petsc_argv, nullptr, nullptr));
+  const bool root = rank_of(PETSC_COMM_WORLD) == 0;
+  int code = 0;
+  try {
+    if (*run_cmd) code = run(scene_path, overrides, output);
+    if (*info_cmd) code = info(info_path, PETSC_COMM_WORLD);
+  } catch (const InputError& e) {
+    if (root) std::fprintf(stderr, "%s\n", e.what());
+    code = 2;
+  } catch (const std::exception& e) {
+    if (root) std::fprintf(stderr, "tissue: %s\n", e.what());
+    code = 3;
+  }
+  PetscCall(PetscFinalize());
+  return code;
+}

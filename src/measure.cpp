@@ -1,0 +1,68 @@
+#include "src/measure.hpp"
+
+#include <array>
+
+namespace tissue {
+
+Measurements measure(const Scene& scene, const LocalModel& model, const TensionTest& test, const double* x,
+                     const double* v) {
+  const Body& s = model.shape;
+  // Sums reduced in one call: [0..2] m x, [3] m, [4] kinetic, [5..8] loaded/fixed sums and counts,
+  // [9..16] lateral faces (u-, u+, v-, v+: sum of displacement along the axis, count).
+  std::array<double, 17> sum{};
+  const int u = (test.axis + 1) % 3, w = (test.axis + 2) % 3;
+  for (int i = 0; i < model.owned; ++i) {
+    const std::int64_t g = model.id[i];
+    const double* xi = x + 3 * i;
+    const double* x0 = model.rest.data() + 3 * i;
+    for (int d = 0; d < 3; ++d) sum[d] += model.mass[i] * xi[d];
+    sum[3] += model.mass[i];
+    if (v)
+      for (int d = 0; d < 3; ++d) sum[4] += 0.5 * model.mass[i] * v[3 * i + d] * v[3 * i + d];
+    if (!test.valid) continue;
+    double along = 0;
+    for (int d = 0; d < 3; ++d) along += (xi[d] - x0[d]) * test.direction[d];
+    if (s.on_face(g, test.axis, test.load_side)) sum[5] += along, sum[6] += 1;
+    if (s.on_face(g, test.axis, test.fixed_side)) sum[7] += along, sum[8] += 1;
+    const int lateral[2] = {u, w};
+    for (int l = 0; l < 2; ++l)
+      for (int side = 0; side < 2; ++side)
+        if (s.on_face(g, lateral[l], side)) {
+          sum[9 + 4 * l + 2 * side] += xi[lateral[l]] - x0[lateral[l]];
+          sum[10 + 4 * l + 2 * side] += 1;
+        }
+  }
+  std::array<double, 17> total{};
+  MPI_Allreduce(sum.data(), total.data(), static_cast<int>(sum.size()), MPI_DOUBLE, MPI_SUM, model.comm);
+
+  Measurements m;
+  m.mass = total[3];
+  for (int d = 0; d < 3; ++d) m.center_of_mass[d] = total[d] / total[3];
+  m.kinetic_energy = total[4];
+  if (test.valid) {
+    const double dl = total[5] / total[6] - total[7] / total[8];
+    m.elongation = dl;
+    if (dl != 0.0) m.youngs_modulus = test.force * test.rest_length / (dl * test.cross_section);
+    // The Poisson ratio needs the four lateral faces free of holds and loads.
+    bool free = true;
+    auto touches = [&](const std::string& face) {
+      int a, side;
+      parse_face(face, a, side);
+      return a != test.axis;
+    };
+    for (const auto& f : scene.fixes) free = free && !touches(f.face);
+    for (const auto& l : scene.loads) free = free && !touches(l.face);
+    if (free && dl != 0.0) {
+      const double axial = dl / test.rest_length;
+      double lateral = 0;
+      const int axes[2] = {u, w};
+      for (int l = 0; l < 2; ++l)
+        lateral += 0.5 * (total[11 + 4 * l] / total[12 + 4 * l] - total[9 + 4 * l] / total[10 + 4 * l]) /
+                   s.length(axes[l]);
+      m.poisson_ratio = -lateral / axial;
+    }
+  }
+  return m;
+}
+
+}  // namespace tissue

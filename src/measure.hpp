@@ -1,0 +1,24 @@
+// What a run measures: Eq. 3 (the body's Young's modulus from its elongation), the Poisson ratio, the centre of
+// mass and the kinetic energy. Every value is a global reduction over the owned molecules.
+#pragma once
+#include <optional>
+
+#include "partition/local_model.hpp"
+#include "src/physics/force_model.hpp"
+
+namespace tissue {
+
+struct Measurements {
+  std::optional<double> elongation;        // m: mean displacement along the load, loaded face minus fixed face
+  std::optional<double> youngs_modulus;    // Eq. 3: F l0 / (dl A)
+  std::optional<double> poisson_ratio;     // lateral contraction / axial strain, when lateral faces are free
+  Vec3 center_of_mass{};
+  double kinetic_energy = 0.0;
+  double mass = 0.0;
+};
+
+// x: local positions (owned first); v: owned velocities, or nullptr.
+Measurements measure(const Scene& scene, const LocalModel& model, const TensionTest& test, const double* x,
+                     const double* v);
+
+}  // namespace tissue

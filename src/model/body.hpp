@@ -1,0 +1,67 @@
+// The body: molecules (spherical mass regions) and the connections between them, in the original (global)
+// numbering that every file on disk uses. A box molecule (i,j,k) has id i + n_x (j + n_y k) and sits at
+// offset + (i h_x, j h_y, k h_z).
+#pragma once
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "io/scene.hpp"
+
+namespace tissue {
+
+// Connection classes, by the part of a cell a connection spans (manual stiffness is given per class).
+enum class ConnectionClass : std::int8_t { edge = 0, face = 1, body = 2 };
+const char* class_name(ConnectionClass c);
+
+struct Connection {
+  std::int64_t a, b;  // molecule ids, a < b
+  ConnectionClass cls;
+};
+
+using Tetrahedron = std::array<std::int64_t, 4>;
+
+struct Body {
+  std::array<long, 3> n{};  // molecules along x, y, z
+  Vec3 h{};                 // spacing, m
+  Vec3 offset{};            // position of molecule (0,0,0)
+  std::string topology;
+  std::vector<Connection> connections;  // sorted by (a, b): the global connection order
+  std::vector<Tetrahedron> tetrahedra;  // filled by the tetrahedral topology only (Van Gelder's Eq. 5)
+  std::vector<double> youngs_modulus;   // per molecule, Pa
+  std::vector<double> mass;             // per molecule, kg
+
+  std::int64_t molecules() const { return static_cast<std::int64_t>(n[0]) * n[1] * n[2]; }
+  std::int64_t id(long i, long j, long k) const { return i + n[0] * (j + static_cast<std::int64_t>(n[1]) * k); }
+  std::array<long, 3> index(std::int64_t id) const {
+    return {static_cast<long>(id % n[0]), static_cast<long>((id / n[0]) % n[1]),
+            static_cast<long>(id / (static_cast<std::int64_t>(n[0]) * n[1]))};
+  }
+  Vec3 rest_position(std::int64_t id) const {
+    auto ijk = index(id);
+    return {offset[0] + ijk[0] * h[0], offset[1] + ijk[1] * h[1], offset[2] + ijk[2] * h[2]};
+  }
+  // The tributary width of a molecule along an axis: h inside, h/2 on the boundary.
+  double width(long i, int axis) const { return (i == 0 || i == n[axis] - 1) ? 0.5 * h[axis] : h[axis]; }
+  double volume(std::int64_t id) const {
+    auto ijk = index(id);
+    return width(ijk[0], 0) * width(ijk[1], 1) * width(ijk[2], 2);
+  }
+  bool on_face(std::int64_t id, int axis, int side) const {
+    long i = index(id)[axis];
+    return side == 0 ? i == 0 : i == n[axis] - 1;
+  }
+  // The area of the face (axis, side) that this molecule stands for.
+  double face_area(std::int64_t id, int axis) const {
+    auto ijk = index(id);
+    int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
+    return width(ijk[a1], a1) * width(ijk[a2], a2);
+  }
+  double length(int axis) const { return (n[axis] - 1) * h[axis]; }  // the body's extent along an axis
+};
+
+// Builds the body a scene describes: geometry, topology, per-molecule material and mass.
+Body build_body(const Scene& scene);
+
+}  // namespace tissue

@@ -1,0 +1,22 @@
+// Tissue presets: linear-region Young's modulus and density of joint and soft tissues, with their sources
+// (../shared/reference/tissues.md). A scene names one with `material = "cartilage"`; youngs_modulus or density
+// given in the scene override the preset's value.
+#pragma once
+#include <string>
+#include <vector>
+
+namespace tissue {
+
+struct TissuePreset {
+  std::string name;
+  double youngs_modulus;  // Pa, a representative value inside the range
+  double density;         // kg/m^3
+  std::string range;      // the literature range, in words
+  std::string source;
+};
+
+const std::vector<TissuePreset>& tissue_presets();
+// nullptr when the name is unknown ("custom" is not a preset: the scene gives E and density itself).
+const TissuePreset* find_tissue(const std::string& name);
+
+}  // namespace tissue

@@ -1,0 +1,225 @@
+#include "src/physics/force_model.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+namespace tissue {
+
+TensionTest tension_test(const Scene& scene, const Body& shape) {
+  TensionTest t;
+  if (scene.loads.size() != 1) return t;
+  int axis, side;
+  parse_face(scene.loads[0].face, axis, side);
+  for (const auto& fix : scene.fixes) {
+    int fa, fs;
+    parse_face(fix.face, fa, fs);
+    if (fa == axis && fs != side) t.valid = true;
+  }
+  if (!t.valid) return t;
+  const Vec3& F = scene.loads[0].force;
+  t.force = std::sqrt(F[0] * F[0] + F[1] * F[1] + F[2] * F[2]);
+  for (int d = 0; d < 3; ++d) t.direction[d] = F[d] / t.force;
+  t.axis = axis, t.load_side = side, t.fixed_side = 1 - side;
+  t.rest_length = shape.length(axis);
+  t.cross_section = shape.length((axis + 1) % 3) * shape.length((axis + 2) % 3);
+  return t;
+}
+
+namespace {
+
+// The components a fixed face holds, for one molecule (global id) of the body.
+void hold(const Body& s, const FixSpec& fix, std::int64_t g, std::uint8_t* held) {
+  int axis, side;
+  parse_face(fix.face, axis, side);
+  if (!s.on_face(g, axis, side)) return;
+  if (fix.mode == "clamped") {
+    held[0] = held[1] = held[2] = 1;
+    return;
+  }
+  // Roller: the face-normal component, plus the least extra holds that remove the rigid motion left in the
+  // face's plane: both in-plane components of its first corner, and the v component of the corner along u
+  // (that stops the rotation about the normal). A uniform lateral contraction meets no resistance from these.
+  held[axis] = 1;
+  int u = (axis + 1) % 3, v = (axis + 2) % 3;
+  auto ijk = s.index(g);
+  if (ijk[u] == 0 && ijk[v] == 0) held[u] = held[v] = 1;
+  if (ijk[u] == s.n[u] - 1 && ijk[v] == 0) held[v] = 1;
+}
+
+}  // namespace
+
+ForceModel::ForceModel(const Scene& scene, const LocalModel& model) : model_(model) {
+  const Body& s = model.shape;
+  held_.assign(3 * model.local, 0);
+  for (int i = 0; i < model.local; ++i)
+    for (const auto& fix : scene.fixes) hold(s, fix, model.id[i], &held_[3 * i]);
+
+  applied_.assign(3 * model.owned, 0.0);
+  for (const auto& load : scene.loads) {
+    int axis, side;
+    parse_face(load.face, axis, side);
+    int u = (axis + 1) % 3, v = (axis + 2) % 3;
+    const double face_area = s.length(u) * s.length(v);
+    const double count = static_cast<double>(s.n[u]) * s.n[v];
+    for (int i = 0; i < model.owned; ++i) {
+      if (!s.on_face(model.id[i], axis, side)) continue;
+      // traction: each molecule's share is its tributary area on the face; equal: the same share for all.
+      double share = load.distribution == "equal" ? 1.0 / count : s.face_area(model.id[i], axis) / face_area;
+      for (int d = 0; d < 3; ++d) applied_[3 * i + d] += share * load.force[d];
+    }
+  }
+  if (scene.physics.gravity) gravity_ = std::make_unique<Vec3>(*scene.physics.gravity);
+  if (scene.physics.viscosity && *scene.physics.viscosity > 0)
+    viscosity_ = std::make_unique<double>(*scene.physics.viscosity);
+
+  double sum = 0;
+  for (int i = 0; i < model.owned; ++i)
+    for (int d = 0; d < 3; ++d) {
+      double fe = applied_[3 * i + d] + (gravity_ ? model.mass[i] * (*gravity_)[d] : 0.0);
+      if (!held_[3 * i + d]) sum += fe * fe;
+    }
+  MPI_Allreduce(&sum, &applied_norm_, 1, MPI_DOUBLE, MPI_SUM, model.comm);
+  applied_norm_ = std::sqrt(applied_norm_);
+}
+
+void ForceModel::connection_forces(const double* x, double* f) const {
+  const int nc = model_.connections();
+  const int* a = model_.end_a.data();
+  const int* b = model_.end_b.data();
+  const double* k = model_.stiffness.data();
+  const double* l0 = model_.rest_length.data();
+  std::fill(f, f + 3 * model_.local, 0.0);
+  // Geometrically exact: the force acts along the current direction, k times the change of length.
+  for (int c = 0; c < nc; ++c) {
+    const double* xa = x + 3 * a[c];
+    const double* xb = x + 3 * b[c];
+    double d0 = xb[0] - xa[0], d1 = xb[1] - xa[1], d2 = xb[2] - xa[2];
+    double len = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
+    double s = k[c] * (len - l0[c]) / len;
+    double* fa = f + 3 * a[c];
+    double* fb = f + 3 * b[c];
+    fa[0] += s * d0, fa[1] += s * d1, fa[2] += s * d2;
+    fb[0] -= s * d0, fb[1] -= s * d1, fb[2] -= s * d2;
+  }
+}
+
+void ForceModel::forces(const double* x, const double* v, double* f, double load_factor) const {
+  connection_forces(x, f);
+  const int n = model_.owned;
+  for (int i = 0; i < 3 * n; ++i) f[i] += load_factor * applied_[i];
+  if (gravity_)
+    for (int i = 0; i < n; ++i)
+      for (int d = 0; d < 3; ++d) f[3 * i + d] += model_.mass[i] * (*gravity_)[d];
+  if (viscosity_)
+    for (int i = 0; i < 3 * n; ++i) f[i] -= *viscosity_ * v[i];
+  for (int i = 0; i < 3 * n; ++i)
+    if (held_[i]) f[i] = 0.0;
+}
+
+double ForceModel::potential_energy(const double* x, double load_factor) const {
+  double e = 0;
+  for (int c : model_.written_here) {  // each connection counted once over all ranks
+    const double* xa = x + 3 * model_.end_a[c];
+    const double* xb = x + 3 * model_.end_b[c];
+    double d0 = xb[0] - xa[0], d1 = xb[1] - xa[1], d2 = xb[2] - xa[2];
+    double stretch = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2) - model_.rest_length[c];
+    e += 0.5 * model_.stiffness[c] * stretch * stretch;
+  }
+  for (int i = 0; i < model_.owned; ++i)
+    for (int d = 0; d < 3; ++d) {
+      double u = x[3 * i + d] - model_.rest[3 * i + d];
+      e -= load_factor * applied_[3 * i + d] * u;
+      if (gravity_) e -= model_.mass[i] * (*gravity_)[d] * u;
+    }
+  return e;
+}
+
+double ForceModel::largest_stiffness_rate() const {
+  std::vector<double> ksum(model_.local, 0.0);
+  for (int c = 0; c < model_.connections(); ++c) {
+    ksum[model_.end_a[c]] += model_.stiffness[c];
+    ksum[model_.end_b[c]] += model_.stiffness[c];
+  }
+  double rate = 0;
+  for (int i = 0; i < model_.owned; ++i) rate = std::max(rate, 2.0 * ksum[i] / model_.mass[i]);
+  double global = 0;
+  MPI_Allreduce(&rate, &global, 1, MPI_DOUBLE, MPI_MAX, model_.comm);
+  return global;
+}
+
+PetscErrorCode ForceModel::create_tangent(Mat* J) const {
+  PetscFunctionBeginUser;
+  const int n = model_.owned;
+  std::vector<std::set<int>> neighbours(n);
+  for (int c = 0; c < model_.connections(); ++c) {
+    int a = model_.end_a[c], b = model_.end_b[c];
+    if (a < n) neighbours[a].insert(b);
+    if (b < n) neighbours[b].insert(a);
+  }
+  std::vector<PetscInt> dnnz(n), onnz(n);
+  for (int i = 0; i < n; ++i) {
+    dnnz[i] = 1, onnz[i] = 0;
+    for (int j : neighbours[i]) (j < n ? dnnz[i] : onnz[i])++;
+  }
+  PetscCall(MatCreate(model_.comm, J));
+  PetscCall(MatSetSizes(*J, 3 * n, 3 * n, PETSC_DETERMINE, PETSC_DETERMINE));
+  PetscCall(MatSetType(*J, MATAIJ));  // AIJ with block size 3: what GAMG wants (not BAIJ)
+  PetscCall(MatSetBlockSize(*J, 3));
+  PetscCall(MatXAIJSetPreallocation(*J, 3, dnnz.data(), onnz.data(), nullptr, nullptr));
+  PetscCall(MatSetOption(*J, MAT_SYMMETRIC, PETSC_TRUE));
+  PetscCall(MatSetOption(*J, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ForceModel::assemble_tangent(const double* x, Mat J) const {
+  PetscFunctionBeginUser;
+  PetscCall(MatZeroEntries(J));
+  const int n = model_.owned;
+  auto put = [&](int row, int col, const double K[9], double sign) -> PetscErrorCode {
+    PetscFunctionBeginUser;
+    double block[9];
+    for (int r = 0; r < 3; ++r)
+      for (int s = 0; s < 3; ++s) {
+        bool held = held_[3 * row + r] || held_[3 * col + s];
+        block[3 * r + s] = held ? 0.0 : sign * K[3 * r + s];
+      }
+    PetscInt br = model_.block[row], bc = model_.block[col];
+    PetscCall(MatSetValuesBlocked(J, 1, &br, 1, &bc, block, ADD_VALUES));
+    PetscFunctionReturn(0);
+  };
+  for (int c = 0; c < model_.connections(); ++c) {
+    int a = model_.end_a[c], b = model_.end_b[c];
+    const double* xa = x + 3 * a;
+    const double* xb = x + 3 * b;
+    double d[3] = {xb[0] - xa[0], xb[1] - xa[1], xb[2] - xa[2]};
+    double len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    double k = model_.stiffness[c], geo = 1.0 - model_.rest_length[c] / len;
+    // K = k [ n n^T + (1 - l0/l)(I - n n^T) ]: the material part along the spring, the geometric part across.
+    double K[9];
+    for (int r = 0; r < 3; ++r)
+      for (int s = 0; s < 3; ++s) {
+        double nn = d[r] * d[s] / (len * len);
+        K[3 * r + s] = k * (nn + geo * ((r == s ? 1.0 : 0.0) - nn));
+      }
+    if (a < n) {
+      PetscCall(put(a, a, K, 1.0));
+      PetscCall(put(a, b, K, -1.0));
+    }
+    if (b < n) {
+      PetscCall(put(b, b, K, 1.0));
+      PetscCall(put(b, a, K, -1.0));
+    }
+  }
+  for (int i = 0; i < n; ++i)
+    for (int d = 0; d < 3; ++d)
+      if (held_[3 * i + d]) {
+        PetscInt r = 3 * model_.block[i] + d;
+        PetscCall(MatSetValue(J, r, r, 1.0, ADD_VALUES));
+      }
+  PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
+  PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
+  PetscFunctionReturn(0);
+}
+
+}  // namespace tissue

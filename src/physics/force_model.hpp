@@ -1,0 +1,59 @@
+// The force model, Eq. 2: F = F_G + F_L + F_C (+ collisions, to come), with only the terms the scene lists.
+// Connection forces are always there; gravity and ambient viscous friction exist only when [physics] names them,
+// and cost nothing otherwise (they are not constructed).
+#pragma once
+#include <petscmat.h>
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "io/scene.hpp"
+#include "partition/local_model.hpp"
+
+namespace tissue {
+
+// The tension test of Eq. 3 that the scene describes, when it describes one: one loaded face with a fixed face
+// opposite. l0 = distance between the two planes of molecules, A = the cross-section normal to the load axis.
+struct TensionTest {
+  bool valid = false;
+  int axis = 2, load_side = 0, fixed_side = 1;
+  Vec3 direction{0, 0, -1};  // unit vector of the load
+  double force = 0.0;        // N, total
+  double rest_length = 0.0, cross_section = 0.0;
+};
+TensionTest tension_test(const Scene& scene, const Body& shape);
+
+class ForceModel {
+public:
+  ForceModel(const Scene& scene, const LocalModel& model);
+
+  // Forces on every owned molecule (3 * owned values of f; the 3 * local array is scratch for ghost slots).
+  // x: local positions, ghosts up to date; v: owned velocities (read only when viscosity is on).
+  // load_factor scales the applied face loads (load stepping); held components get zero force.
+  void forces(const double* x, const double* v, double* f, double load_factor = 1.0) const;
+  // Connection forces only, into f (3 * local, ghost slots scratch), nothing zeroed for held components.
+  void connection_forces(const double* x, double* f) const;
+  // Rank-local potential energy of the owned molecules' share: springs (half per end) and gravity and loads.
+  double potential_energy(const double* x, double load_factor = 1.0) const;
+
+  // Tangent stiffness -dF/dx of the connection forces, owned rows, held components' rows and columns replaced
+  // by identity (so the matrix stays symmetric). J must be a preallocated AIJ matrix of block size 3.
+  PetscErrorCode assemble_tangent(const double* x, Mat J) const;
+  PetscErrorCode create_tangent(Mat* J) const;  // AIJ, block size 3, preallocated
+
+  const std::vector<std::uint8_t>& held() const { return held_; }   // 3 * owned: 1 = held component
+  const std::vector<double>& applied() const { return applied_; }   // 3 * owned: face loads at factor 1
+  double applied_norm() const { return applied_norm_; }             // global 2-norm of loads + gravity
+  double largest_stiffness_rate() const;  // max over molecules of 2 sum k / m (Gershgorin bound of omega^2)
+
+private:
+  const LocalModel& model_;
+  std::vector<std::uint8_t> held_;
+  std::vector<double> applied_;
+  std::unique_ptr<Vec3> gravity_;       // present only when the scene asks
+  std::unique_ptr<double> viscosity_;   // present only when the scene asks
+  double applied_norm_ = 0.0;
+};
+
+}  // namespace tissue

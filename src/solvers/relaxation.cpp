@@ -1,0 +1,83 @@
+// Relaxation, the paper's way to equilibrium: explicit damped dynamics until the relative force residual falls
+// below solver.tolerance. The damping is FIRE (Bitzek et al., PRL 97, 170201, 2006), the same minimizer as the
+// LAMMPS peer: velocities are steered along the force while power is positive and zeroed when it turns negative,
+// and the time step grows up to the one the scene gives (default: 0.9 x the critical time step).
+#include <algorithm>
+#include <cmath>
+
+#include "src/solvers/progress.hpp"
+#include "src/solvers/solver.hpp"
+
+namespace tissue {
+
+SolveReport solve_relaxation(const Scene& scene, const LocalModel& model, const ForceModel& forces,
+                             SolverState& state, const SolverHooks& hooks) {
+  SolveReport report;
+  report.kind = "relaxation";
+  report.critical_time_step = critical_time_step(forces);
+  const double dt_max = scene.solver.time_step ? *scene.solver.time_step : 0.9 * report.critical_time_step;
+  report.time_step = dt_max;
+  const long n_max = std::max({model.shape.n[0], model.shape.n[1], model.shape.n[2]});
+  const long max_iterations = scene.solver.max_iterations > 0 ? scene.solver.max_iterations : 100000 + 5000 * n_max;
+  const int n = 3 * model.owned;
+  const double* m = model.mass.data();
+  double* x = state.x.array();
+  double* v = state.v.data();
+  double* f = state.f.data();
+  const auto& held = forces.held();
+
+  // FIRE parameters: the published defaults.
+  const int n_delay = 5;
+  const double f_inc = 1.1, f_dec = 0.5, alpha_start = 0.1, f_alpha = 0.99;
+  double dt = 0.5 * dt_max, alpha = alpha_start;
+  long positive = 0;
+
+  Progress progress("relaxation", scene.output.progress, model.comm);
+  state.x.update_ghosts();
+  forces.forces(x, v, f);
+  double residual = relative_residual(model, forces, f);
+  long it = 0;
+  for (;; ++it) {
+    if (!std::isfinite(residual)) check_finite(model, x, f, state.step, "relaxation");
+    if (it % 100 == 0) report.residual_history.push_back(residual);
+    progress.update(it, residual, scene.solver.tolerance, 0);
+    if (residual <= scene.solver.tolerance) {
+      report.converged = true;
+      break;
+    }
+    if (it >= max_iterations) break;
+    if (hooks.snapshot && scene.output.snapshot_every > 0 && it > 0 && it % scene.output.snapshot_every == 0)
+      hooks.snapshot(state);
+
+    // Power P = F . v and the norms, in one reduction.
+    double local[3] = {0, 0, 0}, global[3];
+    for (int i = 0; i < n; ++i) local[0] += f[i] * v[i], local[1] += f[i] * f[i], local[2] += v[i] * v[i];
+    MPI_Allreduce(local, global, 3, MPI_DOUBLE, MPI_SUM, model.comm);
+    if (global[0] > 0) {
+      const double mix = global[1] > 0 ? alpha * std::sqrt(global[2] / global[1]) : 0.0;
+      for (int i = 0; i < n; ++i) v[i] = (1.0 - alpha) * v[i] + mix * f[i];
+      if (++positive > n_delay) dt = std::min(dt * f_inc, dt_max), alpha *= f_alpha;
+    } else {
+      std::fill(v, v + n, 0.0);
+      dt *= f_dec, alpha = alpha_start, positive = 0;
+    }
+    // Semi-implicit Euler, as FIRE prescribes.
+    for (int i = 0; i < model.owned; ++i)
+      for (int d = 0; d < 3; ++d) {
+        const int j = 3 * i + d;
+        v[j] = held[j] ? 0.0 : v[j] + dt * f[j] / m[i];
+        x[j] += dt * v[j];
+      }
+    state.x.update_ghosts();
+    forces.forces(x, v, f);
+    residual = relative_residual(model, forces, f);
+    ++state.step;
+  }
+  report.iterations = it;
+  report.residual = residual;
+  report.residual_history.push_back(residual);
+  std::fill(state.v.begin(), state.v.end(), 0.0);  // equilibrium: at rest
+  return report;
+}
+
+}  // namespace tissue

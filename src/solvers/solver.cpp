@@ -1,0 +1,43 @@
+#include "src/solvers/solver.hpp"
+
+#include <cmath>
+#include <limits>
+
+namespace tissue {
+
+double critical_time_step(const ForceModel& forces) {
+  // Gershgorin on the mass-scaled stiffness: |lambda| <= max_i (sum_j ||K_ij||) / m_i = max_i 2 sum_c k_c / m_i.
+  double rate = forces.largest_stiffness_rate();
+  return rate > 0 ? 2.0 / std::sqrt(rate) : std::numeric_limits<double>::infinity();
+}
+
+double relative_residual(const LocalModel& model, const ForceModel& forces, const double* f) {
+  double sum = 0;
+  for (int i = 0; i < 3 * model.owned; ++i) sum += f[i] * f[i];  // held components are already zero
+  double total = 0;
+  MPI_Allreduce(&sum, &total, 1, MPI_DOUBLE, MPI_SUM, model.comm);
+  double reference = forces.applied_norm();
+  return reference > 0 ? std::sqrt(total) / reference : std::sqrt(total);
+}
+
+void check_finite(const LocalModel& model, const double* x, const double* f, long step, const char* what) {
+  long long bad = std::numeric_limits<long long>::max();
+  for (int i = 0; i < model.owned; ++i)
+    for (int d = 0; d < 3; ++d)
+      if (!std::isfinite(x[3 * i + d]) || !std::isfinite(f[3 * i + d])) bad = std::min<long long>(bad, model.id[i]);
+  long long first = 0;
+  MPI_Allreduce(&bad, &first, 1, MPI_LONG_LONG, MPI_MIN, model.comm);
+  if (first != std::numeric_limits<long long>::max())
+    throw SolverFailure(std::string(what) + " diverged at step " + std::to_string(step) + ": molecule " +
+                        std::to_string(first) + " has a non-finite position or force (time step too large?)");
+}
+
+SolveReport solve(const Scene& scene, const LocalModel& model, const ForceModel& forces, SolverState& state,
+                  const SolverHooks& hooks) {
+  const std::string& kind = scene.solver.kind;
+  if (kind == "relaxation") return solve_relaxation(scene, model, forces, state, hooks);
+  if (kind == "dynamic") return solve_dynamic(scene, model, forces, state, hooks);
+  return solve_static(scene, model, forces, state, hooks);
+}
+
+}  // namespace tissue

@@ -1,0 +1,62 @@
+// Solvers: bring the body to equilibrium (static, relaxation) or integrate it in time (dynamic). All are driven
+// by the ForceModel and advance a SolverState; the kind is chosen by `solver.kind`.
+#pragma once
+#include <functional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "partition/ghosted_vector.hpp"
+#include "src/physics/force_model.hpp"
+
+namespace tissue {
+
+// The solver failed (diverged, not converged, NaN): main() reports it and exits 3.
+class SolverFailure : public std::runtime_error {
+public:
+  using std::runtime_error::runtime_error;
+};
+
+struct SolverState {
+  explicit SolverState(const LocalModel& model)
+      : x(model), v(3 * model.owned, 0.0), f(3 * model.local, 0.0) {
+    for (int i = 0; i < 3 * model.local; ++i) x.array()[i] = model.rest[i];
+  }
+  GhostedVector x;        // positions, ghosts included
+  std::vector<double> v;  // velocities of owned molecules
+  std::vector<double> f;  // forces (3 * local; ghost slots are scratch)
+  long step = 0;          // iterations or time steps done
+  double time = 0.0;      // s, dynamic runs
+};
+
+struct SolveReport {
+  std::string kind;
+  long iterations = 0;          // relaxation iterations, Newton iterations or time steps
+  long linear_iterations = 0;   // static: Krylov iterations, summed
+  double residual = 0.0;        // final relative force residual (static, relaxation)
+  bool converged = false;
+  std::vector<double> residual_history;  // one per Newton iteration, or sampled relaxation iterations
+  double time_step = 0.0, critical_time_step = 0.0;
+  double energy_initial = 0.0, energy_final = 0.0;  // dynamic: total energy (see dynamic.cpp)
+  std::string note;             // fall-backs taken, in words
+};
+
+struct SolverHooks {
+  std::function<void(const SolverState&)> snapshot;  // called every output.snapshot_every steps
+};
+
+// The critical time step of explicit integration: 2 / sqrt(max eigenvalue of M^-1 K), bounded by Gershgorin.
+double critical_time_step(const ForceModel& forces);
+
+// Relative force residual: |F on free components| / |applied forces| (global), from f of every owned molecule.
+double relative_residual(const LocalModel& model, const ForceModel& forces, const double* f);
+// Throws SolverFailure naming the step and the molecule when a force or position is not finite.
+void check_finite(const LocalModel& model, const double* x, const double* f, long step, const char* what);
+
+SolveReport solve_relaxation(const Scene&, const LocalModel&, const ForceModel&, SolverState&, const SolverHooks&);
+SolveReport solve_dynamic(const Scene&, const LocalModel&, const ForceModel&, SolverState&, const SolverHooks&);
+SolveReport solve_static(const Scene&, const LocalModel&, const ForceModel&, SolverState&, const SolverHooks&);
+
+SolveReport solve(const Scene&, const LocalModel&, const ForceModel&, SolverState&, const SolverHooks&);
+
+}  // namespace tissue

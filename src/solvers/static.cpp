@@ -1,0 +1,185 @@
+// Static: implicit equilibrium by PETSc SNES Newton on the geometrically exact spring forces, with the assembled
+// tangent stiffness (material and geometric parts, AIJ block size 3, held components eliminated so it stays
+// symmetric). Defaults: Newton with a backtracking line search, CG preconditioned by GAMG with the rigid-body
+// near-null space; every choice can be changed from the PETSc options database (tissue run s.toml -- -ksp_type
+// gmres -pc_type hypre -snes_monitor -log_view). Large loads are applied in solver.load_steps increments, and an
+// increment that fails is cut in half (up to 8 times). A tangent found indefinite (compressed springs) switches
+// the Krylov method to GMRES, with a message.
+#include <petscsnes.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include "src/solvers/solver.hpp"
+
+namespace tissue {
+
+namespace {
+
+struct Context {
+  const LocalModel* model;
+  const ForceModel* forces;
+  SolverState* state;
+  double load_factor;
+};
+
+// Copies the owned values of X into the state's positions and refreshes the ghosts.
+PetscErrorCode load_positions(Context* ctx, Vec X) {
+  PetscFunctionBeginUser;
+  const PetscScalar* xs;
+  PetscCall(VecGetArrayRead(X, &xs));
+  std::memcpy(ctx->state->x.array(), xs, sizeof(double) * 3 * ctx->model->owned);
+  PetscCall(VecRestoreArrayRead(X, &xs));
+  ctx->state->x.update_ghosts();
+  PetscFunctionReturn(0);
+}
+
+// R(x) = -(connection forces + applied forces), zero on held components: SNES drives it to zero.
+PetscErrorCode residual(SNES, Vec X, Vec R, void* p) {
+  PetscFunctionBeginUser;
+  auto* ctx = static_cast<Context*>(p);
+  PetscCall(load_positions(ctx, X));
+  ctx->forces->forces(ctx->state->x.array(), ctx->state->v.data(), ctx->state->f.data(), ctx->load_factor);
+  PetscScalar* r;
+  PetscCall(VecGetArray(R, &r));
+  for (int i = 0; i < 3 * ctx->model->owned; ++i) r[i] = -ctx->state->f[i];
+  PetscCall(VecRestoreArray(R, &r));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode tangent(SNES, Vec X, Mat J, Mat P, void* p) {
+  PetscFunctionBeginUser;
+  auto* ctx = static_cast<Context*>(p);
+  PetscCall(load_positions(ctx, X));
+  PetscCall(ctx->forces->assemble_tangent(ctx->state->x.array(), P));
+  if (J != P) {
+    PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
+    PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode run_static(const Scene& scene, const LocalModel& model, const ForceModel& forces, SolverState& state,
+                          SolveReport& report) {
+  PetscFunctionBeginUser;
+  Context ctx{&model, &forces, &state, 1.0};
+  Vec X;
+  PetscCall(VecDuplicate(state.x.global(), &X));
+  PetscCall(VecCopy(state.x.global(), X));
+  Mat J;
+  PetscCall(forces.create_tangent(&J));
+
+  // The rigid-body modes of the rest configuration: GAMG's near-null space.
+  Vec coords;
+  PetscCall(VecDuplicate(X, &coords));
+  PetscCall(VecSetBlockSize(coords, 3));
+  {
+    PetscScalar* c;
+    PetscCall(VecGetArray(coords, &c));
+    std::copy(model.rest.begin(), model.rest.begin() + 3 * model.owned, c);
+    PetscCall(VecRestoreArray(coords, &c));
+  }
+  MatNullSpace rigid;
+  PetscCall(MatNullSpaceCreateRigidBody(coords, &rigid));
+  PetscCall(MatSetNearNullSpace(J, rigid));
+
+  SNES snes;
+  PetscCall(SNESCreate(model.comm, &snes));
+  PetscCall(SNESSetFunction(snes, nullptr, residual, &ctx));
+  PetscCall(SNESSetJacobian(snes, J, J, tangent, &ctx));
+  PetscCall(SNESSetType(snes, SNESNEWTONLS));
+  KSP ksp;
+  PC pc;
+  PetscCall(SNESGetKSP(snes, &ksp));
+  PetscCall(KSPSetType(ksp, KSPCG));
+  PetscCall(KSPGetPC(ksp, &pc));
+  PetscCall(PCSetType(pc, PCGAMG));
+  PetscCall(KSPSetTolerances(ksp, 1e-6, PETSC_DEFAULT, PETSC_DEFAULT, 10000));
+  const double reference = forces.applied_norm() > 0 ? forces.applied_norm() : 1.0;
+  const long max_newton = scene.solver.max_iterations > 0 ? scene.solver.max_iterations : 50;
+  PetscCall(SNESSetTolerances(snes, scene.solver.tolerance * reference, 0.0, 0.0, max_newton, 1000000));
+  PetscCall(SNESSetFromOptions(snes));  // the user's -snes_*, -ksp_*, -pc_* options win
+
+  Vec saved;
+  PetscCall(VecDuplicate(X, &saved));
+  const long steps = std::max(1L, scene.solver.load_steps);
+  double done = 0.0, increment = 1.0 / steps;
+  int cutbacks = 0;
+  bool switched = false;
+  while (done < 1.0 - 1e-12) {
+    double target = std::min(1.0, done + increment);
+    ctx.load_factor = target;
+    PetscCall(VecCopy(X, saved));
+    PetscCall(SNESSolve(snes, nullptr, X));
+    SNESConvergedReason reason;
+    PetscInt its, lits;
+    PetscCall(SNESGetConvergedReason(snes, &reason));
+    PetscCall(SNESGetIterationNumber(snes, &its));
+    PetscCall(SNESGetLinearSolveIterations(snes, &lits));
+    report.iterations += its;
+    report.linear_iterations += lits;
+    if (reason > 0) {
+      done = target;
+      PetscReal norm;
+      PetscCall(SNESGetFunctionNorm(snes, &norm));
+      report.residual_history.push_back(norm / reference);
+      continue;
+    }
+    PetscCall(VecCopy(saved, X));
+    KSPConvergedReason kreason;
+    PetscCall(KSPGetConvergedReason(ksp, &kreason));
+    if (!switched && (kreason == KSP_DIVERGED_INDEFINITE_MAT || kreason == KSP_DIVERGED_INDEFINITE_PC)) {
+      // Compressed springs make the geometric stiffness negative: CG cannot go on, GMRES can.
+      switched = true;
+      PetscCall(KSPSetType(ksp, KSPGMRES));
+      report.note += "tangent indefinite at load factor " + std::to_string(target) + ": switched CG to GMRES. ";
+      PetscCall(PetscPrintf(model.comm, "static: the tangent stiffness is indefinite at load factor %g; "
+                                        "switching the Krylov method from CG to GMRES\n", target));
+      continue;
+    }
+    if (++cutbacks > 8) {
+      PetscCall(VecDestroy(&saved));
+      PetscCall(VecDestroy(&coords));
+      PetscCall(MatNullSpaceDestroy(&rigid));
+      PetscCall(SNESDestroy(&snes));
+      PetscCall(MatDestroy(&J));
+      PetscCall(VecDestroy(&X));
+      throw SolverFailure("static: Newton failed (" + std::string(SNESConvergedReasons[reason]) +
+                          ") at load factor " + std::to_string(target) + " after 8 cut-backs");
+    }
+    increment *= 0.5;
+    report.note += "Newton failed (" + std::string(SNESConvergedReasons[reason]) + ") at load factor " +
+                   std::to_string(target) + ": load increment cut to " + std::to_string(increment) + ". ";
+    PetscCall(PetscPrintf(model.comm, "static: Newton failed at load factor %g (%s); cutting the increment to %g\n",
+                          target, SNESConvergedReasons[reason], increment));
+  }
+  // The final state and its residual, in the common definition.
+  ctx.load_factor = 1.0;
+  Vec R;
+  PetscCall(VecDuplicate(X, &R));
+  PetscCall(residual(snes, X, R, &ctx));
+  report.residual = relative_residual(model, forces, state.f.data());
+  report.converged = report.residual <= scene.solver.tolerance * 1.0000001;
+  check_finite(model, state.x.array(), state.f.data(), report.iterations, "static");
+  PetscCall(VecDestroy(&R));
+  PetscCall(VecDestroy(&saved));
+  PetscCall(VecDestroy(&coords));
+  PetscCall(MatNullSpaceDestroy(&rigid));
+  PetscCall(SNESDestroy(&snes));
+  PetscCall(MatDestroy(&J));
+  PetscCall(VecDestroy(&X));
+  PetscFunctionReturn(0);
+}
+
+}  // namespace
+
+SolveReport solve_static(const Scene& scene, const LocalModel& model, const ForceModel& forces, SolverState& state,
+                         const SolverHooks&) {
+  SolveReport report;
+  report.kind = "static";
+  if (run_static(scene, model, forces, state, report)) throw SolverFailure("static: a PETSc call failed");
+  return report;
+}
+
+}  // namespace tissue

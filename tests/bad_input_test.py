@@ -1,0 +1,146 @@
+#!/usr/bin/env python3
+"""Bad input must fail cleanly: `tissue run` on every scene in tests/bad_scenes, on bad --set overrides and on
+files that are missing or not scenes exits with code 2, prints exactly one line on stderr naming the file and
+the key, takes under 5 s and leaves no output directory behind.
+
+Each file in tests/bad_scenes starts with `# expect: TEXT`: the text the message must contain (usually the
+dotted key)."""
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+VALID_SCENE = """title = "a valid scene that the --set cases break"
+[body]
+molecules = [4, 4, 4]
+spacing = [0.1, 0.1, 0.1]
+youngs_modulus = 1.0e5
+
+[[fix]]
+face = "z+"
+
+[[load]]
+face = "z-"
+force = [0.0, 0.0, -10.0]
+"""
+
+
+def expected_text(path):
+    """The `# expect: TEXT` of a bad scene's first line."""
+    with open(path, "rb") as f:
+        first = f.readline().decode("utf-8", "replace").strip()
+    prefix = "# expect:"
+    if not first.startswith(prefix):
+        raise SystemExit(f"{path}: the first line must be '# expect: TEXT'")
+    return first[len(prefix):].strip()
+
+
+class Runner:
+    def __init__(self, tissue, launcher):
+        self.tissue = tissue
+        self.launcher = launcher
+        self.passed = 0
+        self.failed = []
+
+    def check(self, label, scene, expects, extra=(), workdir=None):
+        """Runs `tissue run SCENE --output DIR/out [extra]` and checks the one-line failure."""
+        out = Path(workdir) / "out"
+        cmd = self.launcher + [str(self.tissue), "run", str(scene), *extra, "--output", str(out)]
+        env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+        start = time.monotonic()
+        try:
+            p = subprocess.run(cmd, capture_output=True, timeout=60, env=env)
+        except subprocess.TimeoutExpired:
+            self.failed.append(f"{label}: did not finish in 60 s")
+            return
+        elapsed = time.monotonic() - start
+        stderr = p.stderr.decode("utf-8", "replace")
+        lines = stderr.splitlines()
+        problems = []
+        if p.returncode != 2:
+            problems.append(f"exit code {p.returncode}, expected 2")
+        if len(lines) != 1 or not lines[0].strip():
+            problems.append(f"stderr is {len(lines)} lines, expected exactly one")
+        for text in expects:
+            if text not in stderr:
+                problems.append(f"stderr lacks {text!r}")
+        if elapsed >= 5:
+            problems.append(f"took {elapsed:.1f} s (limit 5 s)")
+        if out.exists():
+            problems.append(f"left {out} behind")
+        if problems:
+            self.failed.append(f"{label}: " + "; ".join(problems) + f"\n    command: {' '.join(cmd)}"
+                               f"\n    stderr: {stderr.strip()!r}")
+        else:
+            self.passed += 1
+            print(f"ok   {label}: {lines[0]}")
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--build", required=True, help="the build directory holding the tissue executable")
+    parser.add_argument("--source", required=True, help="the source directory (holds tests/bad_scenes)")
+    parser.add_argument("--launcher", default="", help="a prefix such as 'mpirun -np 1' (default: none)")
+    args = parser.parse_args()
+
+    tissue = Path(args.build) / "tissue"
+    if not tissue.is_file():
+        print(f"{tissue} does not exist: build it first")
+        return 1
+    runner = Runner(tissue.resolve(), args.launcher.split())
+    bad_dir = Path(args.source) / "tests" / "bad_scenes"
+    scenes = sorted(bad_dir.glob("*.toml"))
+    if len(scenes) < 10:
+        print(f"only {len(scenes)} scenes in {bad_dir}")
+        return 1
+
+    for scene in scenes:
+        with tempfile.TemporaryDirectory() as tmp:
+            runner.check(scene.name, scene, [scene.name, expected_text(scene)], workdir=tmp)
+
+    with tempfile.TemporaryDirectory() as tmp:
+        valid = Path(tmp) / "valid.toml"
+        valid.write_text(VALID_SCENE)
+        # (label, overrides, texts the message must contain)
+        set_cases = [
+            ("unknown key", ["body.foo=1"], ["valid.toml", "body.foo"]),
+            ("unknown table", ["solvr.kind=static"], ["valid.toml", "solvr"]),
+            ("malformed array", ["body.molecules=[20,20"], ["valid.toml", "body.molecules"]),
+            ("wrong type", ["solver.tolerance=small"], ["valid.toml", "solver.tolerance"]),
+            ("out of range", ["body.youngs_modulus=-1"], ["valid.toml", "body.youngs_modulus"]),
+            ("unknown choice", ["solver.kind=quasistatic"], ["valid.toml", "solver.kind"]),
+            ("nan", ["physics.gravity=[0,0,nan]"], ["valid.toml", "physics.gravity"]),
+            ("no equals sign", ["body.youngs_modulus"], ["--set", "body.youngs_modulus"]),
+            ("empty key", ["=5"], ["--set"]),
+            ("empty key part", ["body..density=5"], ["--set", "body..density"]),
+            ("index out of range", ["load.3.force=[0,0,1]"], ["--set", "load.3.force"]),
+            ("into a scalar", ["body.youngs_modulus.x=1"], ["--set", "body.youngs_modulus.x"]),
+            ("fix removed", ["fix=[]"], ["valid.toml", "solver.kind"]),
+        ]
+        for label, overrides, expects in set_cases:
+            extra = [a for o in overrides for a in ("--set", o)]
+            runner.check(f"--set {label}", valid, expects, extra=extra, workdir=tmp)
+
+        missing = Path(tmp) / "no_such_scene.toml"
+        runner.check("missing file", missing, ["no_such_scene.toml"], workdir=tmp)
+        directory = Path(tmp) / "a_directory.toml"
+        directory.mkdir()
+        runner.check("a directory", directory, ["a_directory.toml", "directory"], workdir=tmp)
+        empty = Path(tmp) / "truly_empty.toml"
+        empty.write_bytes(b"")
+        runner.check("empty file", empty, ["truly_empty.toml", "body"], workdir=tmp)
+        zeros = Path(tmp) / "zeros.toml"
+        zeros.write_bytes(bytes(4096))
+        runner.check("NUL bytes", zeros, ["zeros.toml"], workdir=tmp)
+
+    for f in runner.failed:
+        print(f"FAIL {f}")
+    print(f"{runner.passed} passed, {len(runner.failed)} failed")
+    return 1 if runner.failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "io/checkpoint.hpp"
 #include "io/hdf5_file.hpp"
 #include "io/snapshot.hpp"
 #include "io/summary.hpp"
@@ -111,6 +112,11 @@ void Output::snapshot(const SolverState& state, const ForceModel& forces, bool f
   if (model_.rank == 0) write_xdmf(dir + "tissue.xdmf", frames_);
 }
 
+std::string Output::checkpoint(const SolverState& state) {
+  make_directory();
+  return write_checkpoint(scene_.output.directory, 2, scene_, model_, molecules_, connections_, state);
+}
+
 void Output::summary(const TensionTest& test, const Measurements& measured, const Measurements& initial,
                      const SolveReport& report, const SolverState& state, double wall_seconds,
                      const std::string& failure) {
@@ -142,6 +148,12 @@ void Output::summary(const TensionTest& test, const Measurements& measured, cons
   s["calibration"] = {{"method", scene_.calibration.method},
                       {"divisor", scene_.calibration.method == "divided" ? json(scene_.calibration.divisor)
                                                                          : json(nullptr)}};
+  if (scene_.calibration.method == "iterative") {  // the final C and the updates it took (iterative.cpp)
+    s["calibration"]["divisor_initial"] = scene_.calibration.divisor;
+    s["calibration"]["divisor"] = opt(report.calibration_divisor);
+    s["calibration"]["updates"] = report.calibration_updates;
+    s["calibration"]["tolerance"] = scene_.calibration.tolerance;
+  }
   s["solver"] = {{"kind", report.kind},
                  {"iterations", report.iterations},
                  {"linear_iterations", report.kind == "static" ? json(report.linear_iterations) : json(nullptr)},

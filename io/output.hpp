@@ -18,6 +18,10 @@ public:
   Output(const Scene& scene, const LocalModel& model);
   // Collective. DIR/snapshot_<step>.h5, or DIR/final.h5 for the final state; refreshes DIR/tissue.xdmf.
   void snapshot(const SolverState& state, const ForceModel& forces, bool final = false);
+  // Collective. DIR/checkpoint_<step>.h5 (the newest 2 kept); returns its path.
+  std::string checkpoint(const SolverState& state);
+  const NaturalOrder& molecules() const { return molecules_; }
+  const NaturalOrder& connections() const { return connections_; }
   // Collective; rank 0 writes DIR/summary.json.
   void summary(const TensionTest& test, const Measurements& measured, const Measurements& initial,
                const SolveReport& report, const SolverState& state, double wall_seconds, const std::string& failure);

@@ -88,6 +88,7 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
   }
   if (!body.tetrahedra.empty()) {
     m.tetra_volume.assign(nc, 0.0);
+    m.tetra_lloyd_sum.assign(nc, 0.0);  // Lloyd, Szekely & Harders 2007 (calibration/lloyd.cpp)
     for (const auto& t : body.tetrahedra) {
       Vec3 p[4];
       for (int v = 0; v < 4; ++v) p[v] = body.rest_position(t[v]);
@@ -97,10 +98,13 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
       double vol = std::fabs(e[0][0] * (e[1][1] * e[2][2] - e[1][2] * e[2][1]) -
                              e[0][1] * (e[1][0] * e[2][2] - e[1][2] * e[2][0]) +
                              e[0][2] * (e[1][0] * e[2][1] - e[1][1] * e[2][0])) / 6.0;
+      const double l_equiv = std::cbrt(6.0 * std::sqrt(2.0) * vol);
       for (int x = 0; x < 4; ++x)
         for (int y = x + 1; y < 4; ++y) {
           auto it = local_connection.find(std::min(t[x], t[y]) * n + std::max(t[x], t[y]));
-          if (it != local_connection.end()) m.tetra_volume[it->second] += vol;
+          if (it == local_connection.end()) continue;
+          m.tetra_volume[it->second] += vol;
+          m.tetra_lloyd_sum[it->second] += l_equiv;
         }
     }
   }

@@ -40,6 +40,7 @@ struct LocalModel {
   std::vector<ConnectionClass> connection_class;
   std::vector<double> rest_length, stiffness;
   std::vector<double> tetra_volume;  // tetrahedral topology: volume of the tetrahedra incident on each connection
+  std::vector<double> tetra_lloyd_sum;  // tetrahedral: sum over incident tetrahedra of l_equiv = (6 sqrt2 V)^(1/3)
   // The rank that owns end a writes the connection to files (each connection written exactly once).
   std::vector<int> written_here;     // local connection indices this rank writes
 

@@ -19,10 +19,12 @@
 
 #include <CLI/CLI.hpp>
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <string>
 #include <vector>
 
+#include "io/checkpoint.hpp"
 #include "io/output.hpp"
 #include "io/scene.hpp"
 #include "partition/local_model.hpp"
@@ -43,14 +45,41 @@ int rank_of(MPI_Comm comm) {
   return r;
 }
 
-// Runs one scene end to end. Returns the exit code.
-int run(const std::string& scene_path, const std::vector<std::string>& overrides, const std::string& output) {
+// A restart may change how long a run goes and what it writes, never the model.
+void check_restart_overrides(const std::vector<std::string>& overrides) {
+  for (const auto& o : overrides) {
+    const std::string key = o.substr(0, o.find('='));
+    const bool allowed = key == "solver.steps" || key == "solver.max_iterations" || key.rfind("output.", 0) == 0;
+    if (!allowed)
+      throw InputError("--set", key, "a restart may change solver.steps, solver.max_iterations and output.*, "
+                                     "not the model");
+  }
+}
+
+void on_signal(int) { stop_requested = 1; }
+
+// Runs one scene end to end, from its start or from a checkpoint. Returns the exit code.
+int run(const std::string& scene_path, const std::string& checkpoint, const std::vector<std::string>& overrides,
+        const std::string& output) {
   const MPI_Comm comm = PETSC_COMM_WORLD;
   const bool root = rank_of(comm) == 0;
   const auto start = std::chrono::steady_clock::now();
 
-  // 1. Read the scene (every rank reads the same file; a bad one stops every rank with the same line).
-  Scene scene = read_scene(scene_path, overrides);
+  // 1. Read the scene (every rank reads the same file; a bad one stops every rank with the same line). A
+  //    restart reads the scene text the checkpoint carries.
+  Scene scene;
+  if (checkpoint.empty()) {
+    scene = read_scene(scene_path, overrides);
+  } else {
+    check_restart_overrides(overrides);
+    CheckpointHeader header = read_checkpoint_header(checkpoint, comm);
+    scene = parse_scene(header.scene_text, checkpoint, overrides);
+    int ranks;
+    MPI_Comm_size(comm, &ranks);
+    if (root)
+      std::fprintf(stderr, "tissue: restarting \"%s\" at step %ld (written by %d ranks) on %d ranks\n",
+                   header.title.c_str(), header.step, header.ranks, ranks);
+  }
   if (!output.empty()) scene.output.directory = output;
 
   // 2. Build the body: molecules, connections, material and mass per molecule (global numbering).
@@ -79,17 +108,32 @@ int run(const std::string& scene_path, const std::vector<std::string>& overrides
   const double dt_critical = critical_time_step(forces);  // collective
   if (root) std::fprintf(stderr, "tissue: critical time step %.6e s\n", dt_critical);
 
-  // 6. Solve, writing snapshots as the scene asks.
+  // 6. Solve, writing snapshots and checkpoints as the scene asks; a restart loads its state first.
   SolverState state(model);
   Output out(scene, model);
+  if (!checkpoint.empty())
+    read_checkpoint_state(checkpoint, model, out.molecules(), out.connections(), state,
+                          /*check_stiffness=*/method->updater == nullptr);
   SolverHooks hooks;
   hooks.snapshot = [&](const SolverState& s) { out.snapshot(s, forces); };
+  std::string last_checkpoint;
+  hooks.checkpoint = [&](const SolverState& s) { last_checkpoint = out.checkpoint(s); };
+  std::signal(SIGTERM, on_signal);  // batch schedulers warn with SIGTERM before the time limit
+  std::signal(SIGINT, on_signal);
+  if (method->updater) hooks.refresh = method->updater(CalibrationContext{scene, model}, model.stiffness);
   SolveReport report;
   int code = 0;
   std::string failure;
   try {
-    report = solve(scene, model, forces, state, hooks);
-    if (!report.converged) {
+    if (scene.calibration.method == "iterative")  // wraps the solver: C adjusted until Eq. 3 reads E
+      solve_iterative(scene, model, forces, state, hooks, test, report);
+    else
+      report = solve(scene, model, forces, state, hooks);
+    if (report.interrupted) {
+      if (root)
+        std::fprintf(stderr, "tissue: stop requested (SIGTERM/SIGINT): checkpoint written at step %ld; continue "
+                             "with: tissue restart %s\n", state.step, last_checkpoint.c_str());
+    } else if (!report.converged) {
       code = 3;
       failure = report.kind + ": not converged after " + std::to_string(report.iterations) +
                 " iterations (relative residual " + std::to_string(report.residual) + ")";
@@ -105,7 +149,8 @@ int run(const std::string& scene_path, const std::vector<std::string>& overrides
 
   // 8. Write the final state (unless it is not finite) and summary.json.
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  if (failure.find("non-finite") == std::string::npos) out.snapshot(state, forces, /*final=*/true);
+  if (failure.find("non-finite") == std::string::npos && !report.interrupted)
+    out.snapshot(state, forces, /*final=*/true);
   out.summary(test, measured, initial, report, state, wall, failure);
   if (root) {
     if (test.valid && measured.youngs_modulus)
@@ -142,6 +187,10 @@ int main(int argc, char** argv) {
   run_cmd->add_option("scene", scene_path, "scene file (TOML)")->required();
   run_cmd->add_option("--set", overrides, "override a scene key: --set body.molecules=[20,20,20]");
   run_cmd->add_option("--output", output, "output directory (default: the scene's output.directory)");
+  auto* restart_cmd = app.add_subcommand("restart", "continue a run from its checkpoint, on any number of ranks");
+  restart_cmd->add_option("checkpoint", checkpoint_path, "checkpoint file (HDF5)")->required();
+  restart_cmd->add_option("--set", overrides, "change solver.steps, solver.max_iterations or output.*");
+  restart_cmd->add_option("--output", output, "output directory (default: the scene's output.directory)");
   auto* info_cmd = app.add_subcommand("info", "say what a snapshot or checkpoint holds");
   info_cmd->add_option("file", info_path, "HDF5 file")->required();
   try {
@@ -157,7 +206,8 @@ int main(int argc, char** argv) {
   const bool root = rank_of(PETSC_COMM_WORLD) == 0;
   int code = 0;
   try {
-    if (*run_cmd) code = run(scene_path, overrides, output);
+    if (*run_cmd) code = run(scene_path, "", overrides, output);
+    if (*restart_cmd) code = run("", checkpoint_path, overrides, output);
     if (*info_cmd) code = info(info_path, PETSC_COMM_WORLD);
   } catch (const InputError& e) {
     if (root) std::fprintf(stderr, "%s\n", e.what());

@@ -35,6 +35,7 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
   report.critical_time_step = critical_time_step(forces);
   const double dt = scene.solver.time_step ? *scene.solver.time_step : 0.5 * report.critical_time_step;
   report.time_step = dt;
+  state.time_step = dt;
   const int n = 3 * model.owned;
   const double* m = model.mass.data();
   double* x = state.x.array();
@@ -64,9 +65,13 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
     if (hooks.snapshot && scene.output.snapshot_every > 0 && state.step % scene.output.snapshot_every == 0 &&
         state.step < total)
       hooks.snapshot(state);
+    if (state.step < total && step_boundary(scene, model, state, hooks, 16)) {
+      report.interrupted = true;
+      break;
+    }
   }
   report.iterations = state.step;
-  report.converged = true;
+  report.converged = !report.interrupted;
   report.energy_final = leapfrog_energy(model, forces, state, dt);
   return report;
 }

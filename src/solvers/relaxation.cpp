@@ -29,11 +29,16 @@ SolveReport solve_relaxation(const Scene& scene, const LocalModel& model, const 
   // FIRE parameters: the published defaults.
   const int n_delay = 5;
   const double f_inc = 1.1, f_dec = 0.5, alpha_start = 0.1, f_alpha = 0.99;
-  double dt = 0.5 * dt_max, alpha = alpha_start;
-  long positive = 0;
+  // FIRE's adaptive state lives in the SolverState, so that a checkpoint continues it bit for bit.
+  if (!state.restarted) state.fire_dt = 0.5 * dt_max, state.fire_alpha = alpha_start, state.fire_positive = 0;
+  double& dt = state.fire_dt;
+  double& alpha = state.fire_alpha;
+  long& positive = state.fire_positive;
+  state.time_step = dt_max;
 
   Progress progress("relaxation", scene.output.progress, model.comm);
   state.x.update_ghosts();
+  if (hooks.refresh) hooks.refresh(x);
   forces.forces(x, v, f);
   double residual = relative_residual(model, forces, f);
   long it = 0;
@@ -46,8 +51,14 @@ SolveReport solve_relaxation(const Scene& scene, const LocalModel& model, const 
       break;
     }
     if (it >= max_iterations) break;
-    if (hooks.snapshot && scene.output.snapshot_every > 0 && it > 0 && it % scene.output.snapshot_every == 0)
-      hooks.snapshot(state);
+    if (it > 0) {
+      if (hooks.snapshot && scene.output.snapshot_every > 0 && state.step % scene.output.snapshot_every == 0)
+        hooks.snapshot(state);
+      if (step_boundary(scene, model, state, hooks, 1)) {  // a reduction per iteration is already paid here
+        report.interrupted = true;
+        break;
+      }
+    }
 
     // Power P = F . v and the norms, in one reduction.
     double local[3] = {0, 0, 0}, global[3];
@@ -69,6 +80,7 @@ SolveReport solve_relaxation(const Scene& scene, const LocalModel& model, const 
         x[j] += dt * v[j];
       }
     state.x.update_ghosts();
+    if (hooks.refresh) hooks.refresh(x);
     forces.forces(x, v, f);
     residual = relative_residual(model, forces, f);
     ++state.step;
@@ -76,7 +88,7 @@ SolveReport solve_relaxation(const Scene& scene, const LocalModel& model, const 
   report.iterations = it;
   report.residual = residual;
   report.residual_history.push_back(residual);
-  std::fill(state.v.begin(), state.v.end(), 0.0);  // equilibrium: at rest
+  if (report.converged) std::fill(state.v.begin(), state.v.end(), 0.0);  // equilibrium: at rest
   return report;
 }
 

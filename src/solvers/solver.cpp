@@ -32,6 +32,22 @@ void check_finite(const LocalModel& model, const double* x, const double* f, lon
                         std::to_string(first) + " has a non-finite position or force (time step too large?)");
 }
 
+volatile std::sig_atomic_t stop_requested = 0;
+
+bool step_boundary(const Scene& scene, const LocalModel& model, const SolverState& state, const SolverHooks& hooks,
+                   long every) {
+  bool stop = false;
+  if (every > 0 && state.step % every == 0) {
+    int mine = stop_requested ? 1 : 0, any = 0;
+    MPI_Allreduce(&mine, &any, 1, MPI_INT, MPI_MAX, model.comm);
+    stop = any != 0;
+  }
+  const long cadence = scene.output.checkpoint_every;
+  if (hooks.checkpoint && (stop || (cadence > 0 && state.step > 0 && state.step % cadence == 0)))
+    hooks.checkpoint(state);
+  return stop;
+}
+
 SolveReport solve(const Scene& scene, const LocalModel& model, const ForceModel& forces, SolverState& state,
                   const SolverHooks& hooks) {
   const std::string& kind = scene.solver.kind;

@@ -1,7 +1,9 @@
 // Solvers: bring the body to equilibrium (static, relaxation) or integrate it in time (dynamic). All are driven
 // by the ForceModel and advance a SolverState; the kind is chosen by `solver.kind`.
 #pragma once
+#include <csignal>
 #include <functional>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -27,6 +29,13 @@ struct SolverState {
   std::vector<double> f;  // forces (3 * local; ghost slots are scratch)
   long step = 0;          // iterations or time steps done
   double time = 0.0;      // s, dynamic runs
+  double time_step = 0.0; // s, the explicit solvers' step
+  // What a checkpoint carries besides positions and velocities, so that a restart continues bit for bit.
+  double divisor = 1.0;          // calibration: C of the divided and iterative methods
+  long calibration_updates = 0;  // iterative: updates of C made
+  double fire_dt = 0.0, fire_alpha = 0.0;  // relaxation: FIRE's adaptive step and mixing
+  long fire_positive = 0;                  // relaxation: steps since the power was last negative
+  bool restarted = false;                  // loaded from a checkpoint
 };
 
 struct SolveReport {
@@ -39,11 +48,28 @@ struct SolveReport {
   double time_step = 0.0, critical_time_step = 0.0;
   double energy_initial = 0.0, energy_final = 0.0;  // dynamic: total energy (see dynamic.cpp)
   std::string note;             // fall-backs taken, in words
+  std::optional<double> calibration_divisor;  // iterative calibration: the final C (else absent)
+  long calibration_updates = 0;                // iterative calibration: updates of C made
+  bool interrupted = false;                    // stopped by a signal after writing a checkpoint
 };
 
 struct SolverHooks {
   std::function<void(const SolverState&)> snapshot;  // called every output.snapshot_every steps
+  // Calibrations that follow the deformation (angles-update): called with the local positions (ghosts up to date)
+  // every relaxation iteration and at the start of every Newton iteration, to refresh model.stiffness. Collective.
+  std::function<void(const double* x)> refresh;
+  // Writes a checkpoint of the state (collective); called every output.checkpoint_every steps and when a stop
+  // is requested.
+  std::function<void(const SolverState&)> checkpoint;
 };
+
+// Set by the SIGTERM/SIGINT handler that main() installs: the solvers write a checkpoint at the next step
+// boundary and return with SolveReport::interrupted.
+extern volatile std::sig_atomic_t stop_requested;
+// At a step boundary: writes a checkpoint when one is due; returns true when the run must stop (a signal arrived
+// on any rank; checked every `every` steps, a collective reduction).
+bool step_boundary(const Scene& scene, const LocalModel& model, const SolverState& state, const SolverHooks& hooks,
+                   long every);
 
 // The critical time step of explicit integration: 2 / sqrt(max eigenvalue of M^-1 K), bounded by Gershgorin.
 double critical_time_step(const ForceModel& forces);

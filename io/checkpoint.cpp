@@ -1,0 +1,225 @@
+#include "io/checkpoint.hpp"
+
+#include <dirent.h>
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+
+#include "io/hdf5_file.hpp"
+
+namespace tissue {
+
+namespace {
+
+// An order-independent checksum of a dataset: the sum (mod 2^64) over rows of FNV-1a of (row index, row bytes).
+// Each rank sums its block; the total does not depend on how rows were split among ranks.
+template <typename T>
+std::uint64_t checksum(const std::vector<T>& block, int width, std::int64_t first_row, MPI_Comm comm) {
+  std::uint64_t sum = 0;
+  const std::size_t rows = width ? block.size() / width : 0;
+  for (std::size_t r = 0; r < rows; ++r) {
+    std::uint64_t h = 1469598103934665603ULL;
+    auto mix = [&](const void* p, std::size_t n) {
+      const unsigned char* b = static_cast<const unsigned char*>(p);
+      for (std::size_t i = 0; i < n; ++i) h = (h ^ b[i]) * 1099511628211ULL;
+    };
+    std::int64_t row = first_row + static_cast<std::int64_t>(r);
+    mix(&row, sizeof row);
+    mix(block.data() + r * width, sizeof(T) * width);
+    sum += h;
+  }
+  std::uint64_t total = 0;
+  MPI_Allreduce(&sum, &total, 1, MPI_UINT64_T, MPI_SUM, comm);
+  return total;
+}
+
+std::int64_t as_signed(std::uint64_t u) {
+  std::int64_t s;
+  std::memcpy(&s, &u, sizeof s);
+  return s;
+}
+
+template <typename T>
+void write_checked(Hdf5File& f, const std::string& name, std::int64_t global_rows, int width, std::int64_t offset,
+                   const std::vector<T>& block, MPI_Comm comm) {
+  const std::int64_t rows = width ? static_cast<std::int64_t>(block.size()) / width : 0;
+  f.write(name, global_rows, width, offset, rows, block.empty() ? nullptr : block.data());
+  f.set_attribute(name, "checksum", as_signed(checksum(block, width, offset, comm)));
+}
+
+std::vector<double> connection_values(const LocalModel& m, const std::vector<double>& all) {
+  std::vector<double> v;
+  v.reserve(m.written_here.size());
+  for (int c : m.written_here) v.push_back(all[c]);
+  return v;
+}
+
+}  // namespace
+
+std::string write_checkpoint(const std::string& directory, int keep, const Scene& scene, const LocalModel& model,
+                             const NaturalOrder& molecules, const NaturalOrder& connections,
+                             const SolverState& state) {
+  char name[64];
+  std::snprintf(name, sizeof name, "checkpoint_%010ld.h5", state.step);
+  const std::string path = directory + "/" + name;
+  {
+    Hdf5File f = Hdf5File::create(path, model.comm);
+    f.set_attribute("/", "kind", "checkpoint");
+    f.set_attribute("/", "program", "tissue");
+    f.set_attribute("/", "version", TISSUE_VERSION);
+    f.set_attribute("/", "title", scene.title);
+    f.set_attribute("/", "scene", scene.text);
+    f.set_attribute("/", "ranks", model.size);
+    f.set_attribute("/", "molecules", model.global_molecules);
+    f.set_attribute("/", "connections", model.global_connections);
+    f.set_attribute("/", "step", state.step);
+    f.set_attribute("/", "time", state.time);
+    f.set_attribute("/", "time_step", state.time_step);
+    f.set_attribute("/", "solver_kind", scene.solver.kind);
+    f.set_attribute("/", "divisor", state.divisor);
+    f.set_attribute("/", "calibration_updates", state.calibration_updates);
+    f.set_attribute("/", "fire_dt", state.fire_dt);
+    f.set_attribute("/", "fire_alpha", state.fire_alpha);
+    f.set_attribute("/", "fire_positive", state.fire_positive);
+    const MPI_Comm comm = model.comm;
+    write_checked(f, "/molecules/positions", model.global_molecules, 3, molecules.begin(),
+                  molecules.to_natural(state.x.array(), 3), comm);
+    write_checked(f, "/molecules/velocities", model.global_molecules, 3, molecules.begin(),
+                  molecules.to_natural(state.v.data(), 3), comm);
+    std::vector<std::int64_t> ends;
+    for (int c : model.written_here) ends.push_back(model.id[model.end_a[c]]), ends.push_back(model.id[model.end_b[c]]);
+    write_checked(f, "/connections/endpoints", model.global_connections, 2, connections.begin(),
+                  connections.to_natural_ids(ends.data(), 2), comm);
+    auto k = connection_values(model, model.stiffness), l0 = connection_values(model, model.rest_length);
+    write_checked(f, "/connections/stiffness", model.global_connections, 1, connections.begin(),
+                  connections.to_natural(k.data(), 1), comm);
+    write_checked(f, "/connections/rest_length", model.global_connections, 1, connections.begin(),
+                  connections.to_natural(l0.data(), 1), comm);
+    f.close();  // flushed and renamed: a checkpoint on disk under its name is always complete
+  }
+  // Keep the newest `keep` checkpoints (names sort by step).
+  if (model.rank == 0 && keep > 0) {
+    std::vector<std::string> names;
+    if (DIR* d = opendir(directory.c_str())) {
+      while (dirent* e = readdir(d)) {
+        std::string n = e->d_name;
+        if (n.rfind("checkpoint_", 0) == 0 && n.size() > 3 && n.substr(n.size() - 3) == ".h5") names.push_back(n);
+      }
+      closedir(d);
+    }
+    std::sort(names.begin(), names.end());
+    for (std::size_t i = 0; i + keep < names.size(); ++i) std::remove((directory + "/" + names[i]).c_str());
+  }
+  MPI_Barrier(model.comm);
+  return path;
+}
+
+CheckpointHeader read_checkpoint_header(const std::string& path, MPI_Comm comm) {
+  struct stat st;
+  if (stat(path.c_str(), &st) != 0) throw InputError(path, "", "no such file");
+  if (!S_ISREG(st.st_mode)) throw InputError(path, "", "not a regular file");
+  CheckpointHeader h;
+  h.path = path;
+  try {
+    Hdf5File f = Hdf5File::open(path, comm);
+    auto need = [&](const char* name) {
+      if (!f.has_attribute("/", name)) throw InputError(path, name, "attribute missing: not a tissue checkpoint");
+    };
+    need("kind");
+    if (f.string_attribute("/", "kind") != "checkpoint")
+      throw InputError(path, "kind", "is \"" + f.string_attribute("/", "kind") + "\", not a checkpoint");
+    for (const char* a : {"version", "scene", "step", "ranks", "molecules", "connections", "title", "solver_kind"})
+      need(a);
+    h.version = f.string_attribute("/", "version");
+    if (h.version != TISSUE_VERSION)
+      throw InputError(path, "version", "written by tissue " + h.version + ", this is " + TISSUE_VERSION);
+    h.scene_text = f.string_attribute("/", "scene");
+    h.title = f.string_attribute("/", "title");
+    h.solver_kind = f.string_attribute("/", "solver_kind");
+    h.step = f.int64_attribute("/", "step");
+    h.ranks = static_cast<int>(f.int64_attribute("/", "ranks"));
+    h.molecules = f.int64_attribute("/", "molecules");
+    h.connections = f.int64_attribute("/", "connections");
+    f.close();
+  } catch (const InputError&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw InputError(path, "", std::string("unreadable checkpoint (") + e.what() + ")");
+  }
+  return h;
+}
+
+void read_checkpoint_state(const std::string& path, const LocalModel& model, const NaturalOrder& molecules,
+                           const NaturalOrder& connections, SolverState& state, bool check_stiffness) {
+  try {
+    Hdf5File f = Hdf5File::open(path, model.comm);
+    auto load = [&](const char* name, std::int64_t rows, int width, const NaturalOrder& order, auto tag) {
+      using T = decltype(tag);
+      if (!f.exists(name)) throw InputError(path, name, "dataset missing");
+      auto shape = f.shape(name);
+      if (shape.size() != 2 || shape[0] != rows || shape[1] != width)
+        throw InputError(path, name, "has the wrong shape for this scene");
+      std::vector<T> block;
+      if constexpr (std::is_same_v<T, double>) block = f.read_double(name, order.begin(), order.count());
+      else block = f.read_int64(name, order.begin(), order.count());
+      if (!f.has_attribute(name, "checksum")) throw InputError(path, name, "checksum missing");
+      if (as_signed(checksum(block, width, order.begin(), model.comm)) != f.int64_attribute(name, "checksum"))
+        throw InputError(path, name, "checksum mismatch: the file is corrupt");
+      int bad = 0, any = 0;
+      if constexpr (std::is_same_v<T, double>)
+        for (double v : block) bad |= !std::isfinite(v);
+      MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, model.comm);
+      if (any) throw InputError(path, name, "holds a NaN or infinite value");
+      return block;
+    };
+    auto x = load("/molecules/positions", model.global_molecules, 3, molecules, double());
+    auto v = load("/molecules/velocities", model.global_molecules, 3, molecules, double());
+    auto ends = load("/connections/endpoints", model.global_connections, 2, connections, std::int64_t());
+    auto k = load("/connections/stiffness", model.global_connections, 1, connections, double());
+    auto l0 = load("/connections/rest_length", model.global_connections, 1, connections, double());
+
+    // The model rebuilt from the scene must be the one that was saved: same connections, same stiffness.
+    auto mine_ends = connections.from_natural_ids(ends.data(), 2);
+    auto mine_k = connections.from_natural(k.data(), 1);
+    auto mine_l0 = connections.from_natural(l0.data(), 1);
+    int mismatch = 0;
+    const char* what = "";
+    for (std::size_t w = 0; w < model.written_here.size(); ++w) {
+      const int c = model.written_here[w];
+      if (mine_ends[2 * w] != model.id[model.end_a[c]] || mine_ends[2 * w + 1] != model.id[model.end_b[c]])
+        mismatch = 1, what = "/connections/endpoints";
+      else if (mine_l0[w] != model.rest_length[c]) mismatch = 2, what = "/connections/rest_length";
+      else if (check_stiffness && mine_k[w] != model.stiffness[c]) mismatch = 3, what = "/connections/stiffness";
+    }
+    int worst = 0;
+    MPI_Allreduce(&mismatch, &worst, 1, MPI_INT, MPI_MAX, model.comm);
+    static const char* names[] = {"", "/connections/endpoints", "/connections/rest_length", "/connections/stiffness"};
+    (void)what;
+    if (worst) throw InputError(path, names[worst], "does not match the model rebuilt from the checkpoint's scene");
+
+    auto mine_x = molecules.from_natural(x.data(), 3);
+    auto mine_v = molecules.from_natural(v.data(), 3);
+    std::copy(mine_x.begin(), mine_x.end(), state.x.array());
+    std::copy(mine_v.begin(), mine_v.end(), state.v.begin());
+    state.x.update_ghosts();
+    state.step = f.int64_attribute("/", "step");
+    state.time = f.double_attribute("/", "time");
+    state.time_step = f.double_attribute("/", "time_step");
+    state.divisor = f.double_attribute("/", "divisor");
+    state.calibration_updates = f.int64_attribute("/", "calibration_updates");
+    state.fire_dt = f.double_attribute("/", "fire_dt");
+    state.fire_alpha = f.double_attribute("/", "fire_alpha");
+    state.fire_positive = f.int64_attribute("/", "fire_positive");
+    state.restarted = true;
+    f.close();
+  } catch (const InputError&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw InputError(path, "", std::string("unreadable checkpoint (") + e.what() + ")");
+  }
+}
+
+}  // namespace tissue

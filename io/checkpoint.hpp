@@ -1,0 +1,41 @@
+// Checkpoints: everything a run needs to continue, in original molecule order so that a restart may use another
+// rank count. Layout of DIR/checkpoint_<step>.h5:
+//   /molecules/positions, /molecules/velocities          [N x 3]
+//   /connections/endpoints [C x 2] int64, /connections/stiffness, /connections/rest_length [C x 1]
+//   root attributes: kind = "checkpoint", program, version, title, scene (the scene text after --set), ranks,
+//   step, time, time_step, solver_kind, divisor (C), calibration_updates, fire_dt, fire_alpha, fire_positive;
+//   every dataset carries a "checksum" attribute, verified on load.
+// Written atomically (checkpoint_<step>.h5.tmp, closed, renamed); the newest `keep` are kept.
+#pragma once
+#include <string>
+#include <vector>
+
+#include "partition/natural_order.hpp"
+#include "src/solvers/solver.hpp"
+
+namespace tissue {
+
+struct CheckpointHeader {
+  std::string path, scene_text, title, version, solver_kind;
+  long step = 0;
+  int ranks = 0;
+  std::int64_t molecules = 0, connections = 0;
+};
+
+// Collective. Writes DIR/checkpoint_<step>.h5 and removes older checkpoints beyond the newest `keep`.
+// Returns the path written.
+std::string write_checkpoint(const std::string& directory, int keep, const Scene& scene, const LocalModel& model,
+                             const NaturalOrder& molecules, const NaturalOrder& connections,
+                             const SolverState& state);
+
+// Collective. Reads and checks the header (kind, version, scene text). Bad files throw InputError naming the file
+// and the attribute or dataset.
+CheckpointHeader read_checkpoint_header(const std::string& path, MPI_Comm comm);
+
+// Collective. Loads positions, velocities and solver state into `state`, after checking every dataset's shape,
+// checksum, finiteness and that endpoints, rest lengths and (unless the calibration follows the deformation and
+// is refreshed from the positions anyway) stiffness match the model rebuilt from the scene.
+void read_checkpoint_state(const std::string& path, const LocalModel& model, const NaturalOrder& molecules,
+                           const NaturalOrder& connections, SolverState& state, bool check_stiffness = true);
+
+}  // namespace tissue

@@ -1,12 +1,16 @@
 #include "io/checkpoint.hpp"
 
 #include <dirent.h>
+#include <fcntl.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <string>
+#include <type_traits>
 
 #include "io/hdf5_file.hpp"
 
@@ -57,6 +61,12 @@ std::vector<double> connection_values(const LocalModel& m, const std::vector<dou
   return v;
 }
 
+// Hdf5File's messages start with the file's path; the InputError names it already.
+std::string without_path(const std::string& message, const std::string& path) {
+  const std::string prefix = path + ": ";
+  return message.rfind(prefix, 0) == 0 ? message.substr(prefix.size()) : message;
+}
+
 }  // namespace
 
 std::string write_checkpoint(const std::string& directory, int keep, const Scene& scene, const LocalModel& model,
@@ -100,13 +110,28 @@ std::string write_checkpoint(const std::string& directory, int keep, const Scene
                   connections.to_natural(l0.data(), 1), comm);
     f.close();  // flushed and renamed: a checkpoint on disk under its name is always complete
   }
-  // Keep the newest `keep` checkpoints (names sort by step).
+  // The new checkpoint (and its name in the directory) reach the disk before any older one is removed, so that
+  // a power loss cannot leave fewer complete checkpoints than before. (Best effort: an fsync that fails leaves
+  // the file as the page cache has it, which a killed process does not lose.)
+  if (model.rank == 0) {
+    for (const std::string& p : {path, directory}) {
+      const int fd = ::open(p.c_str(), O_RDONLY);
+      if (fd >= 0) ::fsync(fd), ::close(fd);
+    }
+  }
+  // Keep the newest `keep` checkpoints (names sort by step), and remove the .tmp files that a killed run left
+  // (ours was renamed: any .tmp still here is a dead writer's).
   if (model.rank == 0 && keep > 0) {
     std::vector<std::string> names;
+    auto ends_with = [](const std::string& n, const std::string& tail) {
+      return n.size() >= tail.size() && n.compare(n.size() - tail.size(), tail.size(), tail) == 0;
+    };
     if (DIR* d = opendir(directory.c_str())) {
       while (dirent* e = readdir(d)) {
         std::string n = e->d_name;
-        if (n.rfind("checkpoint_", 0) == 0 && n.size() > 3 && n.substr(n.size() - 3) == ".h5") names.push_back(n);
+        if (n.rfind("checkpoint_", 0) != 0) continue;
+        if (ends_with(n, ".h5")) names.push_back(n);
+        else if (ends_with(n, ".h5.tmp")) std::remove((directory + "/" + n).c_str());
       }
       closedir(d);
     }
@@ -143,11 +168,54 @@ CheckpointHeader read_checkpoint_header(const std::string& path, MPI_Comm comm) 
     h.ranks = static_cast<int>(f.int64_attribute("/", "ranks"));
     h.molecules = f.int64_attribute("/", "molecules");
     h.connections = f.int64_attribute("/", "connections");
+    for (const char* a : {"time", "time_step", "divisor", "calibration_updates", "fire_dt", "fire_alpha",
+                          "fire_positive"})
+      need(a);
+    if (h.molecules < 1 || h.connections < 0)
+      throw InputError(path, h.molecules < 1 ? "molecules" : "connections", "is out of range");
+    // Our datasets are contiguous and uncompressed: 48 bytes per molecule and 32 per connection must fit in the
+    // file. Checked before any allocation, so that a damaged count cannot ask for more memory than the file holds.
+    const std::int64_t bytes = static_cast<std::int64_t>(st.st_size);
+    if (h.molecules > bytes / 48 || h.connections > bytes / 32 || 48 * h.molecules + 32 * h.connections > bytes)
+      throw InputError(path, "molecules",
+                       std::to_string(h.molecules) + " molecules and " + std::to_string(h.connections) +
+                           " connections do not fit in the file's " + std::to_string(bytes) + " bytes");
+    // Every dataset is verified here (shape, checksum, finiteness), before the run prints anything or builds the
+    // model, so that a damaged file stops the restart with its one line. Each rank checks an even block of rows.
+    int rank = 0, size = 1;
+    MPI_Comm_rank(comm, &rank);
+    MPI_Comm_size(comm, &size);
+    auto verify = [&](const char* name, std::int64_t rows, int width, auto tag) {
+      using T = decltype(tag);
+      if (!f.exists(name)) throw InputError(path, name, "dataset missing");
+      auto shape = f.shape(name);
+      if (shape.size() != 2 || shape[0] != rows || shape[1] != width)
+        throw InputError(path, name, "has shape [" + std::to_string(shape[0]) + " x " + std::to_string(shape[1]) +
+                                         "], the header says [" + std::to_string(rows) + " x " +
+                                         std::to_string(width) + "]");
+      if (!f.has_attribute(name, "checksum")) throw InputError(path, name, "checksum attribute missing");
+      const std::int64_t first = rows * rank / size, count = rows * (rank + 1) / size - first;
+      std::vector<T> block;
+      if constexpr (std::is_same_v<T, double>) block = f.read_double(name, first, count);
+      else block = f.read_int64(name, first, count);
+      if (as_signed(checksum(block, width, first, comm)) != f.int64_attribute(name, "checksum"))
+        throw InputError(path, name, "checksum mismatch: the file is corrupt");
+      int bad = 0, any = 0;
+      if constexpr (std::is_same_v<T, double>)
+        for (double v : block) bad |= !std::isfinite(v);
+      MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, comm);
+      if (any) throw InputError(path, name, "holds a NaN or infinite value");
+    };
+    verify("/molecules/positions", h.molecules, 3, double());
+    verify("/molecules/velocities", h.molecules, 3, double());
+    verify("/connections/endpoints", h.connections, 2, std::int64_t());
+    verify("/connections/stiffness", h.connections, 1, double());
+    verify("/connections/rest_length", h.connections, 1, double());
     f.close();
   } catch (const InputError&) {
     throw;
   } catch (const std::exception& e) {
-    throw InputError(path, "", std::string("unreadable checkpoint (") + e.what() + ")");
+    throw InputError(path, "", std::string("unreadable checkpoint (") + without_path(e.what(), path) + ")");
   }
   return h;
 }
@@ -218,7 +286,7 @@ void read_checkpoint_state(const std::string& path, const LocalModel& model, con
   } catch (const InputError&) {
     throw;
   } catch (const std::exception& e) {
-    throw InputError(path, "", std::string("unreadable checkpoint (") + e.what() + ")");
+    throw InputError(path, "", std::string("unreadable checkpoint (") + without_path(e.what(), path) + ")");
   }
 }
 

@@ -1,5 +1,8 @@
 #include "io/hdf5_file.hpp"
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -133,6 +136,11 @@ void Hdf5File::close() {
   int rank = 0;
   check_mpi(MPI_Comm_rank(comm_, &rank), path_, "MPI_Comm_rank");
   int err = 0;
+  if (rank == 0) {
+    // Flush the data to the disk before the name appears: after a power loss a published name holds it all.
+    int fd = ::open((path_ + ".tmp").c_str(), O_RDONLY);
+    if (fd >= 0) ::fsync(fd), ::close(fd);
+  }
   if (rank == 0 && std::rename((path_ + ".tmp").c_str(), path_.c_str()) != 0) {
     err = errno ? errno : -1;
     std::remove((path_ + ".tmp").c_str());

@@ -56,7 +56,7 @@ void Output::make_directory() {
   directory_made_ = true;
 }
 
-void Output::snapshot(const SolverState& state, const ForceModel& forces, bool final) {
+void Output::snapshot(const SolverState& state, const ForceModel& forces, bool final, const char* file_name) {
   make_directory();
   const double* x = state.x.array();
   SnapshotFrame frame;
@@ -104,7 +104,8 @@ void Output::snapshot(const SolverState& state, const ForceModel& forces, bool f
   if (wants(scene_, "connection_force")) frame.connection_force = connections_.to_natural(tension.data(), 1);
 
   char name[64];
-  if (final) std::snprintf(name, sizeof name, "final.h5");
+  if (file_name) std::snprintf(name, sizeof name, "%s", file_name);
+  else if (final) std::snprintf(name, sizeof name, "final.h5");
   else std::snprintf(name, sizeof name, "snapshot_%08ld.h5", state.step);
   const std::string dir = scene_.output.directory + "/";
   XdmfEntry entry = write_snapshot(dir + name, model_.comm, frame);
@@ -126,7 +127,9 @@ void Output::summary(const TensionTest& test, const Measurements& measured, cons
   make_directory();
   using nlohmann::json;
   auto opt = [](const std::optional<double>& v) { return v ? json(*v) : json(nullptr); };
-  const double target = scene_.body.youngs_modulus;
+  const double target =  // Eq. 3 reads the body the load is on
+      test.body < static_cast<int>(scene_.bodies.size()) ? scene_.bodies[test.body].youngs_modulus
+                                                          : scene_.body.youngs_modulus;
   const bool dynamic = report.kind == "dynamic";
   json s;
   s["title"] = scene_.title;
@@ -173,7 +176,9 @@ void Output::summary(const TensionTest& test, const Measurements& measured, cons
   s["energy_final"] = dynamic ? json(report.energy_final) : json(nullptr);
   s["center_of_mass_initial"] = initial.center_of_mass;
   s["center_of_mass"] = measured.center_of_mass;
-  s["contact_force"] = scene_.obstacles.empty() ? json(nullptr) : json(Vec3{0, 0, 0});
+  s["contact_force"] = measured.contact_force ? json(*measured.contact_force) : json(nullptr);
+  s["body_contact_force"] = measured.body_contact_force.empty() ? json(nullptr) : json(measured.body_contact_force);
+  s["bodies"] = scene_.bodies.size();
   s["partition"] = {{"edge_cut", model_.partition.edge_cut},
                     {"imbalance", model_.partition.imbalance},
                     {"ghosts_per_owned", model_.partition.surface_to_volume}};

@@ -17,7 +17,8 @@ class Output {
 public:
   Output(const Scene& scene, const LocalModel& model);
   // Collective. DIR/snapshot_<step>.h5, or DIR/final.h5 for the final state; refreshes DIR/tissue.xdmf.
-  void snapshot(const SolverState& state, const ForceModel& forces, bool final = false);
+  // `name` (e.g. "last_good.h5") overrides the file name.
+  void snapshot(const SolverState& state, const ForceModel& forces, bool final = false, const char* name = nullptr);
   // Collective. DIR/checkpoint_<step>.h5 (the newest 2 kept); returns its path.
   std::string checkpoint(const SolverState& state);
   const NaturalOrder& molecules() const { return molecules_; }

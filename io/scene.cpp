@@ -155,6 +155,9 @@ bool is_index(const std::string& s) {
 
 // VALUE as TOML ("[1,2,3]", "1e5", "true", "\"x\""); anything that is not is taken as a bare string.
 Value override_value(const std::string& text) {
+  // The same byte checks as a scene file: toml11 reads past the end of an unterminated string that holds bad
+  // UTF-8 (found by tests/fuzz/fuzz_scene_set; tests/fuzz_regressions/scene_set).
+  check_text(text, "--set");
   std::istringstream in("v = " + text);
   try {
     Value t = toml::parse<toml::discard_comments, std::map, std::vector>(in, "--set");
@@ -387,7 +390,7 @@ BodySpec read_body(const Section& s) {
   if (b.shape == "mesh") s.fail("shape", "\"mesh\" is not supported yet (only \"box\")");
   if (b.shape != "box") s.fail("shape", fmt::format("unknown value \"{}\" (one of: box, mesh)", b.shape));
   s.allow({"shape", "molecules", "spacing", "size", "topology", "material", "youngs_modulus", "density", "offset",
-           "region"});
+           "region", "radius"});
 
   s.require("molecules", "3 integers, molecules along x, y, z");
   b.molecules = *s.int3("molecules");
@@ -415,6 +418,8 @@ BodySpec read_body(const Section& s) {
   b.topology = s.choice("topology", topology_names()).value_or(b.topology);
   read_material(s, b.material, b.youngs_modulus, b.density);
   b.offset = s.vec3("offset").value_or(b.offset);
+  b.radius = s.number("radius");
+  if (b.radius) s.positive("radius", *b.radius);
 
   for (const auto& r : s.tables("region")) {
     r.allow({"lo", "hi", "material", "youngs_modulus", "density"});
@@ -477,7 +482,7 @@ CalibrationSpec read_calibration(const Section& s, const BodySpec& body) {
 
 SolverSpec read_solver(const Section& s) {
   SolverSpec v;
-  s.allow({"kind", "tolerance", "time_step", "steps", "max_iterations", "load_steps"});
+  s.allow({"kind", "tolerance", "time_step", "steps", "max_iterations", "load_steps", "allow_unstable_time_step"});
   v.kind = s.choice("kind", {"static", "relaxation", "dynamic"}).value_or(v.kind);
   v.tolerance = s.number("tolerance").value_or(v.tolerance);
   if (!(v.tolerance > 0 && v.tolerance < 1))
@@ -490,6 +495,7 @@ SolverSpec read_solver(const Section& s) {
   s.at_least("max_iterations", v.max_iterations, 0);
   v.load_steps = s.integer("load_steps").value_or(v.load_steps);
   s.at_least("load_steps", v.load_steps, 1);
+  v.allow_unstable_time_step = s.boolean("allow_unstable_time_step").value_or(false);
   return v;
 }
 
@@ -545,52 +551,88 @@ Scene build_scene(const Value& root, const std::string& file) {
   Section top(file, root, "");
   top.allow({"title", "body", "calibration", "fix", "load", "physics", "obstacle", "solver", "output"});
   scene.title = top.string("title").value_or("");
-  top.require("body", "a scene needs a [body] table");
-  scene.body = read_body(top.table("body"));
+  top.require("body", "a scene needs a [body] table (or [[body]] tables, one per body)");
+  if (top.get("body").is_array()) {  // [[body]]: several bodies, numbered in the order given
+    for (const auto& b : top.tables("body")) scene.bodies.push_back(read_body(b));
+    if (scene.bodies.empty()) top.fail("body", "an empty array: give at least one [[body]]");
+  } else {
+    scene.bodies.push_back(read_body(top.table("body")));
+  }
+  scene.body = scene.bodies[0];
+  const int nbodies = static_cast<int>(scene.bodies.size());
   const Value none = Value(Table{});  // an absent [calibration] is read as an empty one, for the manual check
-  scene.calibration = read_calibration(
-      top.has("calibration") ? top.table("calibration") : Section(file, none, "calibration"), scene.body);
+  const Section calibration =
+      top.has("calibration") ? top.table("calibration") : Section(file, none, "calibration");
+  for (const auto& b : scene.bodies) scene.calibration = read_calibration(calibration, b);
+  if (nbodies > 1) {
+    const std::set<std::string> per_body = {"linear", "divided", "manual", "angles", "angles-update"};
+    if (!per_body.count(scene.calibration.method))
+      calibration.fail("method", fmt::format("\"{}\" calibrates one body; with several bodies use one of: linear, "
+                                             "divided, manual, angles, angles-update", scene.calibration.method));
+  }
+  auto which_body = [&](const Section& t) {
+    int b = static_cast<int>(t.integer("body").value_or(0));
+    if (b < 0 || b >= nbodies)
+      t.fail("body", fmt::format("no body {} (the scene has {} bod{})", b, nbodies, nbodies == 1 ? "y" : "ies"));
+    return b;
+  };
 
-  // Fixes: at most one per face.
-  std::map<std::string, std::string> fixed;  // face -> which fix[i]
+  // Fixes: at most one per face of a body.
+  std::map<std::pair<int, std::string>, std::string> fixed;  // (body, face) -> which fix[i]
   for (const auto& f : top.tables("fix")) {
-    f.allow({"face", "mode"});
+    f.allow({"face", "mode", "body"});
     FixSpec spec;
     f.require("face", "one of " + join(face_names));
     spec.face = *f.choice("face", face_names);
     spec.mode = f.choice("mode", {"clamped", "roller"}).value_or(spec.mode);
-    auto [it, added] = fixed.emplace(spec.face, f.path());
+    spec.body = which_body(f);
+    auto [it, added] = fixed.emplace(std::make_pair(spec.body, spec.face), f.path());
     if (!added) f.fail("face", fmt::format("face {} is already fixed by {}", spec.face, it->second));
     scene.fixes.push_back(spec);
   }
   for (const auto& l : top.tables("load")) {
-    l.allow({"face", "force", "distribution"});
+    l.allow({"face", "force", "distribution", "body", "period"});
     LoadSpec spec;
     l.require("face", "one of " + join(face_names));
     spec.face = *l.choice("face", face_names);
-    if (fixed.count(spec.face))
+    spec.body = which_body(l);
+    if (fixed.count({spec.body, spec.face}))
       l.fail("face", fmt::format("face {} is also fixed (a fixed face cannot be loaded)", spec.face));
     l.require("force", "[Fx, Fy, Fz] in N, the total over the face");
     spec.force = *l.vec3("force");
     if (spec.force[0] == 0 && spec.force[1] == 0 && spec.force[2] == 0) l.fail("force", "must not be zero");
     spec.distribution = l.choice("distribution", {"traction", "equal"}).value_or(spec.distribution);
+    spec.period = l.number("period").value_or(0.0);
+    if (l.has("period")) l.positive("period", spec.period);
     scene.loads.push_back(spec);
   }
 
   if (top.has("physics")) {
     Section p = top.table("physics");
-    p.allow({"gravity", "viscosity"});
+    p.allow({"gravity", "viscosity", "contact", "contact_stiffness", "contact_skin"});
     scene.physics.gravity = p.vec3("gravity");
     scene.physics.viscosity = p.number("viscosity");
     if (scene.physics.viscosity) p.non_negative("viscosity", *scene.physics.viscosity);
+    scene.physics.contact = p.boolean("contact").value_or(false);
+    scene.physics.contact_stiffness = p.number("contact_stiffness").value_or(0.0);
+    p.non_negative("contact_stiffness", scene.physics.contact_stiffness);
+    scene.physics.contact_skin = p.number("contact_skin").value_or(0.0);
+    p.non_negative("contact_skin", scene.physics.contact_skin);
   }
   for (const auto& o : top.tables("obstacle")) scene.obstacles.push_back(read_obstacle(o));
 
   if (top.has("solver")) scene.solver = read_solver(top.table("solver"));
-  if (scene.solver.kind != "dynamic" && scene.fixes.empty())
-    throw InputError(
-        file, "solver.kind",
-        fmt::format("a {} solve needs at least one [[fix]] (rigid motion is unbounded)", scene.solver.kind));
+  // Equilibrium needs the rigid motion held: by a [[fix]], or (relaxation only, which never inverts the
+  // stiffness) by the obstacles the body rests on.
+  const bool held_by_contact = scene.solver.kind == "relaxation" && !scene.obstacles.empty();
+  if (scene.solver.kind != "dynamic" && scene.fixes.empty() && !held_by_contact)
+    throw InputError(file, "solver.kind",
+                     fmt::format("a {} solve needs at least one [[fix]] (rigid motion is unbounded){}",
+                                 scene.solver.kind,
+                                 scene.obstacles.empty() ? "" : "; relaxation may rest on obstacles instead"));
+  for (std::size_t i = 0; i < scene.loads.size(); ++i)
+    if (scene.loads[i].period > 0 && scene.solver.kind != "dynamic")
+      throw InputError(file, fmt::format("load[{}].period", i), "a cyclic load needs solver.kind = \"dynamic\"");
   if (top.has("output")) scene.output = read_output(top.table("output"));
   return scene;
 }

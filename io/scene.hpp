@@ -38,6 +38,7 @@ struct BodySpec {
   double density = 1000.0;      // kg/m^3
   Vec3 offset{0.0, 0.0, 0.0};   // m, where molecule (0,0,0) sits
   std::vector<RegionSpec> regions;
+  std::optional<double> radius;  // m, a molecule's contact sphere; absent = half the smallest spacing
 };
 
 struct CalibrationSpec {
@@ -50,6 +51,7 @@ struct CalibrationSpec {
 
 struct FixSpec {
   std::string face;              // x- x+ y- y+ z- z+
+  int body = 0;                  // which body's face ([[body]] index)
   std::string mode = "clamped";  // clamped | roller
 };
 
@@ -57,11 +59,16 @@ struct LoadSpec {
   std::string face;
   Vec3 force{0.0, 0.0, 0.0};          // N, total over the face
   std::string distribution = "traction";  // traction | equal
+  int body = 0;                       // which body's face
+  double period = 0.0;                // s; > 0: cyclic, the force scaled by sin(2 pi t / period) (dynamic)
 };
 
 struct PhysicsSpec {  // absent means off
   std::optional<Vec3> gravity;      // m/s^2
   std::optional<double> viscosity;  // N s/m per molecule
+  bool contact = false;             // molecule-molecule contact (other bodies, non-neighbours of one body)
+  double contact_stiffness = 0.0;   // N/m penalty; 0 = chosen from the bodies' springs
+  double contact_skin = 0.0;        // m, Verlet-list skin; 0 = half the smallest molecule radius
 };
 
 struct ObstacleSpec {
@@ -79,6 +86,9 @@ struct SolverSpec {
   long steps = 1000;                   // dynamic: total step count of the run
   long max_iterations = 0;             // relaxation/static cap; 0 = a default that grows with the lattice
   long load_steps = 1;                 // static: load increments
+  // A time_step above the critical one (explicit integration unstable) is refused unless this is true; then it
+  // is used as given, with a warning (the critical step is a Gershgorin bound: the true limit may be higher).
+  bool allow_unstable_time_step = false;
 };
 
 struct OutputSpec {
@@ -93,7 +103,8 @@ struct Scene {
   std::string file;  // the path it was read from (for messages)
   std::string text;  // the TOML text after --set overrides (kept in checkpoints)
   std::string title;
-  BodySpec body;
+  BodySpec body;                 // the first body (== bodies[0]): single-body code reads this
+  std::vector<BodySpec> bodies;  // [body] gives one, [[body]] several; molecules numbered body after body
   CalibrationSpec calibration;
   std::vector<FixSpec> fixes;
   std::vector<LoadSpec> loads;

@@ -13,7 +13,8 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
   m.comm = comm;
   MPI_Comm_rank(comm, &m.rank);
   MPI_Comm_size(comm, &m.size);
-  m.shape.n = body.n, m.shape.h = body.h, m.shape.offset = body.offset, m.shape.topology = body.topology;
+  static_cast<BoxGeometry&>(m.shape) = body;
+  m.shape.parts = body.parts;
   m.global_molecules = body.molecules();
   m.global_connections = static_cast<std::int64_t>(body.connections.size());
   m.partition = stats;
@@ -56,7 +57,7 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
   m.local = static_cast<int>(m.id.size());
 
   m.block.resize(m.local), m.rest.resize(3 * m.local), m.mass.resize(m.local);
-  m.youngs_modulus.resize(m.local), m.degree.resize(m.local);
+  m.youngs_modulus.resize(m.local), m.degree.resize(m.local), m.body.resize(m.local);
   for (int i = 0; i < m.local; ++i) {
     std::int64_t g = m.id[i];
     m.block[i] = block_of[g];
@@ -65,6 +66,7 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
     m.mass[i] = body.mass[g];
     m.youngs_modulus[i] = body.youngs_modulus[g];
     m.degree[i] = degree[g];
+    m.body[i] = body.body_of(g);
   }
 
   // Tetrahedra incident on each connection (Van Gelder's Eq. 5), summed per connection.

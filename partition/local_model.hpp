@@ -20,7 +20,7 @@ namespace tissue {
 struct LocalModel {
   MPI_Comm comm = MPI_COMM_NULL;
   int rank = 0, size = 1;
-  Body shape;  // the body's geometry only (n, h, offset, topology); its global arrays are left empty
+  Body shape;  // the bodies' geometry only (body 0's n, h, offset, topology, and parts); global arrays left empty
   std::int64_t global_molecules = 0, global_connections = 0;
   PartitionStats partition;
 
@@ -33,6 +33,7 @@ struct LocalModel {
   std::vector<double> mass;          // local, kg
   std::vector<double> youngs_modulus;  // local, Pa
   std::vector<int> degree;           // local, number of connections of each molecule in the whole body
+  std::vector<int> body;             // local, which body ([[body]] index) each molecule belongs to
 
   // Connections (structure of arrays): local end indices, global id, class, rest length, stiffness.
   std::vector<int> end_a, end_b;

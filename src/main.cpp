@@ -21,6 +21,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <string>
 #include <vector>
 
@@ -64,6 +65,10 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
   const MPI_Comm comm = PETSC_COMM_WORLD;
   const bool root = rank_of(comm) == 0;
   const auto start = std::chrono::steady_clock::now();
+  // Batch schedulers warn with SIGTERM before the time limit: from here on a signal means "checkpoint at the
+  // next step boundary and stop" (set-up included: the flag waits for the first boundary).
+  std::signal(SIGTERM, on_signal);
+  std::signal(SIGINT, on_signal);
 
   // 1. Read the scene (every rank reads the same file; a bad one stops every rank with the same line). A
   //    restart reads the scene text the checkpoint carries.
@@ -77,7 +82,7 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
     int ranks;
     MPI_Comm_size(comm, &ranks);
     if (root)
-      std::fprintf(stderr, "tissue: restarting \"%s\" at step %ld (written by %d ranks) on %d ranks\n",
+      std::printf("tissue: restarting \"%s\" at step %ld (written by %d ranks) on %d ranks\n",
                    header.title.c_str(), header.step, header.ranks, ranks);
   }
   if (!output.empty()) scene.output.directory = output;
@@ -90,7 +95,7 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
   std::vector<int> part = partition_molecules(body, comm, stats);
   LocalModel model = distribute(body, part, stats, comm);
   if (root)
-    std::fprintf(stderr, "tissue: %lld molecules, %lld connections on %d ranks; edge cut %ld, imbalance %.3f, "
+    std::printf("tissue: %lld molecules, %lld connections on %d ranks; edge cut %ld, imbalance %.3f, "
                          "ghosts/owned %.3f\n",
                  static_cast<long long>(model.global_molecules), static_cast<long long>(model.global_connections),
                  model.size, model.partition.edge_cut, model.partition.imbalance,
@@ -106,7 +111,10 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
   // 5. The force model: the connection forces plus only the terms the scene lists; loads and holds.
   ForceModel forces(scene, model);
   const double dt_critical = critical_time_step(forces);  // collective
-  if (root) std::fprintf(stderr, "tissue: critical time step %.6e s\n", dt_critical);
+  if (root) {
+    std::printf("tissue: critical time step %.6e s\n", dt_critical);
+    std::fflush(stdout);
+  }
 
   // 6. Solve, writing snapshots and checkpoints as the scene asks; a restart loads its state first.
   SolverState state(model);
@@ -118,8 +126,6 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
   hooks.snapshot = [&](const SolverState& s) { out.snapshot(s, forces); };
   std::string last_checkpoint;
   hooks.checkpoint = [&](const SolverState& s) { last_checkpoint = out.checkpoint(s); };
-  std::signal(SIGTERM, on_signal);  // batch schedulers warn with SIGTERM before the time limit
-  std::signal(SIGINT, on_signal);
   if (method->updater) hooks.refresh = method->updater(CalibrationContext{scene, model}, model.stiffness);
   SolveReport report;
   int code = 0;
@@ -146,18 +152,24 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
   // 7. Measure: Eq. 3, Poisson ratio, centre of mass, kinetic energy.
   Measurements measured = measure(scene, model, test, state.x.array(), state.v.data());
   Measurements initial = measure(scene, model, test, model.rest.data(), nullptr);
+  measure_contact(forces, measured);  // the contact forces of the final state's force evaluation
 
   // 8. Write the final state (unless it is not finite) and summary.json.
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  if (failure.find("non-finite") == std::string::npos && !report.interrupted)
+  // A solver failure caught by the guards (src/solvers/guards.hpp) has put the last good state back into `state`:
+  // it is written as DIR/last_good.h5, never as final.h5. A non-finite state is not written at all.
+  if (failure.find("last good state") != std::string::npos)
+    out.snapshot(state, forces, /*final=*/false, "last_good.h5");
+  else if (failure.find("non-finite") == std::string::npos && !report.interrupted)
     out.snapshot(state, forces, /*final=*/true);
   out.summary(test, measured, initial, report, state, wall, failure);
   if (root) {
     if (test.valid && measured.youngs_modulus)
       std::printf("%s\n  E target %.6g Pa, measured %.6g Pa, error %+.4f %%; elongation %.6e m; %s %ld iterations, "
                   "residual %.2e\n",
-                  scene.title.c_str(), scene.body.youngs_modulus, *measured.youngs_modulus,
-                  100.0 * (*measured.youngs_modulus - scene.body.youngs_modulus) / scene.body.youngs_modulus,
+                  scene.title.c_str(), scene.bodies[test.body].youngs_modulus, *measured.youngs_modulus,
+                  100.0 * (*measured.youngs_modulus - scene.bodies[test.body].youngs_modulus) /
+                      scene.bodies[test.body].youngs_modulus,
                   *measured.elongation, report.kind.c_str(), report.iterations, report.residual);
     else
       std::printf("%s\n  %s: %ld steps, kinetic energy %.6e J\n", scene.title.c_str(), report.kind.c_str(),
@@ -165,6 +177,27 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
     if (code) std::fprintf(stderr, "tissue: %s\n", failure.c_str());
   }
   return code;
+}
+
+// PETSc ignores options it does not know: a typo after -- (-ksp_typ gmres) would go unnoticed. After the run,
+// rank 0 names every option nothing has read (a warning, not an error: which options are read depends on the
+// solver kind, and relaxation and dynamic runs read none). Options read only by PetscFinalize are skipped.
+void warn_unused_petsc_options(int code) {
+  if (code == 2) return;  // bad input: the one line already said what is wrong
+  PetscInt n = 0;
+  char **names = nullptr, **values = nullptr;
+  if (PetscOptionsLeftGet(nullptr, &n, &names, &values)) return;
+  const bool root = rank_of(PETSC_COMM_WORLD) == 0;
+  for (PetscInt i = 0; i < n; ++i) {
+    const std::string name = names[i];
+    bool finalize_only = false;
+    for (const char* f : {"options_left", "malloc_dump", "memory_view", "objects_dump", "log_view", "malloc_debug"})
+      finalize_only = finalize_only || name == f;
+    if (root && !finalize_only)
+      std::fprintf(stderr, "tissue: warning: PETSc option -%s was never used (misspelt? PETSc options act on the "
+                           "static solver only)\n", names[i]);
+  }
+  PetscOptionsLeftRestore(nullptr, &n, &names, &values);
 }
 
 }  // namespace
@@ -196,8 +229,13 @@ int main(int argc, char** argv) {
   try {
     app.parse(static_cast<int>(ours.size()), ours.data());
   } catch (const CLI::ParseError& e) {
-    int code = app.exit(e);
-    return code == 0 ? 0 : 2;
+    if (e.get_exit_code() == 0) return app.exit(e);  // --help
+    // Bad input: one line, from one rank (MPI is not up yet: the launcher's rank variable tells).
+    const char* rank = std::getenv("OMPI_COMM_WORLD_RANK");
+    if (!rank) rank = std::getenv("PMI_RANK");
+    if (!rank || std::string(rank) == "0")
+      std::fprintf(stderr, "tissue: command line: %s (see tissue --help)\n", e.what());
+    return 2;
   }
 
   int petsc_argc = static_cast<int>(petsc.size());
@@ -216,6 +254,7 @@ int main(int argc, char** argv) {
     if (root) std::fprintf(stderr, "tissue: %s\n", e.what());
     code = 3;
   }
+  warn_unused_petsc_options(code);
   PetscCall(PetscFinalize());
   return code;
 }

@@ -19,7 +19,7 @@ Measurements measure(const Scene& scene, const LocalModel& model, const TensionT
     sum[3] += model.mass[i];
     if (v)
       for (int d = 0; d < 3; ++d) sum[4] += 0.5 * model.mass[i] * v[3 * i + d] * v[3 * i + d];
-    if (!test.valid) continue;
+    if (!test.valid || model.body[i] != test.body) continue;
     double along = 0;
     for (int d = 0; d < 3; ++d) along += (xi[d] - x0[d]) * test.direction[d];
     if (s.on_face(g, test.axis, test.load_side)) sum[5] += along, sum[6] += 1;
@@ -63,6 +63,18 @@ Measurements measure(const Scene& scene, const LocalModel& model, const TensionT
     }
   }
   return m;
+}
+
+}  // namespace tissue
+
+namespace tissue {
+
+void measure_contact(const ForceModel& forces, Measurements& m) {
+  const ForceModel::Contact c = forces.contact_totals();
+  if (c.obstacles) m.contact_force = c.totals.obstacles;
+  if (c.molecules)
+    for (std::size_t b = 0; 3 * b < c.totals.bodies.size(); ++b)
+      m.body_contact_force.push_back({c.totals.bodies[3 * b], c.totals.bodies[3 * b + 1], c.totals.bodies[3 * b + 2]});
 }
 
 }  // namespace tissue

@@ -2,6 +2,7 @@
 // mass and the kinetic energy. Every value is a global reduction over the owned molecules.
 #pragma once
 #include <optional>
+#include <vector>
 
 #include "partition/local_model.hpp"
 #include "src/physics/force_model.hpp"
@@ -15,10 +16,14 @@ struct Measurements {
   Vec3 center_of_mass{};
   double kinetic_energy = 0.0;
   double mass = 0.0;
+  std::optional<Vec3> contact_force;      // total force the obstacles exert on the bodies (scenes with obstacles)
+  std::vector<Vec3> body_contact_force;   // per body: force molecules of other bodies exert on it ([physics] contact)
 };
 
 // x: local positions (owned first); v: owned velocities, or nullptr.
 Measurements measure(const Scene& scene, const LocalModel& model, const TensionTest& test, const double* x,
                      const double* v);
+// Collective: the contact forces of the force model's last evaluation (its state after the solve) into m.
+void measure_contact(const ForceModel& forces, Measurements& m);
 
 }  // namespace tissue

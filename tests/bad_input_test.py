@@ -45,10 +45,13 @@ class Runner:
         self.passed = 0
         self.failed = []
 
-    def check(self, label, scene, expects, extra=(), workdir=None):
-        """Runs `tissue run SCENE --output DIR/out [extra]` and checks the one-line failure."""
+    def check(self, label, scene, expects, extra=(), workdir=None, args=None):
+        """Runs `tissue run SCENE [extra] --output DIR/out` (or `tissue ARGS --output DIR/out`) and checks the
+        one-line failure."""
         out = Path(workdir) / "out"
-        cmd = self.launcher + [str(self.tissue), "run", str(scene), *extra, "--output", str(out)]
+        if args is None:
+            args = ["run", str(scene), *extra]
+        cmd = self.launcher + [str(self.tissue), *args, "--output", str(out)]
         env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
         start = time.monotonic()
         try:
@@ -69,6 +72,7 @@ class Runner:
                 problems.append(f"stderr lacks {text!r}")
         if elapsed >= 5:
             problems.append(f"took {elapsed:.1f} s (limit 5 s)")
+        self.slowest = max(getattr(self, "slowest", 0.0), elapsed)
         if out.exists():
             problems.append(f"left {out} behind")
         if problems:
@@ -124,6 +128,18 @@ def main():
             extra = [a for o in overrides for a in ("--set", o)]
             runner.check(f"--set {label}", valid, expects, extra=extra, workdir=tmp)
 
+        # the command line itself: unknown options and subcommands, missing arguments
+        cli_cases = [
+            ("unknown option", ["run", str(valid), "--bogus"], ["--bogus"]),
+            ("unknown option with value", ["run", str(valid), "--sett", "body.density=5"], ["--sett"]),
+            ("unknown subcommand", ["frobnicate", str(valid)], ["subcommand"]),
+            ("run without scene", ["run"], ["scene"]),
+            ("--set without value", ["run", str(valid), "--set"], ["--set"]),
+            ("restart with a model key", ["restart", str(valid), "--set", "body.density=5"], ["body.density"]),
+        ]
+        for label, args, expects in cli_cases:
+            runner.check(f"cli {label}", None, expects, workdir=tmp, args=args)
+
         missing = Path(tmp) / "no_such_scene.toml"
         runner.check("missing file", missing, ["no_such_scene.toml"], workdir=tmp)
         directory = Path(tmp) / "a_directory.toml"
@@ -138,7 +154,10 @@ def main():
 
     for f in runner.failed:
         print(f"FAIL {f}")
-    print(f"{runner.passed} passed, {len(runner.failed)} failed")
+    print(f"{runner.passed} passed, {len(runner.failed)} failed; slowest case {getattr(runner, 'slowest', 0):.2f} s")
+    if runner.passed + len(runner.failed) < 40:
+        print("fewer than 40 cases: the corpus must cover at least 40 malformed scenes and option sets")
+        return 1
     return 1 if runner.failed else 0
 
 

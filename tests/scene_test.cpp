@@ -88,6 +88,7 @@ time_step = 1e-4
 steps = 500
 max_iterations = 20000
 load_steps = 4
+allow_unstable_time_step = true
 
 [[obstacle]]
 kind = "plane"
@@ -239,6 +240,7 @@ TEST(Scene, FullSceneEveryField) {
   EXPECT_EQ(s.solver.steps, 500);
   EXPECT_EQ(s.solver.max_iterations, 20000);
   EXPECT_EQ(s.solver.load_steps, 4);
+  EXPECT_TRUE(s.solver.allow_unstable_time_step);
 
   ASSERT_EQ(s.obstacles.size(), 2u);
   EXPECT_EQ(s.obstacles[0].kind, "plane");
@@ -276,6 +278,7 @@ TEST(Scene, Defaults) {
   EXPECT_EQ(s.solver.kind, "static");
   EXPECT_FALSE(s.solver.time_step);
   EXPECT_EQ(s.solver.load_steps, 1);
+  EXPECT_FALSE(s.solver.allow_unstable_time_step);
   EXPECT_EQ(s.output.directory, "out");
   EXPECT_TRUE(s.output.progress);
   // A dynamic run may leave everything free.
@@ -468,6 +471,9 @@ TEST(Scene, MalformedInputs) {
       {base + "[solver]\nsteps = 1.5\n", "solver.steps"},
       {base + "[solver]\nmax_iterations = -1\n", "solver.max_iterations"},
       {base + "[solver]\nload_steps = 0\n", "solver.load_steps"},
+      {base + "[solver]\nallow_unstable_time_step = 1\n", "solver.allow_unstable_time_step"},
+      {base + "[solver]\nallow_unstable_time_step = \"yes\"\n", "solver.allow_unstable_time_step"},
+      {base + "[solver]\nallow_unstable_timestep = true\n", "solver.allow_unstable_timestep"},
       {"[body]\nmolecules = [3,3,3]\nspacing = [1,1,1]\nyoungs_modulus = 1\n", "solver.kind"},
       {"[body]\nmolecules = [3,3,3]\nspacing = [1,1,1]\nyoungs_modulus = 1\n[solver]\nkind = \"relaxation\"\n",
        "solver.kind"},
@@ -531,4 +537,86 @@ TEST(Scene, ReadFileErrors) {
   EXPECT_EQ(s.file, good);
   EXPECT_EQ(s.solver.kind, "relaxation");
   fs::remove_all(dir);
+}
+
+// Several bodies, the body key of fixes and loads, cyclic loads, molecule radius and contact keys.
+TEST(Scene, SeveralBodiesAndPhysicsKeys) {
+  const std::string two = R"(
+[[body]]
+molecules = [3, 3, 3]
+spacing = [0.1, 0.1, 0.1]
+youngs_modulus = 1e5
+radius = 0.04
+[[body]]
+molecules = [2, 4, 3]
+spacing = [0.2, 0.1, 0.1]
+material = "cartilage"
+offset = [1, 0, 0]
+[physics]
+contact = true
+contact_stiffness = 1e3
+contact_skin = 0.01
+[[fix]]
+face = "z+"
+[[fix]]
+face = "z+"
+body = 1
+[[load]]
+face = "z-"
+body = 1
+force = [0, 0, -1]
+period = 0.5
+[solver]
+kind = "dynamic"
+)";
+  Scene s = parse_scene(two, "two.toml");
+  ASSERT_EQ(s.bodies.size(), 2u);
+  EXPECT_EQ(s.body.youngs_modulus, 1e5);  // scene.body is the first body
+  EXPECT_EQ(*s.bodies[0].radius, 0.04);
+  EXPECT_FALSE(s.bodies[1].radius.has_value());
+  EXPECT_EQ(s.bodies[1].youngs_modulus, 10e6);
+  EXPECT_EQ(s.bodies[1].offset, (Vec3{1, 0, 0}));
+  EXPECT_EQ(s.fixes[1].body, 1);
+  EXPECT_EQ(s.fixes[0].body, 0);
+  EXPECT_EQ(s.loads[0].body, 1);
+  EXPECT_EQ(s.loads[0].period, 0.5);
+  EXPECT_TRUE(s.physics.contact);
+  EXPECT_EQ(s.physics.contact_stiffness, 1e3);
+  EXPECT_EQ(s.physics.contact_skin, 0.01);
+  // the text round trip keeps the array of bodies
+  Scene again = parse_scene(s.text, "again");
+  ASSERT_EQ(again.bodies.size(), 2u);
+  EXPECT_EQ(again.bodies[1].spacing, s.bodies[1].spacing);
+  // --set reaches a body of the array by index
+  Scene set = parse_scene(two, "two.toml", {"body.1.youngs_modulus=2e6"});
+  EXPECT_EQ(set.bodies[1].youngs_modulus, 2e6);
+  // a single [body] is one body, as before
+  Scene one = parse_scene(base, "one.toml");
+  ASSERT_EQ(one.bodies.size(), 1u);
+  EXPECT_EQ(one.bodies[0].molecules, one.body.molecules);
+
+  auto error = [](const std::string& text, const std::vector<std::string>& set = {}) {
+    try {
+      parse_scene(text, "bad.toml", set);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_NE(error(two, {"fix.1.body=2"}).find("fix[1].body"), std::string::npos);
+  EXPECT_NE(error(two, {"load.0.body=-1"}).find("load[0].body"), std::string::npos);
+  EXPECT_NE(error(two, {"load.0.period=0"}).find("load[0].period"), std::string::npos);
+  EXPECT_NE(error(two, {"solver.kind=static"}).find("load[0].period"), std::string::npos);
+  EXPECT_NE(error(two, {"body.0.radius=-1"}).find("body[0].radius"), std::string::npos);
+  EXPECT_NE(error(two, {"physics.contact=1"}).find("physics.contact"), std::string::npos);
+  EXPECT_NE(error(two, {"physics.contact_skin=-1"}).find("physics.contact_skin"), std::string::npos);
+  EXPECT_NE(error(two, {"load.0.face=z+"}).find("load[0].face"), std::string::npos);  // fixed on body 1
+  EXPECT_EQ(error(two, {"load.0.body=0", "load.0.face=z-"}), "");                        // z- of body 0 is free
+  EXPECT_NE(error(two, {"calibration.method=homogenized"}).find("calibration.method"), std::string::npos);
+  EXPECT_NE(error("body = []\n").find("body"), std::string::npos);
+  // relaxation may rest on an obstacle instead of a fix; static may not
+  const std::string resting = "[body]\nmolecules = [3,3,3]\nspacing = [1,1,1]\nyoungs_modulus = 1\n"
+                              "[[obstacle]]\nkind = \"plane\"\npoint = [0,0,0]\nnormal = [0,0,1]\n";
+  EXPECT_EQ(error(resting + "[solver]\nkind = \"relaxation\"\n"), "");
+  EXPECT_NE(error(resting + "[solver]\nkind = \"static\"\n").find("solver.kind"), std::string::npos);
 }

@@ -12,7 +12,7 @@
 namespace tissue {
 
 double linear_stiffness(const LocalModel& m, int c) {
-  const Body& s = m.shape;
+  const BoxGeometry& s = m.shape.part(m.id[m.end_a[c]]);  // the body the connection lies in
   auto ia = s.index(m.id[m.end_a[c]]), ib = s.index(m.id[m.end_b[c]]);
   int differ[3], nd = 0;
   for (int d = 0; d < 3; ++d)

@@ -22,19 +22,21 @@ struct Connection {
 
 using Tetrahedron = std::array<std::int64_t, 4>;
 
-struct Body {
+// The geometry of one box body: molecule (i,j,k) has the global id first + i + n_x (j + n_y k).
+struct BoxGeometry {
   std::array<long, 3> n{};  // molecules along x, y, z
   Vec3 h{};                 // spacing, m
   Vec3 offset{};            // position of molecule (0,0,0)
   std::string topology;
-  std::vector<Connection> connections;  // sorted by (a, b): the global connection order
-  std::vector<Tetrahedron> tetrahedra;  // filled by the tetrahedral topology only (Van Gelder's Eq. 5)
-  std::vector<double> youngs_modulus;   // per molecule, Pa
-  std::vector<double> mass;             // per molecule, kg
+  std::int64_t first = 0;   // global id of molecule (0,0,0): bodies are numbered one after another
+  double radius = 0.0;      // m, each molecule's contact sphere
 
   std::int64_t molecules() const { return static_cast<std::int64_t>(n[0]) * n[1] * n[2]; }
-  std::int64_t id(long i, long j, long k) const { return i + n[0] * (j + static_cast<std::int64_t>(n[1]) * k); }
+  std::int64_t id(long i, long j, long k) const {
+    return first + i + n[0] * (j + static_cast<std::int64_t>(n[1]) * k);
+  }
   std::array<long, 3> index(std::int64_t id) const {
+    id -= first;
     return {static_cast<long>(id % n[0]), static_cast<long>((id / n[0]) % n[1]),
             static_cast<long>(id / (static_cast<std::int64_t>(n[0]) * n[1]))};
   }
@@ -59,6 +61,34 @@ struct Body {
     return width(ijk[a1], a1) * width(ijk[a2], a2);
   }
   double length(int axis) const { return (n[axis] - 1) * h[axis]; }  // the body's extent along an axis
+};
+
+// All the bodies of a scene in one global numbering (body 0's molecules, then body 1's, ...). The inherited
+// geometry is body 0's, so single-body code reads it as before; the per-molecule queries below look up the body
+// that holds the molecule. A Body built by hand with no parts is one body.
+struct Body : BoxGeometry {
+  std::vector<BoxGeometry> parts;       // one per body, by first id
+  std::vector<Connection> connections;  // sorted by (a, b): the global connection order; never between bodies
+  std::vector<Tetrahedron> tetrahedra;  // filled by the tetrahedral topology only (Van Gelder's Eq. 5)
+  std::vector<double> youngs_modulus;   // per molecule, Pa
+  std::vector<double> mass;             // per molecule, kg
+
+  int bodies() const { return parts.empty() ? 1 : static_cast<int>(parts.size()); }
+  std::int64_t molecules() const {
+    return parts.size() <= 1 ? BoxGeometry::molecules() : parts.back().first + parts.back().molecules();
+  }
+  int body_of(std::int64_t id) const {
+    int b = 0;
+    while (b + 1 < static_cast<int>(parts.size()) && parts[b + 1].first <= id) ++b;
+    return b;
+  }
+  const BoxGeometry& part(std::int64_t id) const { return parts.size() <= 1 ? *this : parts[body_of(id)]; }
+  const BoxGeometry& body(int b) const { return parts.empty() ? *this : parts[b]; }
+  std::array<long, 3> index(std::int64_t id) const { return part(id).index(id); }
+  Vec3 rest_position(std::int64_t id) const { return part(id).rest_position(id); }
+  double volume(std::int64_t id) const { return part(id).volume(id); }
+  bool on_face(std::int64_t id, int axis, int side) const { return part(id).on_face(id, axis, side); }
+  double face_area(std::int64_t id, int axis) const { return part(id).face_area(id, axis); }
 };
 
 // Builds the body a scene describes: geometry, topology, per-molecule material and mass.

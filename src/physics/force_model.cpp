@@ -3,33 +3,39 @@
 #include <algorithm>
 #include <cmath>
 #include <set>
+#include <string>
 
 namespace tissue {
 
 TensionTest tension_test(const Scene& scene, const Body& shape) {
   TensionTest t;
   if (scene.loads.size() != 1) return t;
+  if (scene.loads[0].period > 0) return t;  // a cyclic load measures no modulus
   int axis, side;
   parse_face(scene.loads[0].face, axis, side);
+  t.body = scene.loads[0].body;
   for (const auto& fix : scene.fixes) {
     int fa, fs;
     parse_face(fix.face, fa, fs);
-    if (fa == axis && fs != side) t.valid = true;
+    if (fix.body == t.body && fa == axis && fs != side) t.valid = true;
   }
   if (!t.valid) return t;
+  const BoxGeometry& g = shape.body(t.body);
   const Vec3& F = scene.loads[0].force;
   t.force = std::sqrt(F[0] * F[0] + F[1] * F[1] + F[2] * F[2]);
   for (int d = 0; d < 3; ++d) t.direction[d] = F[d] / t.force;
   t.axis = axis, t.load_side = side, t.fixed_side = 1 - side;
-  t.rest_length = shape.length(axis);
-  t.cross_section = shape.length((axis + 1) % 3) * shape.length((axis + 2) % 3);
+  t.rest_length = g.length(axis);
+  t.cross_section = g.length((axis + 1) % 3) * g.length((axis + 2) % 3);
   return t;
 }
 
 namespace {
 
 // The components a fixed face holds, for one molecule (global id) of the body.
-void hold(const Body& s, const FixSpec& fix, std::int64_t g, std::uint8_t* held) {
+void hold(const Body& all, const FixSpec& fix, std::int64_t g, std::uint8_t* held) {
+  if (all.body_of(g) != fix.body) return;
+  const BoxGeometry& s = all.body(fix.body);
   int axis, side;
   parse_face(fix.face, axis, side);
   if (!s.on_face(g, axis, side)) return;
@@ -49,38 +55,71 @@ void hold(const Body& s, const FixSpec& fix, std::int64_t g, std::uint8_t* held)
 
 }  // namespace
 
+void add_face_load(const LoadSpec& load, const LocalModel& model, double* out) {
+  const BoxGeometry& s = model.shape.body(load.body);
+  int axis, side;
+  parse_face(load.face, axis, side);
+  int u = (axis + 1) % 3, v = (axis + 2) % 3;
+  const double face_area = s.length(u) * s.length(v);
+  const double count = static_cast<double>(s.n[u]) * s.n[v];
+  for (int i = 0; i < model.owned; ++i) {
+    if (model.body[i] != load.body || !s.on_face(model.id[i], axis, side)) continue;
+    // traction: each molecule's share is its tributary area on the face; equal: the same share for all.
+    double share = load.distribution == "equal" ? 1.0 / count : s.face_area(model.id[i], axis) / face_area;
+    for (int d = 0; d < 3; ++d) out[3 * i + d] += share * load.force[d];
+  }
+}
+
 ForceModel::ForceModel(const Scene& scene, const LocalModel& model) : model_(model) {
   const Body& s = model.shape;
   held_.assign(3 * model.local, 0);
   for (int i = 0; i < model.local; ++i)
     for (const auto& fix : scene.fixes) hold(s, fix, model.id[i], &held_[3 * i]);
 
+  // Constant face loads; cyclic ones (period > 0) are a term of their own.
   applied_.assign(3 * model.owned, 0.0);
-  for (const auto& load : scene.loads) {
-    int axis, side;
-    parse_face(load.face, axis, side);
-    int u = (axis + 1) % 3, v = (axis + 2) % 3;
-    const double face_area = s.length(u) * s.length(v);
-    const double count = static_cast<double>(s.n[u]) * s.n[v];
-    for (int i = 0; i < model.owned; ++i) {
-      if (!s.on_face(model.id[i], axis, side)) continue;
-      // traction: each molecule's share is its tributary area on the face; equal: the same share for all.
-      double share = load.distribution == "equal" ? 1.0 / count : s.face_area(model.id[i], axis) / face_area;
-      for (int d = 0; d < 3; ++d) applied_[3 * i + d] += share * load.force[d];
-    }
-  }
-  if (scene.physics.gravity) gravity_ = std::make_unique<Vec3>(*scene.physics.gravity);
-  if (scene.physics.viscosity && *scene.physics.viscosity > 0)
-    viscosity_ = std::make_unique<double>(*scene.physics.viscosity);
+  std::vector<double> cyclic(3 * model.owned, 0.0);
+  for (const auto& load : scene.loads) add_face_load(load, model, (load.period > 0 ? cyclic : applied_).data());
+  for (const auto& style : term_styles())
+    if (style.listed(scene)) terms_.push_back(style.make(TermContext{scene, model}));
 
+  // The reference of the relative residual: loads (cyclic ones at their amplitude) and gravity.
+  const Vec3 g = scene.physics.gravity ? *scene.physics.gravity : Vec3{0, 0, 0};
   double sum = 0;
   for (int i = 0; i < model.owned; ++i)
     for (int d = 0; d < 3; ++d) {
-      double fe = applied_[3 * i + d] + (gravity_ ? model.mass[i] * (*gravity_)[d] : 0.0);
+      double fe = applied_[3 * i + d] + cyclic[3 * i + d] + model.mass[i] * g[d];
       if (!held_[3 * i + d]) sum += fe * fe;
     }
   MPI_Allreduce(&sum, &applied_norm_, 1, MPI_DOUBLE, MPI_SUM, model.comm);
   applied_norm_ = std::sqrt(applied_norm_);
+}
+
+std::vector<std::string> ForceModel::term_names() const {
+  std::vector<std::string> names;
+  for (const auto& t : terms_) names.push_back(t->name());
+  return names;
+}
+
+ForceModel::Contact ForceModel::contact_totals() const {
+  Contact c;
+  const int nb = model_.shape.bodies();
+  c.totals.bodies.assign(3 * nb, 0.0);
+  c.totals.bodies_self.assign(3 * nb, 0.0);
+  for (const auto& t : terms_) {
+    c.obstacles = c.obstacles || std::string(t->name()) == "obstacles";
+    c.molecules = c.molecules || std::string(t->name()) == "contact";
+    t->add_totals(c.totals);
+  }
+  std::vector<double> local(3 + 6 * nb), global(3 + 6 * nb);
+  std::copy(c.totals.obstacles.begin(), c.totals.obstacles.end(), local.begin());
+  std::copy(c.totals.bodies.begin(), c.totals.bodies.end(), local.begin() + 3);
+  std::copy(c.totals.bodies_self.begin(), c.totals.bodies_self.end(), local.begin() + 3 + 3 * nb);
+  MPI_Allreduce(local.data(), global.data(), static_cast<int>(local.size()), MPI_DOUBLE, MPI_SUM, model_.comm);
+  std::copy(global.begin(), global.begin() + 3, c.totals.obstacles.begin());
+  std::copy(global.begin() + 3, global.begin() + 3 + 3 * nb, c.totals.bodies.begin());
+  std::copy(global.begin() + 3 + 3 * nb, global.end(), c.totals.bodies_self.begin());
+  return c;
 }
 
 void ForceModel::connection_forces(const double* x, double* f) const {
@@ -108,11 +147,7 @@ void ForceModel::forces(const double* x, const double* v, double* f, double load
   connection_forces(x, f);
   const int n = model_.owned;
   for (int i = 0; i < 3 * n; ++i) f[i] += load_factor * applied_[i];
-  if (gravity_)
-    for (int i = 0; i < n; ++i)
-      for (int d = 0; d < 3; ++d) f[3 * i + d] += model_.mass[i] * (*gravity_)[d];
-  if (viscosity_)
-    for (int i = 0; i < 3 * n; ++i) f[i] -= *viscosity_ * v[i];
+  for (const auto& t : terms_) t->add_forces(x, v, time_, f);  // one call per term, none per connection
   for (int i = 0; i < 3 * n; ++i)
     if (held_[i]) f[i] = 0.0;
 }
@@ -130,8 +165,8 @@ double ForceModel::potential_energy(const double* x, double load_factor) const {
     for (int d = 0; d < 3; ++d) {
       double u = x[3 * i + d] - model_.rest[3 * i + d];
       e -= load_factor * applied_[3 * i + d] * u;
-      if (gravity_) e -= model_.mass[i] * (*gravity_)[d] * u;
     }
+  for (const auto& t : terms_) e += t->potential_energy(x);
   return e;
 }
 
@@ -141,6 +176,7 @@ double ForceModel::largest_stiffness_rate() const {
     ksum[model_.end_a[c]] += model_.stiffness[c];
     ksum[model_.end_b[c]] += model_.stiffness[c];
   }
+  for (const auto& t : terms_) t->add_stiffness_bound(ksum);
   double rate = 0;
   for (int i = 0; i < model_.owned; ++i) rate = std::max(rate, 2.0 * ksum[i] / model_.mass[i]);
   double global = 0;
@@ -211,6 +247,13 @@ PetscErrorCode ForceModel::assemble_tangent(const double* x, Mat J) const {
       PetscCall(put(b, a, K, -1.0));
     }
   }
+  // The terms' blocks (obstacles, contact), through a plain function pointer with the same held mask.
+  using Put = decltype(put);
+  auto add = [](void* ctx, int row, int col, const double K[9]) -> PetscErrorCode {
+    return (*static_cast<Put*>(ctx))(row, col, K, 1.0);
+  };
+  void* sink = &put;
+  for (const auto& t : terms_) PetscCall(t->add_tangent(x, add, sink));
   for (int i = 0; i < n; ++i)
     for (int d = 0; d < 3; ++d)
       if (held_[3 * i + d]) {

@@ -1,6 +1,7 @@
-// The force model, Eq. 2: F = F_G + F_L + F_C (+ collisions, to come), with only the terms the scene lists.
-// Connection forces are always there; gravity and ambient viscous friction exist only when [physics] names them,
-// and cost nothing otherwise (they are not constructed).
+// The force model, Eq. 2: F = F_G + F_L + F_C + collisions, with only the terms the scene lists.
+// Connection forces (the kernel, connection_forces()) and constant face loads are always there; every other term
+// (gravity, viscous friction, cyclic loads, obstacles, molecule-molecule contact: src/physics/term.hpp and the
+// registry in terms.cpp) exists only when the scene lists it, and costs nothing otherwise (not constructed).
 #pragma once
 #include <petscmat.h>
 
@@ -10,6 +11,7 @@
 
 #include "io/scene.hpp"
 #include "partition/local_model.hpp"
+#include "src/physics/term.hpp"
 
 namespace tissue {
 
@@ -17,6 +19,7 @@ namespace tissue {
 // opposite. l0 = distance between the two planes of molecules, A = the cross-section normal to the load axis.
 struct TensionTest {
   bool valid = false;
+  int body = 0;  // the body the load is on
   int axis = 2, load_side = 0, fixed_side = 1;
   Vec3 direction{0, 0, -1};  // unit vector of the load
   double force = 0.0;        // N, total
@@ -47,13 +50,25 @@ public:
   double applied_norm() const { return applied_norm_; }             // global 2-norm of loads + gravity
   double largest_stiffness_rate() const;  // max over molecules of 2 sum k / m (Gershgorin bound of omega^2)
 
+  // Time of the next force evaluation (s): time-dependent terms (cyclic loads) read it. The dynamic solver sets it.
+  void set_time(double t) const { time_ = t; }
+  // The terms built for this scene, by name (the connection forces and constant loads are not listed).
+  std::vector<std::string> term_names() const;
+  // Collective: the contact force totals of the last force evaluation, summed over the ranks; nullopt-like
+  // (has_obstacles/has_contact false) when the scene has no such term.
+  struct Contact {
+    bool obstacles = false, molecules = false;
+    ContactTotals totals;
+  };
+  Contact contact_totals() const;
+
 private:
   const LocalModel& model_;
   std::vector<std::uint8_t> held_;
   std::vector<double> applied_;
-  std::unique_ptr<Vec3> gravity_;       // present only when the scene asks
-  std::unique_ptr<double> viscosity_;   // present only when the scene asks
+  std::vector<std::unique_ptr<Term>> terms_;  // only what the scene lists, in the registry's order
   double applied_norm_ = 0.0;
+  mutable double time_ = 0.0;
 };
 
 }  // namespace tissue

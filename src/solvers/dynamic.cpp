@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "src/solvers/guards.hpp"
 #include "src/solvers/progress.hpp"
 #include "src/solvers/solver.hpp"
 
@@ -33,7 +34,9 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
   SolveReport report;
   report.kind = "dynamic";
   report.critical_time_step = critical_time_step(forces);
-  const double dt = scene.solver.time_step ? *scene.solver.time_step : 0.5 * report.critical_time_step;
+  const double dt = scene.solver.time_step ? checked_time_step(scene, model, *scene.solver.time_step,
+                                                                report.critical_time_step, "dynamic")
+                                           : 0.5 * report.critical_time_step;
   report.time_step = dt;
   state.time_step = dt;
   const int n = 3 * model.owned;
@@ -45,8 +48,12 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
 
   Progress progress("dynamic", scene.output.progress, model.comm);
   state.x.update_ghosts();
+  forces.set_time(state.time);  // time-dependent terms (cyclic loads) read the time of the evaluation
   forces.forces(x, v, f);
   report.energy_initial = leapfrog_energy(model, forces, state, dt);
+  // NaN, Inf and energy growth caught within one step (one reduction of the kinetic energy per step), connection
+  // lengths every 128 steps; the last good state is kept (guards.hpp).
+  StepGuard guard("dynamic", scene, model, forces, state);
   const long total = scene.solver.steps;
   while (state.step < total) {
     for (int i = 0; i < model.owned; ++i)
@@ -56,11 +63,17 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
         x[j] += dt * v[j];                                      // drift
       }
     state.x.update_ghosts();
+    forces.set_time(state.time + dt);
     forces.forces(x, v, f);
-    for (int i = 0; i < n; ++i) v[i] += 0.5 * dt * f[i] / m[i / 3];  // half kick (held: f = 0, v = 0)
+    double kinetic = 0;
+    for (int i = 0; i < n; ++i) {
+      v[i] += 0.5 * dt * f[i] / m[i / 3];  // half kick (held: f = 0, v = 0)
+      kinetic += m[i / 3] * v[i] * v[i];
+    }
     ++state.step;
     state.time += dt;
-    if (state.step % 64 == 0 || state.step == total) check_finite(model, x, f, state.step, "dynamic");
+    guard.dynamic_step(0.5 * kinetic);
+    if (state.step == total) guard.full_check();
     progress.update(state.step, -1, 0, total);
     if (hooks.snapshot && scene.output.snapshot_every > 0 && state.step % scene.output.snapshot_every == 0 &&
         state.step < total)

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "src/solvers/guards.hpp"
 #include "src/solvers/progress.hpp"
 #include "src/solvers/solver.hpp"
 
@@ -15,7 +16,9 @@ SolveReport solve_relaxation(const Scene& scene, const LocalModel& model, const 
   SolveReport report;
   report.kind = "relaxation";
   report.critical_time_step = critical_time_step(forces);
-  const double dt_max = scene.solver.time_step ? *scene.solver.time_step : 0.9 * report.critical_time_step;
+  const double dt_max = scene.solver.time_step ? checked_time_step(scene, model, *scene.solver.time_step,
+                                                                    report.critical_time_step, "relaxation")
+                                               : 0.9 * report.critical_time_step;
   report.time_step = dt_max;
   const long n_max = std::max({model.shape.n[0], model.shape.n[1], model.shape.n[2]});
   const long max_iterations = scene.solver.max_iterations > 0 ? scene.solver.max_iterations : 100000 + 5000 * n_max;
@@ -41,9 +44,12 @@ SolveReport solve_relaxation(const Scene& scene, const LocalModel& model, const 
   if (hooks.refresh) hooks.refresh(x);
   forces.forces(x, v, f);
   double residual = relative_residual(model, forces, f);
+  // NaN, Inf and divergence caught at the iteration they appear (the residual is reduced anyway); connection
+  // lengths every 128 iterations; the last good state is kept (guards.hpp).
+  StepGuard guard("relaxation", scene, model, forces, state);
   long it = 0;
   for (;; ++it) {
-    if (!std::isfinite(residual)) check_finite(model, x, f, state.step, "relaxation");
+    guard.relaxation_step(residual);
     if (it % 100 == 0) report.residual_history.push_back(residual);
     progress.update(it, residual, scene.solver.tolerance, 0);
     if (residual <= scene.solver.tolerance) {
@@ -85,6 +91,7 @@ SolveReport solve_relaxation(const Scene& scene, const LocalModel& model, const 
     residual = relative_residual(model, forces, f);
     ++state.step;
   }
+  guard.full_check();
   report.iterations = it;
   report.residual = residual;
   report.residual_history.push_back(residual);

@@ -1,5 +1,7 @@
 #include "src/solvers/solver.hpp"
 
+#include "src/solvers/guards.hpp"
+
 #include <cmath>
 #include <limits>
 
@@ -28,8 +30,8 @@ void check_finite(const LocalModel& model, const double* x, const double* f, lon
   long long first = 0;
   MPI_Allreduce(&bad, &first, 1, MPI_LONG_LONG, MPI_MIN, model.comm);
   if (first != std::numeric_limits<long long>::max())
-    throw SolverFailure(std::string(what) + " diverged at step " + std::to_string(step) + ": molecule " +
-                        std::to_string(first) + " has a non-finite position or force (time step too large?)");
+    throw SolverFailure(std::string(what) + " diverged at step " + std::to_string(step) + ": " +
+                        describe_molecule(model, x, first) + " has a non-finite position or force");
 }
 
 volatile std::sig_atomic_t stop_requested = 0;
@@ -50,6 +52,7 @@ bool step_boundary(const Scene& scene, const LocalModel& model, const SolverStat
 
 SolveReport solve(const Scene& scene, const LocalModel& model, const ForceModel& forces, SolverState& state,
                   const SolverHooks& hooks) {
+  check_connections(scene, model);  // zero rest lengths: bad input, before any step
   const std::string& kind = scene.solver.kind;
   if (kind == "relaxation") return solve_relaxation(scene, model, forces, state, hooks);
   if (kind == "dynamic") return solve_dynamic(scene, model, forces, state, hooks);

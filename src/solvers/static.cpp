@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "src/solvers/guards.hpp"
 #include "src/solvers/solver.hpp"
 
 namespace tissue {
@@ -160,6 +161,12 @@ PetscErrorCode run_static(const Scene& scene, const LocalModel& model, const For
       continue;
     }
     if (++cutbacks > 8) {
+      // The last converged load step is the last good state (main() writes it as last_good.h5); the molecule
+      // named is the one with the largest unbalanced force there under the load Newton could not reach.
+      PetscCall(load_positions(&ctx, X));
+      forces.forces(state.x.array(), state.v.data(), state.f.data(), target);
+      const std::int64_t worst = largest_force_molecule(model, state.f.data());
+      const std::string where = describe_molecule(model, state.x.array(), worst);
       PetscCall(VecDestroy(&saved));
       PetscCall(VecDestroy(&coords));
       PetscCall(MatNullSpaceDestroy(&rigid));
@@ -167,7 +174,9 @@ PetscErrorCode run_static(const Scene& scene, const LocalModel& model, const For
       PetscCall(MatDestroy(&J));
       PetscCall(VecDestroy(&X));
       throw SolverFailure("static: Newton failed (" + std::string(SNESConvergedReasons[reason]) +
-                          ") at load factor " + std::to_string(target) + " after 8 cut-backs");
+                          ") at load step " + std::to_string(report.residual_history.size() + 1) +
+                          " (load factor " + std::to_string(target) + ") after 8 cut-backs: " + where +
+                          "; last good state: load factor " + std::to_string(done));
     }
     increment *= 0.5;
     report.note += "Newton failed (" + std::string(SNESConvergedReasons[reason]) + ") at load factor " +
@@ -183,6 +192,10 @@ PetscErrorCode run_static(const Scene& scene, const LocalModel& model, const For
   report.residual = relative_residual(model, forces, state.f.data());
   report.converged = report.residual <= scene.solver.tolerance * 1.0000001;
   check_finite(model, state.x.array(), state.f.data(), report.iterations, "static");
+  {
+    StepGuard guard("static", scene, model, forces, state);
+    guard.full_check();  // a collapsed (inverted) connection at equilibrium is a failure too
+  }
   PetscCall(VecDestroy(&R));
   PetscCall(VecDestroy(&saved));
   PetscCall(VecDestroy(&coords));

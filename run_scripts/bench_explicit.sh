@@ -1,0 +1,130 @@
+#!/usr/bin/env bash
+#                       tissue: explicit time-stepping throughput against LAMMPS
+#
+# What it measures: the LAMMPS peer's /work/shared/peers/lammps/in.lattice_throughput problem (N^3 molecules,
+# springs on cell edges and face diagonals, 8,850,600 springs for N = 100, velocity Verlet, 200 steps of 0.005)
+# with our dynamic solver (run_scripts/scenes/peer_lattice.toml: solver.kind = "dynamic", solver.steps = 200, no
+# load, nothing held) and with LAMMPS, alternately, on 1 and 2 ranks, for N = 50 and 100. Reported per run:
+# steps per second, spring evaluations per second per core, peak resident memory per molecule, and our ratio to
+# LAMMPS (and our 2-rank over our 1-rank rate).
+#   - LAMMPS: steps/s = 200 / its "Loop time" (the stepping alone); memory = the sum over ranks of each rank's
+#     peak resident set (/usr/bin/time %M) / molecules.
+#   - Ours: summary.json wall_seconds counts set-up (scene, global body, METIS, calibration, output) as well, so
+#     every size and rank count runs twice, with solver.steps = 200 and with solver.steps = 0, and
+#     steps/s = 200 / (wall(200) - wall(0)); memory = peak_memory_bytes (the largest rank's) x ranks / molecules,
+#     a peak that may well be set by the set-up rather than by the stepping.
+#   - The start differs: LAMMPS gives the atoms random velocities (temperature 0.01); our dynamic scene starts at
+#     rest and so stays at rest, but every step still computes every spring force and does the two half kicks and
+#     the drift, so the work per step is the same (no neighbour lists on either side: LAMMPS rebuilds none in
+#     200 steps).
+# Output: docs/bench_explicit.csv and a Markdown table on stdout.
+#
+# How to run (from the repository root; about 5 minutes on an idle 2-core machine; QUICK=1: N = 50 only):
+#   cmake -S . -B build-bench -DCMAKE_BUILD_TYPE=Release -DTISSUE_TESTS=OFF && cmake --build build-bench -j2 --target tissue
+#   apt-get install -y lammps
+#   run_scripts/bench_explicit.sh
+# Knobs (environment): TISSUE, LMP, NS (default "50 100"), NPS (default "1 2"), REPEAT (default 1), WORK, CSV.
+#
+# Steps:
+#   1. Settings and checks.
+#   2. For every N, rank count and repetition: LAMMPS, ours with 200 steps, ours with 0 steps.
+#   3. The table: rates, ratios to LAMMPS, our 2-rank speed-up.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+# 1. Settings and checks.
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1
+TISSUE=${TISSUE:-build-bench/tissue}
+LMP=${LMP:-lmp}
+PYTHON=${PYTHON:-/usr/bin/python3}
+SCENE=run_scripts/scenes/peer_lattice.toml
+PEER_INPUT=${PEER_INPUT:-/work/shared/peers/lammps/in.lattice_throughput}
+WORK=${WORK:-/tmp/tissue_bench_explicit}
+CSV=${CSV:-docs/bench_explicit.csv}
+if [[ "${QUICK:-0}" == 1 ]]; then NS=${NS:-"50"}; else NS=${NS:-"50 100"}; fi
+NPS=${NPS:-"1 2"}
+REPEAT=${REPEAT:-1}
+STEPS=200
+[[ -x "$TISSUE" ]] || { echo "bench_explicit: $TISSUE not built (see the header)" >&2; exit 1; }
+command -v "$LMP" >/dev/null || { echo "bench_explicit: $LMP not found (apt-get install -y lammps)" >&2; exit 1; }
+mkdir -p "$WORK" "$(dirname "$CSV")"
+echo "code,N,molecules,springs,ranks,steps,wall_s,setup_s,loop_s,steps_per_s,spring_evals_per_s_per_core,peak_bytes,bytes_per_molecule,process_s,loadavg" > "$CSV"
+
+# ours N NP STEPS: prints "wall_seconds peak_memory_bytes connections process_seconds"
+ours() {
+  local n=$1 np=$2 steps=$3 dir="$WORK/ours-$1-np$2-s$3" t0 t1
+  rm -rf "$dir"
+  t0=$(date +%s.%N)
+  mpirun -np "$np" "$TISSUE" run "$SCENE" --set "body.molecules=[$n,$n,$n]" --set "solver.steps=$steps" \
+    --set output.fields=[] --set output.progress=false --output "$dir" > "$dir.log" 2>&1 \
+    || { echo "bench_explicit: our run N=$n np=$np steps=$steps failed, see $dir.log" >&2; return 1; }
+  t1=$(date +%s.%N)
+  "$PYTHON" -c "import json,sys; d=json.load(open('$dir/summary.json')); print(d['wall_seconds'], d['peak_memory_bytes'], d['connections'], $t1-$t0)"
+}
+
+# 2. Alternate LAMMPS and ours.
+for n in $NS; do
+  for np in $NPS; do
+    for rep in $(seq "$REPEAT"); do
+      echo "N = $n ($((n * n * n)) molecules), $np rank(s), repetition $rep"
+      log="$WORK/lammps-$n-np$np-$rep.log"
+      t0=$(date +%s.%N)
+      mpirun -np "$np" /usr/bin/time -f "MAXRSS_KB %M" "$LMP" -in "$PEER_INPUT" -var N "$n" -log none > "$log" 2>&1
+      t1=$(date +%s.%N)
+      "$PYTHON" - "$log" "$n" "$np" "$t0" "$t1" "$STEPS" >> "$CSV" <<'EOF'
+import re, sys
+log, n, np, t0, t1, steps = sys.argv[1:7]
+n, np, steps = int(n), int(np), int(steps)
+text = open(log).read()
+loop = float(re.search(r"Loop time of ([0-9.eE+-]+) on \d+ procs for (\d+) steps", text).group(1))
+# the bond count: the sum of the two create_bonds reports ("Added N bonds, new total = M"): take the last total
+totals = re.findall(r"new total = (\d+)", text)
+springs = int(totals[-1]) if totals else ""
+rss = sum(int(x) * 1024 for x in re.findall(r"MAXRSS_KB (\d+)", text))
+rate = steps / loop
+load = open("/proc/loadavg").read().split()[0]
+print(",".join(str(v) for v in ["lammps", n, n**3, springs, np, steps, "", "", loop, rate,
+      rate * springs / np if springs else "", max(int(x) * 1024 for x in re.findall(r"MAXRSS_KB (\d+)", text)),
+      round(rss / n**3), round(float(t1) - float(t0), 3), load]))
+EOF
+      tail -n 1 "$CSV"
+      read -r w200 p200 conn proc200 < <(ours "$n" "$np" "$STEPS")
+      read -r w0 p0 _ proc0 < <(ours "$n" "$np" 0)
+      "$PYTHON" - >> "$CSV" <<EOF
+n, np, steps = $n, $np, $STEPS
+w200, w0, peak, conn = $w200, $w0, $p200, $conn
+loop = w200 - w0
+rate = steps / loop
+load = open("/proc/loadavg").read().split()[0]
+print(",".join(str(v) for v in ["tissue", n, n**3, conn, np, steps, w200, w0, round(loop, 4), rate,
+      rate * conn / np, peak, round(peak * np / n**3), $proc200, load]))
+EOF
+      tail -n 1 "$CSV"
+    done
+  done
+done
+
+# 3. The table.
+"$PYTHON" - "$CSV" <<'EOF'
+import csv, sys
+from collections import defaultdict
+rows = list(csv.DictReader(open(sys.argv[1])))
+best = defaultdict(dict)  # (N, ranks) -> code -> the best (highest) rate over repetitions, and its row
+for r in rows:
+    key = (int(r["N"]), int(r["ranks"]))
+    if float(r["steps_per_s"]) > float(best[key].get(r["code"], {}).get("steps_per_s", 0)):
+        best[key][r["code"]] = r
+print("\n| N | molecules | ranks | LAMMPS steps/s | ours steps/s | ours / LAMMPS | ours Mspring/s/core | LAMMPS Mspring/s/core "
+      "| ours B/molecule | LAMMPS B/molecule | ours set-up s | ours 2 ranks / 1 rank |")
+print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+for (n, np), c in sorted(best.items()):
+    l, o = c.get("lammps"), c.get("tissue")
+    if not (l and o):
+        continue
+    one = best.get((n, 1), {}).get("tissue")
+    sp = f"{float(o['steps_per_s']) / float(one['steps_per_s']):.2f}x" if one and np == 2 else ""
+    print(f"| {n} | {n**3:,} | {np} | {float(l['steps_per_s']):.1f} | {float(o['steps_per_s']):.1f} | "
+          f"{float(o['steps_per_s']) / float(l['steps_per_s']):.2f}x | "
+          f"{float(o['spring_evals_per_s_per_core']) / 1e6:.0f} | {float(l['spring_evals_per_s_per_core']) / 1e6:.0f} | "
+          f"{o['bytes_per_molecule']} | {l['bytes_per_molecule']} | {float(o['setup_s']):.2f} | {sp} |")
+EOF

@@ -1,0 +1,82 @@
+#!/usr/bin/env bash
+#                                tissue: HDF5 write bandwidth
+#
+# Run with:      bash run_scripts/bench_io.sh [SIDE ...]        (default sides: 100 160 216)
+#
+# Sample runs:   bash run_scripts/bench_io.sh 100               # 1 million molecules
+#                RANKS=4 OUT=/scratch/me/bench bash run_scripts/bench_io.sh 216   # 10 million
+#
+# Description:   For each SIDE, a SIDE^3 face-diagonals box (216^3 = 10.08 million molecules, about 90 million
+#                connections) is written once as a snapshot, final.h5 with every field
+#                (solver.kind=dynamic, solver.steps=0: the rest state, no time stepping), by `mpirun -np RANKS
+#                tissue run`. A watcher polls the output directory every 10 ms: the write time is from the moment
+#                final.h5.tmp appears (H5Fcreate, after the rows have been put in original order) to the moment it
+#                is renamed to final.h5 (H5Fclose done, on every rank); then `sync -f` flushes it to the disk and
+#                the flushed time is reported too. The reference is dd of the same number of bytes of zeros with
+#                conv=fdatasync on the same file system. Prints one line per size: molecules, bytes, MB/s (page
+#                cache), MB/s (flushed), dd MB/s. Results and machine: docs/checkpoint.md.
+#
+#                Memory: building and partitioning the body takes about 1 GB per million molecules on top of
+#                the output; a 216^3 body needs a node with ~16 GB.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+TISSUE=${TISSUE:-build/tissue}
+RANKS=${RANKS:-$(nproc)}
+OUT=${OUT:-out/bench_io}
+SIDES=("$@")
+[[ ${#SIDES[@]} -gt 0 ]] || SIDES=(100 160 216)
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+mkdir -p "$OUT"
+
+now() { date +%s.%N; }
+
+echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(nproc) cores, \
+$(free -g | awk '/Mem:/ {print $2}') GB; file system: $(df -hT "$OUT" | awk 'NR==2 {print $1, $2, $3}')"
+printf "%10s %12s %8s %10s %14s %14s %10s\n" molecules bytes ranks write_s "MB/s(cache)" "MB/s(flushed)" "dd_MB/s"
+for n in "${SIDES[@]}"; do
+  dir="$OUT/side$n"
+  rm -rf "$dir"
+  mkdir -p "$dir"
+  cat > "$dir/scene.toml" <<EOF
+title = "bench_io $n^3"
+[body]
+molecules = [$n, $n, $n]
+spacing = [0.001, 0.001, 0.001]
+topology = "face-diagonals"
+material = "ligament"
+[[fix]]
+face = "z+"
+[solver]
+kind = "dynamic"
+steps = 0
+[output]
+directory = "$dir"
+fields = ["positions", "displacements", "velocities", "forces", "connection_strain", "connection_force"]
+progress = false
+EOF
+  mpirun --oversubscribe -np "$RANKS" "$TISSUE" run "$dir/scene.toml" > "$dir/log" 2>&1 &
+  pid=$!
+  t_tmp=""
+  t_done=""
+  while kill -0 $pid 2>/dev/null; do
+    [[ -z "$t_tmp" && -e "$dir/final.h5.tmp" ]] && t_tmp=$(now)
+    [[ -n "$t_tmp" && -z "$t_done" && -e "$dir/final.h5" ]] && { t_done=$(now); break; }
+    sleep 0.01
+  done
+  wait $pid || { echo "side $n: tissue failed, see $dir/log"; continue; }
+  [[ -n "$t_done" ]] || t_done=$(now)
+  sync -f "$dir/final.h5"
+  t_sync=$(now)
+  bytes=$(stat -c %s "$dir/final.h5")
+  molecules=$((n * n * n))
+  # dd of the same size, flushed (the disk's sequential write bandwidth from one process).
+  count=$(( (bytes + 1048575) / 1048576 ))
+  t_dd=$(now)
+  dd if=/dev/zero of="$dir/dd.bin" bs=1M count=$count conv=fdatasync 2>/dev/null
+  dd_out=$(awk -v a=$t_dd -v b=$(now) 'BEGIN { print b - a }')
+  rm -f "$dir/dd.bin"
+  awk -v m=$molecules -v b=$bytes -v r=$RANKS -v t0=$t_tmp -v t1=$t_done -v t2=$t_sync -v tdd="$dd_out" -v c=$count \
+    'BEGIN { w = t1 - t0; f = t2 - t0; if (w <= 0) w = 0.01;
+             printf "%10d %12d %8d %10.2f %14.1f %14.1f %10.1f\n", m, b, r, w, b / w / 1e6, b / f / 1e6, c * 1048576 / tdd / 1e6 }'
+  rm -f "$dir/final.h5"
+done

@@ -1,0 +1,72 @@
+// A physics term: one part of Eq. 2's total force besides the connection forces (gravity, viscous friction,
+// obstacles, molecule-molecule contact, cyclic loads). Each term is one file in src/physics/ plus one line in the
+// registry (terms.cpp); the ForceModel builds only the terms the scene lists, so an absent term allocates
+// nothing and costs nothing. Terms run after the connection kernel, one virtual call per term and evaluation
+// (never per connection), and loop over the owned molecules themselves. Each adds to a molecule's force in the
+// same order on every rank, so results stay independent of the partition.
+#pragma once
+#include <petscmat.h>
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "io/scene.hpp"
+#include "partition/local_model.hpp"
+
+namespace tissue {
+
+struct TermContext {
+  const Scene& scene;
+  const LocalModel& model;
+};
+
+// What contact terms report (summed over this rank's owned molecules; the ForceModel reduces).
+struct ContactTotals {
+  Vec3 obstacles{0, 0, 0};         // total force the obstacles exert on the bodies
+  std::vector<double> bodies;      // 3 per body: force that molecules of other bodies exert on it
+  std::vector<double> bodies_self; // 3 per body: self-contact (non-neighbouring molecules of one body), sums to 0
+};
+
+class Term {
+public:
+  virtual ~Term() = default;
+  virtual const char* name() const = 0;
+  // Adds the term's forces on the owned molecules to f[0 .. 3 owned). x: local positions (ghosts up to date);
+  // v: owned velocities; time: s (dynamic runs). Collective when the term communicates (contact).
+  virtual void add_forces(const double* x, const double* v, double time, double* f) = 0;
+  // The term's potential energy, this rank's owned share (0 for dissipative or time-dependent terms).
+  virtual double potential_energy(const double* x) const { return 0.0; }
+  // Adds an upper bound of the term's stiffness per owned molecule (N/m, Gershgorin row sum halved) to ksum, for
+  // the critical time step.
+  virtual void add_stiffness_bound(std::vector<double>& ksum) const {}
+  // Adds -dF/dx of the term, owned rows, to J (block size 3, PETSc block ids model.block) through `add`, which
+  // drops held components. Terms whose force does not depend on x add nothing.
+  using BlockAdd = PetscErrorCode (*)(void* ctx, int row, int col, const double K[9]);
+  virtual PetscErrorCode add_tangent(const double* x, BlockAdd add, void* ctx) const { return 0; }
+  // Contact terms: the force totals of the last evaluation (this rank's owned molecules).
+  virtual void add_totals(ContactTotals& t) const {}
+};
+
+using TermFactory = std::unique_ptr<Term> (*)(const TermContext&);
+struct TermStyle {
+  const char* name;
+  bool (*listed)(const Scene&);  // does the scene ask for this term?
+  TermFactory make;
+  const char* description;
+};
+
+// The registry (terms.cpp), in the order terms add their forces.
+const std::vector<TermStyle>& term_styles();
+
+// The penalty stiffness each body's molecules get by default (N/m): the mean over the body's molecules of the
+// summed stiffness of their connections, 2 sum_c k_c / N (collective; one value per body).
+std::vector<double> body_support_stiffness(const LocalModel& model);
+
+}  // namespace tissue
+
+namespace tissue {
+// Adds a face load's share on each owned molecule (traction or equal distribution) to out[0 .. 3 owned).
+void add_face_load(const LoadSpec& load, const LocalModel& model, double* out);
+}  // namespace tissue

@@ -1,0 +1,26 @@
+// Ambient viscous friction: -c v on every molecule ([physics] viscosity = c, N s/m per molecule). In the dynamic
+// solver v is the half-step velocity of velocity Verlet.
+#include "src/physics/term.hpp"
+
+namespace tissue {
+
+namespace {
+class Viscosity final : public Term {
+public:
+  Viscosity(const LocalModel& m, double c) : m_(m), c_(c) {}
+  const char* name() const override { return "viscosity"; }
+  void add_forces(const double*, const double* v, double, double* f) override {
+    for (int i = 0; i < 3 * m_.owned; ++i) f[i] -= c_ * v[i];
+  }
+
+private:
+  const LocalModel& m_;
+  const double c_;
+};
+}  // namespace
+
+std::unique_ptr<Term> make_viscosity(const TermContext& c) {
+  return std::make_unique<Viscosity>(c.model, *c.scene.physics.viscosity);
+}
+
+}  // namespace tissue

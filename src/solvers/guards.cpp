@@ -1,0 +1,273 @@
+#include "src/solvers/guards.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+#include "src/physics/force_model.hpp"
+
+namespace tissue {
+
+namespace {
+
+int rank_of(MPI_Comm comm) {
+  int r;
+  MPI_Comm_rank(comm, &r);
+  return r;
+}
+
+// The same string on every rank, from `root`.
+std::string broadcast(const std::string& s, int root, MPI_Comm comm) {
+  long n = static_cast<long>(s.size());
+  MPI_Bcast(&n, 1, MPI_LONG, root, comm);
+  std::string out = s;
+  out.resize(n);
+  MPI_Bcast(out.data(), static_cast<int>(n), MPI_CHAR, root, comm);
+  return out;
+}
+
+// Collective: the original id of the owned molecule with the largest `value` (NaN counts as largest; ties: the
+// smallest id), or -1 when no rank has any molecule.
+std::int64_t argmax_molecule(const LocalModel& model, const std::vector<double>& value) {
+  const double inf = std::numeric_limits<double>::infinity();
+  double best = -inf;
+  long long id = std::numeric_limits<long long>::max();
+  for (int i = 0; i < model.owned; ++i) {
+    double v = std::isnan(value[i]) ? inf : value[i];
+    if (v > best || (v == best && model.id[i] < id)) best = v, id = model.id[i];
+  }
+  double global = -inf;
+  MPI_Allreduce(&best, &global, 1, MPI_DOUBLE, MPI_MAX, model.comm);
+  long long mine = best == global ? id : std::numeric_limits<long long>::max(), first = 0;
+  MPI_Allreduce(&mine, &first, 1, MPI_LONG_LONG, MPI_MIN, model.comm);
+  return first == std::numeric_limits<long long>::max() ? -1 : static_cast<std::int64_t>(first);
+}
+
+double length_of(const double* x, int a, int b) {
+  const double d0 = x[3 * b] - x[3 * a], d1 = x[3 * b + 1] - x[3 * a + 1], d2 = x[3 * b + 2] - x[3 * a + 2];
+  return std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
+}
+
+}  // namespace
+
+double checked_time_step(const Scene& scene, const LocalModel& model, double requested, double critical,
+                         const char* solver) {
+  if (!(requested > critical)) return requested;
+  if (!scene.solver.allow_unstable_time_step)
+    throw InputError(scene.file, "solver.time_step",
+                     fmt::format("{:.6g} s is {:.3g} times the critical time step {:.6g} s of this body ({} "
+                                 "integration would blow up): lower it, omit it, or set "
+                                 "solver.allow_unstable_time_step = true",
+                                 requested, requested / critical, critical, solver));
+  if (rank_of(model.comm) == 0)
+    std::fprintf(stderr,
+                 "tissue: warning: solver.time_step = %.6g s is %.3g times the critical time step %.6g s "
+                 "(allowed by solver.allow_unstable_time_step; the critical step is a bound, the run may still "
+                 "blow up)\n",
+                 requested, requested / critical, critical);
+  return requested;
+}
+
+void check_connections(const Scene& scene, const LocalModel& model) {
+  // The first bad connection (smallest global id) over all ranks.
+  long long bad = std::numeric_limits<long long>::max();
+  for (int c = 0; c < model.connections(); ++c) {
+    const double l0 = model.rest_length[c], k = model.stiffness.empty() ? 0.0 : model.stiffness[c];
+    if (!(l0 > 0) || !std::isfinite(l0) || !(k >= 0) || !std::isfinite(k))
+      bad = std::min<long long>(bad, model.connection_id[c]);
+  }
+  long long first = 0;
+  MPI_Allreduce(&bad, &first, 1, MPI_LONG_LONG, MPI_MIN, model.comm);
+  if (first == std::numeric_limits<long long>::max()) return;
+  std::string text;
+  int holder = -1, root = 0;
+  for (int c = 0; c < model.connections(); ++c)
+    if (model.connection_id[c] == first) {
+      holder = model.rank;
+      text = fmt::format("connection {} (molecules {}-{}) has rest length {:.6g} m and stiffness {:.6g} N/m: "
+                         "coincident molecules or a degenerate calibration",
+                         first, model.id[model.end_a[c]], model.id[model.end_b[c]], model.rest_length[c],
+                         model.stiffness.empty() ? 0.0 : model.stiffness[c]);
+      break;
+    }
+  MPI_Allreduce(&holder, &root, 1, MPI_INT, MPI_MAX, model.comm);
+  throw InputError(scene.file, "body", broadcast(text, root, model.comm));
+}
+
+std::string describe_molecule(const LocalModel& model, const double* x, std::int64_t molecule) {
+  int holder = -1, root = 0;
+  std::string text;
+  for (int i = 0; i < model.owned; ++i) {
+    if (model.id[i] != molecule) continue;
+    holder = model.rank;
+    text = fmt::format("molecule {} at ({:.6g}, {:.6g}, {:.6g})", molecule, x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+    int best = -1;
+    double worst = -1;
+    for (int c = 0; c < model.connections(); ++c) {
+      if (model.end_a[c] != i && model.end_b[c] != i) continue;
+      const double s = (length_of(x, model.end_a[c], model.end_b[c]) - model.rest_length[c]) / model.rest_length[c];
+      const double size = std::isfinite(s) ? std::fabs(s) : std::numeric_limits<double>::infinity();
+      if (size > worst) worst = size, best = c;
+    }
+    if (best >= 0) {
+      const double l = length_of(x, model.end_a[best], model.end_b[best]);
+      text += fmt::format("; its most strained connection {} (molecules {}-{}) has strain {:.6g} (length {:.6g} m, "
+                          "rest {:.6g} m)",
+                          model.connection_id[best], model.id[model.end_a[best]], model.id[model.end_b[best]],
+                          (l - model.rest_length[best]) / model.rest_length[best], l, model.rest_length[best]);
+    }
+    break;
+  }
+  MPI_Allreduce(&holder, &root, 1, MPI_INT, MPI_MAX, model.comm);
+  if (root < 0) return fmt::format("molecule {}", molecule);
+  return broadcast(text, root, model.comm);
+}
+
+std::int64_t largest_force_molecule(const LocalModel& model, const double* f) {
+  std::vector<double> size(model.owned);
+  for (int i = 0; i < model.owned; ++i)
+    size[i] = f[3 * i] * f[3 * i] + f[3 * i + 1] * f[3 * i + 1] + f[3 * i + 2] * f[3 * i + 2];
+  return argmax_molecule(model, size);
+}
+
+StepGuard::StepGuard(const char* solver, const Scene& scene, const LocalModel& model, const ForceModel& forces,
+                     SolverState& state, long every)
+    : solver_(solver), scene_(scene), model_(model), forces_(forces), state_(state), every_(std::max(1L, every)) {
+  double local = 0;
+  for (int i = 0; i < 3 * model.owned; ++i) local += 0.5 * model.mass[i / 3] * state.v[i] * state.v[i];
+  MPI_Allreduce(&local, &kinetic_, 1, MPI_DOUBLE, MPI_SUM, model.comm);
+  kinetic_checked_ = kinetic_;
+  for (const auto& name : forces.term_names()) energy_check_ = energy_check_ && (name == "gravity" || name == "viscosity");
+  double spring, work;
+  energy0_ = kinetic_ + energy(&spring, &work);
+  keep();
+}
+
+void StepGuard::keep() {
+  good_x_.assign(state_.x.array(), state_.x.array() + 3 * model_.owned);
+  good_v_ = state_.v;
+  good_step_ = state_.step;
+  good_time_ = state_.time;
+}
+
+// Potential energy of the springs and the work of the loads and gravity (both global) at the current positions;
+// returns spring - work. Each connection is counted once over all ranks (written_here).
+double StepGuard::energy(double* spring, double* work) const {
+  const double* x = state_.x.array();
+  double local[2] = {0, 0};
+  for (int c : model_.written_here) {
+    const double stretch = length_of(x, model_.end_a[c], model_.end_b[c]) - model_.rest_length[c];
+    local[0] += 0.5 * model_.stiffness[c] * stretch * stretch;
+  }
+  const auto& applied = forces_.applied();
+  const auto& g = scene_.physics.gravity;
+  for (int i = 0; i < model_.owned; ++i)
+    for (int d = 0; d < 3; ++d) {
+      const double u = x[3 * i + d] - model_.rest[3 * i + d];
+      local[1] += applied[3 * i + d] * u + (g ? model_.mass[i] * (*g)[d] * u : 0.0);
+    }
+  double global[2];
+  MPI_Allreduce(local, global, 2, MPI_DOUBLE, MPI_SUM, model_.comm);
+  *spring = global[0], *work = global[1];
+  return global[0] - global[1];
+}
+
+void StepGuard::check_finite_state() {
+  const double* x = state_.x.array();
+  std::vector<double> bad(model_.owned, 0.0);
+  int any = 0, all = 0;
+  for (int i = 0; i < model_.owned; ++i)
+    for (int d = 0; d < 3; ++d)
+      if (!std::isfinite(x[3 * i + d]) || !std::isfinite(state_.v[3 * i + d]) || !std::isfinite(state_.f[3 * i + d]))
+        bad[i] = 1.0, any = 1;
+  MPI_Allreduce(&any, &all, 1, MPI_INT, MPI_MAX, model_.comm);
+  if (!all) return;
+  // The first non-finite molecule: bad = 1 is the largest value, ties go to the smallest id.
+  fail("non-finite position, velocity or force", argmax_molecule(model_, bad));
+}
+
+void StepGuard::check_lengths() {
+  const double* x = state_.x.array();
+  double worst = std::numeric_limits<double>::infinity();
+  long long worst_id = -1;
+  int worst_c = -1;
+  for (int c : model_.written_here) {
+    const double ratio = length_of(x, model_.end_a[c], model_.end_b[c]) / model_.rest_length[c];
+    if (ratio < worst) worst = ratio, worst_id = model_.connection_id[c], worst_c = c;
+  }
+  double global = 0;
+  MPI_Allreduce(&worst, &global, 1, MPI_DOUBLE, MPI_MIN, model_.comm);
+  if (!(global < kCollapsedLengthRatio)) return;
+  long long mine = worst == global ? worst_id : std::numeric_limits<long long>::max(), first = 0;
+  MPI_Allreduce(&mine, &first, 1, MPI_LONG_LONG, MPI_MIN, model_.comm);
+  long long molecule = mine == first && worst_c >= 0 ? model_.id[model_.end_a[worst_c]] : -1, m = -1;
+  MPI_Allreduce(&molecule, &m, 1, MPI_LONG_LONG, MPI_MAX, model_.comm);
+  fail(fmt::format("connection {} collapsed to {:.3g} of its rest length (below {:g}: inverted or crushed)", first,
+                   global, kCollapsedLengthRatio),
+       m);
+}
+
+void StepGuard::full_check() {
+  check_finite_state();
+  check_lengths();
+  keep();
+}
+
+void StepGuard::dynamic_step(double local_kinetic) {
+  MPI_Allreduce(&local_kinetic, &kinetic_, 1, MPI_DOUBLE, MPI_SUM, model_.comm);
+  if (!std::isfinite(kinetic_)) {
+    check_finite_state();  // names the first non-finite molecule and throws
+    fail("non-finite kinetic energy", -1);
+  }
+  const bool grown = kinetic_ > 2.0 * kinetic_checked_;
+  if (!grown && state_.step % every_ != 0) return;
+  // Energy growth: the whole-step energy E = kinetic + springs - work of loads and gravity is conserved by a
+  // stable run up to small oscillations (viscosity only removes energy); an unstable mode makes it grow like
+  // the energy itself. Checked when the kinetic energy has doubled since the last check, and every `every`
+  // steps: the cost is a few connection loops per run, not one per step.
+  kinetic_checked_ = kinetic_;
+  double spring, work;
+  const double e = kinetic_ + energy(&spring, &work);
+  const double scale = kinetic_ + spring + std::fabs(work) + std::fabs(energy0_);
+  if (energy_check_ && e - energy0_ > 0.5 * scale && scale > 0) {
+    std::vector<double> ke(model_.owned);
+    for (int i = 0; i < model_.owned; ++i)
+      ke[i] = model_.mass[i] * (state_.v[3 * i] * state_.v[3 * i] + state_.v[3 * i + 1] * state_.v[3 * i + 1] +
+                                state_.v[3 * i + 2] * state_.v[3 * i + 2]);
+    fail(fmt::format("energy growth (total energy {:.6g} J, initial {:.6g} J, kinetic {:.6g} J: unstable time step?)",
+                     e, energy0_, kinetic_),
+         argmax_molecule(model_, ke));
+  }
+  full_check();
+}
+
+void StepGuard::relaxation_step(double residual) {
+  if (!std::isfinite(residual)) {
+    check_finite_state();
+    fail("non-finite residual", largest_force_molecule(model_, state_.f.data()));
+  }
+  if (residual0_ < 0) residual0_ = residual;
+  if (residual > 1e6 * std::max(1.0, residual0_))
+    fail(fmt::format("diverged (relative residual {:.3g}, initial {:.3g}: time step too large?)", residual,
+                     residual0_),
+         largest_force_molecule(model_, state_.f.data()));
+  if (state_.step % every_ == 0) full_check();
+}
+
+void StepGuard::fail(const std::string& problem, std::int64_t molecule) {
+  std::string where = molecule >= 0 ? describe_molecule(model_, state_.x.array(), molecule) : "no molecule found";
+  const long step = state_.step;
+  // Put the last good state back: main() writes it as DIR/last_good.h5.
+  std::copy(good_x_.begin(), good_x_.end(), state_.x.array());
+  state_.x.update_ghosts();
+  state_.v = good_v_;
+  state_.step = good_step_;
+  state_.time = good_time_;
+  throw SolverFailure(fmt::format("{}: {} at step {}: {}; last good state: step {}", solver_, problem, step, where,
+                                  good_step_));
+}
+
+}  // namespace tissue

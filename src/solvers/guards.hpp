@@ -1,0 +1,86 @@
+// Guards: the solvers' cheap checks that a run never fails silently (see docs/stability.md).
+//
+//  - the time step: one above the critical time step is refused (InputError naming solver.time_step, exit 2)
+//    unless the scene sets solver.allow_unstable_time_step = true (then used as given, with a warning);
+//  - at set-up: a connection of zero (or non-finite) rest length is refused (InputError naming body);
+//  - during the solve (StepGuard): NaN or Inf caught within one step, energy growth (dynamic) and divergence
+//    (relaxation) caught early, a connection shorter than 1e-3 of its rest length (inverted, collapsed) caught
+//    at every full check; each is a SolverFailure naming the solver, the step, the molecule and the connection
+//    with the largest strain at that molecule;
+//  - the last good state: the guard keeps a copy of the state at every full check that passed; on a failure it
+//    puts that state back into the SolverState before throwing, and main() writes it as DIR/last_good.h5.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "src/solvers/solver.hpp"
+
+namespace tissue {
+
+// A connection shorter than this fraction of its rest length is a failure (collapsed or inverted).
+constexpr double kCollapsedLengthRatio = 1e-3;
+
+// The time step an explicit solver uses: `requested` (the scene's, or absent) checked against `critical`.
+// Throws InputError naming solver.time_step when it is above critical and the scene does not allow it; prints
+// a warning on rank 0 when it does.
+double checked_time_step(const Scene& scene, const LocalModel& model, double requested, double critical,
+                         const char* solver);
+
+// Collective. Throws InputError (file: the scene, key: body) when a connection has a zero, negative or
+// non-finite rest length, or a non-finite or negative stiffness.
+void check_connections(const Scene& scene, const LocalModel& model);
+
+// Collective. "molecule M at (x, y, z); connection C (molecules A-B) strain S": the connection with the largest
+// |strain| (non-finite counts as largest) among those of molecule M (original id), from local positions x (ghosts
+// up to date). Every rank returns the same text.
+std::string describe_molecule(const LocalModel& model, const double* x, std::int64_t molecule);
+
+// Collective. The original id of the owned molecule with the largest |f| (free components), over all ranks.
+std::int64_t largest_force_molecule(const LocalModel& model, const double* f);
+
+class StepGuard {
+public:
+  // `every`: iterations between full checks (finite state, connection lengths, energy) and copies of the
+  // last good state.
+  StepGuard(const char* solver, const Scene& scene, const LocalModel& model, const ForceModel& forces,
+            SolverState& state, long every = 128);
+
+  // Dynamic, after every step: `local_kinetic` is this rank's sum of m v^2 / 2 (computed in the solver's own
+  // loop; NaN and Inf propagate into it). One reduction. Throws SolverFailure on a non-finite state or on
+  // energy growth; runs the full check every `every` steps and whenever the kinetic energy has doubled.
+  void dynamic_step(double local_kinetic);
+  // Relaxation, after every iteration with the (global) relative residual already reduced: no communication
+  // unless a check is due. Throws SolverFailure on a non-finite or exploding residual.
+  void relaxation_step(double residual);
+  // Full check now (collective): finite state, connection lengths; keeps the state as the last good one.
+  void full_check();
+  // Keeps the current state as the last good one (no checks).
+  void keep();
+
+  // Restores the last good state into the SolverState and throws SolverFailure with `problem` at `molecule`.
+  [[noreturn]] void fail(const std::string& problem, std::int64_t molecule);
+
+  double kinetic_energy() const { return kinetic_; }
+  long last_good_step() const { return good_step_; }
+
+private:
+  double energy(double* spring, double* work) const;  // collective: whole-step total energy and its parts
+  void check_lengths();                                 // collective
+  void check_finite_state();                            // collective
+
+  std::string solver_;
+  const Scene& scene_;
+  const LocalModel& model_;
+  const ForceModel& forces_;
+  SolverState& state_;
+  long every_;
+  double kinetic_ = 0.0, kinetic_checked_ = 0.0, energy0_ = 0.0;
+  double residual0_ = -1.0;
+  bool energy_check_ = true;  // off when a term the energy does not account for is on (cyclic loads, contact)
+  std::vector<double> good_x_, good_v_;
+  long good_step_ = 0;
+  double good_time_ = 0.0;
+};
+
+}  // namespace tissue

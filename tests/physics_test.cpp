@@ -1,0 +1,359 @@
+// Physics terms as the scene lists them (src/physics/): gravity, viscous friction, cyclic loads, obstacles and
+// molecule-molecule contact, several bodies. Checked against closed forms (free fall, terminal velocity), force
+// balance at equilibrium (contact force against the load or the weight), and the same run on one rank
+// (MPI_COMM_SELF, computed on every rank as the reference). Run at 1, 2 and 3 ranks.
+#include <gtest/gtest.h>
+#include <petscsys.h>
+
+#include <cmath>
+#include <functional>
+
+#include "io/scene.hpp"
+#include "partition/local_model.hpp"
+#include "partition/metis_partition.hpp"
+#include "src/calibration/calibration.hpp"
+#include "src/measure.hpp"
+#include "src/model/body.hpp"
+#include "src/solvers/solver.hpp"
+
+using namespace tissue;
+
+namespace {
+
+struct RunResult {
+  Scene scene;
+  LocalModel model;
+  std::unique_ptr<ForceModel> forces;
+  std::unique_ptr<SolverState> state;
+  TensionTest test;
+  SolveReport report;
+  Measurements measured;
+};
+
+// Steps 1-7 of src/main.cpp.
+std::unique_ptr<RunResult> run(const std::string& text, MPI_Comm comm, const std::vector<std::string>& set = {},
+                               bool do_solve = true) {
+  auto r = std::make_unique<RunResult>();
+  r->scene = parse_scene(text, "test.toml", set);
+  r->scene.output.progress = false;
+  Body body = build_body(r->scene);
+  PartitionStats stats;
+  auto part = partition_molecules(body, comm, stats);
+  r->model = distribute(body, part, stats, comm);
+  r->test = tension_test(r->scene, body);
+  find_calibration(r->scene.calibration.method)->compute({r->scene, r->model}, r->model.stiffness);
+  r->forces = std::make_unique<ForceModel>(r->scene, r->model);
+  r->state = std::make_unique<SolverState>(r->model);
+  if (do_solve) r->report = solve(r->scene, r->model, *r->forces, *r->state, {});
+  r->measured = measure(r->scene, r->model, r->test, r->state->x.array(), r->state->v.data());
+  measure_contact(*r->forces, r->measured);
+  return r;
+}
+
+// Every molecule's final position, in original order, gathered on every rank.
+std::vector<double> gather_positions(const RunResult& r) {
+  std::vector<double> mine(3 * r.model.global_molecules, 0.0), all(mine.size());
+  for (int i = 0; i < r.model.owned; ++i)
+    for (int d = 0; d < 3; ++d) mine[3 * r.model.id[i] + d] = r.state->x.array()[3 * i + d];
+  MPI_Allreduce(mine.data(), all.data(), static_cast<int>(mine.size()), MPI_DOUBLE, MPI_SUM, r.model.comm);
+  return all;
+}
+
+double max_difference(const std::vector<double>& a, const std::vector<double>& b) {
+  double worst = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) worst = std::max(worst, std::fabs(a[i] - b[i]));
+  return worst;
+}
+
+const char* falling = R"(
+title = "free fall"
+[body]
+molecules = [3, 4, 3]
+spacing = [0.1, 0.1, 0.1]
+topology = "face-diagonals"
+youngs_modulus = 1.0e4
+density = 1000.0
+[physics]
+gravity = [0.0, 0.0, -9.81]
+[solver]
+kind = "dynamic"
+time_step = 1e-3
+steps = 10000
+)";
+
+}  // namespace
+
+// Absent terms are not built: a scene without [physics] or obstacles has a force model of connections and loads.
+TEST(Physics, AbsentTermsAreNotBuilt) {
+  auto r = run(falling, PETSC_COMM_WORLD, {}, false);
+  EXPECT_EQ(r->forces->term_names(), std::vector<std::string>{"gravity"});
+  const std::string text = R"(
+[body]
+molecules = [3, 3, 3]
+spacing = [0.1, 0.1, 0.1]
+youngs_modulus = 1e4
+[[fix]]
+face = "z-"
+)";
+  auto q = run(text, PETSC_COMM_WORLD, {}, false);
+  EXPECT_TRUE(q->forces->term_names().empty());
+  EXPECT_FALSE(q->measured.contact_force.has_value());
+}
+
+// Velocity Verlet is exact under a constant force: every molecule falls g t^2 / 2, at every rank count.
+TEST(Physics, FreeFallFollowsGTSquaredOverTwo) {
+  auto r = run(falling, PETSC_COMM_WORLD);
+  ASSERT_EQ(r->state->step, 10000);
+  const double t = r->state->time, drop = 0.5 * 9.81 * t * t;
+  EXPECT_NEAR(t, 10.0, 1e-9);
+  double worst = 0, worst_lateral = 0, worst_v = 0;
+  for (int i = 0; i < r->model.owned; ++i) {
+    const double* x = r->state->x.array() + 3 * i;
+    const double* x0 = r->model.rest.data() + 3 * i;
+    worst = std::max(worst, std::fabs((x0[2] - x[2]) - drop) / drop);
+    worst_lateral = std::max({worst_lateral, std::fabs(x[0] - x0[0]), std::fabs(x[1] - x0[1])});
+    worst_v = std::max(worst_v, std::fabs(r->state->v[3 * i + 2] + 9.81 * t) / (9.81 * t));
+  }
+  double all[3], mine[3] = {worst, worst_lateral, worst_v};
+  MPI_Allreduce(mine, all, 3, MPI_DOUBLE, MPI_MAX, PETSC_COMM_WORLD);
+  EXPECT_LT(all[0], 1e-9) << "relative error of the drop";
+  EXPECT_LT(all[1], 1e-9) << "lateral drift (m)";
+  EXPECT_LT(all[2], 1e-9) << "relative error of the velocity";
+  EXPECT_NEAR(r->measured.center_of_mass[2], 0.1 - drop, 1e-9 * drop);
+}
+
+// Viscous friction: a falling body reaches the terminal velocity M g / (N c) (the same friction c on each of
+// its N molecules, whatever their masses: the springs make it fall as one).
+TEST(Physics, ViscousFrictionGivesTerminalVelocity) {
+  auto r = run(falling, PETSC_COMM_WORLD, {"physics.viscosity=0.5", "solver.steps=20000", "solver.time_step=2e-3"});
+  // the springs couple molecules of different mass: the body falls as one at the mean terminal velocity
+  const double mean_terminal = r->measured.mass * 9.81 / (0.5 * r->model.global_molecules);
+  double vz = 0, m = 0;
+  for (int i = 0; i < r->model.owned; ++i) vz += r->model.mass[i] * r->state->v[3 * i + 2], m += r->model.mass[i];
+  double sums[2] = {vz, m}, total[2];
+  MPI_Allreduce(sums, total, 2, MPI_DOUBLE, MPI_SUM, PETSC_COMM_WORLD);
+  EXPECT_NEAR(-total[0] / total[1], mean_terminal, 1e-6 * mean_terminal);
+}
+
+namespace {
+// A pad resting on a plane under gravity (relaxation: the plane holds it, no [[fix]]).
+const char* resting = R"(
+title = "resting pad"
+[body]
+molecules = [5, 4, 3]
+spacing = [0.01, 0.01, 0.01]
+topology = "face-diagonals"
+material = "cartilage"
+[physics]
+gravity = [0.0, 0.0, -9.81]
+[[obstacle]]
+kind = "plane"
+point = [0.0, 0.0, -0.005]
+normal = [0.0, 0.0, 1.0]
+[solver]
+kind = "relaxation"
+tolerance = 1e-9   # stiff cartilage under its small weight: round-off floors the residual near 5e-11
+)";
+
+// A pad pushed by a face load up into a rigid spherical indenter centred above it.
+const char* indented = R"(
+title = "indented pad"
+[body]
+molecules = [7, 7, 4]
+spacing = [0.002, 0.002, 0.002]
+topology = "face-diagonals"
+material = "cartilage"
+[[load]]
+face = "z-"
+force = [0.0, 0.0, 2.0]
+[[obstacle]]
+kind = "sphere"
+center = [0.006, 0.006, 0.012]
+radius = 0.005
+[solver]
+kind = "relaxation"
+tolerance = 1e-11
+)";
+
+// The same indenter pressed into a pad clamped below: static (Newton with the obstacle's tangent).
+const char* clamped = R"(
+title = "clamped pad, indenter pressed in"
+[body]
+molecules = [7, 7, 4]
+spacing = [0.002, 0.002, 0.002]
+topology = "face-diagonals"
+material = "cartilage"
+[[fix]]
+face = "z-"
+[[obstacle]]
+kind = "sphere"
+center = [0.006, 0.006, 0.0105]
+radius = 0.005
+[solver]
+kind = "static"
+tolerance = 1e-10
+)";
+
+double norm(const Vec3& v) { return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
+
+// The sum of the connection forces on held components: the reactions of the fixes.
+Vec3 reactions(const RunResult& r) {
+  std::vector<double> f(3 * r.model.local);
+  r.forces->connection_forces(r.state->x.array(), f.data());
+  double mine[3] = {0, 0, 0}, all[3];
+  for (int i = 0; i < r.model.owned; ++i)
+    for (int d = 0; d < 3; ++d)
+      if (r.forces->held()[3 * i + d]) mine[d] += f[3 * i + d];
+  MPI_Allreduce(mine, all, 3, MPI_DOUBLE, MPI_SUM, r.model.comm);
+  return {all[0], all[1], all[2]};
+}
+}  // namespace
+
+// At rest on a plane, the plane carries the body's weight.
+TEST(Physics, RestingBodyContactForceIsItsWeight) {
+  auto r = run(resting, PETSC_COMM_WORLD);
+  ASSERT_TRUE(r->report.converged);
+  ASSERT_TRUE(r->measured.contact_force.has_value());
+  const Vec3 c = *r->measured.contact_force;
+  const double weight = r->measured.mass * 9.81;
+  EXPECT_NEAR(c[2], weight, 1e-6 * weight);
+  EXPECT_NEAR(c[0], 0.0, 1e-6 * weight);
+  EXPECT_NEAR(c[1], 0.0, 1e-6 * weight);
+  auto self = run(resting, MPI_COMM_SELF);
+  EXPECT_LT(max_difference(gather_positions(*r), gather_positions(*self)), 1e-10);
+  EXPECT_NEAR(norm(*self->measured.contact_force), norm(c), 1e-9 * weight);
+}
+
+// A load pushes the pad into a fixed spherical indenter: at equilibrium the indenter's force balances the load.
+TEST(Physics, IndenterBalancesTheLoad) {
+  auto r = run(indented, PETSC_COMM_WORLD);
+  ASSERT_TRUE(r->report.converged);
+  const Vec3 c = *r->measured.contact_force;
+  EXPECT_NEAR(c[2], -2.0, 1e-6 * 2.0);
+  EXPECT_NEAR(c[0], 0.0, 1e-6 * 2.0);
+  EXPECT_NEAR(c[1], 0.0, 1e-6 * 2.0);
+  auto self = run(indented, MPI_COMM_SELF);
+  EXPECT_LT(max_difference(gather_positions(*r), gather_positions(*self)), 1e-10);
+}
+
+// Static (Newton with k n n^T per active contact) and relaxation agree on an indented, clamped pad, and the
+// indenter's force equals the fixed face's reactions.
+TEST(Physics, IndenterStaticMatchesRelaxation) {
+  auto s = run(clamped, PETSC_COMM_WORLD);
+  ASSERT_TRUE(s->report.converged);
+  auto x = run(clamped, PETSC_COMM_WORLD, {"solver.kind=relaxation", "solver.tolerance=1e-11"});
+  ASSERT_TRUE(x->report.converged);
+  const Vec3 c = *s->measured.contact_force, reaction = reactions(*s);
+  EXPECT_LT(c[2], 0.0);
+  for (int d = 0; d < 3; ++d) EXPECT_NEAR(reaction[d], c[d], 1e-6 * norm(c));
+  for (int d = 0; d < 3; ++d) EXPECT_NEAR((*x->measured.contact_force)[d], c[d], 1e-6 * norm(c));
+  EXPECT_LT(max_difference(gather_positions(*s), gather_positions(*x)), 1e-6 * 0.002);
+  auto self = run(clamped, MPI_COMM_SELF);
+  EXPECT_LT(max_difference(gather_positions(*s), gather_positions(*self)), 1e-10);
+}
+
+namespace {
+// Two bodies in one scene: [[body]] tables, numbered body after body; fixes and loads name their body.
+const char* two_bodies = R"(
+title = "two bodies"
+[[body]]
+molecules = [3, 3, 4]
+spacing = [0.1, 0.1, 0.1]
+topology = "rectangular"
+youngs_modulus = 1.0e5
+[[body]]
+molecules = [4, 3, 5]
+spacing = [0.1, 0.12, 0.09]
+topology = "rectangular"
+youngs_modulus = 3.0e5
+offset = [1.0, 0.0, 0.0]
+[calibration]
+method = "linear"
+[[fix]]
+face = "z+"
+body = 1
+[[fix]]
+face = "z+"
+[[load]]
+face = "z-"
+body = 1
+force = [0.0, 0.0, -20.0]
+[solver]
+kind = "static"
+tolerance = 1e-11
+)";
+}  // namespace
+
+// Each body has its own topology, material and offset; Eq. 3 reads the body the load is on (exact for the
+// rectangular topology with the linear k), and the unloaded body does not move.
+TEST(Physics, SeveralBodiesEachWithItsOwnMaterial) {
+  auto r = run(two_bodies, PETSC_COMM_WORLD);
+  ASSERT_TRUE(r->report.converged);
+  EXPECT_EQ(r->model.global_molecules, 36 + 60);
+  EXPECT_EQ(r->scene.bodies.size(), 2u);
+  ASSERT_TRUE(r->test.valid);
+  EXPECT_EQ(r->test.body, 1);
+  EXPECT_NEAR(r->test.cross_section, 0.3 * 0.24, 1e-12);
+  EXPECT_NEAR(r->test.rest_length, 0.36, 1e-12);
+  ASSERT_TRUE(r->measured.youngs_modulus.has_value());
+  EXPECT_NEAR(*r->measured.youngs_modulus, 3.0e5, 1e-6 * 3.0e5);
+  auto x = gather_positions(*r);
+  Body body = build_body(r->scene);
+  double still = 0;
+  for (std::int64_t g = 0; g < 36; ++g) {
+    Vec3 p = body.rest_position(g);
+    for (int d = 0; d < 3; ++d) still = std::max(still, std::fabs(x[3 * g + d] - p[d]));
+  }
+  EXPECT_LT(still, 1e-14);
+  EXPECT_NEAR(body.rest_position(36)[0], 1.0, 1e-15);
+  auto self = run(two_bodies, MPI_COMM_SELF);
+  EXPECT_LT(max_difference(x, gather_positions(*self)), 1e-10);
+}
+
+namespace {
+// Two pads pressed together: the lower one clamped below, the upper one loaded from above onto it. The
+// molecules' spheres (radius 1 mm) of the two facing layers touch at rest.
+const char* pressed = R"(
+title = "two pads pressed together"
+[[body]]
+molecules = [5, 4, 3]
+spacing = [0.002, 0.002, 0.002]
+topology = "face-diagonals"
+material = "cartilage"
+[[body]]
+molecules = [5, 4, 3]
+spacing = [0.002, 0.002, 0.002]
+topology = "face-diagonals"
+material = "cartilage"
+youngs_modulus = 5e6
+offset = [0.0, 0.0, 0.006]
+[physics]
+contact = true
+[[fix]]
+face = "z-"
+[[load]]
+face = "z+"
+body = 1
+force = [0.0, 0.0, -3.0]
+[solver]
+kind = "relaxation"
+tolerance = 1e-10
+)";
+}  // namespace
+
+// The contact force between the bodies carries the load across (distance-based halo at 2 and 3 ranks).
+TEST(Physics, PadsPressedTogetherCarryTheLoad) {
+  auto r = run(pressed, PETSC_COMM_WORLD);
+  ASSERT_TRUE(r->report.converged);
+  ASSERT_EQ(r->measured.body_contact_force.size(), 2u);
+  const Vec3 on0 = r->measured.body_contact_force[0], on1 = r->measured.body_contact_force[1];
+  EXPECT_NEAR(on1[2], 3.0, 1e-6 * 3.0);
+  EXPECT_NEAR(on0[2], -3.0, 1e-6 * 3.0);
+  for (int d = 0; d < 2; ++d) {
+    EXPECT_NEAR(on1[d], 0.0, 1e-6 * 3.0);
+    EXPECT_NEAR(on0[d], 0.0, 1e-6 * 3.0);
+  }
+  auto self = run(pressed, MPI_COMM_SELF);
+  EXPECT_LT(max_difference(gather_positions(*r), gather_positions(*self)), 1e-10);
+  EXPECT_NEAR(self->measured.body_contact_force[1][2], on1[2], 1e-9);
+}

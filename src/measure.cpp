@@ -1,6 +1,7 @@
 #include "src/measure.hpp"
 
 #include <array>
+#include <cmath>
 
 namespace tissue {
 
@@ -52,8 +53,11 @@ Measurements measure(const Scene& scene, const LocalModel& model, const TensionT
     };
     for (const auto& f : scene.fixes) free = free && !touches(f.face);
     for (const auto& l : scene.loads) free = free && !touches(l.face);
-    if (free && dl != 0.0) {
-      const double axial = dl / test.rest_length;
+    if (free && dl != 0.0 && std::fabs(test.direction[test.axis]) > 0.5) {  // not for a shear load
+      // Axial strain from the change of length (negative in compression), not from the displacement along the
+      // load: a compressive load moves the loaded face toward the fixed one.
+      const double outward = test.direction[test.axis] * (test.load_side == 1 ? 1.0 : -1.0);
+      const double axial = (outward > 0 ? 1.0 : -1.0) * dl / test.rest_length;
       double lateral = 0;
       const int axes[2] = {u, w};
       for (int l = 0; l < 2; ++l)

@@ -134,12 +134,14 @@ TEST(Calibration, TetrahedralAndLloydByHand) {
 }
 
 // Statistical: D(N) with the boundary reading of statistical.cpp (N <= 8 -> N, 9..12 -> N - 1, 13..19 -> N - 4,
-// >= 20 -> N / 2), and k = (E 2A/D1 + E 2A/D2) / (2 l).
-// 2x2x2 face-diagonals: every molecule a corner with 3 edges + 3 face diagonals, N = 6, D = 6; A = 1 x 1:
-// edge k = (2E/6 + 2E/6) / 2 = E/3, face diagonal E/3/sqrt2.
-// 3x3x3 (A = 2 x 2 = 4): N = 6 at corners (D 6), 9 at box-edge middles (D 8), 13 at face centres (D 9), 18 at the
-// centre (D 14). Corner 000 - edge middle 100: (8E/6 + 8E/8) / 2 = 7E/6; face centre 110 - centre 111:
-// (8E/9 + 8E/14) / 2 = 4E (1/9 + 1/14) = 46E/63.
+// >= 20 -> N / 2), and k = (E 2A/D1 + E 2A/D2) / (2 l) with A the connection's own (Eq. 4) cross-section,
+// i.e. k = k_linear (1/D1 + 1/D2).
+// 2x2x2 face-diagonals, h = 1: every molecule a corner with 3 edges + 3 face diagonals, N = 6, D = 6. Edge 000-001:
+// k_linear = E (1/2 x 1/2) / 1 = E/4, k = E/4 (1/6 + 1/6) = E/12; face diagonal 000-011: k_linear = E (1 x 1 x
+// 1/2 / 2) / 2 = E/8, k = E/24.
+// 3x3x3: N = 6 at corners (D 6), 9 at box-edge middles (D 8), 13 at face centres (D 9), 18 at the centre (D 14).
+// Corner 000 - edge middle 100: k_linear = E/4, k = E/4 (1/6 + 1/8) = 7E/96; face centre 110 - centre 111:
+// k_linear = E (1 x 1) / 1 = E, k = E (1/9 + 1/14) = 23E/126.
 TEST(Calibration, StatisticalByHand) {
   const int n[] = {3, 6, 7, 8, 9, 11, 12, 13, 18, 19, 20, 21, 26};
   const double d[] = {3, 6, 7, 8, 8, 10, 11, 9, 14, 15, 10, 10.5, 13};
@@ -147,12 +149,12 @@ TEST(Calibration, StatisticalByHand) {
   Case c;
   c.method = "statistical";
   auto s = build(c);
-  EXPECT_K(s->model, I({0, 0, 0}), I({0, 0, 1}), E / 3);
-  EXPECT_K(s->model, I({0, 0, 0}), I({0, 1, 1}), E / 3 / std::sqrt(2.0));
+  EXPECT_K(s->model, I({0, 0, 0}), I({0, 0, 1}), E / 12);
+  EXPECT_K(s->model, I({0, 0, 0}), I({0, 1, 1}), E / 24);
   c.n = {3, 3, 3};
   auto t = build(c);
-  EXPECT_K(t->model, I({0, 0, 0}), I({1, 0, 0}), 7 * E / 6);
-  EXPECT_K(t->model, I({1, 1, 0}), I({1, 1, 1}), 46 * E / 63);
+  EXPECT_K(t->model, I({0, 0, 0}), I({1, 0, 0}), 7 * E / 96);
+  EXPECT_K(t->model, I({1, 1, 0}), I({1, 1, 1}), 23 * E / 126);
 }
 
 // Angles (angles.cpp: k = k_linear l0 / (l0 + sum over partners at an acute angle of l_i cos_i), both ends).

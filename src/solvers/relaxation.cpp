@@ -39,6 +39,7 @@ SolveReport solve_relaxation(const Scene& scene, const LocalModel& model, const 
   long& positive = state.fire_positive;
   state.time_step = dt_max;
 
+  const double tolerance = reachable_tolerance(scene, model, forces);
   Progress progress("relaxation", scene.output.progress, model.comm);
   state.x.update_ghosts();
   if (hooks.refresh) hooks.refresh(x);
@@ -51,8 +52,8 @@ SolveReport solve_relaxation(const Scene& scene, const LocalModel& model, const 
   for (;; ++it) {
     guard.relaxation_step(residual);
     if (it % 100 == 0) report.residual_history.push_back(residual);
-    progress.update(it, residual, scene.solver.tolerance, 0);
-    if (residual <= scene.solver.tolerance) {
+    progress.update(it, residual, tolerance, 0);
+    if (residual <= tolerance) {
       report.converged = true;
       break;
     }

@@ -3,6 +3,8 @@
 #include "src/solvers/guards.hpp"
 
 #include <cmath>
+#include <cstdio>
+#include <vector>
 #include <limits>
 
 namespace tissue {
@@ -11,6 +13,25 @@ double critical_time_step(const ForceModel& forces) {
   // Gershgorin on the mass-scaled stiffness: |lambda| <= max_i (sum_j ||K_ij||) / m_i = max_i 2 sum_c k_c / m_i.
   double rate = forces.largest_stiffness_rate();
   return rate > 0 ? 2.0 / std::sqrt(rate) : std::numeric_limits<double>::infinity();
+}
+
+double reachable_tolerance(const Scene& scene, const LocalModel& model, const ForceModel& forces) {
+  std::vector<double> scale(model.local, 0.0);
+  for (int c = 0; c < model.connections(); ++c) {
+    const double kl = std::fabs(model.stiffness[c]) * model.rest_length[c];
+    scale[model.end_a[c]] += kl, scale[model.end_b[c]] += kl;
+  }
+  double sum = 0, total = 0;
+  for (int i = 0; i < model.owned; ++i) sum += scale[i] * scale[i];
+  MPI_Allreduce(&sum, &total, 1, MPI_DOUBLE, MPI_SUM, model.comm);
+  const double reference = forces.applied_norm() > 0 ? forces.applied_norm() : 1.0;
+  const double floor = 2.0 * std::numeric_limits<double>::epsilon() * std::sqrt(total) / reference;
+  if (scene.solver.tolerance >= floor) return scene.solver.tolerance;
+  if (model.rank == 0)
+    std::fprintf(stderr, "tissue: warning: solver.tolerance %.3g is below the round-off floor of the force "
+                         "residual (%.3g for these springs and loads); using %.3g\n",
+                 scene.solver.tolerance, floor, floor);
+  return floor;
 }
 
 double relative_residual(const LocalModel& model, const ForceModel& forces, const double* f) {

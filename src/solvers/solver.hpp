@@ -74,6 +74,11 @@ bool step_boundary(const Scene& scene, const LocalModel& model, const SolverStat
 // The critical time step of explicit integration: 2 / sqrt(max eigenvalue of M^-1 K), bounded by Gershgorin.
 double critical_time_step(const ForceModel& forces);
 
+// The tolerance a solve can reach: solver.tolerance, raised (with a message on rank 0) to twice the round-off floor
+// of the relative residual, eps |sum over connections of k l| per molecule over the applied forces: spring forces
+// are differences of lengths, so each carries an error of about eps k l. Collective.
+double reachable_tolerance(const Scene& scene, const LocalModel& model, const ForceModel& forces);
+
 // Relative force residual: |F on free components| / |applied forces| (global), from f of every owned molecule.
 double relative_residual(const LocalModel& model, const ForceModel& forces, const double* f);
 // Throws SolverFailure naming the step and the molecule when a force or position is not finite.

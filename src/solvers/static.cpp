@@ -120,7 +120,8 @@ PetscErrorCode run_static(const Scene& scene, const LocalModel& model, const For
   PetscCall(KSPSetTolerances(ksp, 1e-10, PETSC_DEFAULT, PETSC_DEFAULT, 10000));
   const double reference = forces.applied_norm() > 0 ? forces.applied_norm() : 1.0;
   const long max_newton = scene.solver.max_iterations > 0 ? scene.solver.max_iterations : 50;
-  PetscCall(SNESSetTolerances(snes, scene.solver.tolerance * reference, 0.0, 0.0, max_newton, 1000000));
+  const double tolerance = reachable_tolerance(scene, model, forces);
+  PetscCall(SNESSetTolerances(snes, tolerance * reference, 0.0, 0.0, max_newton, 1000000));
   PetscCall(SNESSetFromOptions(snes));  // the user's -snes_*, -ksp_*, -pc_* options win
 
   Vec saved;
@@ -190,7 +191,7 @@ PetscErrorCode run_static(const Scene& scene, const LocalModel& model, const For
   PetscCall(VecDuplicate(X, &R));
   PetscCall(residual(snes, X, R, &ctx));
   report.residual = relative_residual(model, forces, state.f.data());
-  report.converged = report.residual <= scene.solver.tolerance * 1.0000001;
+  report.converged = report.residual <= tolerance * 1.0000001;
   check_finite(model, state.x.array(), state.f.data(), report.iterations, "static");
   {
     StepGuard guard("static", scene, model, forces, state);

@@ -1,7 +1,12 @@
 #include "io/hdf5_file.hpp"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <vector>
 
 #include <cerrno>
 #include <cstdio>
@@ -67,6 +72,78 @@ hid_t file_access(MPI_Comm comm) {
   return fapl;
 }
 
+// The seal: every file tissue writes starts with a 512-byte HDF5 user block (ignored by HDF5, h5py, ParaView)
+// holding "TISSUE-HDF5-SEAL 1 <size> <hash>": the file's size and a hash of all its bytes after the user block.
+// Readers check it before HDF5 parses anything, so a truncated, damaged or foreign file is refused with one line
+// instead of reaching HDF5's parser (which can crash on corrupt metadata).
+constexpr std::size_t kUserBlock = 512;
+const char kSealTag[] = "TISSUE-HDF5-SEAL 1 ";
+
+// Sum (mod 2^64) over 1 MiB blocks of FNV-1a(block offset, block bytes): order-independent, so every rank hashes
+// its own contiguous share of the file in parallel and one reduction gives the total.
+std::uint64_t seal_hash(const std::string& path, std::uint64_t size, MPI_Comm comm) {
+  int rank = 0, ranks = 1;
+  MPI_Comm_rank(comm, &rank);
+  MPI_Comm_size(comm, &ranks);
+  const std::uint64_t block = 1 << 20;
+  const std::uint64_t blocks = size > kUserBlock ? (size - kUserBlock + block - 1) / block : 0;
+  const std::uint64_t first = blocks * rank / ranks, last = blocks * (rank + 1) / ranks;
+  std::uint64_t sum = 0;
+  int failed = 0;
+  if (first < last) {
+    int fd = ::open(path.c_str(), O_RDONLY);
+    std::vector<unsigned char> buffer(block);
+    for (std::uint64_t b = first; b < last && fd >= 0 && !failed; ++b) {
+      const std::uint64_t offset = kUserBlock + b * block;
+      const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(block, size - offset));
+      if (::pread(fd, buffer.data(), n, static_cast<off_t>(offset)) != static_cast<ssize_t>(n)) failed = 1;
+      std::uint64_t h = 1469598103934665603ULL;
+      for (int i = 0; i < 8; ++i) h = (h ^ ((offset >> (8 * i)) & 0xff)) * 1099511628211ULL;
+      for (std::size_t i = 0; i < n; ++i) h = (h ^ buffer[i]) * 1099511628211ULL;
+      sum += h;
+    }
+    if (fd < 0) failed = 1;
+    else ::close(fd);
+  }
+  std::uint64_t total = 0;
+  int any = 0;
+  MPI_Allreduce(&sum, &total, 1, MPI_UINT64_T, MPI_SUM, comm);
+  MPI_Allreduce(&failed, &any, 1, MPI_INT, MPI_MAX, comm);
+  if (any) throw std::runtime_error(path + ": cannot read the file back");
+  return total;
+}
+
+std::uint64_t file_size(const std::string& path) {
+  struct stat st;
+  return ::stat(path.c_str(), &st) == 0 ? static_cast<std::uint64_t>(st.st_size) : 0;
+}
+
+// Collective: checks the seal of a file before HDF5 opens it. Throws one line saying what is wrong.
+void verify_seal(const std::string& path, MPI_Comm comm) {
+  char header[kUserBlock + 1] = {0};
+  int ok = 0;
+  int rank = 0;
+  MPI_Comm_rank(comm, &rank);
+  if (rank == 0) {
+    int fd = ::open(path.c_str(), O_RDONLY);
+    if (fd >= 0) {
+      ok = ::pread(fd, header, kUserBlock, 0) == static_cast<ssize_t>(kUserBlock);
+      ::close(fd);
+    }
+  }
+  MPI_Bcast(&ok, 1, MPI_INT, 0, comm);
+  MPI_Bcast(header, kUserBlock, MPI_CHAR, 0, comm);
+  unsigned long long size = 0, hash = 0;
+  if (!ok || std::strncmp(header, kSealTag, sizeof kSealTag - 1) != 0 ||
+      std::sscanf(header + sizeof kSealTag - 1, "%llu %llx", &size, &hash) != 2)
+    throw std::runtime_error(path + ": not a file written by tissue (no seal in its first 512 bytes)");
+  const std::uint64_t actual = file_size(path);
+  if (actual != size)
+    throw std::runtime_error(path + ": truncated or extended: " + std::to_string(actual) + " bytes, sealed at " +
+                             std::to_string(size));
+  if (seal_hash(path, size, comm) != hash) throw std::runtime_error(path + ": damaged: its bytes do not match its seal");
+}
+
 }  // namespace
 
 Hdf5File::Hdf5File(std::string path, MPI_Comm comm, bool writable)
@@ -77,7 +154,9 @@ Hdf5File Hdf5File::create(const std::string& path, MPI_Comm comm) {
   Hdf5File f(path, comm, true);
   Handle fapl(file_access(comm), H5Pclose);
   if (!fapl.ok()) f.fail("", "cannot set up MPI-IO file access");
-  f.file_ = H5Fcreate((path + ".tmp").c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get());
+  Handle fcpl(H5Pcreate(H5P_FILE_CREATE), H5Pclose);
+  if (!fcpl.ok() || H5Pset_userblock(fcpl.get(), kUserBlock) < 0) f.fail("", "cannot reserve the seal's user block");
+  f.file_ = H5Fcreate((path + ".tmp").c_str(), H5F_ACC_TRUNC, fcpl.get(), fapl.get());
   if (f.file_ < 0) f.fail("", "cannot create " + path + ".tmp");
   return f;
 }
@@ -85,6 +164,7 @@ Hdf5File Hdf5File::create(const std::string& path, MPI_Comm comm) {
 Hdf5File Hdf5File::open(const std::string& path, MPI_Comm comm) {
   quiet_hdf5();
   Hdf5File f(path, comm, false);
+  verify_seal(path, comm);
   Handle fapl(file_access(comm), H5Pclose);
   if (!fapl.ok()) f.fail("", "cannot set up MPI-IO file access");
   f.file_ = H5Fopen(path.c_str(), H5F_ACC_RDONLY, fapl.get());
@@ -136,12 +216,20 @@ void Hdf5File::close() {
   int rank = 0;
   check_mpi(MPI_Comm_rank(comm_, &rank), path_, "MPI_Comm_rank");
   int err = 0;
+  const std::string tmp = path_ + ".tmp";
+  const std::uint64_t size = file_size(tmp);
+  const std::uint64_t hash = seal_hash(tmp, size, comm_);  // collective
   if (rank == 0) {
-    // Flush the data to the disk before the name appears: after a power loss a published name holds it all.
-    int fd = ::open((path_ + ".tmp").c_str(), O_RDONLY);
-    if (fd >= 0) ::fsync(fd), ::close(fd);
+    // Seal, then flush to the disk before the name appears: after a power loss a published name holds it all.
+    char header[kUserBlock] = {0};
+    std::snprintf(header, sizeof header, "%s%llu %016llx\n", kSealTag, static_cast<unsigned long long>(size),
+                  static_cast<unsigned long long>(hash));
+    int fd = ::open(tmp.c_str(), O_WRONLY);
+    if (fd < 0 || ::pwrite(fd, header, kUserBlock, 0) != static_cast<ssize_t>(kUserBlock) || ::fsync(fd) != 0)
+      err = errno ? errno : -1;
+    if (fd >= 0) ::close(fd);
   }
-  if (rank == 0 && std::rename((path_ + ".tmp").c_str(), path_.c_str()) != 0) {
+  if (rank == 0 && !err && std::rename((path_ + ".tmp").c_str(), path_.c_str()) != 0) {
     err = errno ? errno : -1;
     std::remove((path_ + ".tmp").c_str());
   }

@@ -21,8 +21,10 @@ try:
     view.UseColorPaletteForBackground = 0
 except AttributeError:
     pass
-if times:
-    view.ViewTime = times[-1] if isinstance(times, (list, tuple)) else times
+times = list(times) if hasattr(times, "__len__") else ([times] if times is not None else [])
+if times:  # the last frame of a series (snapshots + final)
+    view.ViewTime = times[-1]
+    GetAnimationScene().AnimationTime = times[-1]
 calc = Calculator(Input=reader, ResultArrayName="|u| (m)", Function="mag(displacement)")
 calc.AttributeType = "Point Data"
 spacing = min(min(b.get("spacing", [s / (n - 1) for s, n in zip(b.get("size", [1, 1, 1]), b["molecules"])]))
@@ -54,6 +56,10 @@ for o in scene.get("obstacle", []):
         n = o["normal"]
         p = o["point"]
         size = 1.5 * max(max(b.get("size", [1, 1, 1])) for b in bodies)
+        b0 = bodies[0]
+        ext = b0.get("size") or [h * (n - 1) for h, n in zip(b0["spacing"], b0["molecules"])]
+        mid = [o_ + e / 2 for o_, e in zip(b0.get("offset", [0, 0, 0]), ext)]
+        p = [mid[0], mid[1], p[2]]  # centred under the first body (planes normal to z)
         src = Plane()
         # a square of side `size` through p, normal n (built around z and rotated by ParaView's Plane normal)
         src.Origin = [p[0] - size / 2, p[1] - size / 2, p[2]]

@@ -84,7 +84,7 @@ run() {  # topology method test [extra --set ...]
 }
 for topology in $TOPOLOGIES; do
   [ -n "${TABLES_ONLY:-}" ] && break   # TABLES_ONLY=1: step 3 only, from the runs already in $WORK
-  for method in $METHODS; do
+  for method in ${RUN_METHODS:-$METHODS}; do  # RUN_METHODS: rerun a subset, tables from all runs in $WORK
     run "$topology" "$method" tension
     if [ "$(cut -d' ' -f1 "$WORK/$topology/$method/tension/status.txt")" = 2 ]; then continue; fi  # refused
     # The rectangular lattice has no shear stiffness and buckles in compression (the paper's Fig. 3): the static

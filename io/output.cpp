@@ -57,6 +57,7 @@ void Output::make_directory() {
 }
 
 void Output::snapshot(const SolverState& state, const ForceModel& forces, bool final, const char* file_name) {
+  if (scene_.output.fields.empty()) return;  // `fields = []`: the scene asks for no snapshot, and pays for none
   make_directory();
   const double* x = state.x.array();
   SnapshotFrame frame;

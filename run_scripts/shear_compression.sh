@@ -136,11 +136,11 @@ for t in topologies:
         if ten is None or "E" not in ten:
             row["note"] = (ten or {}).get("note", "not run"); rows.append(row); continue
         ok = lambda x: x is not None and "E" in x and x["rc"] == 0
-        # summary.json's poisson_ratio_measured assumes tension (src/measure.cpp: axial = +elongation / l0): in
-        # compression it comes out with the wrong sign, so it is negated here.
+        # summary.json's poisson_ratio_measured takes the axial strain from the change of length, so it has the
+        # same sign convention in compression as in tension.
         row.update(E_tension=ten["E"] if ok(ten) else None, nu_tension=ten["nu"] if ok(ten) else None,
                    E_compression=com["E"] if ok(com) else None,
-                   nu_compression=-com["nu"] if ok(com) and com["nu"] is not None else None,
+                   nu_compression=com["nu"] if ok(com) else None,
                    G_apparent=sh["E"] if ok(sh) else None, divisor=ten["C"])
         if row["G_apparent"] is not None:
             row["G"] = row["G_apparent"] / f
@@ -204,9 +204,8 @@ PROSE = r"""
   configuration gives good results in tensile tests, we cannot affirm shear tests will also be correct") holds.
 - **linear, divided, angles, angles-update** share that anisotropy (G/G_iso 0.44-0.83) and are off in E as well;
   divided and angles are 60-90% too soft. angles-update equals angles at small strain.
-- **statistical** is 14-22 times too stiff (its A is the body's whole cross-section per connection, see
-  docs/paper_tables.md); its shear solve fails: with k ~ 1e7 N/m and a 10 N load the static solver's relative
-  residual 1e-10 lies below the round-off of the spring forces (exit 3; see the report's bug list).
+- **statistical** (A = the connection's own cross-section, k = k_linear (1/D1 + 1/D2)) is 75-78% too soft on
+  every topology, as the paper found it "usually softer", with the linear lattice's anisotropy.
 - **Tetrahedral meshes** (Kuhn, 6 tetrahedra per cube): no method is isotropic. tetrahedral (Eq. 5) gives E +3.4%
   but nu 0.04 and G/G_target 0.53; Lloyd E -18%, G 0.74; iterative E exact, G 0.66.
 

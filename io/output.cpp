@@ -44,10 +44,21 @@ void make_directories(const std::string& path) {
 
 Output::Output(const Scene& scene, const LocalModel& model)
     : scene_(scene),
-      model_(model),
-      molecules_(model.comm, std::vector<std::int64_t>(model.id.begin(), model.id.begin() + model.owned),
-                 model.global_molecules),
-      connections_(model.comm, written_connection_ids(model), model.global_connections) {}
+      model_(model) {}
+
+const NaturalOrder& Output::molecules() {
+  if (!molecules_)
+    molecules_ = std::make_unique<NaturalOrder>(
+        model_.comm, std::vector<std::int64_t>(model_.id.begin(), model_.id.begin() + model_.owned),
+        model_.global_molecules);
+  return *molecules_;
+}
+
+const NaturalOrder& Output::connections() {
+  if (!connections_)
+    connections_ = std::make_unique<NaturalOrder>(model_.comm, written_connection_ids(model_), model_.global_connections);
+  return *connections_;
+}
 
 void Output::make_directory() {
   if (directory_made_) return;
@@ -66,25 +77,25 @@ void Output::snapshot(const SolverState& state, const ForceModel& forces, bool f
   frame.title = scene_.title;
   frame.molecules = model_.global_molecules;
   frame.connections = model_.global_connections;
-  frame.molecule_offset = molecules_.begin();
-  frame.molecule_rows = molecules_.count();
-  frame.connection_offset = connections_.begin();
-  frame.connection_rows = connections_.count();
+  frame.molecule_offset = molecules().begin();
+  frame.molecule_rows = molecules().count();
+  frame.connection_offset = connections().begin();
+  frame.connection_rows = connections().count();
 
   const int n = model_.owned;
-  frame.positions = molecules_.to_natural(x, 3);
+  frame.positions = molecules().to_natural(x, 3);
   if (wants(scene_, "displacements")) {
     std::vector<double> u(3 * n);
     for (int i = 0; i < 3 * n; ++i) u[i] = x[i] - model_.rest[i];
-    frame.displacements = molecules_.to_natural(u.data(), 3);
+    frame.displacements = molecules().to_natural(u.data(), 3);
   }
-  if (wants(scene_, "velocities")) frame.velocities = molecules_.to_natural(state.v.data(), 3);
+  if (wants(scene_, "velocities")) frame.velocities = molecules().to_natural(state.v.data(), 3);
   if (wants(scene_, "forces")) {
     // The connection forces on each molecule: they balance the loads at equilibrium and are the reactions at
     // held molecules (the net force, zero at equilibrium, would show nothing).
     std::vector<double> f(3 * model_.local);
     forces.connection_forces(x, f.data());
-    frame.forces = molecules_.to_natural(f.data(), 3);
+    frame.forces = molecules().to_natural(f.data(), 3);
   }
   // Connections: end points (original ids), strain and force of the ones this rank writes.
   const std::size_t nw = model_.written_here.size();
@@ -100,9 +111,9 @@ void Output::snapshot(const SolverState& state, const ForceModel& forces, bool f
     strain[w] = (len - model_.rest_length[c]) / model_.rest_length[c];
     tension[w] = model_.stiffness[c] * (len - model_.rest_length[c]);
   }
-  frame.endpoints = connections_.to_natural_ids(ends.data(), 2);
-  if (wants(scene_, "connection_strain")) frame.connection_strain = connections_.to_natural(strain.data(), 1);
-  if (wants(scene_, "connection_force")) frame.connection_force = connections_.to_natural(tension.data(), 1);
+  frame.endpoints = connections().to_natural_ids(ends.data(), 2);
+  if (wants(scene_, "connection_strain")) frame.connection_strain = connections().to_natural(strain.data(), 1);
+  if (wants(scene_, "connection_force")) frame.connection_force = connections().to_natural(tension.data(), 1);
 
   char name[64];
   if (file_name) std::snprintf(name, sizeof name, "%s", file_name);
@@ -116,7 +127,7 @@ void Output::snapshot(const SolverState& state, const ForceModel& forces, bool f
 
 std::string Output::checkpoint(const SolverState& state) {
   make_directory();
-  return write_checkpoint(scene_.output.directory, 2, scene_, model_, molecules_, connections_, state);
+  return write_checkpoint(scene_.output.directory, 2, scene_, model_, molecules(), connections(), state);
 }
 
 void Output::summary(const TensionTest& test, const Measurements& measured, const Measurements& initial,

@@ -21,8 +21,10 @@ public:
   void snapshot(const SolverState& state, const ForceModel& forces, bool final = false, const char* name = nullptr);
   // Collective. DIR/checkpoint_<step>.h5 (the newest 2 kept); returns its path.
   std::string checkpoint(const SolverState& state);
-  const NaturalOrder& molecules() const { return molecules_; }
-  const NaturalOrder& connections() const { return connections_; }
+  // The exchange plans to original order, built on first use (collective): a run that writes nothing pays
+  // nothing for them (about 16 bytes per connection).
+  const NaturalOrder& molecules();
+  const NaturalOrder& connections();
   // Collective; rank 0 writes DIR/summary.json.
   void summary(const TensionTest& test, const Measurements& measured, const Measurements& initial,
                const SolveReport& report, const SolverState& state, double wall_seconds, const std::string& failure);
@@ -31,7 +33,7 @@ private:
   void make_directory();
   const Scene& scene_;
   const LocalModel& model_;
-  NaturalOrder molecules_, connections_;
+  std::unique_ptr<NaturalOrder> molecules_, connections_;
   std::vector<XdmfEntry> frames_;
   bool directory_made_ = false;
 };

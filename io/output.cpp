@@ -135,8 +135,8 @@ void Output::summary(const TensionTest& test, const Measurements& measured, cons
                      const std::string& failure) {
   long peak = peak_memory_bytes(), peak_max = 0;
   MPI_Allreduce(&peak, &peak_max, 1, MPI_LONG, MPI_MAX, model_.comm);
+  make_directory();  // collective (a barrier): before rank 0 goes on alone
   if (model_.rank != 0) return;
-  make_directory();
   using nlohmann::json;
   auto opt = [](const std::optional<double>& v) { return v ? json(*v) : json(nullptr); };
   const double target =  // Eq. 3 reads the body the load is on
@@ -168,6 +168,12 @@ void Output::summary(const TensionTest& test, const Measurements& measured, cons
     s["calibration"]["divisor"] = opt(report.calibration_divisor);
     s["calibration"]["updates"] = report.calibration_updates;
     s["calibration"]["tolerance"] = scene_.calibration.tolerance;
+  }
+  if (scene_.calibrations.size() > 1) {  // several bodies: each body's own method, in body order
+    json bodies = json::array();
+    for (const auto& c : scene_.calibrations)
+      bodies.push_back({{"method", c.method}, {"divisor", c.method == "divided" ? json(c.divisor) : json(nullptr)}});
+    s["calibration"]["bodies"] = bodies;
   }
   s["solver"] = {{"kind", report.kind},
                  {"iterations", report.iterations},

@@ -2,6 +2,7 @@
 // naming the file and the dotted key; nothing past this file re-checks the scene.
 #include "io/scene.hpp"
 
+#include <limits>
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -82,10 +83,18 @@ void check_text(const std::string& text, const std::string& file) {
     if ((c < 0x20 && c != '\t' && c != '\n' && c != '\r') || c == 0x7f)
       throw InputError(file, "", fmt::format("not a TOML file: control byte 0x{:02x} on line {}", c, line));
     if (c < 0x80) continue;
-    // UTF-8: a lead byte and 1-3 continuation bytes (overlongs and surrogates left to the parser).
-    int extra = (c >> 5) == 0x6 ? 1 : (c >> 4) == 0xe ? 2 : (c >> 3) == 0x1e ? 3 : -1;
+    // UTF-8 as RFC 3629 has it: a lead byte and 1-3 continuation bytes, no overlongs (C0, C1, E0 80-9F,
+    // F0 80-8F), no surrogates (ED A0-BF), nothing above U+10FFFF (F4 90-BF, F5-FF). toml11 reads past its buffer
+    // on any of these inside a literal string (found by tests/fuzz/fuzz_scene;
+    // tests/fuzz_regressions/scene/crash-toml11-literal-string-invalid-utf8.toml).
+    int extra = (c >= 0xc2 && c <= 0xdf) ? 1 : (c >> 4) == 0xe ? 2 : (c >= 0xf0 && c <= 0xf4) ? 3 : -1;
     bool ok = extra > 0 && i + extra < text.size();
     for (int k = 1; ok && k <= extra; ++k) ok = (static_cast<unsigned char>(text[i + k]) >> 6) == 0x2;
+    if (ok) {
+      auto c1 = static_cast<unsigned char>(text[i + 1]);
+      ok = !((c == 0xe0 && c1 < 0xa0) || (c == 0xed && c1 > 0x9f) || (c == 0xf0 && c1 < 0x90) ||
+             (c == 0xf4 && c1 > 0x8f));
+    }
     if (!ok) throw InputError(file, "", fmt::format("not a TOML file: invalid UTF-8 on line {}", line));
     i += extra;
   }
@@ -390,7 +399,7 @@ BodySpec read_body(const Section& s) {
   if (b.shape == "mesh") s.fail("shape", "\"mesh\" is not supported yet (only \"box\")");
   if (b.shape != "box") s.fail("shape", fmt::format("unknown value \"{}\" (one of: box, mesh)", b.shape));
   s.allow({"shape", "molecules", "spacing", "size", "topology", "material", "youngs_modulus", "density", "offset",
-           "region", "radius"});
+           "region", "radius", "calibration"});  // calibration: read by build_scene (read_calibration)
 
   s.require("molecules", "3 integers, molecules along x, y, z");
   b.molecules = *s.int3("molecules");
@@ -448,8 +457,13 @@ std::set<std::string> classes_of(const std::string& topology) {
   return classes;
 }
 
-CalibrationSpec read_calibration(const Section& s, const BodySpec& body) {
+// A [calibration] table (the top-level one, or a body's own [body.calibration]) for the body `index` of
+// `nbodies` (nullptr: a top-level table no body uses, checked for its own keys only). A manual stiffness and a
+// method that needs a topology are checked against this body's topology; iterative (a tension test of the whole
+// scene, main() wraps the solver) is refused with several bodies.
+CalibrationSpec read_calibration(const Section& s, const BodySpec* body, int index, int nbodies) {
   CalibrationSpec c;
+  c.key = s.path();
   s.allow({"method", "divisor", "stiffness", "tolerance", "max_updates"});
   auto methods = calibration_method_names();
   c.method = s.choice("method", std::vector<std::string>(methods.begin(), methods.end())).value_or(c.method);
@@ -470,13 +484,28 @@ CalibrationSpec read_calibration(const Section& s, const BodySpec& body) {
       }
     }
   }
+  if (c.method == "iterative" && nbodies > 1)
+    s.fail("method", fmt::format("iterative fits C by a tension test of the whole scene: not available with several "
+                                 "bodies ({} here); find C with the body alone in a one-body scene, then give it "
+                                 "calibration = {{ method = \"divided\", divisor = C }}", nbodies));
+  if (!body) return c;
   if (c.method == "manual") {
     s.require("stiffness", "method = \"manual\" needs stiffness = { edge = ..., ... } in N/m");
-    for (const auto& cls : classes_of(body.topology))
+    for (const auto& cls : classes_of(body->topology))
       if (!c.stiffness.count(cls))
         s.table("stiffness")
-            .fail(cls, fmt::format("missing: topology \"{}\" has {} connections", body.topology, cls));
+            .fail(cls, fmt::format("missing: topology \"{}\" has {} connections", body->topology, cls));
   }
+  // The body this table calibrates, for messages when the scene has several.
+  const std::string which = nbodies > 1 ? fmt::format(" (body {} has \"{}\")", index, body->topology)
+                                        : fmt::format(" (the body has \"{}\")", body->topology);
+  if (c.method == "homogenized" && body->topology != "rectangular" && body->topology != "face-diagonals" &&
+      body->topology != "body-diagonals")
+    s.fail("method", "homogenized needs a box lattice topology (rectangular, face-diagonals or body-diagonals)" +
+                         which);
+  if ((c.method == "tetrahedral" || c.method == "lloyd") && body->topology != "tetrahedral")
+    s.fail("method", c.method + " needs topology = \"tetrahedral\" (it sums over the tetrahedra incident on each "
+                                "connection)" + which);
   return c;
 }
 
@@ -552,24 +581,31 @@ Scene build_scene(const Value& root, const std::string& file) {
   top.allow({"title", "body", "calibration", "fix", "load", "physics", "obstacle", "solver", "output"});
   scene.title = top.string("title").value_or("");
   top.require("body", "a scene needs a [body] table (or [[body]] tables, one per body)");
+  std::vector<Section> body_tables;
   if (top.get("body").is_array()) {  // [[body]]: several bodies, numbered in the order given
-    for (const auto& b : top.tables("body")) scene.bodies.push_back(read_body(b));
-    if (scene.bodies.empty()) top.fail("body", "an empty array: give at least one [[body]]");
+    body_tables = top.tables("body");
+    if (body_tables.empty()) top.fail("body", "an empty array: give at least one [[body]]");
   } else {
-    scene.bodies.push_back(read_body(top.table("body")));
+    body_tables.push_back(top.table("body"));
   }
+  for (const auto& b : body_tables) scene.bodies.push_back(read_body(b));
   scene.body = scene.bodies[0];
   const int nbodies = static_cast<int>(scene.bodies.size());
-  const Value none = Value(Table{});  // an absent [calibration] is read as an empty one, for the manual check
+  // Each body's calibration: its own [body.calibration] table, else the top-level [calibration] (read once per
+  // body: a manual stiffness or a method's topology is checked against each body that uses it). An absent
+  // [calibration] is read as an empty one, for those checks.
+  const Value none = Value(Table{});
   const Section calibration =
       top.has("calibration") ? top.table("calibration") : Section(file, none, "calibration");
-  for (const auto& b : scene.bodies) scene.calibration = read_calibration(calibration, b);
-  if (nbodies > 1) {
-    const std::set<std::string> per_body = {"linear", "divided", "manual", "angles", "angles-update"};
-    if (!per_body.count(scene.calibration.method))
-      calibration.fail("method", fmt::format("\"{}\" calibrates one body; with several bodies use one of: linear, "
-                                             "divided, manual, angles, angles-update", scene.calibration.method));
+  bool default_used = false;
+  for (int b = 0; b < nbodies; ++b) {
+    const Section& own = body_tables[b];
+    default_used = default_used || !own.has("calibration");
+    scene.calibrations.push_back(read_calibration(own.has("calibration") ? own.table("calibration") : calibration,
+                                                  &scene.bodies[b], b, nbodies));
   }
+  if (!default_used) read_calibration(calibration, nullptr, 0, nbodies);  // unused, but its keys must be valid
+  scene.calibration = scene.calibrations[0];
   auto which_body = [&](const Section& t) {
     int b = static_cast<int>(t.integer("body").value_or(0));
     if (b < 0 || b >= nbodies)
@@ -643,7 +679,10 @@ Scene parse_scene(const std::string& text, const std::string& name, const std::v
   Value root = parse_toml(text, name);
   for (const auto& o : overrides) apply_override(root, o);
   Scene scene = build_scene(root, name);
-  scene.text = toml::format(root);  // 17 significant digits: parse_scene(text) gives back the same Scene
+  // 17 significant digits and no width limit: parse_scene(text) gives back the same Scene. toml11 splits a basic
+  // string longer than the width with line-ending backslashes, which eat a space at the split (a title lost a
+  // space on restart: tests/fuzz_regressions/scene/crash-toml11-long-string-split-space.toml).
+  scene.text = toml::format(root, std::numeric_limits<std::size_t>::max());
   return scene;
 }
 

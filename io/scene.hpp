@@ -47,6 +47,7 @@ struct CalibrationSpec {
   std::map<std::string, double> stiffness;    // N/m per connection class (edge, face, body, tet), "manual"
   double tolerance = 1e-6;                    // iterative: relative error in E at which C is accepted
   long max_updates = 50;                      // iterative: outer updates of C before failing
+  std::string key = "calibration";            // the table it was read from, for messages ("body[1].calibration")
 };
 
 struct FixSpec {
@@ -105,7 +106,11 @@ struct Scene {
   std::string title;
   BodySpec body;                 // the first body (== bodies[0]): single-body code reads this
   std::vector<BodySpec> bodies;  // [body] gives one, [[body]] several; molecules numbered body after body
-  CalibrationSpec calibration;
+  CalibrationSpec calibration;  // body 0's (== calibrations[0]): single-body code reads this
+  // One per body: the body's own [body.calibration] table if it has one, else the top-level [calibration] (a
+  // body's own table replaces the top-level one whole, no key is merged). Each body's connections are calibrated
+  // by its own method (connections never join two bodies).
+  std::vector<CalibrationSpec> calibrations;
   std::vector<FixSpec> fixes;
   std::vector<LoadSpec> loads;
   PhysicsSpec physics;

@@ -104,9 +104,10 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
   const TensionTest test = tension_test(scene, shape);
   body = Body(), part = std::vector<int>();  // time stepping needs no global body
 
-  // 4. Calibrate: a stiffness per connection from the material (one method per file, chosen by name).
-  const CalibrationStyle* method = find_calibration(scene.calibration.method);
-  method->compute(CalibrationContext{scene, model}, model.stiffness);
+  // 4. Calibrate: a stiffness per connection from the material (one method per file, chosen by name), each body
+  //    by its own method (Scene::calibrations); `refresh` re-sets the k of the bodies whose method follows the
+  //    deformation (angles-update), installed as the solver's refresh hook in step 6.
+  const CalibrationRefresher refresh = calibrate_scene(scene, model, model.stiffness);
 
   // 5. The force model: the connection forces plus only the terms the scene lists; loads and holds.
   ForceModel forces(scene, model);
@@ -121,17 +122,17 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
   Output out(scene, model);
   if (!checkpoint.empty())
     read_checkpoint_state(checkpoint, model, out.molecules(), out.connections(), state,
-                          /*check_stiffness=*/method->updater == nullptr);
+                          /*check_stiffness=*/!refresh);
   SolverHooks hooks;
   hooks.snapshot = [&](const SolverState& s) { out.snapshot(s, forces); };
   std::string last_checkpoint;
   hooks.checkpoint = [&](const SolverState& s) { last_checkpoint = out.checkpoint(s); };
-  if (method->updater) hooks.refresh = method->updater(CalibrationContext{scene, model}, model.stiffness);
+  if (refresh) hooks.refresh = refresh;
   SolveReport report;
   int code = 0;
   std::string failure;
   try {
-    if (scene.calibration.method == "iterative")  // wraps the solver: C adjusted until Eq. 3 reads E
+    if (scene.calibration.method == "iterative")  // wraps the solver: C adjusted until Eq. 3 reads E (one body)
       solve_iterative(scene, model, forces, state, hooks, test, report);
     else
       report = solve(scene, model, forces, state, hooks);

@@ -612,11 +612,135 @@ kind = "dynamic"
   EXPECT_NE(error(two, {"physics.contact_skin=-1"}).find("physics.contact_skin"), std::string::npos);
   EXPECT_NE(error(two, {"load.0.face=z+"}).find("load[0].face"), std::string::npos);  // fixed on body 1
   EXPECT_EQ(error(two, {"load.0.body=0", "load.0.face=z-"}), "");                        // z- of body 0 is free
-  EXPECT_NE(error(two, {"calibration.method=homogenized"}).find("calibration.method"), std::string::npos);
+  // a top-level method is checked against every body that uses it (both have face-diagonals here)
+  EXPECT_EQ(error(two, {"calibration.method=homogenized"}), "");
+  EXPECT_NE(error(two, {"calibration.method=lloyd"}).find("calibration.method"), std::string::npos);
   EXPECT_NE(error("body = []\n").find("body"), std::string::npos);
   // relaxation may rest on an obstacle instead of a fix; static may not
   const std::string resting = "[body]\nmolecules = [3,3,3]\nspacing = [1,1,1]\nyoungs_modulus = 1\n"
                               "[[obstacle]]\nkind = \"plane\"\npoint = [0,0,0]\nnormal = [0,0,1]\n";
   EXPECT_EQ(error(resting + "[solver]\nkind = \"relaxation\"\n"), "");
   EXPECT_NE(error(resting + "[solver]\nkind = \"static\"\n").find("solver.kind"), std::string::npos);
+}
+
+// Per-body calibration: a body's own calibration table ([body.calibration], [[body]] then [body.calibration], or
+// an inline calibration = { ... }) replaces the top-level [calibration] for that body; the others keep it.
+TEST(Scene, PerBodyCalibration) {
+  const std::string head = R"(
+[[body]]
+molecules = [3, 3, 3]
+spacing = [0.1, 0.1, 0.1]
+youngs_modulus = 1e5
+calibration = { method = "homogenized" }
+[[body]]
+molecules = [3, 3, 3]
+spacing = [0.1, 0.1, 0.1]
+topology = "tetrahedral"
+youngs_modulus = 1e5
+offset = [1, 0, 0]
+[body.calibration]
+method = "lloyd"
+[[body]]
+molecules = [2, 2, 2]
+spacing = [0.1, 0.1, 0.1]
+topology = "rectangular"
+youngs_modulus = 1e5
+offset = [2, 0, 0]
+)";
+  const std::string tail = R"(
+[[fix]]
+face = "z+"
+[[fix]]
+face = "z+"
+body = 1
+[[fix]]
+face = "z+"
+body = 2
+)";
+  const std::string three = head + "[calibration]\nmethod = \"divided\"\ndivisor = 2.5\n" + tail;
+  Scene s = parse_scene(three, "three.toml");
+  ASSERT_EQ(s.calibrations.size(), 3u);
+  EXPECT_EQ(s.calibrations[0].method, "homogenized");
+  EXPECT_EQ(s.calibrations[0].key, "body[0].calibration");
+  EXPECT_EQ(s.calibrations[0].divisor, 1.0);  // a body's own table is whole: nothing comes from [calibration]
+  EXPECT_EQ(s.calibrations[1].method, "lloyd");  // [body.calibration] after [[body]]: the last body's
+  EXPECT_EQ(s.calibrations[1].key, "body[1].calibration");
+  EXPECT_EQ(s.calibrations[2].method, "divided");  // no table of its own: the top-level one
+  EXPECT_EQ(s.calibrations[2].divisor, 2.5);
+  EXPECT_EQ(s.calibrations[2].key, "calibration");
+  EXPECT_EQ(s.calibration.method, "homogenized");  // scene.calibration is body 0's
+  // the text round trip and --set keep and reach the per-body tables
+  Scene again = parse_scene(s.text, "again");
+  ASSERT_EQ(again.calibrations.size(), 3u);
+  for (int b = 0; b < 3; ++b) {
+    EXPECT_EQ(again.calibrations[b].method, s.calibrations[b].method);
+    EXPECT_EQ(again.calibrations[b].divisor, s.calibrations[b].divisor);
+  }
+  Scene set = parse_scene(three, "three.toml", {"body.2.calibration.method=manual",
+                                                "body.2.calibration.stiffness.edge=7"});
+  EXPECT_EQ(set.calibrations[2].method, "manual");
+  EXPECT_EQ(set.calibrations[2].stiffness.at("edge"), 7.0);
+  EXPECT_EQ(set.calibrations[1].method, "lloyd");
+  // no top-level [calibration]: the bodies without a table of their own are linear
+  Scene plain = parse_scene(head + tail, "plain.toml");
+  EXPECT_EQ(plain.calibrations[2].method, "linear");
+  // the single-table form: [body.calibration] is the body's (and wins over a top-level [calibration])
+  const std::string single = R"(
+[body]
+molecules = [3, 3, 3]
+spacing = [0.1, 0.1, 0.1]
+youngs_modulus = 1e5
+[body.calibration]
+method = "divided"
+divisor = 3.75
+[calibration]
+method = "statistical"
+[[fix]]
+face = "z+"
+)";
+  Scene one = parse_scene(single, "one.toml");
+  ASSERT_EQ(one.calibrations.size(), 1u);
+  EXPECT_EQ(one.calibration.method, "divided");
+  EXPECT_EQ(one.calibration.divisor, 3.75);
+  EXPECT_EQ(one.calibration.key, "body.calibration");
+
+  auto error = [](const std::string& text, const std::vector<std::string>& set = {}) {
+    try {
+      parse_scene(text, "bad.toml", set);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  auto names = [&](const std::string& text, const std::vector<std::string>& set, const std::string& key) {
+    const std::string e = error(text, set);
+    EXPECT_NE(e.find(key), std::string::npos) << "expected " << key << " in: " << e;
+  };
+  // a method that needs a topology, checked per body and naming that body's key
+  names(three, {"body.0.calibration.method=tetrahedral"}, "bad.toml: body[0].calibration.method: tetrahedral needs");
+  names(three, {"body.1.calibration.method=homogenized"}, "body[1].calibration.method: homogenized needs");
+  names(three, {"calibration.method=lloyd"}, "calibration.method: lloyd needs");  // body 2 uses it
+  EXPECT_NE(error(three, {"calibration.method=lloyd"}).find("body 2 has \"rectangular\""), std::string::npos);
+  names(single, {"body.calibration.method=lloyd"}, "body.calibration.method: lloyd needs");
+  // iterative: one body only (it fits C by the scene's tension test)
+  names(three, {"body.1.calibration.method=iterative"}, "body[1].calibration.method: iterative fits C");
+  names(three, {"calibration.method=iterative"}, "calibration.method: iterative fits C");
+  EXPECT_EQ(error(single, {"body.calibration.method=iterative"}), "");
+  // a top-level table no body uses is still checked
+  names(head + "[calibration]\nmethod = \"guess\"\n" + tail, {"body.2.calibration.method=linear"},
+        "calibration.method");
+  names(head + "[calibration]\ncolour = 1\n" + tail, {"body.2.calibration.method=linear"}, "calibration.colour");
+  // the body's own table is validated like the top-level one
+  names(three, {"body.0.calibration.method=guess"}, "body[0].calibration.method");
+  names(three, {"body.0.calibration.divisor=0"}, "body[0].calibration.divisor");
+  names(three, {"body.0.calibration.extra=1"}, "body[0].calibration.extra");
+  names(three, {"body.0.calibration=3"}, "body[0].calibration");
+  names(three, {"body.2.calibration.method=manual"}, "body[2].calibration.stiffness");
+  names(three, {"body.2.calibration.method=manual", "body.2.calibration.stiffness.edge=-1"},
+        "body[2].calibration.stiffness.edge");
+  // manual stiffness against the body's own topology: body 0 has face diagonals, body 2 has none
+  names(three, {"body.0.calibration.method=manual", "body.0.calibration.stiffness.edge=1"},
+        "body[0].calibration.stiffness.face");
+  EXPECT_EQ(error(three, {"body.2.calibration.method=manual", "body.2.calibration.stiffness.edge=1"}), "");
+  names(single, {"body.calibration.max_updates=0"}, "body.calibration.max_updates");
 }

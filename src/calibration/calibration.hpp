@@ -39,6 +39,14 @@ struct CalibrationStyle {
   CalibrationUpdater updater = nullptr;  // nullptr: k is fixed once calibrated
 };
 
+// Main's step 4: sets stiffness[c] for every local connection c by the method of the body it lies in
+// (Scene::calibrations). One body: its method runs on the whole model, as it always has. Several: each body's
+// method runs on a view of the model holding only that body's connections, with the body's geometry as the view's
+// first body and the body's calibration as the view's scene.calibration, and its k are copied back. Returns the
+// refreshers of the bodies whose method follows the deformation (angles-update), chained in body order (an empty
+// function if none): install it as SolverHooks::refresh. Collective.
+CalibrationRefresher calibrate_scene(const Scene& scene, const LocalModel& model, std::vector<double>& stiffness);
+
 const std::vector<CalibrationStyle>& calibration_styles();
 const CalibrationStyle* find_calibration(const std::string& name);
 std::vector<std::string> calibration_method_names();

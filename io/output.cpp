@@ -182,6 +182,7 @@ void Output::summary(const TensionTest& test, const Measurements& measured, cons
                  {"residual_history", report.residual_history},
                  {"converged", report.converged},
                  {"tolerance", scene_.solver.tolerance},
+                 {"tolerance_used", dynamic ? json(nullptr) : json(report.tolerance_used)},
                  {"time_step", report.kind == "static" ? json(nullptr) : json(report.time_step)},
                  {"critical_time_step", report.critical_time_step > 0 ? json(report.critical_time_step)
                                                                       : json(nullptr)},

@@ -40,6 +40,7 @@ SolveReport solve_relaxation(const Scene& scene, const LocalModel& model, const 
   state.time_step = dt_max;
 
   const double tolerance = reachable_tolerance(scene, model, forces);
+  report.tolerance_used = tolerance;
   Progress progress("relaxation", scene.output.progress, model.comm);
   state.x.update_ghosts();
   if (hooks.refresh) hooks.refresh(x);

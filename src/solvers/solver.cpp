@@ -27,6 +27,11 @@ double reachable_tolerance(const Scene& scene, const LocalModel& model, const Fo
   const double reference = forces.applied_norm() > 0 ? forces.applied_norm() : 1.0;
   const double floor = 2.0 * std::numeric_limits<double>::epsilon() * std::sqrt(total) / reference;
   if (scene.solver.tolerance >= floor) return scene.solver.tolerance;
+  // A floor this high means the load is lost in the round-off of the spring forces: any "converged" answer
+  // would be noise. Stop and say so rather than report a number.
+  if (floor > 1e-3)
+    throw SolverFailure("the applied forces are below the round-off of the spring forces (relative residual "
+                        "floor " + std::to_string(floor) + "): no equilibrium can be resolved; apply a larger load");
   if (model.rank == 0)
     std::fprintf(stderr, "tissue: warning: solver.tolerance %.3g is below the round-off floor of the force "
                          "residual (%.3g for these springs and loads); using %.3g\n",

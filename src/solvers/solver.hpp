@@ -43,6 +43,7 @@ struct SolveReport {
   long iterations = 0;          // relaxation iterations, Newton iterations or time steps
   long linear_iterations = 0;   // static: Krylov iterations, summed
   double residual = 0.0;        // final relative force residual (static, relaxation)
+  double tolerance_used = 0.0;  // solver.tolerance, or the round-off floor when that is higher
   bool converged = false;
   std::vector<double> residual_history;  // one per Newton iteration, or sampled relaxation iterations
   double time_step = 0.0, critical_time_step = 0.0;

@@ -121,6 +121,7 @@ PetscErrorCode run_static(const Scene& scene, const LocalModel& model, const For
   const double reference = forces.applied_norm() > 0 ? forces.applied_norm() : 1.0;
   const long max_newton = scene.solver.max_iterations > 0 ? scene.solver.max_iterations : 50;
   const double tolerance = reachable_tolerance(scene, model, forces);
+  report.tolerance_used = tolerance;
   PetscCall(SNESSetTolerances(snes, tolerance * reference, 0.0, 0.0, max_newton, 1000000));
   PetscCall(SNESSetFromOptions(snes));  // the user's -snes_*, -ksp_*, -pc_* options win
 

@@ -16,7 +16,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     // What was accepted must read back to the same scene (the checkpoint keeps Scene::text).
     tissue::Scene again = tissue::parse_scene(s.text, "fuzz.toml");
     if (again.text != s.text) {
-      std::fprintf(stderr, "round trip changed the scene text\n");
+      std::fprintf(stderr, "round trip changed the scene text\n--- first\n%s\n--- again\n%s\n", s.text.c_str(),
+                   again.text.c_str());
       std::abort();
     }
   } catch (const tissue::InputError& e) {

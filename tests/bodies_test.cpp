@@ -8,6 +8,7 @@
 #include <cmath>
 #include <memory>
 
+#include "tests/pipeline.hpp"
 #include "io/scene.hpp"
 #include "partition/local_model.hpp"
 #include "partition/metis_partition.hpp"
@@ -17,39 +18,11 @@
 #include "src/solvers/solver.hpp"
 
 using namespace tissue;
+using tissue::test_pipeline::RunResult;
+using tissue::test_pipeline::run;
 
 namespace {
 
-struct RunResult {
-  Scene scene;
-  LocalModel model;
-  std::unique_ptr<ForceModel> forces;
-  std::unique_ptr<SolverState> state;
-  TensionTest test;
-  SolveReport report;
-  Measurements measured;
-  CalibrationRefresher refresh;
-};
-
-// Steps 1-7 of src/main.cpp, step 4 as main() does it (calibrate_scene).
-std::unique_ptr<RunResult> run(const std::string& text, MPI_Comm comm, bool do_solve = true) {
-  auto r = std::make_unique<RunResult>();
-  r->scene = parse_scene(text, "test.toml");
-  r->scene.output.progress = false;
-  Body body = build_body(r->scene);
-  PartitionStats stats;
-  auto part = partition_molecules(body, comm, stats);
-  r->model = distribute(body, part, stats, comm);
-  r->test = tension_test(r->scene, body);
-  r->refresh = calibrate_scene(r->scene, r->model, r->model.stiffness);
-  r->forces = std::make_unique<ForceModel>(r->scene, r->model);
-  r->state = std::make_unique<SolverState>(r->model);
-  SolverHooks hooks;
-  hooks.refresh = r->refresh;
-  if (do_solve) r->report = solve(r->scene, r->model, *r->forces, *r->state, hooks);
-  r->measured = measure(r->scene, r->model, r->test, r->state->x.array(), r->state->v.data());
-  return r;
-}
 
 // Every connection's k by global connection id, on every rank.
 std::vector<double> gather_stiffness(const LocalModel& m) {
@@ -150,7 +123,7 @@ TEST(Bodies, EachBodyGetsWhatItsMethodGivesItAlone) {
   EXPECT_NEAR(*a->measured.elongation, elongation(*a, 0), 1e-12 * std::fabs(ea));
 
   // the rank count changes nothing: the same scene on this rank alone
-  auto self = run(two, MPI_COMM_SELF, false);
+  auto self = run(two, MPI_COMM_SELF, {}, false);
   const auto kself = gather_stiffness(self->model);
   differ = 0;
   for (std::size_t c = 0; c < k.size(); ++c) differ += k[c] != kself[c];
@@ -181,10 +154,10 @@ offset = [2.0, 0.0, 0.0]
 calibration = { method = "divided", divisor = 2.0 }
 )";
   const std::string fix = "[[fix]]\nface = \"z+\"\n";
-  auto r = run("[[body]]" + a_text + "[[body]]" + b_text + "[[body]]" + l_text + fix + c, PETSC_COMM_WORLD, false);
-  auto a = run("[body]" + a_text + fix + c, PETSC_COMM_WORLD, false);
-  auto b = run("[body]" + b_text + fix + c, PETSC_COMM_WORLD, false);
-  auto l = run("[body]" + l_text + fix + c, PETSC_COMM_WORLD, false);
+  auto r = run("[[body]]" + a_text + "[[body]]" + b_text + "[[body]]" + l_text + fix + c, PETSC_COMM_WORLD, {}, false);
+  auto a = run("[body]" + a_text + fix + c, PETSC_COMM_WORLD, {}, false);
+  auto b = run("[body]" + b_text + fix + c, PETSC_COMM_WORLD, {}, false);
+  auto l = run("[body]" + l_text + fix + c, PETSC_COMM_WORLD, {}, false);
   ASSERT_TRUE(r->refresh && a->refresh && b->refresh);
   EXPECT_FALSE(l->refresh);
   // A deformation that is a function of the rest position only (so ghosts are consistent): a shear and a stretch.

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <functional>
 
+#include "tests/pipeline.hpp"
 #include "io/scene.hpp"
 #include "partition/local_model.hpp"
 #include "partition/metis_partition.hpp"
@@ -17,38 +18,11 @@
 #include "src/solvers/solver.hpp"
 
 using namespace tissue;
+using tissue::test_pipeline::RunResult;
+using tissue::test_pipeline::run;
 
 namespace {
 
-struct RunResult {
-  Scene scene;
-  LocalModel model;
-  std::unique_ptr<ForceModel> forces;
-  std::unique_ptr<SolverState> state;
-  TensionTest test;
-  SolveReport report;
-  Measurements measured;
-};
-
-// Steps 1-7 of src/main.cpp.
-std::unique_ptr<RunResult> run(const std::string& text, MPI_Comm comm, const std::vector<std::string>& set = {},
-                               bool do_solve = true) {
-  auto r = std::make_unique<RunResult>();
-  r->scene = parse_scene(text, "test.toml", set);
-  r->scene.output.progress = false;
-  Body body = build_body(r->scene);
-  PartitionStats stats;
-  auto part = partition_molecules(body, comm, stats);
-  r->model = distribute(body, part, stats, comm);
-  r->test = tension_test(r->scene, body);
-  find_calibration(r->scene.calibration.method)->compute({r->scene, r->model}, r->model.stiffness);
-  r->forces = std::make_unique<ForceModel>(r->scene, r->model);
-  r->state = std::make_unique<SolverState>(r->model);
-  if (do_solve) r->report = solve(r->scene, r->model, *r->forces, *r->state, {});
-  r->measured = measure(r->scene, r->model, r->test, r->state->x.array(), r->state->v.data());
-  measure_contact(*r->forces, r->measured);
-  return r;
-}
 
 // Every molecule's final position, in original order, gathered on every rank.
 std::vector<double> gather_positions(const RunResult& r) {

@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <unordered_map>
 
+#include "partition/lattice_model.hpp"
+
 namespace tissue {
 
 LocalModel distribute(const Body& body, const std::vector<int>& part, const PartitionStats& stats, MPI_Comm comm) {
@@ -116,6 +118,11 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
   MPI_Allreduce(&ratio, &worst, 1, MPI_DOUBLE, MPI_MAX, comm);
   m.partition.surface_to_volume = worst;
   return m;
+}
+
+LocalModel build_local_model(const Scene& scene, MPI_Comm comm) {
+  // Every body is a box lattice today (the scene reader accepts no other shape).
+  return build_lattice_model(scene, comm);
 }
 
 }  // namespace tissue

@@ -3,6 +3,7 @@
 // offset + (i h_x, j h_y, k h_z).
 #pragma once
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -43,6 +44,18 @@ struct BoxGeometry {
   Vec3 rest_position(std::int64_t id) const {
     auto ijk = index(id);
     return {offset[0] + ijk[0] * h[0], offset[1] + ijk[1] * h[1], offset[2] + ijk[2] * h[2]};
+  }
+  // The rest distance between two molecules of this box, from their lattice offset ((i' - i) h_x, ...): the same
+  // double for every connection of the same offset, wherever it lies (positions would add round-off that
+  // differs from place to place), so equal connections get bit-equal k and share a connection type.
+  double rest_distance(std::int64_t a, std::int64_t b) const {
+    const auto ia = index(a), ib = index(b);
+    double sum = 0;
+    for (int d = 0; d < 3; ++d) {
+      const double x = static_cast<double>(ib[d] - ia[d]) * h[d];
+      sum += x * x;
+    }
+    return std::sqrt(sum);
   }
   // The tributary width of a molecule along an axis: h inside, h/2 on the boundary.
   double width(long i, int axis) const { return (i == 0 || i == n[axis] - 1) ? 0.5 * h[axis] : h[axis]; }

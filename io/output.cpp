@@ -187,6 +187,7 @@ void Output::summary(const TensionTest& test, const Measurements& measured, cons
                  {"critical_time_step", report.critical_time_step > 0 ? json(report.critical_time_step)
                                                                       : json(nullptr)},
                  {"note", report.note},
+                 {"seconds", report.seconds},
                  {"failure", failure.empty() ? json(nullptr) : json(failure)}};
   s["time"] = dynamic ? json(state.time) : json(nullptr);
   s["steps"] = dynamic ? json(state.step) : json(nullptr);

@@ -80,9 +80,12 @@ SolveReport solve(const Scene& scene, const LocalModel& model, const ForceModel&
                   const SolverHooks& hooks) {
   check_connections(scene, model);  // zero rest lengths: bad input, before any step
   const std::string& kind = scene.solver.kind;
-  if (kind == "relaxation") return solve_relaxation(scene, model, forces, state, hooks);
-  if (kind == "dynamic") return solve_dynamic(scene, model, forces, state, hooks);
-  return solve_static(scene, model, forces, state, hooks);
+  const double start = MPI_Wtime();
+  SolveReport report = kind == "relaxation" ? solve_relaxation(scene, model, forces, state, hooks)
+                       : kind == "dynamic"  ? solve_dynamic(scene, model, forces, state, hooks)
+                                            : solve_static(scene, model, forces, state, hooks);
+  report.seconds = MPI_Wtime() - start;
+  return report;
 }
 
 }  // namespace tissue

@@ -51,7 +51,8 @@ public:
 
   // Dynamic, after every step: `local_kinetic` is this rank's sum of m v^2 / 2 (computed in the solver's own
   // loop; NaN and Inf propagate into it). One reduction. Throws SolverFailure on a non-finite state or on
-  // energy growth; runs the full check every `every` steps and whenever the kinetic energy has doubled.
+  // energy growth; runs the full check every `every` steps and whenever the kinetic energy exceeds twice the
+  // largest kinetic energy of any earlier check.
   void dynamic_step(double local_kinetic);
   // Relaxation, after every iteration with the (global) relative residual already reduced: no communication
   // unless a check is due. Throws SolverFailure on a non-finite or exploding residual.
@@ -65,6 +66,7 @@ public:
   [[noreturn]] void fail(const std::string& problem, std::int64_t molecule);
 
   double kinetic_energy() const { return kinetic_; }
+  long checks() const { return checks_; }  // full checks made so far (energy and/or lengths)
   long last_good_step() const { return good_step_; }
 
 private:
@@ -84,6 +86,7 @@ private:
   bool energy_check_ = true;  // off when a term the energy does not account for is on (cyclic loads, contact)
   std::vector<double> good_x_, good_v_;
   long good_step_ = 0;
+  long checks_ = 0;
   double good_time_ = 0.0;
 };
 

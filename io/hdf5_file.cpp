@@ -29,6 +29,7 @@ public:
   }
   hid_t get() const { return id_; }
   bool ok() const { return id_ >= 0; }
+  hid_t release() { return std::exchange(id_, -1); }
 
 private:
   hid_t id_;
@@ -399,16 +400,21 @@ void Hdf5File::set_attribute(const std::string& object, const std::string& name,
   const htri_t there = H5Aexists(obj.get(), name.c_str());
   if (there < 0 || (there > 0 && H5Adelete(obj.get(), name.c_str()) < 0))
     fail(object, "cannot replace attribute " + name);
-  // Variable-length UTF-8, so h5py reads it as str rather than bytes.
+  // Fixed-length UTF-8 (null-padded, exactly the bytes of the value; at least 1 byte): a variable-length string
+  // lives in the file's global heap, and HDF5 1.10 trusts the lengths it finds there (a crafted file with a valid
+  // seal crashed H5Aread inside H5HG_read). h5py reads these as bytes: .decode() gives the str.
   Handle type(H5Tcopy(H5T_C_S1), H5Tclose);
-  if (!type.ok() || H5Tset_size(type.get(), H5T_VARIABLE) < 0 || H5Tset_cset(type.get(), H5T_CSET_UTF8) < 0)
+  const size_t size = std::max<size_t>(1, value.size());
+  if (!type.ok() || H5Tset_size(type.get(), size) < 0 || H5Tset_cset(type.get(), H5T_CSET_UTF8) < 0 ||
+      H5Tset_strpad(type.get(), H5T_STR_NULLPAD) < 0)
     fail(object, "cannot make string type for attribute " + name);
   Handle space(H5Screate(H5S_SCALAR), H5Sclose);
   if (!space.ok()) fail(object, "cannot create dataspace for attribute " + name);
   Handle attr(H5Acreate2(obj.get(), name.c_str(), type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
   if (!attr.ok()) fail(object, "cannot create attribute " + name);
-  const char* s = value.c_str();
-  if (H5Awrite(attr.get(), type.get(), &s) < 0) fail(object, "cannot write attribute " + name);
+  std::string padded = value;
+  padded.resize(size, '\0');
+  if (H5Awrite(attr.get(), type.get(), padded.data()) < 0) fail(object, "cannot write attribute " + name);
 }
 
 void Hdf5File::set_attribute(const std::string& object, const std::string& name, double value) {
@@ -443,13 +449,43 @@ bool Hdf5File::has_attribute(const std::string& object, const std::string& name)
   return there > 0;
 }
 
-void Hdf5File::read_attribute(const std::string& object, const std::string& name, hid_t mem_type, void* value) const {
+// Opens attribute `name` of `object` and checks, before anything is read, that it is a scalar of class
+// `expected` whose size is at most `max_size` bytes and that its stored data is exactly that size (a crafted file
+// can declare anything: HDF5 would allocate and copy what the file says).
+hid_t Hdf5File::open_checked_attribute(const std::string& object, const std::string& name, int expected,
+                                      size_t max_size, size_t* size) const {
   if (file_ < 0) fail(object, "file is closed");
   Handle attr(H5Aopen_by_name(file_, object.c_str(), name.c_str(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
   if (!attr.ok()) fail(object, "no attribute " + name);
   Handle space(H5Aget_space(attr.get()), H5Sclose);
-  if (!space.ok() || H5Sget_simple_extent_npoints(space.get()) != 1)
+  if (!space.ok() || H5Sget_simple_extent_type(space.get()) != H5S_SCALAR)
     fail(object, "attribute " + name + " is not a scalar");
+  Handle type(H5Aget_type(attr.get()), H5Tclose);
+  if (!type.ok()) fail(object, "cannot get the type of attribute " + name);
+  const H5T_class_t cls = H5Tget_class(type.get());
+  if (expected == H5T_STRING) {
+    if (cls != H5T_STRING) fail(object, "attribute " + name + " is not a string");
+    const htri_t variable = H5Tis_variable_str(type.get());
+    if (variable < 0) fail(object, "cannot inspect attribute " + name);
+    if (variable)
+      fail(object, "attribute " + name +
+                       " is a variable-length string (tissue writes fixed-length ones; not read: its length lives "
+                       "in the global heap, which HDF5 does not check)");
+  } else if (cls != H5T_INTEGER && cls != H5T_FLOAT) {
+    fail(object, "attribute " + name + " is not a number");
+  }
+  *size = H5Tget_size(type.get());
+  if (*size == 0 || *size > max_size)
+    fail(object, "attribute " + name + " has an implausible size of " + std::to_string(*size) + " bytes");
+  if (H5Aget_storage_size(attr.get()) != static_cast<hsize_t>(*size))
+    fail(object, "attribute " + name + " stores " + std::to_string(H5Aget_storage_size(attr.get())) +
+                     " bytes for a " + std::to_string(*size) + "-byte value");
+  return attr.release();
+}
+
+void Hdf5File::read_attribute(const std::string& object, const std::string& name, hid_t mem_type, void* value) const {
+  size_t size = 0;
+  Handle attr(open_checked_attribute(object, name, H5T_INTEGER, 16, &size), H5Aclose);
   if (H5Aread(attr.get(), mem_type, value) < 0) fail(object, "cannot read attribute " + name);
 }
 
@@ -466,30 +502,20 @@ int64_t Hdf5File::int64_attribute(const std::string& object, const std::string& 
 }
 
 std::string Hdf5File::string_attribute(const std::string& object, const std::string& name) const {
-  if (file_ < 0) fail(object, "file is closed");
-  Handle attr(H5Aopen_by_name(file_, object.c_str(), name.c_str(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
-  if (!attr.ok()) fail(object, "no attribute " + name);
+  // At most the file's own size (and 64 MiB): the value is stored in the file.
+  hsize_t file_size = 0;
+  if (file_ < 0 || H5Fget_filesize(file_, &file_size) < 0) fail(object, "cannot get the file size");
+  size_t size = 0;
+  Handle attr(open_checked_attribute(object, name, H5T_STRING, static_cast<size_t>(std::min<hsize_t>(file_size, 64u << 20)), &size),
+              H5Aclose);
   Handle type(H5Aget_type(attr.get()), H5Tclose);
-  if (!type.ok()) fail(object, "cannot get the type of attribute " + name);
-  if (H5Tget_class(type.get()) != H5T_STRING) fail(object, "attribute " + name + " is not a string");
-  const htri_t variable = H5Tis_variable_str(type.get());
-  if (variable < 0) fail(object, "cannot inspect attribute " + name);
   Handle mem(H5Tcopy(H5T_C_S1), H5Tclose);
-  if (!mem.ok() || H5Tset_cset(mem.get(), H5Tget_cset(type.get())) < 0) fail(object, "cannot read attribute " + name);
-  if (variable) {
-    if (H5Tset_size(mem.get(), H5T_VARIABLE) < 0) fail(object, "cannot read attribute " + name);
-    char* s = nullptr;
-    if (H5Aread(attr.get(), mem.get(), &s) < 0) fail(object, "cannot read attribute " + name);
-    std::string out = s ? s : "";
-    H5free_memory(s);
-    return out;
-  }
-  // Fixed-length (as other writers may use): read the bytes and drop trailing padding.
-  const size_t size = H5Tget_size(type.get());
-  if (size == 0 || H5Tset_size(mem.get(), size) < 0) fail(object, "cannot read attribute " + name);
+  if (!type.ok() || !mem.ok() || H5Tset_cset(mem.get(), H5Tget_cset(type.get())) < 0 ||
+      H5Tset_size(mem.get(), size) < 0 || H5Tset_strpad(mem.get(), H5T_STR_NULLPAD) < 0)
+    fail(object, "cannot read attribute " + name);
   std::string out(size, '\0');
   if (H5Aread(attr.get(), mem.get(), out.data()) < 0) fail(object, "cannot read attribute " + name);
-  out.resize(std::strlen(out.c_str()));
+  out.resize(std::strlen(out.c_str()));  // drop the padding (null-padded, or null-terminated by other writers)
   return out;
 }
 

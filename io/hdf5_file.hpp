@@ -83,6 +83,10 @@ private:
                                hid_t mem_type, const void* value);
   void read_block(const std::string& dataset, int64_t offset, int64_t rows, void* data, hid_t mem_type) const;
   void read_attribute(const std::string& object, const std::string& name, hid_t mem_type, void* value) const;
+  // The open attribute (caller closes), after checking its class (H5T_STRING: fixed-length only; otherwise a
+  // number), that it is a scalar, its size (1 .. max_size bytes) and that the file stores exactly that many bytes.
+  hid_t open_checked_attribute(const std::string& object, const std::string& name, int expected, size_t max_size,
+                               size_t* size) const;
   [[noreturn]] void fail(const std::string& object, const std::string& what) const;
   void release() noexcept;  // close without publishing; removes an unpublished tmp file
 

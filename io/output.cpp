@@ -188,6 +188,9 @@ void Output::summary(const TensionTest& test, const Measurements& measured, cons
                  {"critical_time_step", report.critical_time_step > 0 ? json(report.critical_time_step)
                                                                       : json(nullptr)},
                  {"note", report.note},
+                 {"seconds", report.seconds},
+                 {"cpu_seconds", report.cpu_seconds},
+                 {"guard_checks", report.kind == "static" ? json(nullptr) : json(report.guard_checks)},
                  {"failure", failure.empty() ? json(nullptr) : json(failure)}};
   s["time"] = dynamic ? json(state.time) : json(nullptr);
   s["steps"] = dynamic ? json(state.step) : json(nullptr);

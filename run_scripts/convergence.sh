@@ -24,7 +24,12 @@
 # Knobs (environment): TISSUE (default build-paper/tissue), RANKS (default 2), NS (molecules per axis, default
 # "2 4 8 16"; "2 3 4 6 8 12 16 24 32" on an idle machine), ALL_CLAMPED=1 (clamped runs for linear and statistical
 # too; by default only homogenized, tetrahedral and iterative, the methods that can approach the clamped continuum), WORK (default /tmp/tissue_convergence), CSV (default docs/convergence.csv),
-# PNG (default docs/convergence.png).
+# PNG (default docs/convergence.png), APPEND=1 (keep the rows already in CSV and add these: a large n run on its
+# own, e.g. NS=64 APPEND=1 after NS="2 4 8 16 32").
+# Cost at large n: every run is one static solve (2 Newton iterations, ~19 CG iterations each, at every n), except
+# iterative, which re-solves until C settles. Iterative therefore starts from the C it found at the previous n
+# (same topology and support; from CSV when appending) instead of 3.75: C changes little with n, so it needs one
+# update (2 solves, the second warm-started) instead of 3-4. Set-up (the body and METIS on rank 0) is the rest.
 #
 # Steps:
 #   1. Settings and checks (binary, python3 with matplotlib).
@@ -44,7 +49,13 @@ export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 [ -x "$TISSUE" ] || { echo "convergence.sh: no binary $TISSUE (build it, see the header)" >&2; exit 1; }
 /usr/bin/python3 -c 'import matplotlib' || { echo "convergence.sh: needs python3-matplotlib" >&2; exit 1; }
 mkdir -p "$WORK" "$(dirname "$CSV")"
-echo "topology,method,support,n,molecules,connections,E,error_percent,error_vs_clamped_continuum_percent,poisson,divisor,iterations,wall_seconds,exit_code" >"$CSV"
+header="topology,method,support,n,molecules,connections,E,error_percent,error_vs_clamped_continuum_percent,poisson,divisor,iterations,wall_seconds,exit_code"
+if [ -z "${APPEND:-}" ] || [ ! -s "$CSV" ]; then echo "$header" >"$CSV"; fi
+# The iterative method's start value of C: the one found at the largest n so far (same topology and support).
+start_divisor() {  # topology support
+  awk -F, -v t="$1" -v s="$2" '$1 == t && $2 == "iterative" && $3 == s && $11 != "" && $14 == 0 && $4 + 0 > n {
+    n = $4 + 0; c = $11 } END { print (c == "" ? "3.75" : c) }' "$CSV"
+}
 
 # 2. The runs.
 methods_for() {
@@ -63,10 +74,12 @@ for n in $NS; do
         fi
         dir=$WORK/$topology/$method/$support/$n
         rm -rf "$dir"; mkdir -p "$dir"
+        divisor=3.75
+        [ "$method" = iterative ] && divisor=$(start_divisor "$topology" "$support")
         rc=0
         mpirun --oversubscribe -np "$RANKS" "$TISSUE" run run_scripts/scenes/table2.toml \
           --set "body.molecules=[$n,$n,$n]" --set 'body.size=[1.0,1.0,1.0]' --set "body.topology=$topology" \
-          --set "calibration.method=$method" --set calibration.divisor=3.75 --set "fix.0.mode=$support" \
+          --set "calibration.method=$method" --set "calibration.divisor=$divisor" --set "fix.0.mode=$support" \
           --set 'load.0.force=[0.0,0.0,-100.0]' --set output.progress=false --set 'output.fields=[]' \
           --output "$dir/out" >"$dir/log" 2>&1 || rc=$?
         /usr/bin/python3 - "$dir/out/summary.json" "$topology" "$method" "$support" "$n" "$rc" >>"$CSV" <<'PY'

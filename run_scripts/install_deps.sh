@@ -9,7 +9,8 @@ pkgs=(build-essential cmake pkg-config git
       libpetsc-real-dev libmetis-dev libhdf5-openmpi-dev hdf5-tools
       libeigen3-dev libgtest-dev
       libtoml11-dev libcli11-dev nlohmann-json3-dev libfmt-dev
-      python3 python3-h5py python3-meshio python3-numpy python3-matplotlib)
+      python3 python3-h5py python3-meshio python3-numpy python3-matplotlib
+      clang-14 libclang-rt-14-dev)   # the libFuzzer targets that test.sh runs (run_scripts/fuzz.sh)
 if [ "${TISSUE_EXTRAS:-0}" = 1 ]; then pkgs+=(paraview python3-paraview xvfb); fi
 missing=()
 for p in "${pkgs[@]}"; do

@@ -20,6 +20,7 @@ import argparse
 import glob
 import os
 import random
+import re
 import shutil
 import signal
 import struct
@@ -365,9 +366,40 @@ def main():
     cases.append(("a NaN in /molecules/positions with a matching checksum", p_, [], "/molecules/positions"))
     p_ = copy("version.h5")
     with h5py.File(p_, "r+") as f:
-        f.attrs["version"] = "0.0.1"
+        f.attrs["version"] = np.bytes_(b"0.0.1")  # fixed-length, as tissue writes strings
     reseal(p_)
     cases.append(("another version attribute", p_, [], "version"))
+    # Crafted string attributes, resealed so that they reach HDF5 (issue #8: HDF5 1.10 crashed in H5HG_read on a
+    # variable-length string whose global-heap object claims ~360 GB). tissue writes fixed-length strings and checks
+    # a string attribute's class, size and stored size before reading it.
+    p_ = copy("vlen.h5")
+    with h5py.File(p_, "r+") as f:
+        check(not f.attrs.get_id("scene").get_type().is_variable_str(), "e. tissue writes the scene as a fixed-length "
+              "string attribute")
+        f.attrs["scene"] = f.attrs["scene"].decode()  # h5py writes a str as a variable-length string
+    reseal(p_)
+    cases.append(("a variable-length string attribute", p_, [], "scene"))
+    p_ = copy("vlen_heap.h5")
+    with h5py.File(p_, "r+") as f:
+        f.attrs["scene"] = "x" * 4099  # variable-length: the bytes live in a global heap collection
+    data = bytearray(open(p_, "rb").read())
+    gcol = data.find(b"GCOL")
+    size_at = data.find(struct.pack("<Q", 4099), gcol)  # the heap object's size field
+    check(gcol > 0 and size_at > gcol, "e. crafted: found the global heap object of the scene attribute")
+    data[size_at:size_at + 8] = struct.pack("<Q", 360 << 30)
+    open(p_, "wb").write(bytes(data))
+    reseal(p_)
+    cases.append(("a variable-length string whose global heap object claims 360 GB", p_, [], "scene"))
+    p_ = copy("fixed_size.h5")
+    with h5py.File(p_, "r+") as f:
+        f.attrs["title"] = np.bytes_(b"t" * 4951)  # fixed-length, 4951 = 0x1357 bytes: a size easy to find
+    data = bytearray(open(p_, "rb").read())
+    at = [m.start() for m in re.finditer(rb"\x13[\x00-\xff]\x00\x00" + re.escape(struct.pack("<I", 4951)), data)]
+    check(len(at) == 1, "e. crafted: found the datatype of the title attribute", "%d matches" % len(at))
+    data[at[0] + 4:at[0] + 8] = struct.pack("<I", 0x7FFFFFF0)  # 2 GiB, far more than the file holds
+    open(p_, "wb").write(bytes(data))
+    reseal(p_)
+    cases.append(("a fixed-length string attribute declaring 2 GiB (4951 bytes stored)", p_, [], "title"))
     p_ = copy("nochecksum.h5")
     with h5py.File(p_, "r+") as f:
         del f["/connections/stiffness"].attrs["checksum"]
@@ -415,7 +447,7 @@ def main():
 
     # ---- f. tissue info -------------------------------------------------------------------------------------------
     with h5py.File(good, "r") as f:
-        version = f.attrs["version"]
+        version = f.attrs["version"].decode()
     for what, path, step, ranks in (("snapshot", "%s/dyn2/final.h5" % out, 2 * N, 2),
                                     ("checkpoint", "%s/dyn2/checkpoint_%010d.h5" % (out, N), N, 2)):
         code, text, err, _ = run([exe, "info", path])

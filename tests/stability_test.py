@@ -260,6 +260,8 @@ def main():
     parser.add_argument("--launcher", default="")
     parser.add_argument("--full", action="store_true", help="the whole matrix (hours on 2 cores with --big)")
     parser.add_argument("--big", action="store_true", help="with --full: the 60^3 and 100^3 cells too")
+    parser.add_argument("--big-only", action="store_true",
+                        help="with --full --big: only the cells of 100,000 molecules and more (60^3, 100^3)")
     parser.add_argument("--only", default="", help="only the cells of this axis")
     parser.add_argument("--csv", default="")
     parser.add_argument("--md", default="")
@@ -271,6 +273,8 @@ def main():
     cells = full_cells() if args.full else fast_cells()
     if not args.big:
         cells = [c for c in cells if c.n[0] * c.n[1] * c.n[2] < 100000]
+    if args.big_only:
+        cells = [c for c in cells if c.n[0] * c.n[1] * c.n[2] >= 100000]
     if args.only:
         cells = [c for c in cells if c.axis == args.only]
     # the small cells first (stable sort: axis order kept within a size), so that an interrupted run has every axis

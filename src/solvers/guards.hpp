@@ -7,6 +7,9 @@
 //    (relaxation) caught early, a connection shorter than 1e-3 of its rest length (inverted, collapsed) caught
 //    at every full check; each is a SolverFailure naming the solver, the step, the molecule and the connection
 //    with the largest strain at that molecule;
+//  - TISSUE_GUARDS=off in the environment (benchmarks only: run_scripts/bench_guards.sh measures the guards'
+//    cost with it) makes dynamic_step and relaxation_step return at once: no reduction, no periodic check, no
+//    copy of the last good state. A warning is printed; never use it for results.
 //  - the last good state: the guard keeps a copy of the state at every full check that passed; on a failure it
 //    puts that state back into the SolverState before throwing, and main() writes it as DIR/last_good.h5.
 #pragma once
@@ -48,7 +51,8 @@ public:
 
   // Dynamic, after every step: `local_kinetic` is this rank's sum of m v^2 / 2 (computed in the solver's own
   // loop; NaN and Inf propagate into it). One reduction. Throws SolverFailure on a non-finite state or on
-  // energy growth; runs the full check every `every` steps and whenever the kinetic energy has doubled.
+  // energy growth; runs the full check every `every` steps and whenever the kinetic energy exceeds twice the
+  // largest kinetic energy of any earlier check.
   void dynamic_step(double local_kinetic);
   // Relaxation, after every iteration with the (global) relative residual already reduced: no communication
   // unless a check is due. Throws SolverFailure on a non-finite or exploding residual.
@@ -62,6 +66,7 @@ public:
   [[noreturn]] void fail(const std::string& problem, std::int64_t molecule);
 
   double kinetic_energy() const { return kinetic_; }
+  long checks() const { return checks_; }  // full checks made so far (energy and/or lengths)
   long last_good_step() const { return good_step_; }
 
 private:
@@ -77,9 +82,11 @@ private:
   long every_;
   double kinetic_ = 0.0, kinetic_checked_ = 0.0, energy0_ = 0.0;
   double residual0_ = -1.0;
+  bool enabled_ = true;       // false with TISSUE_GUARDS=off (benchmarks)
   bool energy_check_ = true;  // off when a term the energy does not account for is on (cyclic loads, contact)
   std::vector<double> good_x_, good_v_;
   long good_step_ = 0;
+  long checks_ = 0;
   double good_time_ = 0.0;
 };
 

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <vector>
 #include <limits>
 
@@ -80,9 +81,14 @@ SolveReport solve(const Scene& scene, const LocalModel& model, const ForceModel&
                   const SolverHooks& hooks) {
   check_connections(scene, model);  // zero rest lengths: bad input, before any step
   const std::string& kind = scene.solver.kind;
-  if (kind == "relaxation") return solve_relaxation(scene, model, forces, state, hooks);
-  if (kind == "dynamic") return solve_dynamic(scene, model, forces, state, hooks);
-  return solve_static(scene, model, forces, state, hooks);
+  const double start = MPI_Wtime();
+  const std::clock_t cpu_start = std::clock();
+  SolveReport report = kind == "relaxation" ? solve_relaxation(scene, model, forces, state, hooks)
+                       : kind == "dynamic"  ? solve_dynamic(scene, model, forces, state, hooks)
+                                            : solve_static(scene, model, forces, state, hooks);
+  report.seconds = MPI_Wtime() - start;
+  report.cpu_seconds = static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC;
+  return report;
 }
 
 }  // namespace tissue

@@ -3,8 +3,8 @@
 // symmetric). Defaults: Newton with a backtracking line search, CG preconditioned by the lattice's geometric
 // multigrid (lattice_mg.hpp; GAMG with the rigid-body near-null space on -pc_type gamg, for tiny lattices and as
 // fall-back), the preconditioner reused across Newton iterations and load steps; every choice can be changed
-// from the PETSc options database (tissue run s.toml -- -ksp_type gmres -pc_type hypre -snes_monitor -log_view). Large loads are applied in solver.load_steps increments, and an
-// increment that fails is cut in half (up to 8 times). A tangent found indefinite (compressed springs) switches
+// from the PETSc options database (tissue run s.toml -- -ksp_type gmres -pc_type hypre -snes_monitor -log_view).
+// Large loads are applied in solver.load_steps increments, and an increment that fails is cut in half (up to 8 times). A tangent found indefinite (compressed springs) switches
 // the Krylov method to GMRES, with a message.
 #include <petscsnes.h>
 
@@ -164,16 +164,26 @@ PetscErrorCode run_static(const Scene& scene, const LocalModel& model, const For
   PetscBool user_pc = PETSC_FALSE;
   PetscCall(PetscOptionsHasName(nullptr, nullptr, "-pc_type", &user_pc));
   PetscInt mg_levels = 1;
-  {
-    // Galerkin products through hypre's triple product: at 64,000 molecules it peaked at 5.9 kB per molecule
-    // against 8.5 kB for PETSc's default (scalable) algorithm, at no cost in time. -matptap_via picks another.
+  if (!user_pc) PetscCall(setup_lattice_mg(model, forces.held(), pc, 1000, &mg_levels));
+  bool lattice_mg = mg_levels > 1;
+  // The lattice multigrid's Galerkin products through hypre's triple product: at 64,000 molecules the run
+  // peaked at 5.9 kB per molecule against 8.5 kB with PETSc's default (scalable) algorithm, in no more time.
+  // The option is global, so it is set only for this solve and only for the lattice multigrid (GAMG's
+  // products with it gave NaN on a contact test); -matptap_via or -mat_product_algorithm override it.
+  bool set_ptap = false;
+  if (lattice_mg) {
     PetscBool user_ptap = PETSC_FALSE, user_product = PETSC_FALSE;
     PetscCall(PetscOptionsHasName(nullptr, nullptr, "-matptap_via", &user_ptap));
     PetscCall(PetscOptionsHasName(nullptr, nullptr, "-mat_product_algorithm", &user_product));
-    if (!user_ptap && !user_product) PetscCall(PetscOptionsSetValue(nullptr, "-matptap_via", "hypre"));
+    set_ptap = !user_ptap && !user_product;
+    if (set_ptap) PetscCall(PetscOptionsSetValue(nullptr, "-matptap_via", "hypre"));
   }
-  if (!user_pc) PetscCall(setup_lattice_mg(model, forces.held(), pc, 1000, &mg_levels));
-  bool lattice_mg = mg_levels > 1;
+  auto clear_ptap = [&]() -> PetscErrorCode {
+    PetscFunctionBeginUser;
+    if (set_ptap) PetscCall(PetscOptionsClearValue(nullptr, "-matptap_via"));
+    set_ptap = false;
+    PetscFunctionReturn(0);
+  };
   PetscCall(PetscInfo(pc, "lattice multigrid: %d levels\n", (int)mg_levels));
   if (!lattice_mg) PetscCall(PCSetType(pc, PCGAMG));
   const double reference = forces.applied_norm() > 0 ? forces.applied_norm() : 1.0;
@@ -243,6 +253,7 @@ PetscErrorCode run_static(const Scene& scene, const LocalModel& model, const For
     if (lattice_mg) {
       // GAMG is the more general of the two (it sees the matrix, not the lattice): retry the increment with it.
       lattice_mg = false;
+      PetscCall(clear_ptap());
       PetscCall(attach_rigid_modes(model, X, J));
       PetscCall(PCSetType(pc, PCGAMG));
       PetscCall(PCSetFromOptions(pc));
@@ -266,6 +277,7 @@ PetscErrorCode run_static(const Scene& scene, const LocalModel& model, const For
       forces.forces(state.x.array(), state.v.data(), state.f.data(), target);
       const std::int64_t worst = largest_force_molecule(model, state.f.data());
       const std::string where = describe_molecule(model, state.x.array(), worst);
+      PetscCall(clear_ptap());
       PetscCall(VecDestroy(&saved));
       PetscCall(SNESDestroy(&snes));
       PetscCall(MatDestroy(&J));
@@ -294,6 +306,7 @@ PetscErrorCode run_static(const Scene& scene, const LocalModel& model, const For
     StepGuard guard("static", scene, model, forces, state);
     guard.full_check();  // a collapsed (inverted) connection at equilibrium is a failure too
   }
+  PetscCall(clear_ptap());
   PetscCall(VecDestroy(&R));
   PetscCall(VecDestroy(&saved));
   PetscCall(SNESDestroy(&snes));

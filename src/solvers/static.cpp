@@ -4,8 +4,8 @@
 // multigrid (lattice_mg.hpp; GAMG with the rigid-body near-null space on -pc_type gamg, for tiny lattices and as
 // fall-back), the preconditioner reused across Newton iterations and load steps; every choice can be changed
 // from the PETSc options database (tissue run s.toml -- -ksp_type gmres -pc_type hypre -snes_monitor -log_view).
-// Large loads are applied in solver.load_steps increments, and an increment that fails is cut in half (up to 8 times). A tangent found indefinite (compressed springs) switches
-// the Krylov method to GMRES, with a message.
+// Large loads are applied in solver.load_steps increments, and an increment that fails is cut in half (up to 8
+// times). A tangent found indefinite (compressed springs) switches the Krylov method to GMRES, with a message.
 #include <petscsnes.h>
 
 #include <algorithm>

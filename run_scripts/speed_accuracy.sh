@@ -35,7 +35,8 @@
 # CSV (default docs/speed_accuracy.csv), JACOBI_MAX_N (CG + Jacobi only up to this N; default 40: its iterations
 # grow like N), HYPRE_MAX_N (default 20: BoomerAMG's set-up on this lattice is slow), RELAX_TOLS (default
 # "1e-4 1e-6 1e-8"), STATIC_CONFIGS (default "mg gamg hypre jacobi"), PEER_RANKS (default "1 2"), PEER_INPUT
-# (the LAMMPS input), APPEND=1 (add rows to an existing CSV instead of starting it).
+# (the LAMMPS input), APPEND=1 (add rows to an existing CSV instead of starting it). NS="" or PEER_NS="" skips
+# that part.
 #
 # Steps:
 #   1. Settings and checks (binary, lmp, python3 with matplotlib).
@@ -62,11 +63,11 @@ RELAX_TOLS=${RELAX_TOLS:-"1e-4 1e-6 1e-8"}
 PEER_RANKS=${PEER_RANKS:-"1 2"}
 BIGMEM_N=${BIGMEM_N:-80}
 if [[ "${QUICK:-0}" == 1 ]]; then
-  NS=${NS:-"10 20 40"}
-  PEER_NS=${PEER_NS:-"20"}
+  NS=${NS-"10 20 40"}
+  PEER_NS=${PEER_NS-"20"}
 else
-  NS=${NS:-"10 20 40 64 100"}
-  PEER_NS=${PEER_NS:-"20 40"}
+  NS=${NS-"10 20 40 64 100"}
+  PEER_NS=${PEER_NS-"20 40"}
 fi
 [[ -x "$TISSUE" ]] || { echo "speed_accuracy: $TISSUE not built (see the header)" >&2; exit 1; }
 command -v "$LMP" >/dev/null || { echo "speed_accuracy: $LMP not found (apt-get install -y lammps)" >&2; exit 1; }
@@ -132,7 +133,7 @@ rss = sum(int(x) * 1024 for x in re.findall(r"MAXRSS_KB (\d+)", text))  # all ra
 peak = max(int(x) * 1024 for x in re.findall(r"MAXRSS_KB (\d+)", text))
 err = abs(el - float(ref)) / abs(float(ref)) if ref else ""
 load = open("/proc/loadavg").read().split()[0]
-cpu = round(sum(float(u) + float(s) for u, s in re.findall(r"CPU (\S+) (\S+)", text)), 2)
+cpu = round(sum(float(u) + float(s) for u, s in re.findall(r"MAXRSS_KB \d+ CPU (\S+) (\S+)", text)), 2)
 # residual: the final force 2-norm relative to the applied load's 2-norm (0.001 per molecule of the N^2 face)
 print(",".join(str(v) for v in ["peer", "lammps_fire", f"np{np}", n, n**3, np, "ftol=1e-8", loop,
       round(float(t1) - float(t0), 3), peak, round(rss / n**3), its, 0, fnorm / (0.001 * n), True, repr(el), err, "",

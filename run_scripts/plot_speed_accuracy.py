@@ -107,7 +107,8 @@ plt.close(fig)
 # 3. Iterations vs N.
 fig, ax = plt.subplots(figsize=(7.5, 5.5))
 for i, (lab, key, style) in enumerate([
-        ("static gamg", "newton_its", "o-"), ("static gamg", "krylov_its", "o--"),
+        ("static mg", "newton_its", "o-"), ("static mg", "krylov_its", "o--"),
+        ("static gamg", "newton_its", "P-"), ("static gamg", "krylov_its", "P--"),
         ("static hypre", "krylov_its", "v--"), ("static jacobi", "krylov_its", "D--"),
         ("relaxation fire 1e-8", "newton_its", "s-")]):
     pts = sorted((r["N"], r[key]) for r in sweep if r["label"] == lab)
@@ -117,8 +118,14 @@ for i, (lab, key, style) in enumerate([
 pts = sorted((r["N"], r["newton_its"]) for r in peer if r["solver"] == "lammps_fire" and r["config"] == "np1")
 if pts:
     ax.loglog(*zip(*pts), "k^:", ms=9, label="LAMMPS FIRE (ftol 1e-8): iterations")
+mg = sorted((r["N"], r["krylov_its"]) for r in sweep if r["label"] == "static mg")
+if mg:
+    # the "no faster than log N" yardstick, through the smallest N's Krylov count
+    n0, k0 = mg[0]
+    xs = [n for n, _ in mg]
+    ax.loglog(xs, [k0 * math.log(n) / math.log(n0) for n in xs], "k:", lw=1, label="log N (through mg's first point)")
 ax.set_xlabel("N (molecules per axis)")
-ax.set_ylabel("iterations")
+ax.set_ylabel("iterations (Krylov: summed over Newton iterations)")
 ax.set_title("Iterations vs N")
 ax.grid(True, which="both", alpha=0.3)
 ax.legend(fontsize=8)
@@ -133,13 +140,18 @@ for r in peer:
         continue
     n = r["N"]
     ref = [s for s in rows if s["N"] == n and s["config"] == "ref"]
-    # ours: the peer-case runs that follow this LAMMPS run (alternation), else the sweep's
+    # ours: the static runs of the same N just before and after this LAMMPS run (alternation), and the peer
+    # case's relaxation run
     idx = rows.index(r)
-    after = rows[idx + 1: idx + 3]
-    st = next((s for s in after if s["solver"] == "static"), None)
-    rx = next((s for s in after if s["solver"] == "relaxation"), None)
-    if not (st and rx):
+    near = [s for s in rows[max(0, idx - 1): idx + 2] if s["case"] == "peer" and s["solver"] == "static" and s["N"] == n]
+    rx = next((s for s in rows[idx:] if s["case"] == "peer" and s["solver"] == "relaxation" and s["N"] == n), None)
+    if not near:
         continue
+    st = dict(near[0])
+    st["wall_s"] = sum(s["wall_s"] for s in near) / len(near)
+    st["cpu"] = sum(float(s.get("cpu_s") or "nan") for s in near) / len(near)
+    if rx is None:
+        rx = {"elongation": math.nan, "wall_s": math.nan, "newton_its": 0}
     out.append({
         "N": n, "molecules": n**3, "lammps_ranks": r["ranks"], "our_ranks": st["ranks"],
         "lammps_elongation": repr(r["elongation"]), "static_elongation": repr(st["elongation"]),
@@ -150,6 +162,8 @@ for r in peer:
         "static_wall_s": st["wall_s"], "relaxation_wall_s": rx["wall_s"], "relaxation_iterations": rx["newton_its"],
         "speedup_static": r["wall_s"] / st["wall_s"], "speedup_relaxation": r["wall_s"] / rx["wall_s"],
         "lammps_B_per_molecule": r["bytes_per_molecule"], "static_B_per_molecule": st["bytes_per_molecule"],
+        "lammps_cpu_s": float(r.get("cpu_s") or "nan"), "static_cpu_s": st["cpu"],
+        "cpu_ratio_static": float(r.get("cpu_s") or "nan") / st["cpu"],
     })
 if out:
     with open(os.path.join(outdir, "speed_accuracy_peer.csv"), "w", newline="") as f:
@@ -168,10 +182,11 @@ if fits:
     print("\nFitted exponents t ~ molecules^p (N >= 20): " + ", ".join(f"{k}: {v:.2f}" for k, v in sorted(fits.items())))
 if out:
     print("\n| N | LAMMPS ranks | LAMMPS loop s | LAMMPS its | ours static s | ours relax s (its) | speed-up static | "
-          "speed-up relax | LAMMPS vs ours elongation | LAMMPS vs converged |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+          "speed-up relax | LAMMPS vs ours elongation | LAMMPS vs converged | CPU s LAMMPS / ours static |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for o in out:
         print(f"| {o['N']} | {o['lammps_ranks']} | {o['lammps_loop_s']:.3g} | {o['lammps_iterations']} | "
               f"{o['static_wall_s']:.3g} | {o['relaxation_wall_s']:.3g} ({o['relaxation_iterations']}) | "
               f"{o['speedup_static']:.2f}x | {o['speedup_relaxation']:.2f}x | {o['lammps_vs_static_rel']:.2g} | "
-              f"{o['lammps_vs_ref_rel'] if o['lammps_vs_ref_rel'] == '' else format(o['lammps_vs_ref_rel'], '.2g')} |")
+              f"{o['lammps_vs_ref_rel'] if o['lammps_vs_ref_rel'] == '' else format(o['lammps_vs_ref_rel'], '.2g')} | "
+              f"{o['lammps_cpu_s']:.3g} / {o['static_cpu_s']:.3g} |")

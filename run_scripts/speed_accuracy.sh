@@ -5,17 +5,21 @@
 # /work/shared/peers/lammps/in.tension_fire: N^3 molecules, spacing 1, k = 1 on edges and face diagonals, z+
 # clamped, 0.001 N^2 pulling the z- layer with the same force on every molecule) for N = 10 .. 100 (1,000 to
 # 1,000,000 molecules), on 2 MPI ranks, solved by
-#   - the static solver (SNES Newton) with three Krylov/preconditioner choices: CG + GAMG (the default),
-#     CG + BoomerAMG (-pc_type hypre), CG + Jacobi (-pc_type jacobi), at relative residual 1e-8,
+#   - the static solver (SNES Newton) with four Krylov/preconditioner choices: CG + the lattice's geometric
+#     multigrid (the default, config "mg"), CG + GAMG (-pc_type gamg), CG + BoomerAMG (-pc_type hypre, N <=
+#     HYPRE_MAX_N), CG + Jacobi (-pc_type jacobi, N <= JACOBI_MAX_N), at relative residual 1e-8,
 #   - the relaxation solver (FIRE) at relative residual 1e-4, 1e-6 and 1e-8,
 #   - and a reference: static, CG + GAMG, at relative residual 1e-10 (N <= 20) or 1e-9 (N > 20) with Krylov
 #     rtol 1e-10 ("the converged static answer"; tighter runs hit the round-off floor, see reference() below).
 # For every run: wall time (summary.json wall_seconds, all of the run after MPI start-up, and the process time of
-# mpirun), peak resident memory (the largest rank's, and x ranks / molecules = bytes per molecule), Newton and
-# Krylov iterations (relaxation: its FIRE iterations), the elongation's error against the reference and the
+# mpirun), CPU time (user + system of all ranks, cpu_s), peak resident memory (the largest rank's, and x ranks /
+# molecules = bytes per molecule), Newton and Krylov iterations (relaxation: its FIRE iterations), the elongation's error against the reference and the
 # measured E's error against the target E (the lattice's continuum modulus 2.5: a discretisation error, not a
-# solver error). The LAMMPS FIRE peer runs in the same script, alternating with our static and relaxation runs,
-# for N = 20 and 40 on 1 and 2 ranks: the same elongation (printed by the peer as ELONGATION) and the time ratio.
+# solver error). The LAMMPS FIRE peer runs in the same script, alternating with ours (ours static, LAMMPS, ours
+# static, LAMMPS, ours relaxation) for N in PEER_NS on PEER_RANKS ranks: the same elongation (printed by the peer
+# as ELONGATION) and the time ratio (LAMMPS loop time over the mean of the two static runs around it).
+# Runs above BIGMEM_N (default 80, ~1 GB per 100,000 molecules) take the lock /tmp/tissue-bigmem.lock so that two
+# big runs on a shared machine never overlap.
 # Output: docs/speed_accuracy.csv (one row per run; LAMMPS rows have solver = lammps_fire) and, through
 # run_scripts/plot_speed_accuracy.py, docs/speed_accuracy_pareto.png (error vs time), docs/speed_accuracy_scaling.png
 # (time vs molecules, log-log, fitted exponents), docs/speed_accuracy_iterations.png (Newton/Krylov/FIRE
@@ -28,13 +32,16 @@
 #   run_scripts/speed_accuracy.sh      # or QUICK=1 run_scripts/speed_accuracy.sh
 # Knobs (environment): TISSUE (binary, default build-bench/tissue), LMP (default lmp), NS (molecule counts per
 # axis), PEER_NS, RANKS (ours, default 2), WORK (run directories, default /tmp/tissue_speed_accuracy),
-# CSV (default docs/speed_accuracy.csv), JACOBI_MAX_N (CG + Jacobi only up to this N; default 64: at N = 100
-# unpreconditioned-like CG needs thousands of iterations per Newton step), PEER_INPUT (the LAMMPS input).
+# CSV (default docs/speed_accuracy.csv), JACOBI_MAX_N (CG + Jacobi only up to this N; default 40: its iterations
+# grow like N), HYPRE_MAX_N (default 20: BoomerAMG's set-up on this lattice is slow), RELAX_TOLS (default
+# "1e-4 1e-6 1e-8"), STATIC_CONFIGS (default "mg gamg hypre jacobi"), PEER_RANKS (default "1 2"), PEER_INPUT
+# (the LAMMPS input), APPEND=1 (add rows to an existing CSV instead of starting it). NS="" or PEER_NS="" skips
+# that part.
 #
 # Steps:
 #   1. Settings and checks (binary, lmp, python3 with matplotlib).
-#   2. For every N: the reference static solve, the three static solves (1e-8), the three relaxations.
-#   3. The peer: for N in PEER_NS, alternately LAMMPS FIRE (1 and 2 ranks) and our static and relaxation (1e-8).
+#   2. For every N: the reference static solve, the static solves (1e-8), the relaxations.
+#   3. The peer: for N in PEER_NS, alternately our static and LAMMPS FIRE (1 and 2 ranks), then our relaxation.
 #   4. The plots and the peer table (run_scripts/plot_speed_accuracy.py).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -49,19 +56,24 @@ PEER_INPUT=${PEER_INPUT:-/work/shared/peers/lammps/in.tension_fire}
 RANKS=${RANKS:-2}
 WORK=${WORK:-/tmp/tissue_speed_accuracy}
 CSV=${CSV:-docs/speed_accuracy.csv}
-JACOBI_MAX_N=${JACOBI_MAX_N:-64}
+JACOBI_MAX_N=${JACOBI_MAX_N:-40}
+HYPRE_MAX_N=${HYPRE_MAX_N:-20}
+STATIC_CONFIGS=${STATIC_CONFIGS:-"mg gamg hypre jacobi"}
+RELAX_TOLS=${RELAX_TOLS:-"1e-4 1e-6 1e-8"}
+PEER_RANKS=${PEER_RANKS:-"1 2"}
+BIGMEM_N=${BIGMEM_N:-80}
 if [[ "${QUICK:-0}" == 1 ]]; then
-  NS=${NS:-"10 20 40"}
-  PEER_NS=${PEER_NS:-"20"}
+  NS=${NS-"10 20 40"}
+  PEER_NS=${PEER_NS-"20"}
 else
-  NS=${NS:-"10 20 40 64 100"}
-  PEER_NS=${PEER_NS:-"20 40"}
+  NS=${NS-"10 20 40 64 100"}
+  PEER_NS=${PEER_NS-"20 40"}
 fi
 [[ -x "$TISSUE" ]] || { echo "speed_accuracy: $TISSUE not built (see the header)" >&2; exit 1; }
 command -v "$LMP" >/dev/null || { echo "speed_accuracy: $LMP not found (apt-get install -y lammps)" >&2; exit 1; }
 "$PYTHON" -c "import matplotlib" || { echo "speed_accuracy: $PYTHON has no matplotlib" >&2; exit 1; }
 mkdir -p "$WORK" "$(dirname "$CSV")"
-echo "case,solver,config,N,molecules,ranks,tolerance,wall_s,process_s,peak_bytes,bytes_per_molecule,newton_its,krylov_its,residual,converged,elongation,err_vs_static_ref,E_measured,err_vs_E_target,loadavg" > "$CSV"
+[[ "${APPEND:-0}" == 1 && -f "$CSV" ]] || echo "case,solver,config,N,molecules,ranks,tolerance,wall_s,process_s,peak_bytes,bytes_per_molecule,newton_its,krylov_its,residual,converged,elongation,err_vs_static_ref,E_measured,err_vs_E_target,loadavg,cpu_s" > "$CSV"
 
 # The reference elongation per N (filled by the reference runs; the peer rows use it too).
 declare -A REF
@@ -70,22 +82,25 @@ declare -A REF
 ours() {
   local case=$1 solver=$2 config=$3 n=$4 tol=$5
   shift 5
-  local dir="$WORK/$case-$solver-$config-$n-$tol" force t0 t1 code=0 extra=()
+  local dir="$WORK/$case-$solver-$config-$n-$tol" force t0 t1 code=0 extra=() lock=()
   (( $# )) && extra=(-- "$@")
+  (( n > BIGMEM_N )) && lock=(flock /tmp/tissue-bigmem.lock)
   force=$("$PYTHON" -c "print(0.001*$n*$n)")
   rm -rf "$dir"
   t0=$(date +%s.%N)
-  mpirun -np "$RANKS" "$TISSUE" run "$SCENE" --set "body.molecules=[$n,$n,$n]" \
+  "${lock[@]}" /usr/bin/time -f "CPU %U %S" -o "$dir.cpu" mpirun -np "$RANKS" "$TISSUE" run "$SCENE" --set "body.molecules=[$n,$n,$n]" \
     --set "load.0.force=[0,0,-$force]" --set "solver.kind=$solver" --set "solver.tolerance=$tol" \
     --set output.fields=[] --set output.progress=false --output "$dir" "${extra[@]}" > "$dir.log" 2>&1 || code=$?
   (( code == 0 )) || echo "  ($case $solver $config N=$n: exit code $code, see $dir.log)" >&2
   t1=$(date +%s.%N)
   [[ -f "$dir/summary.json" ]] || return 0
-  "$PYTHON" - "$dir/summary.json" "$case" "$solver" "$config" "$n" "$tol" "$t0" "$t1" "${REF[$n]:-}" \
+  "$PYTHON" - "$dir/summary.json" "$case" "$solver" "$config" "$n" "$tol" "$t0" "$t1" "${REF[$n]:-}" "$dir.cpu" \
       >> "$CSV" <<'EOF'
-import json, sys
+import json, re, sys
 d = json.load(open(sys.argv[1]))
-case, solver, config, n, tol, t0, t1, ref = sys.argv[2:10]
+case, solver, config, n, tol, t0, t1, ref, cpufile = sys.argv[2:11]
+m = re.search(r"CPU (\S+) (\S+)", open(cpufile).read())
+cpu = round(float(m.group(1)) + float(m.group(2)), 2) if m else ""
 s = d["solver"]
 el = d["elongation"]
 err = abs(el - float(ref)) / abs(float(ref)) if ref else ""
@@ -94,7 +109,7 @@ load = open("/proc/loadavg").read().split()[0]
 print(",".join(str(v) for v in [case, solver, config, n, d["molecules"], d["ranks"], tol, d["wall_seconds"],
       round(float(t1) - float(t0), 3), d["peak_memory_bytes"], round(d["peak_memory_bytes"] * d["ranks"] / d["molecules"]),
       s["iterations"], s.get("linear_iterations") or 0, s["residual"], s["converged"], repr(el), err, E,
-      abs(E - Et) / Et, load]))
+      abs(E - Et) / Et, load, cpu]))
 EOF
   tail -n 1 "$CSV" | awk -F, '{printf "  %-6s %-10s %-7s N=%-4s tol=%-6s wall %8.3f s  mem %6d B/mol  its %6s/%-6s  err %s\n", $1,$2,$3,$4,$7,$8,$11,$12,$13,$17}'
 }
@@ -103,7 +118,7 @@ EOF
 peer() {
   local n=$1 np=$2 log="$WORK/lammps-$1-np$2.log" t0 t1
   t0=$(date +%s.%N)
-  mpirun -np "$np" /usr/bin/time -f "MAXRSS_KB %M" "$LMP" -in "$PEER_INPUT" -var N "$n" -log none > "$log" 2>&1
+  mpirun -np "$np" /usr/bin/time -f "MAXRSS_KB %M CPU %U %S" "$LMP" -in "$PEER_INPUT" -var N "$n" -log none > "$log" 2>&1
   t1=$(date +%s.%N)
   "$PYTHON" - "$log" "$n" "$np" "$t0" "$t1" "${REF[$n]:-}" >> "$CSV" <<'EOF'
 import re, sys
@@ -118,10 +133,11 @@ rss = sum(int(x) * 1024 for x in re.findall(r"MAXRSS_KB (\d+)", text))  # all ra
 peak = max(int(x) * 1024 for x in re.findall(r"MAXRSS_KB (\d+)", text))
 err = abs(el - float(ref)) / abs(float(ref)) if ref else ""
 load = open("/proc/loadavg").read().split()[0]
+cpu = round(sum(float(u) + float(s) for u, s in re.findall(r"MAXRSS_KB \d+ CPU (\S+) (\S+)", text)), 2)
 # residual: the final force 2-norm relative to the applied load's 2-norm (0.001 per molecule of the N^2 face)
 print(",".join(str(v) for v in ["peer", "lammps_fire", f"np{np}", n, n**3, np, "ftol=1e-8", loop,
       round(float(t1) - float(t0), 3), peak, round(rss / n**3), its, 0, fnorm / (0.001 * n), True, repr(el), err, "",
-      "", load]))
+      "", load, cpu]))
 EOF
   tail -n 1 "$CSV" | awk -F, '{printf "  %-6s %-11s %-6s N=%-4s       loop %8.3f s (process %7.2f s)  mem %6d B/mol  its %6s  err %s\n", $1,$2,$3,$4,$8,$9,$11,$12,$17}'
 }
@@ -146,19 +162,26 @@ reference() {
 for n in $NS; do
   echo "N = $n ($((n * n * n)) molecules), $RANKS ranks"
   reference sweep "$n"
-  ours sweep static gamg "$n" 1e-8
-  ours sweep static hypre "$n" 1e-8 -pc_type hypre
-  if (( n <= JACOBI_MAX_N )); then ours sweep static jacobi "$n" 1e-8 -pc_type jacobi; fi
-  for tol in 1e-4 1e-6 1e-8; do ours sweep relaxation fire "$n" "$tol"; done
+  for config in $STATIC_CONFIGS; do
+    case $config in
+      mg) ours sweep static mg "$n" 1e-8 ;;
+      gamg) ours sweep static gamg "$n" 1e-8 -pc_type gamg ;;
+      hypre) if (( n <= HYPRE_MAX_N )); then ours sweep static hypre "$n" 1e-8 -pc_type hypre; fi ;;
+      jacobi) if (( n <= JACOBI_MAX_N )); then ours sweep static jacobi "$n" 1e-8 -pc_type jacobi; fi ;;
+    esac
+  done
+  for tol in $RELAX_TOLS; do ours sweep relaxation fire "$n" "$tol"; done
 done
 
 # 3. The peer, alternating with ours (the same machine state for both).
 for n in $PEER_NS; do
   echo "peer: N = $n, LAMMPS FIRE (ftol 1e-8 absolute) vs ours (relative residual 1e-8)"
   [[ -n "${REF[$n]:-}" ]] || reference peer "$n"
-  for np in 1 2; do
+  for np in $PEER_RANKS; do
+    ours peer static mg "$n" 1e-8
     peer "$n" "$np"
-    ours peer static gamg "$n" 1e-8
+    ours peer static mg "$n" 1e-8
+    peer "$n" "$np"
     ours peer relaxation fire "$n" 1e-8
   done
 done

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <set>
 #include <string>
 
 namespace tissue {
@@ -230,80 +229,130 @@ double ForceModel::largest_stiffness_rate() const {
 
 PetscErrorCode ForceModel::create_tangent(Mat* J) const {
   PetscFunctionBeginUser;
-  const int n = model_.owned;
-  std::vector<std::set<int>> neighbours(n);
-  for (int c = 0; c < model_.connections(); ++c) {
-    int a = model_.end_a[c], b = model_.end_b[c];
-    if (a < n) neighbours[a].insert(b);
-    if (b < n) neighbours[b].insert(a);
+  const int n = model_.owned, nc = model_.connections();
+  // Each owned molecule's connections (counting sort by end), then its distinct neighbours sorted by block id.
+  conn_start_.assign(n + 1, 0);
+  for (int c = 0; c < nc; ++c) {
+    if (model_.end_a[c] < n) conn_start_[model_.end_a[c] + 1]++;
+    if (model_.end_b[c] < n) conn_start_[model_.end_b[c] + 1]++;
   }
+  for (int i = 0; i < n; ++i) conn_start_[i + 1] += conn_start_[i];
+  row_conns_.assign(conn_start_[n], 0);
+  {
+    std::vector<int> fill(conn_start_.begin(), conn_start_.end() - 1);
+    for (int c = 0; c < nc; ++c) {
+      if (model_.end_a[c] < n) row_conns_[fill[model_.end_a[c]]++] = c;
+      if (model_.end_b[c] < n) row_conns_[fill[model_.end_b[c]]++] = c;
+    }
+  }
+  row_start_.assign(n + 1, 0);
+  row_cols_.clear();
+  row_cols_.reserve(conn_start_[n] + n);
   std::vector<PetscInt> dnnz(n), onnz(n);
+  const PetscInt first = model_.first_block, last = model_.first_block + n;
+  auto by_block = [&](int p, int q) { return model_.block[p] < model_.block[q]; };
   for (int i = 0; i < n; ++i) {
-    dnnz[i] = 1, onnz[i] = 0;
-    for (int j : neighbours[i]) (j < n ? dnnz[i] : onnz[i])++;
+    const std::size_t begin = row_cols_.size();
+    row_cols_.push_back(i);
+    for (int p = conn_start_[i]; p < conn_start_[i + 1]; ++p) {
+      const int c = row_conns_[p];
+      row_cols_.push_back(model_.end_a[c] == i ? model_.end_b[c] : model_.end_a[c]);
+    }
+    std::sort(row_cols_.begin() + begin, row_cols_.end(), by_block);
+    row_cols_.erase(std::unique(row_cols_.begin() + begin, row_cols_.end(),
+                                [&](int p, int q) { return model_.block[p] == model_.block[q]; }),
+                    row_cols_.end());
+    row_start_[i + 1] = static_cast<int>(row_cols_.size());
+    dnnz[i] = onnz[i] = 0;
+    for (std::size_t p = begin; p < row_cols_.size(); ++p) {
+      const PetscInt bj = model_.block[row_cols_[p]];
+      (bj >= first && bj < last ? dnnz[i] : onnz[i])++;
+    }
   }
+  row_cols_.shrink_to_fit();
   PetscCall(MatCreate(model_.comm, J));
   PetscCall(MatSetSizes(*J, 3 * n, 3 * n, PETSC_DETERMINE, PETSC_DETERMINE));
   PetscCall(MatSetType(*J, MATAIJ));  // AIJ with block size 3: what GAMG wants (not BAIJ)
   PetscCall(MatSetBlockSize(*J, 3));
   PetscCall(MatXAIJSetPreallocation(*J, 3, dnnz.data(), onnz.data(), nullptr, nullptr));
   PetscCall(MatSetOption(*J, MAT_SYMMETRIC, PETSC_TRUE));
+  PetscCall(MatSetOption(*J, MAT_SYMMETRY_ETERNAL, PETSC_TRUE));
   PetscCall(MatSetOption(*J, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
+  PetscCall(MatSetOption(*J, MAT_NO_OFF_PROC_ENTRIES, PETSC_TRUE));  // owned rows only: assembly sends nothing
   PetscFunctionReturn(0);
 }
 
 PetscErrorCode ForceModel::assemble_tangent(const double* x, Mat J) const {
   PetscFunctionBeginUser;
-  PetscCall(MatZeroEntries(J));
   const int n = model_.owned;
-  auto put = [&](int row, int col, const double K[9], double sign) -> PetscErrorCode {
-    PetscFunctionBeginUser;
-    double block[9];
-    for (int r = 0; r < 3; ++r)
-      for (int s = 0; s < 3; ++s) {
-        bool held = held_[3 * row + r] || held_[3 * col + s];
-        block[3 * r + s] = held ? 0.0 : sign * K[3 * r + s];
-      }
-    PetscInt br = model_.block[row], bc = model_.block[col];
-    PetscCall(MatSetValuesBlocked(J, 1, &br, 1, &bc, block, ADD_VALUES));
-    PetscFunctionReturn(0);
-  };
-  for (int c = 0; c < model_.connections(); ++c) {
-    int a = model_.end_a[c], b = model_.end_b[c];
-    const double* xa = x + 3 * a;
-    const double* xb = x + 3 * b;
-    double d[3] = {xb[0] - xa[0], xb[1] - xa[1], xb[2] - xa[2]};
-    double len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-    double k = model_.k(c), geo = 1.0 - model_.l0(c) / len;
-    // K = k [ n n^T + (1 - l0/l)(I - n n^T) ]: the material part along the spring, the geometric part across.
-    double K[9];
-    for (int r = 0; r < 3; ++r)
-      for (int s = 0; s < 3; ++s) {
-        double nn = d[r] * d[s] / (len * len);
-        K[3 * r + s] = k * (nn + geo * ((r == s ? 1.0 : 0.0) - nn));
-      }
-    if (a < n) {
-      PetscCall(put(a, a, K, 1.0));
-      PetscCall(put(a, b, K, -1.0));
+  PetscCheck(static_cast<int>(row_start_.size()) == n + 1, model_.comm, PETSC_ERR_ORDER,
+             "assemble_tangent needs a matrix from create_tangent");
+  // One MatSetValuesBlocked per block row, with every column of the row in block order: each row is written
+  // exactly once (INSERT), so no zeroing pass and no search per connection. The values are the row-major
+  // 3 x (3 ncols) array PETSc expects.
+  std::vector<double> vals;
+  std::vector<PetscInt> cols;
+  for (int i = 0; i < n; ++i) {
+    const int begin = row_start_[i], ncols = row_start_[i + 1] - begin;
+    const int* rc = row_cols_.data() + begin;
+    const int width = 3 * ncols;
+    vals.assign(3 * width, 0.0);
+    cols.resize(ncols);
+    for (int q = 0; q < ncols; ++q) cols[q] = model_.block[rc[q]];
+    auto slot = [&](int j) {
+      return static_cast<int>(std::lower_bound(cols.begin(), cols.end(), model_.block[j]) - cols.begin());
+    };
+    const int self = slot(i);
+    const double* xi = x + 3 * i;
+    for (int p = conn_start_[i]; p < conn_start_[i + 1]; ++p) {
+      const int c = row_conns_[p];
+      const int j = model_.end_a[c] == i ? model_.end_b[c] : model_.end_a[c];
+      const double* xj = x + 3 * j;
+      double d[3] = {xj[0] - xi[0], xj[1] - xi[1], xj[2] - xi[2]};
+      const double len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2], len = std::sqrt(len2);
+      const double k = model_.k(c), geo = 1.0 - model_.l0(c) / len;
+      const int other = slot(j);
+      // K = k [ n n^T + (1 - l0/l)(I - n n^T) ]: the material part along the spring, the geometric part across.
+      for (int r = 0; r < 3; ++r)
+        for (int s = 0; s < 3; ++s) {
+          const double nn = d[r] * d[s] / len2;
+          const double K = k * (nn + geo * ((r == s ? 1.0 : 0.0) - nn));
+          vals[r * width + 3 * self + s] += K;
+          vals[r * width + 3 * other + s] -= K;
+        }
     }
-    if (b < n) {
-      PetscCall(put(b, b, K, 1.0));
-      PetscCall(put(b, a, K, -1.0));
-    }
+    // Held components: their row and column are the identity's (the column's held flag is the neighbour's).
+    for (int q = 0; q < ncols; ++q)
+      for (int s = 0; s < 3; ++s)
+        if (held_[3 * rc[q] + s])
+          for (int r = 0; r < 3; ++r) vals[r * width + 3 * q + s] = 0.0;
+    for (int r = 0; r < 3; ++r)
+      if (held_[3 * i + r]) {
+        std::fill(vals.begin() + r * width, vals.begin() + (r + 1) * width, 0.0);
+        vals[r * width + 3 * self + r] = 1.0;
+      }
+    const PetscInt row = model_.block[i];
+    PetscCall(MatSetValuesBlocked(J, 1, &row, ncols, cols.data(), vals.data(), INSERT_VALUES));
   }
-  // The terms' blocks (obstacles, contact), through a plain function pointer with the same held mask.
-  using Put = decltype(put);
-  auto add = [](void* ctx, int row, int col, const double K[9]) -> PetscErrorCode {
-    return (*static_cast<Put*>(ctx))(row, col, K, 1.0);
-  };
-  void* sink = &put;
-  for (const auto& t : terms_) PetscCall(t->add_tangent(x, add, sink));
-  for (int i = 0; i < n; ++i)
-    for (int d = 0; d < 3; ++d)
-      if (held_[3 * i + d]) {
-        PetscInt r = 3 * model_.block[i] + d;
-        PetscCall(MatSetValue(J, r, r, 1.0, ADD_VALUES));
-      }
+  if (!terms_.empty()) {
+    // The terms' blocks (obstacles, contact) are added on top, with the same held mask.
+    PetscCall(MatAssemblyBegin(J, MAT_FLUSH_ASSEMBLY));
+    PetscCall(MatAssemblyEnd(J, MAT_FLUSH_ASSEMBLY));
+    auto put = [&](int row, int col, const double K[9]) -> PetscErrorCode {
+      PetscFunctionBeginUser;
+      double block[9];
+      for (int r = 0; r < 3; ++r)
+        for (int s = 0; s < 3; ++s) block[3 * r + s] = held_[3 * row + r] || held_[3 * col + s] ? 0.0 : K[3 * r + s];
+      PetscInt br = model_.block[row], bc = model_.block[col];
+      PetscCall(MatSetValuesBlocked(J, 1, &br, 1, &bc, block, ADD_VALUES));
+      PetscFunctionReturn(0);
+    };
+    using Put = decltype(put);
+    auto add = [](void* ctx, int row, int col, const double K[9]) -> PetscErrorCode {
+      return (*static_cast<Put*>(ctx))(row, col, K);
+    };
+    for (const auto& t : terms_) PetscCall(t->add_tangent(x, add, &put));
+  }
   PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
   PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
   PetscFunctionReturn(0);

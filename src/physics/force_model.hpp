@@ -41,9 +41,9 @@ public:
   double potential_energy(const double* x, double load_factor = 1.0) const;
 
   // Tangent stiffness -dF/dx of the connection forces, owned rows, held components' rows and columns replaced
-  // by identity (so the matrix stays symmetric). J must be a preallocated AIJ matrix of block size 3.
+  // by identity (so the matrix stays symmetric). J must come from create_tangent (its row pattern is cached here).
   PetscErrorCode assemble_tangent(const double* x, Mat J) const;
-  PetscErrorCode create_tangent(Mat* J) const;  // AIJ, block size 3, preallocated
+  PetscErrorCode create_tangent(Mat* J) const;  // AIJ, block size 3, exactly preallocated
 
   const std::vector<std::uint8_t>& held() const { return held_; }   // 3 * owned: 1 = held component
   // The constant face loads at factor 1: component j (= 3 * owned molecule + axis) gets value (N).
@@ -74,6 +74,10 @@ private:
   std::vector<std::unique_ptr<Term>> terms_;  // only what the scene lists, in the registry's order
   double applied_norm_ = 0.0;
   mutable double time_ = 0.0;
+  // The tangent's block rows (built by create_tangent): row i's columns are the local molecules
+  // row_cols_[row_start_[i] .. row_start_[i+1]) sorted by PETSc block id, itself included; its connections are
+  // row_conns_[conn_start_[i] .. conn_start_[i+1]). Row-wise assembly then sets each row once, in order.
+  mutable std::vector<int> row_start_, row_cols_, conn_start_, row_conns_;
 };
 
 }  // namespace tissue

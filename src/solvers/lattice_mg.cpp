@@ -1,0 +1,288 @@
+#include "src/solvers/lattice_mg.hpp"
+
+#include <petscksp.h>
+
+#include <algorithm>
+#include <array>
+#include <numeric>
+
+namespace tissue {
+
+namespace {
+
+// The planes a coarser level keeps along one axis: every other plane of the level below, and the last.
+std::vector<long> coarser(const std::vector<long>& s) {
+  if (s.size() <= 2) return s;
+  std::vector<long> c;
+  for (std::size_t p = 0; p < s.size(); p += 2) c.push_back(s[p]);
+  if (c.back() != s.back()) c.push_back(s.back());
+  return c;
+}
+
+// Exchange helper: sends the int64 items grouped by destination rank (counts per rank), returns what arrives and
+// the counts received. Collective.
+PetscErrorCode exchange(MPI_Comm comm, const std::vector<std::int64_t>& out, const std::vector<int>& out_counts,
+                        std::vector<std::int64_t>& in, std::vector<int>& in_counts) {
+  PetscFunctionBeginUser;
+  const int size = static_cast<int>(out_counts.size());
+  in_counts.assign(size, 0);
+  PetscCallMPI(MPI_Alltoall(out_counts.data(), 1, MPI_INT, in_counts.data(), 1, MPI_INT, comm));
+  std::vector<int> out_disp(size, 0), in_disp(size, 0);
+  for (int r = 1; r < size; ++r) {
+    out_disp[r] = out_disp[r - 1] + out_counts[r - 1];
+    in_disp[r] = in_disp[r - 1] + in_counts[r - 1];
+  }
+  in.assign(static_cast<std::size_t>(in_disp[size - 1] + in_counts[size - 1]), 0);
+  PetscCallMPI(MPI_Alltoallv(out.data(), out_counts.data(), out_disp.data(), MPI_INT64_T, in.data(),
+                             in_counts.data(), in_disp.data(), MPI_INT64_T, comm));
+  PetscFunctionReturn(0);
+}
+
+// The level numbers of molecules (global ids `asked`), from their owners' (ids `mine`, numbers `nums`), through a
+// directory: id g lives on rank g / chunk. No rank ever holds more than its chunk of the directory. Collective.
+PetscErrorCode lookup(MPI_Comm comm, std::int64_t total, const std::vector<std::int64_t>& mine,
+                      const std::vector<PetscInt>& nums, const std::vector<std::int64_t>& asked,
+                      std::vector<PetscInt>& answers) {
+  PetscFunctionBeginUser;
+  int size, rank;
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  const std::int64_t chunk = (total + size - 1) / size;
+  auto home = [&](std::int64_t g) { return static_cast<int>(g / chunk); };
+  // 1. Owners publish (id, number) pairs to the directory.
+  std::vector<int> counts(size, 0), in_counts;
+  std::vector<std::size_t> order(mine.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t p, std::size_t q) { return home(mine[p]) < home(mine[q]); });
+  std::vector<std::int64_t> out, in;
+  out.reserve(2 * mine.size());
+  for (std::size_t p : order) {
+    out.push_back(mine[p]), out.push_back(nums[p]);
+    counts[home(mine[p])] += 2;
+  }
+  PetscCall(exchange(comm, out, counts, in, in_counts));
+  std::vector<PetscInt> table(static_cast<std::size_t>(chunk), -1);
+  for (std::size_t p = 0; p < in.size(); p += 2) table[in[p] - rank * chunk] = static_cast<PetscInt>(in[p + 1]);
+  // 2. Askers ask, the directory answers in the same order.
+  order.resize(asked.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t p, std::size_t q) { return home(asked[p]) < home(asked[q]); });
+  out.clear();
+  std::fill(counts.begin(), counts.end(), 0);
+  for (std::size_t p : order) out.push_back(asked[p]), counts[home(asked[p])]++;
+  PetscCall(exchange(comm, out, counts, in, in_counts));
+  for (auto& g : in) g = table[g - rank * chunk];
+  std::vector<std::int64_t> back;
+  std::vector<int> back_counts;
+  PetscCall(exchange(comm, in, in_counts, back, back_counts));
+  answers.assign(asked.size(), -1);
+  for (std::size_t p = 0; p < order.size(); ++p) answers[order[p]] = static_cast<PetscInt>(back[p]);
+  for (PetscInt a : answers) PetscCheck(a >= 0, comm, PETSC_ERR_PLIB, "lattice multigrid: a coarse node has no owner");
+  PetscFunctionReturn(0);
+}
+
+}  // namespace
+
+PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::uint8_t>& held, PC pc,
+                                long coarse_nodes, PetscInt* levels) {
+  PetscFunctionBeginUser;
+  const Body& shape = model.shape;
+  const int nb = shape.bodies();
+  // planes[l][b][a]: the lattice planes level l keeps along axis a of body b; level 0 keeps all.
+  using Planes = std::vector<std::array<std::vector<long>, 3>>;
+  std::vector<Planes> planes(1, Planes(nb));
+  auto nodes = [&](const Planes& p) {
+    std::int64_t total = 0;
+    for (const auto& b : p) total += static_cast<std::int64_t>(b[0].size()) * b[1].size() * b[2].size();
+    return total;
+  };
+  for (int b = 0; b < nb; ++b)
+    for (int a = 0; a < 3; ++a) {
+      planes[0][b][a].resize(shape.body(b).n[a]);
+      std::iota(planes[0][b][a].begin(), planes[0][b][a].end(), 0L);
+    }
+  while (nodes(planes.back()) > coarse_nodes && planes.size() < 12) {
+    Planes next(nb);
+    for (int b = 0; b < nb; ++b)
+      for (int a = 0; a < 3; ++a) next[b][a] = coarser(planes.back()[b][a]);
+    if (nodes(next) == nodes(planes.back())) break;  // nothing left to coarsen
+    planes.push_back(std::move(next));
+  }
+  const int L = static_cast<int>(planes.size());
+  *levels = L;
+  if (L == 1) PetscFunctionReturn(0);
+
+  auto member = [](const std::vector<long>& s, long i) { return std::binary_search(s.begin(), s.end(), i); };
+  // Unknowns: level 0 is the tangent's layout (3 per molecule, held ones included as identity rows); on coarser
+  // levels a held component is no unknown at all (the Dirichlet condition of the coarse problem), so a node
+  // has 0-3 unknowns. Each level's nodes this rank owns (local molecule indices, owned order), the global
+  // number of each node's first unknown, and the mask of its free components.
+  auto free_mask = [&](int i) {
+    int m = 0;
+    for (int k = 0; k < 3; ++k)
+      if (!held[3 * i + k]) m |= 1 << k;
+    return m;
+  };
+  std::vector<std::vector<int>> owned_nodes(L);
+  std::vector<std::vector<PetscInt>> base(L);
+  std::vector<PetscInt> first(L, 0), count(L, 0);
+  for (int l = 0; l < L; ++l) {
+    PetscInt n = 0;
+    for (int i = 0; i < model.owned; ++i) {
+      const std::int64_t g = model.id[i];
+      const int b = shape.body_of(g);
+      const auto ijk = shape.body(b).index(g);
+      if (!(member(planes[l][b][0], ijk[0]) && member(planes[l][b][1], ijk[1]) && member(planes[l][b][2], ijk[2])))
+        continue;
+      owned_nodes[l].push_back(i);
+      base[l].push_back(n);
+      n += l == 0 ? 3 : __builtin_popcount(free_mask(i));
+    }
+    count[l] = n;
+    PetscInt before = 0;
+    PetscCallMPI(MPI_Exscan(&n, &before, 1, MPIU_INT, MPI_SUM, model.comm));
+    first[l] = model.rank == 0 ? 0 : before;
+    for (auto& v : base[l]) v += first[l];
+  }
+
+  const std::int64_t total = shape.molecules();
+  std::vector<Mat> interp(L - 1, nullptr);
+  PetscBool empty_column = PETSC_FALSE;
+  for (int l = 0; l + 1 < L; ++l) {
+    const auto& rows = owned_nodes[l];
+    const auto& cols = owned_nodes[l + 1];
+    // Trilinear weights: per axis the enclosing planes of level l+1 and their weights, then all products.
+    struct Entry {
+      std::int64_t g;
+      double w;
+    };
+    std::vector<int> start(rows.size() + 1, 0);
+    std::vector<Entry> entries;
+    entries.reserve(8 * rows.size());
+    for (std::size_t r = 0; r < rows.size(); ++r) {
+      const std::int64_t g = model.id[rows[r]];
+      const int b = shape.body_of(g);
+      const BoxGeometry& box = shape.body(b);
+      const auto ijk = box.index(g);
+      std::array<std::array<long, 2>, 3> at{};
+      std::array<std::array<double, 2>, 3> w{};
+      std::array<int, 3> m{};
+      for (int a = 0; a < 3; ++a) {
+        const auto& s = planes[l + 1][b][a];
+        const auto p = std::lower_bound(s.begin(), s.end(), ijk[a]) - s.begin();
+        if (s[p] == ijk[a]) {
+          m[a] = 1, at[a][0] = ijk[a], w[a][0] = 1.0;
+        } else {
+          const long lo = s[p - 1], hi = s[p];
+          m[a] = 2;
+          at[a] = {lo, hi};
+          w[a] = {double(hi - ijk[a]) / double(hi - lo), double(ijk[a] - lo) / double(hi - lo)};
+        }
+      }
+      for (int x = 0; x < m[0]; ++x)
+        for (int y = 0; y < m[1]; ++y)
+          for (int z = 0; z < m[2]; ++z)
+            entries.push_back({box.id(at[0][x], at[1][y], at[2][z]), w[0][x] * w[1][y] * w[2][z]});
+      start[r + 1] = static_cast<int>(entries.size());
+    }
+    // The directory carries each coarse node's first unknown and free-component mask, packed as 8 base + mask.
+    std::vector<std::int64_t> mine(cols.size()), asked(entries.size());
+    std::vector<PetscInt> packed(cols.size()), answers;
+    for (std::size_t c = 0; c < cols.size(); ++c) mine[c] = model.id[cols[c]], packed[c] = 8 * base[l + 1][c] + free_mask(cols[c]);
+    for (std::size_t e = 0; e < entries.size(); ++e) asked[e] = entries[e].g;
+    PetscCall(lookup(model.comm, total, mine, packed, asked, answers));
+    // Column of component k of a coarse node, or -1 when that component is held.
+    auto column = [](PetscInt packed, int k) -> PetscInt {
+      const int mask = static_cast<int>(packed % 8);
+      if (!(mask >> k & 1)) return -1;
+      return packed / 8 + __builtin_popcount(mask & ((1 << k) - 1));
+    };
+
+    const PetscInt cfirst = first[l + 1], clast = first[l + 1] + count[l + 1];
+    std::vector<PetscInt> dnnz(count[l], 0), onnz(count[l], 0);
+    auto row_of = [&](std::size_t r, int k) -> PetscInt {
+      const int i = rows[r];
+      if (held[3 * i + k]) return -1;  // a held component takes no coarse correction
+      if (l == 0) return base[l][r] + k;
+      const int mask = free_mask(i);
+      return base[l][r] + __builtin_popcount(mask & ((1 << k) - 1));
+    };
+    for (std::size_t r = 0; r < rows.size(); ++r)
+      for (int k = 0; k < 3; ++k) {
+        const PetscInt row = row_of(r, k);
+        if (row < 0) continue;
+        for (int e = start[r]; e < start[r + 1]; ++e) {
+          const PetscInt c = column(answers[e], k);
+          if (c >= 0) (c >= cfirst && c < clast ? dnnz : onnz)[row - first[l]]++;
+        }
+      }
+    Mat P;
+    PetscCall(MatCreate(model.comm, &P));
+    PetscCall(MatSetSizes(P, count[l], count[l + 1], PETSC_DETERMINE, PETSC_DETERMINE));
+    PetscCall(MatSetType(P, MATAIJ));
+    PetscCall(MatSeqAIJSetPreallocation(P, 0, dnnz.data()));
+    PetscCall(MatMPIAIJSetPreallocation(P, 0, dnnz.data(), 0, onnz.data()));
+    PetscCall(MatSetOption(P, MAT_NO_OFF_PROC_ENTRIES, PETSC_TRUE));
+    std::vector<PetscInt> cs;
+    std::vector<double> v;
+    for (std::size_t r = 0; r < rows.size(); ++r)
+      for (int k = 0; k < 3; ++k) {
+        const PetscInt row = row_of(r, k);
+        if (row < 0) continue;
+        cs.clear(), v.clear();
+        for (int e = start[r]; e < start[r + 1]; ++e) {
+          const PetscInt c = column(answers[e], k);
+          if (c >= 0) cs.push_back(c), v.push_back(entries[e].w);
+        }
+        if (!cs.empty())
+          PetscCall(MatSetValues(P, 1, &row, static_cast<PetscInt>(cs.size()), cs.data(), v.data(), INSERT_VALUES));
+      }
+    PetscCall(MatAssemblyBegin(P, MAT_FINAL_ASSEMBLY));
+    PetscCall(MatAssemblyEnd(P, MAT_FINAL_ASSEMBLY));
+    interp[l] = P;
+    // A coarse unknown that no fine one interpolates from would make the coarse operator singular.
+    Vec ones, sums;
+    PetscCall(MatCreateVecs(P, &sums, &ones));
+    PetscCall(VecSet(ones, 1.0));
+    PetscCall(MatMultTranspose(P, ones, sums));
+    PetscReal least = 1.0;
+    PetscCall(VecMin(sums, nullptr, &least));
+    if (least <= 0) empty_column = PETSC_TRUE;
+    PetscCall(VecDestroy(&ones));
+    PetscCall(VecDestroy(&sums));
+    if (empty_column) break;
+  }
+  if (empty_column) {
+    for (Mat& P : interp) PetscCall(MatDestroy(&P));
+    *levels = 1;
+    PetscFunctionReturn(0);
+  }
+
+  PetscCall(PCSetType(pc, PCMG));
+  PetscCall(PCMGSetLevels(pc, L, nullptr));
+  PetscCall(PCMGSetType(pc, PC_MG_MULTIPLICATIVE));
+  PetscCall(PCMGSetGalerkin(pc, PC_MG_GALERKIN_BOTH));
+  for (int l = 0; l + 1 < L; ++l) {
+    PetscCall(PCMGSetInterpolation(pc, L - 1 - l, interp[l]));  // PCMG counts levels from the coarsest
+    PetscCall(MatDestroy(&interp[l]));
+  }
+  // Smoothers as GAMG's: Chebyshev on Jacobi, two steps, eigenvalue bounds estimated on each level.
+  for (PetscInt k = 1; k < L; ++k) {
+    KSP smoother;
+    PC spc;
+    PetscCall(PCMGGetSmoother(pc, k, &smoother));
+    PetscCall(KSPSetType(smoother, KSPCHEBYSHEV));
+    PetscCall(KSPChebyshevEstEigSet(smoother, 0, 0.1, 0, 1.1));
+    // Galerkin operators of an SPD tangent are SPD: CG estimates the eigenvalues with 4 work vectors where the
+    // default GMRES keeps ~15 per level (340 B per molecule at 64,000). -mg_levels_esteig_ksp_type overrides.
+    KSP estimator;
+    PetscCall(KSPChebyshevEstEigGetKSP(smoother, &estimator));
+    if (estimator) PetscCall(KSPSetType(estimator, KSPCG));
+    PetscCall(KSPSetTolerances(smoother, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, 2));
+    PetscCall(KSPGetPC(smoother, &spc));
+    PetscCall(PCSetType(spc, PCJACOBI));
+  }
+  PetscFunctionReturn(0);
+}
+
+}  // namespace tissue

@@ -15,6 +15,7 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
   MPI_Comm_size(comm, &m.size);
   static_cast<BoxGeometry&>(m.shape) = body;
   m.shape.parts = body.parts;
+  m.shape.faces = body.faces;  // explicit topologies' named faces (O(surface)); points stay global-only
   m.global_molecules = body.molecules();
   m.global_connections = static_cast<std::int64_t>(body.connections.size());
   m.partition = stats;

@@ -133,9 +133,9 @@ TetMesh read_gmsh(const std::string& path) {
 
   while (!lex.at_end()) {
     const std::string section = lex.word("a section");
+    if (!format && section != "$MeshFormat") lex.fail("not a Gmsh mesh: it must begin with $MeshFormat");
     if (section.empty() || section[0] != '$') lex.fail(fmt::format("expected a $Section, got \"{}\"", section));
     const std::string name = section.substr(1);
-    if (!format && name != "MeshFormat") lex.fail("not a Gmsh mesh: it must begin with $MeshFormat");
     if (name == "MeshFormat") {
       const std::string version = lex.word("the version");
       const long long type = lex.integer("the file type");
@@ -215,8 +215,8 @@ TetMesh read_gmsh(const std::string& path) {
           }
           if (dim == 3) {
             if (type != 4)
-              lex.fail(fmt::format("element {} is a {} (type {}); only 4-node tetrahedra (type 4) are supported",
-                                   tag, type_name(type), type));
+              lex.fail(fmt::format("element {} is of type {} ({}); only 4-node tetrahedra (type 4) are supported",
+                                   tag, type, type_name(type)));
             const Vec3 &p0 = node[v[0]], &p1 = node[v[1]], &p2 = node[v[2]], &p3 = node[v[3]];
             const double vol = signed_volume(p0, p1, p2, p3);
             if (!(vol > 0))
@@ -225,8 +225,8 @@ TetMesh read_gmsh(const std::string& path) {
             tets.push_back({{v[0], v[1], v[2], v[3]}, physical.empty() ? -1 : physical.front()});
           } else if (dim == 2 && !physical.empty()) {
             if (type != 2)
-              lex.fail(fmt::format("element {} on a physical surface is a {} (type {}); only 3-node triangles "
-                                   "(type 2) bound a tetrahedral mesh", tag, type_name(type), type));
+              lex.fail(fmt::format("element {} on a physical surface is of type {} ({}); only 3-node triangles "
+                                   "(type 2) bound a tetrahedral mesh", tag, type, type_name(type)));
             for (int p : physical) surface[p].push_back({v[0], v[1], v[2]});
           }
         }

@@ -613,7 +613,7 @@ Scene build_scene(const Value& root, const std::string& file) {
   Scene scene;
   scene.file = file;
   Section top(file, root, "");
-  top.allow({"title", "body", "calibration", "fix", "load", "physics", "obstacle", "solver", "output"});
+  top.allow({"title", "body", "calibration", "fix", "load", "physics", "obstacle", "solver", "output", "partition"});
   scene.title = top.string("title").value_or("");
   top.require("body", "a scene needs a [body] table (or [[body]] tables, one per body)");
   std::vector<Section> body_tables;
@@ -714,6 +714,11 @@ Scene build_scene(const Value& root, const std::string& file) {
     if (scene.loads[i].period > 0 && scene.solver.kind != "dynamic")
       throw InputError(file, fmt::format("load[{}].period", i), "a cyclic load needs solver.kind = \"dynamic\"");
   if (top.has("output")) scene.output = read_output(top.table("output"));
+  if (top.has("partition")) {
+    Section p = top.table("partition");
+    p.allow({"method"});
+    scene.partition.method = p.choice("method", {"metis", "ptscotch"}).value_or(scene.partition.method);
+  }
   return scene;
 }
 

@@ -106,6 +106,10 @@ struct OutputSpec {
   bool progress = true;       // the progress line on rank 0
 };
 
+struct PartitionSpec {
+  std::string method = "metis";  // metis (rank 0 alone) | ptscotch (every rank, PETSc MatPartitioning)
+};
+
 struct Scene {
   std::string file;  // the path it was read from (for messages)
   std::string text;  // the TOML text after --set overrides (kept in checkpoints)
@@ -123,6 +127,7 @@ struct Scene {
   std::vector<ObstacleSpec> obstacles;
   SolverSpec solver;
   OutputSpec output;
+  PartitionSpec partition;
 };
 
 // Reads and validates a scene. `overrides` are --set "dotted.key=VALUE" strings (VALUE in TOML syntax, a bare

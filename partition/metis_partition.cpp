@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "partition/ptscotch_partition.hpp"
+
 namespace tissue {
 
 std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionStats& stats) {
@@ -47,6 +49,11 @@ std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionS
   for (int p : part) ++count[p];
   stats.imbalance = static_cast<double>(*std::max_element(count.begin(), count.end())) * size / n;
   return part;
+}
+
+std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionStats& stats,
+                                     const std::string& method) {
+  return method == "ptscotch" ? partition_ptscotch(body, comm, stats) : partition_molecules(body, comm, stats);
 }
 
 }  // namespace tissue

@@ -3,6 +3,7 @@
 #pragma once
 #include <mpi.h>
 
+#include <string>
 #include <vector>
 
 #include "src/model/body.hpp"
@@ -17,5 +18,7 @@ struct PartitionStats {
 
 // part[m] = the rank that owns molecule m. One part is handled without METIS (METIS 5.1 crashes on it).
 std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionStats& stats);
+// The scene's partition.method: "metis" (above) or "ptscotch" (partition/ptscotch_partition.hpp).
+std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionStats& stats, const std::string& method);
 
 }  // namespace tissue

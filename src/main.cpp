@@ -90,9 +90,9 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
   // 2. Build the body: molecules, connections, material and mass per molecule (global numbering).
   Body body = build_body(scene);
 
-  // 3. Partition the connection graph with METIS and keep this rank's molecules, ghosts and connections.
+  // 3. Partition the connection graph (METIS on rank 0, or PT-Scotch on every rank) and keep this rank's molecules, ghosts and connections.
   PartitionStats stats;
-  std::vector<int> part = partition_molecules(body, comm, stats);
+  std::vector<int> part = partition_molecules(body, comm, stats, scene.partition.method);
   LocalModel model = distribute(body, part, stats, comm);
   if (root)
     std::printf("tissue: %lld molecules, %lld connections on %d ranks; edge cut %ld, imbalance %.3f, "

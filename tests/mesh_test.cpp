@@ -61,8 +61,8 @@ double global_sum(double x) {
 }
 
 // Parallel and one-rank runs of a scene: positions to 1e-10, E to 1e-9.
-void same_on_any_rank_count(const std::string& scene, const std::string& kind) {
-  std::vector<std::string> set = {"solver.kind=" + kind,
+void same_on_any_rank_count(const std::string& scene, const std::string& kind, const std::string& method = "metis") {
+  std::vector<std::string> set = {"solver.kind=" + kind, "partition.method=" + method,
                                   kind == "static" ? "solver.tolerance=1e-12" : "solver.tolerance=1e-11"};
   auto parallel = run(scene, PETSC_COMM_WORLD, set);
   auto serial = run(scene, MPI_COMM_SELF, set);
@@ -85,6 +85,19 @@ void same_on_any_rank_count(const std::string& scene, const std::string& kind) {
 TEST(Mesh, SameAnswerOnAnyRankCount) {
   same_on_any_rank_count(mesh_scene, "static");
   same_on_any_rank_count(mesh_scene, "relaxation");
+  same_on_any_rank_count(mesh_scene, "static", "ptscotch");  // PT-Scotch through PETSc's MatPartitioning
+}
+
+// PT-Scotch gives every rank molecules, and the edge cut it reports is the count of connections between ranks.
+TEST(Mesh, PtscotchPartitionQuality) {
+  auto r = run(mesh_scene, PETSC_COMM_WORLD, {"partition.method=ptscotch"}, /*do_solve=*/false);
+  EXPECT_GT(r->model.owned, 0);
+  long cut = 0;  // connections this rank holds whose ends are owned on different ranks, each counted by end a
+  for (int c : r->model.written_here) cut += r->model.end_b[c] >= r->model.owned;
+  long total = 0;
+  MPI_Allreduce(&cut, &total, 1, MPI_LONG, MPI_SUM, PETSC_COMM_WORLD);
+  EXPECT_EQ(total, r->model.partition.edge_cut);
+  EXPECT_LT(r->model.partition.imbalance, 1.2);
 }
 
 TEST(Random, SameAnswerOnAnyRankCount) { same_on_any_rank_count(random_scene, "static"); }

@@ -35,7 +35,7 @@ inline std::unique_ptr<RunResult> run(const std::string& text, MPI_Comm comm, co
   r->scene.output.progress = false;
   Body body = build_body(r->scene);
   PartitionStats stats;
-  auto part = partition_molecules(body, comm, stats);
+  auto part = partition_molecules(body, comm, stats, r->scene.partition.method);
   r->model = distribute(body, part, stats, comm);
   r->test = tension_test(r->scene, body);
   r->refresh = calibrate_scene(r->scene, r->model, r->model.stiffness);  // step 4 as main() does it

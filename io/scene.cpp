@@ -728,6 +728,13 @@ Scene parse_scene(const std::string& text, const std::string& name, const std::v
   Value root = parse_toml(text, name);
   for (const auto& o : overrides) apply_override(root, o);
   Scene scene = build_scene(root, name);
+  // A mesh path relative to the scene file would be read from the checkpoint's directory on restart: the text
+  // keeps the absolute path.
+  Value& body = root.as_table().at("body");
+  for (std::size_t i = 0; i < scene.bodies.size(); ++i)
+    if (scene.bodies[i].shape == "mesh")
+      (body.is_array() ? body.as_array()[i] : body).as_table()["file"] =
+          std::filesystem::absolute(scene.bodies[i].file).string();
   // 17 significant digits and no width limit: parse_scene(text) gives back the same Scene. toml11 splits a basic
   // string longer than the width with line-ending backslashes, which eat a space at the split (a title lost a
   // space on restart: tests/fuzz_regressions/scene/crash-toml11-long-string-split-space.toml).

@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <unordered_map>
 
+#include "partition/lattice_model.hpp"
+
 namespace tissue {
 
 LocalModel distribute(const Body& body, const std::vector<int>& part, const PartitionStats& stats, MPI_Comm comm) {
@@ -116,6 +118,30 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
   double ratio = static_cast<double>(ghosts_here) / owned, worst = 0;
   MPI_Allreduce(&ratio, &worst, 1, MPI_DOUBLE, MPI_MAX, comm);
   m.partition.surface_to_volume = worst;
+  return m;
+}
+
+LocalModel build_local_model(const Scene& scene, MPI_Comm comm) {
+  // Explicit topologies (meshes, random clouds) come as lists: the explicit path. Box lattices from stencils.
+  const std::vector<BodySpec>& specs = scene.bodies;
+  const bool is_explicit = std::any_of(specs.begin(), specs.end(), [](const BodySpec& b) { return b.unstructured(); }) ||
+                           scene.body.unstructured();
+  LocalModel m;
+  if (is_explicit) {
+    Body body = build_body(scene);
+    PartitionStats stats;
+    std::vector<int> part = partition_molecules(body, comm, stats, scene.partition.method);
+    m = distribute(body, part, stats, comm);
+  } else {
+    m = build_lattice_model(scene, comm);
+  }
+  if (scene.partition.method == "ptscotch" && !is_explicit) {
+    // PT-Scotch's blocks cannot see their neighbours' parts: count the cut connections here, each once (by the
+    // rank writing it, which owns end a; it is cut when end b is a ghost).
+    long cut = 0;
+    for (int c : m.written_here) cut += m.end_b[c] >= m.owned;
+    MPI_Allreduce(&cut, &m.partition.edge_cut, 1, MPI_LONG, MPI_SUM, comm);
+  }
   return m;
 }
 

@@ -48,7 +48,13 @@ struct LocalModel {
   int connections() const { return static_cast<int>(end_a.size()); }
 };
 
-// Collective. Builds this rank's LocalModel from the global body and the partition.
+// Collective. Builds this rank's LocalModel from the global body and the partition (the explicit path: every
+// rank holds the whole body while it runs).
 LocalModel distribute(const Body& body, const std::vector<int>& part, const PartitionStats& stats, MPI_Comm comm);
+
+// Collective. This rank's LocalModel of the scene, by the cheapest path that describes it: box lattices are
+// generated rank by rank from their stencils (partition/lattice_model.hpp), anything else goes through the
+// explicit path.
+LocalModel build_local_model(const Scene& scene, MPI_Comm comm);
 
 }  // namespace tissue

@@ -15,36 +15,33 @@ void check(PetscErrorCode e, const char* what) {
 
 }  // namespace
 
-std::vector<int> partition_ptscotch(const Body& body, MPI_Comm comm, PartitionStats& stats) {
-  int rank, size;
-  MPI_Comm_rank(comm, &rank);
+std::vector<int> ptscotch_block(std::int64_t begin, std::int64_t end, std::int64_t n,
+                                const std::function<void(std::int64_t, std::vector<std::int64_t>&)>& neighbours,
+                                MPI_Comm comm, PartitionStats& stats) {
+  int size;
   MPI_Comm_size(comm, &size);
-  const std::int64_t n = body.molecules();
-  std::vector<int> part(n, 0);
   stats = PartitionStats{};
-  if (size == 1) return part;
+  const PetscInt rows = static_cast<PetscInt>(end - begin);
+  if (size == 1) return std::vector<int>(rows, 0);
   if (n < size) throw std::runtime_error("the body has fewer molecules than ranks");
 
-  // This rank's rows: an even block of molecule ids.
-  const std::int64_t lo = n * rank / size, hi = n * (rank + 1) / size;
-  const PetscInt rows = static_cast<PetscInt>(hi - lo);
-  std::vector<PetscInt> degree(rows, 0);
-  for (const auto& c : body.connections) {
-    if (c.a >= lo && c.a < hi) ++degree[c.a - lo];
-    if (c.b >= lo && c.b < hi) ++degree[c.b - lo];
-  }
   // MatCreateMPIAdj takes the arrays and frees them with PetscFree: they must come from PetscMalloc.
-  PetscInt *ia = nullptr, *ja = nullptr;
+  std::vector<std::int64_t> nb;
+  std::vector<PetscInt> cols;
+  PetscInt* ia = nullptr;
   check(PetscMalloc1(rows + 1, &ia), "PetscMalloc1");
   ia[0] = 0;
-  for (PetscInt r = 0; r < rows; ++r) ia[r + 1] = ia[r] + degree[r];
-  check(PetscMalloc1(std::max<PetscInt>(ia[rows], 1), &ja), "PetscMalloc1");
-  std::vector<PetscInt> fill(ia, ia + rows);
-  for (const auto& c : body.connections) {  // sorted by (a, b): each row's columns come out sorted after a merge
-    if (c.a >= lo && c.a < hi) ja[fill[c.a - lo]++] = static_cast<PetscInt>(c.b);
-    if (c.b >= lo && c.b < hi) ja[fill[c.b - lo]++] = static_cast<PetscInt>(c.a);
+  for (PetscInt r = 0; r < rows; ++r) {
+    nb.clear();
+    neighbours(begin + r, nb);
+    std::sort(nb.begin(), nb.end());
+    for (auto x : nb) cols.push_back(static_cast<PetscInt>(x));
+    ia[r + 1] = static_cast<PetscInt>(cols.size());
   }
-  for (PetscInt r = 0; r < rows; ++r) std::sort(ja + ia[r], ja + ia[r + 1]);
+  PetscInt* ja = nullptr;
+  check(PetscMalloc1(std::max<std::size_t>(cols.size(), 1), &ja), "PetscMalloc1");
+  std::copy(cols.begin(), cols.end(), ja);
+  cols = std::vector<PetscInt>();
 
   Mat adj;
   MatPartitioning mp;
@@ -57,26 +54,49 @@ std::vector<int> partition_ptscotch(const Body& body, MPI_Comm comm, PartitionSt
   check(MatPartitioningApply(mp, &is), "MatPartitioningApply");
   const PetscInt* owner;
   check(ISGetIndices(is, &owner), "ISGetIndices");
-  std::vector<int> mine(owner, owner + rows);
+  std::vector<int> part(owner, owner + rows);
   check(ISRestoreIndices(is, &owner), "ISRestoreIndices");
   check(ISDestroy(&is), "ISDestroy");
   check(MatPartitioningDestroy(&mp), "MatPartitioningDestroy");
   check(MatDestroy(&adj), "MatDestroy");
 
-  // Every rank needs the whole owner map (distribute reads it): gather the blocks in rank order.
-  std::vector<int> counts(size), displs(size);
+  std::vector<long> count(size, 0), total(size, 0);
+  for (int p : part) ++count[p];
+  MPI_Allreduce(count.data(), total.data(), size, MPI_LONG, MPI_SUM, comm);
+  if (*std::min_element(total.begin(), total.end()) == 0)
+    throw std::runtime_error("PT-Scotch left a rank without molecules; use partition.method = \"metis\"");
+  stats.imbalance = static_cast<double>(*std::max_element(total.begin(), total.end())) * size / n;
+  return part;
+}
+
+std::vector<int> partition_ptscotch(const Body& body, MPI_Comm comm, PartitionStats& stats) {
+  int rank, size;
+  MPI_Comm_rank(comm, &rank);
+  MPI_Comm_size(comm, &size);
+  const std::int64_t n = body.molecules();
+  if (size == 1) {
+    stats = PartitionStats{};
+    return std::vector<int>(n, 0);
+  }
+  // Neighbour lists of this rank's even block, from the global connection list.
+  const std::int64_t begin = n * rank / size, end = n * (rank + 1) / size;
+  std::vector<std::vector<std::int64_t>> adjacency(end - begin);
+  for (const auto& c : body.connections) {
+    if (c.a >= begin && c.a < end) adjacency[c.a - begin].push_back(c.b);
+    if (c.b >= begin && c.b < end) adjacency[c.b - begin].push_back(c.a);
+  }
+  std::vector<int> mine = ptscotch_block(
+      begin, end, n, [&](std::int64_t g, std::vector<std::int64_t>& out) { out = adjacency[g - begin]; }, comm, stats);
+
+  // distribute() reads the whole owner map: gather the blocks in rank order.
+  std::vector<int> part(n), counts(size), displs(size);
   for (int r = 0; r < size; ++r) {
     displs[r] = static_cast<int>(n * r / size);
     counts[r] = static_cast<int>(n * (r + 1) / size) - displs[r];
   }
-  MPI_Allgatherv(mine.data(), static_cast<int>(rows), MPI_INT, part.data(), counts.data(), displs.data(), MPI_INT,
-                 comm);
+  MPI_Allgatherv(mine.data(), static_cast<int>(mine.size()), MPI_INT, part.data(), counts.data(), displs.data(),
+                 MPI_INT, comm);
   for (const auto& c : body.connections) stats.edge_cut += part[c.a] != part[c.b];
-  std::vector<long> count(size, 0);
-  for (int p : part) ++count[p];
-  if (*std::min_element(count.begin(), count.end()) == 0)
-    throw std::runtime_error("PT-Scotch left a rank without molecules; use partition.method = \"metis\"");
-  stats.imbalance = static_cast<double>(*std::max_element(count.begin(), count.end())) * size / n;
   return part;
 }
 

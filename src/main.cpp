@@ -87,22 +87,17 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
   }
   if (!output.empty()) scene.output.directory = output;
 
-  // 2. Build the body: molecules, connections, material and mass per molecule (global numbering).
-  Body body = build_body(scene);
-
-  // 3. Partition the connection graph (METIS on rank 0, or PT-Scotch on every rank) and keep this rank's molecules, ghosts and connections.
-  PartitionStats stats;
-  std::vector<int> part = partition_molecules(body, comm, stats, scene.partition.method);
-  LocalModel model = distribute(body, part, stats, comm);
+  // 2-3. Build this rank's share of the body: METIS partitions the connection graph; each rank keeps its
+  //      molecules, their ghosts and their connections, with material and mass per molecule. Box lattices are
+  //      generated rank by rank from the topology's stencil: no rank holds the whole body.
+  LocalModel model = build_local_model(scene, comm);
   if (root)
     std::printf("tissue: %lld molecules, %lld connections on %d ranks; edge cut %ld, imbalance %.3f, "
                          "ghosts/owned %.3f\n",
                  static_cast<long long>(model.global_molecules), static_cast<long long>(model.global_connections),
                  model.size, model.partition.edge_cut, model.partition.imbalance,
                  model.partition.surface_to_volume);
-  const Body shape = model.shape;
-  const TensionTest test = tension_test(scene, shape);
-  body = Body(), part = std::vector<int>();  // time stepping needs no global body
+  const TensionTest test = tension_test(scene, model.shape);
 
   // 4. Calibrate: a stiffness per connection from the material (one method per file, chosen by name), each body
   //    by its own method (Scene::calibrations); `refresh` re-sets the k of the bodies whose method follows the

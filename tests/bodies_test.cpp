@@ -44,7 +44,7 @@ std::vector<double> gather_positions(const RunResult& r) {
 // The body's elongation along z: mean z-displacement of its z+ face minus that of its z- face.
 double elongation(const RunResult& r, int b) {
   const auto x = gather_positions(r);
-  Body body = build_body(r.scene);
+  Body body = scene_shape(r.scene);
   const BoxGeometry& g = body.body(b);
   double sum[2] = {0, 0};
   long count[2] = {0, 0};

@@ -59,10 +59,7 @@ struct Built {
 std::unique_ptr<Built> build(const Scene& scene, MPI_Comm comm) {
   auto b = std::make_unique<Built>();
   b->scene = scene;
-  Body body = build_body(b->scene);
-  PartitionStats stats;
-  std::vector<int> part = partition_molecules(body, comm, stats);
-  b->model = distribute(body, part, stats, comm);
+  b->model = build_local_model(b->scene, comm);
   find_calibration(b->scene.calibration.method)->compute(CalibrationContext{b->scene, b->model}, b->model.stiffness);
   return b;
 }

@@ -33,11 +33,8 @@ inline std::unique_ptr<RunResult> run(const std::string& text, MPI_Comm comm, co
   auto r = std::make_unique<RunResult>();
   r->scene = parse_scene(text, "test.toml", set);
   r->scene.output.progress = false;
-  Body body = build_body(r->scene);
-  PartitionStats stats;
-  auto part = partition_molecules(body, comm, stats, r->scene.partition.method);
-  r->model = distribute(body, part, stats, comm);
-  r->test = tension_test(r->scene, body);
+  r->model = build_local_model(r->scene, comm);
+  r->test = tension_test(r->scene, r->model.shape);
   r->refresh = calibrate_scene(r->scene, r->model, r->model.stiffness);  // step 4 as main() does it
   r->forces = std::make_unique<ForceModel>(r->scene, r->model);
   r->state = std::make_unique<SolverState>(r->model);

@@ -127,7 +127,17 @@ struct Body : BoxGeometry {
   double face_area(std::int64_t id, int axis) const { return part(id).face_area(id, axis); }
 };
 
-// Builds the body a scene describes: geometry, topology, per-molecule material and mass.
+// Builds the whole body a scene describes, on the calling rank: geometry, every connection, per-molecule
+// material and mass. The explicit path (and the reference the lattice stencils are tested against).
 Body build_body(const Scene& scene);
+
+// The bodies' geometry only (parts, no per-molecule or per-connection array): what every rank keeps.
+Body scene_shape(const Scene& scene);
+
+// A molecule's material: its body's, or that of the last region holding it. `id` is the global id.
+struct MoleculeMaterial {
+  double youngs_modulus, density;  // Pa, kg/m^3
+};
+MoleculeMaterial molecule_material(const BodySpec& spec, const BoxGeometry& box, std::int64_t id);
 
 }  // namespace tissue

@@ -1,8 +1,10 @@
 #!/usr/bin/env python3
-"""The random topology's accuracy table (docs/random_topology.md, .csv): every calibration method on random
-clouds of three densities, pulled along x, y and z (anisotropy), E measured by Eq. 3 against the target.
+"""The explicit topologies' accuracy table (docs/random_topology.md, .csv): every calibration method on random
+clouds and on gmsh meshes of three densities each, pulled along x, y and z (anisotropy), E measured by Eq. 3
+against the target.
 
-A random cube of n^3 molecules (n = 6, 10, 16: 216, 1000, 4096), 1 m, E = 100 kPa, rollers on the fixed face,
+A random cube of n^3 molecules (n = 6, 10, 16: 216, 1000, 4096), and a gmsh cube (run_scripts/scenes/
+cube_mesh.geo, element sizes 0.25, 0.12, 0.07 m, meshed at run time), 1 m, E = 100 kPa, rollers on the fixed face,
 100 N on the opposite one (strain 1e-3), static solver, NP ranks. `iterative` fits C on each axis: its row gives
 the C found, whose spread across x, y, z is the cloud's anisotropy under the divided springs. `homogenized` is
 box-lattice only: the row records its refusal (exit 2). `manual` has no target modulus and is left out.
@@ -20,27 +22,42 @@ NP = int(sys.argv[1]) if len(sys.argv) > 1 else 2
 SEEDS = int(sys.argv[2]) if len(sys.argv) > 2 else 1
 METHODS = ["linear", "statistical", "angles", "angles-update", "tetrahedral", "lloyd", "iterative", "homogenized"]
 SIZES = [6, 10, 16]
+MESH_SIZES = [0.25, 0.12, 0.07]  # gmsh element sizes (m)
 AXES = {"x": ("x-", "x+", "[100.0, 0.0, 0.0]"), "y": ("y-", "y+", "[0.0, 100.0, 0.0]"),
         "z": ("z-", "z+", "[0.0, 0.0, 100.0]")}
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
 
 
-def run(method, n, axis, seed):
+def mesh_file(h):
+    """The gmsh cube at element size h, meshed once."""
+    path = os.path.join(ROOT, "out", "random_accuracy", f"cube_h{h}.msh")
+    if not os.path.exists(path):
+        os.makedirs(os.path.dirname(path), exist_ok=True)
+        subprocess.run(["gmsh", "-3", "-format", "msh41", "-setnumber", "h", str(h),
+                        os.path.join(ROOT, "run_scripts", "scenes", "cube_mesh.geo"), "-o", path],
+                       check=True, capture_output=True)
+    return path
+
+
+def run(method, n, axis, seed, topology="random"):
     fixed, loaded, force = AXES[axis]
-    out = os.path.join(ROOT, "out", "random_accuracy", f"{method}_{n}_{axis}_{seed}")
-    cmd = ["mpirun", "--oversubscribe", "-np", str(NP), os.path.join(ROOT, "build", "tissue"), "run",
-           os.path.join(ROOT, "run_scripts", "scenes", "random_cube.toml"), "--output", out,
-           "--set", f"body.molecules=[{n},{n},{n}]", "--set", f"body.seed={seed}",
-           "--set", f"calibration.method={method}", "--set", f"fix.0.face={fixed}",
-           "--set", f"load.0.face={loaded}", "--set", f"load.0.force={force}"]
+    out = os.path.join(ROOT, "out", "random_accuracy", f"{topology}_{method}_{n}_{axis}_{seed}")
+    cmd = ["mpirun", "--oversubscribe", "-np", str(NP), os.path.join(ROOT, "build", "tissue"), "run"]
+    if topology == "random":
+        cmd += [os.path.join(ROOT, "run_scripts", "scenes", "random_cube.toml"),
+                "--set", f"body.molecules=[{n},{n},{n}]", "--set", f"body.seed={seed}"]
+    else:
+        cmd += [os.path.join(ROOT, "run_scripts", "scenes", "mesh_cube.toml"), "--set", f"body.file={mesh_file(n)}"]
+    cmd += ["--output", out, "--set", f"calibration.method={method}", "--set", f"fix.0.face={fixed}",
+            "--set", f"load.0.face={loaded}", "--set", f"load.0.force={force}"]
     p = subprocess.run(cmd, capture_output=True, env=ENV, text=True)
-    row = {"method": method, "molecules": n ** 3, "seed": seed, "axis": axis, "exit": p.returncode}
+    row = {"topology": topology, "method": method, "size": n, "seed": seed, "axis": axis, "exit": p.returncode}
     if p.returncode != 0:
         row["note"] = (p.stderr.strip().splitlines() or [""])[0].split(": ", 2)[-1]
         return row
     with open(os.path.join(out, "summary.json")) as f:
         s = json.load(f)
-    row.update(connections=s["connections"], E=s["youngs_modulus_measured"], error_percent=s["error_percent"],
+    row.update(molecules=s["molecules"], connections=s["connections"], E=s["youngs_modulus_measured"], error_percent=s["error_percent"],
                divisor=s["calibration"].get("divisor"), iterations=s["solver"]["iterations"],
                wall_seconds=s["wall_seconds"])
     return row
@@ -48,18 +65,19 @@ def run(method, n, axis, seed):
 
 def main():
     rows = []
-    for n in SIZES:
-        for seed in range(1, SEEDS + 1):
-            for method in METHODS:
-                for axis in AXES:
-                    r = run(method, n, axis, seed)
-                    rows.append(r)
-                    print(f"{method:14s} n={n:3d} seed={seed} {axis}: " +
-                          (f"E error {r['error_percent']:+8.3f} %" if r["exit"] == 0 else f"exit {r['exit']}: {r.get('note')}"),
-                          flush=True)
-                    if method == "homogenized":
-                        break  # the same refusal on every axis
-    keys = ["method", "molecules", "seed", "axis", "exit", "connections", "E", "error_percent", "divisor",
+    cases = [("random", n, seed) for n in SIZES for seed in range(1, SEEDS + 1)] + \
+            [("mesh", h, 1) for h in MESH_SIZES]
+    for topology, n, seed in cases:
+        for method in METHODS:
+            for axis in AXES:
+                r = run(method, n, axis, seed, topology)
+                rows.append(r)
+                print(f"{topology} {method:14s} size={n} seed={seed} {axis}: " +
+                      (f"E error {r['error_percent']:+8.3f} %" if r["exit"] == 0 else f"exit {r['exit']}: {r.get('note')}"),
+                      flush=True)
+                if method == "homogenized":
+                    break  # the same refusal on every axis
+    keys = ["topology", "method", "size", "molecules", "seed", "axis", "exit", "connections", "E", "error_percent", "divisor",
             "iterations", "wall_seconds", "note"]
     with open(os.path.join(ROOT, "docs", "random_topology.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=keys)
@@ -67,30 +85,36 @@ def main():
         for r in rows:
             w.writerow({k: r.get(k, "") for k in keys})
 
-    lines = ["# Random topology: measured E per calibration method, density and axis", "",
+    lines = ["# Explicit topologies: measured E per calibration method, density and axis", "",
              f"Generated by `/usr/bin/python3 run_scripts/random_accuracy.py {NP} {SEEDS}` (scene "
              "`run_scripts/scenes/random_cube.toml`; raw rows in `docs/random_topology.csv`). A 1 m cube of n^3 "
              "molecules at random (seeded, boundary molecules on the faces, interior ones by dart throwing), "
              "joined by a Delaunay tetrahedralization (CGAL); E = 100 kPa, rollers, 100 N, static solver, "
              f"{NP} ranks. Error of Eq. 3's E against the target, in %, pulled along x, y and z; the spread "
              "(largest minus smallest of the three) is the anisotropy. For `iterative` the error is met by "
-             "construction: the row gives the divisor C it found on each axis.", "",
-             "| method | molecules | x | y | z | mean | spread |", "|---|---|---|---|---|---|---|"]
-    for method in METHODS:
-        for n in SIZES:
-            for seed in range(1, SEEDS + 1):
-                sel = {r["axis"]: r for r in rows if r["method"] == method and r["molecules"] == n ** 3 and r["seed"] == seed}
+             "construction: the row gives the divisor C it found on each axis. The `mesh` rows: the same cube "
+             "as gmsh tetrahedra (`run_scripts/scenes/cube_mesh.geo`, element sizes 0.25, 0.12, 0.07 m, faces "
+             "named x- .. z+), scene `run_scripts/scenes/mesh_cube.toml`.", "",
+             "| topology | method | molecules | x | y | z | mean | spread |", "|---|---|---|---|---|---|---|---|"]
+    for topology in ["random", "mesh"]:
+        for method in METHODS:
+            for topo, n, seed in [c for c in cases if c[0] == topology]:
+                sel = {r["axis"]: r for r in rows
+                       if r["topology"] == topo and r["method"] == method and r["size"] == n and r["seed"] == seed}
+                count = next((r["molecules"] for r in sel.values() if r.get("molecules")),
+                             n ** 3 if topo == "random" else "-")
                 if any(r["exit"] != 0 for r in sel.values()):
                     note = next(r.get("note", "") for r in sel.values() if r["exit"] != 0)
-                    lines.append(f"| {method} | {n ** 3} | refused (exit {next(iter(sel.values()))['exit']}): {note} | | | | |")
+                    code = next(iter(sel.values()))["exit"]
+                    lines.append(f"| {topo} | {method} | {count} | refused (exit {code}): {note} | | | | |")
                     continue
                 if method == "iterative":
                     c = [sel[a]["divisor"] for a in "xyz"]
-                    lines.append(f"| iterative (C) | {n ** 3} | {c[0]:.4f} | {c[1]:.4f} | {c[2]:.4f} | "
+                    lines.append(f"| {topo} | iterative (C) | {count} | {c[0]:.4f} | {c[1]:.4f} | {c[2]:.4f} | "
                                  f"{sum(c) / 3:.4f} | {max(c) - min(c):.4f} |")
                     continue
                 e = [sel[a]["error_percent"] for a in "xyz"]
-                lines.append(f"| {method} | {n ** 3} | {e[0]:+.2f} | {e[1]:+.2f} | {e[2]:+.2f} | "
+                lines.append(f"| {topo} | {method} | {count} | {e[0]:+.2f} | {e[1]:+.2f} | {e[2]:+.2f} | "
                              f"{sum(e) / 3:+.2f} | {max(e) - min(e):.2f} |")
     with open(os.path.join(ROOT, "docs", "random_topology.md"), "w") as f:
         f.write("\n".join(lines) + "\n")

@@ -393,13 +393,41 @@ void read_material(const Section& s, std::string& material, double& E, double& d
   s.positive("density", density);
 }
 
+// shape = "mesh": a Gmsh file, its physical volumes as regions (by name). The file is read with the body.
+BodySpec read_mesh_body(const Section& s, BodySpec b) {
+  s.allow({"shape", "file", "topology", "material", "youngs_modulus", "density", "offset", "region", "radius",
+           "calibration"});
+  s.require("file", "the Gmsh 4.1 mesh (.msh) of the body");
+  b.file = *s.string("file");
+  if (b.file.empty()) s.fail("file", "empty path");
+  namespace fs = std::filesystem;
+  if (fs::path(b.file).is_relative()) b.file = (fs::path(s.file()).parent_path() / b.file).lexically_normal().string();
+  std::error_code ec;
+  if (!fs::is_regular_file(b.file, ec)) s.fail("file", fmt::format("cannot open \"{}\": no such file", b.file));
+  b.topology = s.choice("topology", {"mesh"}).value_or("mesh");
+  read_material(s, b.material, b.youngs_modulus, b.density);
+  b.offset = s.vec3("offset").value_or(b.offset);
+  b.radius = s.number("radius");
+  if (b.radius) s.positive("radius", *b.radius);
+  for (const auto& r : s.tables("region")) {
+    r.allow({"name", "material", "youngs_modulus", "density"});
+    RegionSpec spec;
+    r.require("name", "the physical volume of the mesh (a mesh's regions are named, not boxes)");
+    spec.name = *r.string("name");
+    read_material(r, spec.material, spec.youngs_modulus, spec.density);
+    b.regions.push_back(spec);
+  }
+  return b;
+}
+
 BodySpec read_body(const Section& s) {
   BodySpec b;
   b.shape = s.string("shape").value_or("box");
-  if (b.shape == "mesh") s.fail("shape", "\"mesh\" is not supported yet (only \"box\")");
-  if (b.shape != "box") s.fail("shape", fmt::format("unknown value \"{}\" (one of: box, mesh)", b.shape));
+  if (b.shape != "box" && b.shape != "mesh")
+    s.fail("shape", fmt::format("unknown value \"{}\" (one of: box, mesh)", b.shape));
+  if (b.shape == "mesh") return read_mesh_body(s, b);
   s.allow({"shape", "molecules", "spacing", "size", "topology", "material", "youngs_modulus", "density", "offset",
-           "region", "radius", "calibration"});  // calibration: read by build_scene (read_calibration)
+           "region", "radius", "calibration", "seed"});  // calibration: read by build_scene (read_calibration)
 
   s.require("molecules", "3 integers, molecules along x, y, z");
   b.molecules = *s.int3("molecules");
@@ -424,7 +452,13 @@ BodySpec read_body(const Section& s) {
     s.fail("spacing", "missing (give spacing = [hx, hy, hz] or size = [Lx, Ly, Lz])");
   }
 
-  b.topology = s.choice("topology", topology_names()).value_or(b.topology);
+  std::vector<std::string> topologies = topology_names();
+  topologies.push_back("random");  // explicit: src/model/random_cloud.hpp
+  b.topology = s.choice("topology", topologies).value_or(b.topology);
+  if (s.has("seed") && b.topology != "random") s.fail("seed", "only topology = \"random\" has a seed");
+  b.seed = s.integer("seed").value_or(b.seed);
+  if (b.topology == "random" && !s.tables("region").empty())
+    s.fail("region", "a random box has no regions yet (give the body one material)");
   read_material(s, b.material, b.youngs_modulus, b.density);
   b.offset = s.vec3("offset").value_or(b.offset);
   b.radius = s.number("radius");
@@ -448,6 +482,7 @@ BodySpec read_body(const Section& s) {
 
 // The connection classes a topology uses, from a one-cell body (exact for any registered topology).
 std::set<std::string> classes_of(const std::string& topology) {
+  if (topology == "mesh" || topology == "random") return {"edge"};  // tetrahedron edges, one class
   Body cell;
   cell.n = {2, 2, 2};
   cell.h = {1.0, 1.0, 1.0};
@@ -503,7 +538,7 @@ CalibrationSpec read_calibration(const Section& s, const BodySpec* body, int ind
       body->topology != "body-diagonals")
     s.fail("method", "homogenized needs a box lattice topology (rectangular, face-diagonals or body-diagonals)" +
                          which);
-  if ((c.method == "tetrahedral" || c.method == "lloyd") && body->topology != "tetrahedral")
+  if ((c.method == "tetrahedral" || c.method == "lloyd") && body->topology != "tetrahedral" && !body->unstructured())
     s.fail("method", c.method + " needs topology = \"tetrahedral\" (it sums over the tetrahedra incident on each "
                                 "connection)" + which);
   return c;
@@ -578,7 +613,7 @@ Scene build_scene(const Value& root, const std::string& file) {
   Scene scene;
   scene.file = file;
   Section top(file, root, "");
-  top.allow({"title", "body", "calibration", "fix", "load", "physics", "obstacle", "solver", "output"});
+  top.allow({"title", "body", "calibration", "fix", "load", "physics", "obstacle", "solver", "output", "partition"});
   scene.title = top.string("title").value_or("");
   top.require("body", "a scene needs a [body] table (or [[body]] tables, one per body)");
   std::vector<Section> body_tables;
@@ -613,15 +648,24 @@ Scene build_scene(const Value& root, const std::string& file) {
     return b;
   };
 
+  // A face: x- .. z+ on a box, a physical surface's name on a mesh (checked against the file with the body).
+  auto face_of = [&](const Section& t) {
+    const int b = static_cast<int>(t.integer("body").value_or(0));
+    if (scene.bodies[b].shape != "mesh") return *t.choice("face", face_names);
+    auto name = t.string("face");
+    if (name->empty()) t.fail("face", "empty: give the name of a physical surface of the mesh");
+    return *name;
+  };
+
   // Fixes: at most one per face of a body.
   std::map<std::pair<int, std::string>, std::string> fixed;  // (body, face) -> which fix[i]
   for (const auto& f : top.tables("fix")) {
     f.allow({"face", "mode", "body"});
     FixSpec spec;
-    f.require("face", "one of " + join(face_names));
-    spec.face = *f.choice("face", face_names);
-    spec.mode = f.choice("mode", {"clamped", "roller"}).value_or(spec.mode);
     spec.body = which_body(f);
+    f.require("face", "one of " + join(face_names));
+    spec.face = face_of(f);
+    spec.mode = f.choice("mode", {"clamped", "roller"}).value_or(spec.mode);
     auto [it, added] = fixed.emplace(std::make_pair(spec.body, spec.face), f.path());
     if (!added) f.fail("face", fmt::format("face {} is already fixed by {}", spec.face, it->second));
     scene.fixes.push_back(spec);
@@ -629,9 +673,9 @@ Scene build_scene(const Value& root, const std::string& file) {
   for (const auto& l : top.tables("load")) {
     l.allow({"face", "force", "distribution", "body", "period"});
     LoadSpec spec;
-    l.require("face", "one of " + join(face_names));
-    spec.face = *l.choice("face", face_names);
     spec.body = which_body(l);
+    l.require("face", "one of " + join(face_names));
+    spec.face = face_of(l);
     if (fixed.count({spec.body, spec.face}))
       l.fail("face", fmt::format("face {} is also fixed (a fixed face cannot be loaded)", spec.face));
     l.require("force", "[Fx, Fy, Fz] in N, the total over the face");
@@ -670,6 +714,11 @@ Scene build_scene(const Value& root, const std::string& file) {
     if (scene.loads[i].period > 0 && scene.solver.kind != "dynamic")
       throw InputError(file, fmt::format("load[{}].period", i), "a cyclic load needs solver.kind = \"dynamic\"");
   if (top.has("output")) scene.output = read_output(top.table("output"));
+  if (top.has("partition")) {
+    Section p = top.table("partition");
+    p.allow({"method"});
+    scene.partition.method = p.choice("method", {"metis", "ptscotch"}).value_or(scene.partition.method);
+  }
   return scene;
 }
 
@@ -679,6 +728,13 @@ Scene parse_scene(const std::string& text, const std::string& name, const std::v
   Value root = parse_toml(text, name);
   for (const auto& o : overrides) apply_override(root, o);
   Scene scene = build_scene(root, name);
+  // A mesh path relative to the scene file would be read from the checkpoint's directory on restart: the text
+  // keeps the absolute path.
+  Value& body = root.as_table().at("body");
+  for (std::size_t i = 0; i < scene.bodies.size(); ++i)
+    if (scene.bodies[i].shape == "mesh")
+      (body.is_array() ? body.as_array()[i] : body).as_table()["file"] =
+          std::filesystem::absolute(scene.bodies[i].file).string();
   // 17 significant digits and no width limit: parse_scene(text) gives back the same Scene. toml11 splits a basic
   // string longer than the width with line-ending backslashes, which eat a space at the split (a title lost a
   // space on restart: tests/fuzz_regressions/scene/crash-toml11-long-string-split-space.toml).

@@ -23,6 +23,7 @@ using Vec3 = std::array<double, 3>;
 // own frame (before offset); a molecule belongs to the last region whose closed box holds it.
 struct RegionSpec {
   Vec3 lo{}, hi{};
+  std::string name;  // shape = "mesh": the physical volume (instead of lo, hi)
   std::string material = "custom";
   double youngs_modulus = 0.0;  // Pa
   double density = 0.0;         // kg/m^3
@@ -39,6 +40,11 @@ struct BodySpec {
   Vec3 offset{0.0, 0.0, 0.0};   // m, where molecule (0,0,0) sits
   std::vector<RegionSpec> regions;
   std::optional<double> radius;  // m, a molecule's contact sphere; absent = half the smallest spacing
+  // shape = "mesh": the Gmsh 4.1 file (relative paths from the scene file's directory); topology = "random":
+  // the seed of the cloud. Both are explicit topologies (src/model/unstructured.hpp), whose faces are named.
+  std::string file;
+  long seed = 1;
+  bool unstructured() const { return shape == "mesh" || topology == "random"; }
 };
 
 struct CalibrationSpec {
@@ -100,6 +106,10 @@ struct OutputSpec {
   bool progress = true;       // the progress line on rank 0
 };
 
+struct PartitionSpec {
+  std::string method = "metis";  // metis (rank 0 alone) | ptscotch (every rank, PETSc MatPartitioning)
+};
+
 struct Scene {
   std::string file;  // the path it was read from (for messages)
   std::string text;  // the TOML text after --set overrides (kept in checkpoints)
@@ -117,6 +127,7 @@ struct Scene {
   std::vector<ObstacleSpec> obstacles;
   SolverSpec solver;
   OutputSpec output;
+  PartitionSpec partition;
 };
 
 // Reads and validates a scene. `overrides` are --set "dotted.key=VALUE" strings (VALUE in TOML syntax, a bare

@@ -69,7 +69,7 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm) {
   // 1-2. This rank's block of the natural order, and the part (owning rank) of each of its molecules.
   const std::int64_t begin = NaturalOrder::block_begin(n, m.size, m.rank);
   const std::int64_t end = NaturalOrder::block_begin(n, m.size, m.rank + 1);
-  std::vector<int> part = partition_lattice(m.shape, comm, m.partition);
+  std::vector<int> part = partition_lattice(m.shape, comm, m.partition, scene.partition.method);
 
   // The global connection order is (a, b) with a < b: molecule g's connections to higher ids come right after
   // those of every lower id. A prefix sum of these forward counts over the blocks gives each molecule's first

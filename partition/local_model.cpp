@@ -18,6 +18,7 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
   MPI_Comm_size(comm, &m.size);
   static_cast<BoxGeometry&>(m.shape) = body;
   m.shape.parts = body.parts;
+  m.shape.faces = body.faces;  // explicit topologies' named faces (O(surface)); points stay global-only
   m.global_molecules = body.molecules();
   m.global_connections = static_cast<std::int64_t>(body.connections.size());
   m.partition = stats;
@@ -92,7 +93,7 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
     m.end_a[l] = local_of[con.a], m.end_b[l] = local_of[con.b];
     m.forward_rank[l] = static_cast<std::uint16_t>(mine[l] - first_forward[con.a]);
     m.connection_class[l] = con.cls;
-    m.rest_length[l] = body.part(con.a).rest_distance(con.a, con.b);
+    m.rest_length[l] = body.rest_distance(con.a, con.b);
     if (part[con.a] == m.rank) ++m.written_count;
     if (!body.tetrahedra.empty()) local_connection[con.a * n + con.b] = static_cast<int>(l);
   }
@@ -153,8 +154,27 @@ bool compact_connection_types(LocalModel& m) {
 }
 
 LocalModel build_local_model(const Scene& scene, MPI_Comm comm) {
-  // Every body is a box lattice today (the scene reader accepts no other shape).
-  return build_lattice_model(scene, comm);
+  // Explicit topologies (meshes, random clouds) come as lists: the explicit path. Box lattices from stencils.
+  const std::vector<BodySpec>& specs = scene.bodies;
+  const bool is_explicit = std::any_of(specs.begin(), specs.end(), [](const BodySpec& b) { return b.unstructured(); }) ||
+                           scene.body.unstructured();
+  LocalModel m;
+  if (is_explicit) {
+    Body body = build_body(scene);
+    PartitionStats stats;
+    std::vector<int> part = partition_molecules(body, comm, stats, scene.partition.method);
+    m = distribute(body, part, stats, comm);
+  } else {
+    m = build_lattice_model(scene, comm);
+  }
+  if (scene.partition.method == "ptscotch" && !is_explicit) {
+    // PT-Scotch's blocks cannot see their neighbours' parts: count the cut connections here, each once (by the
+    // rank writing it, which owns end a; it is cut when end b is a ghost).
+    long cut = 0;
+    for (int c : m.written_here()) cut += m.end_b[c] >= m.owned;
+    MPI_Allreduce(&cut, &m.partition.edge_cut, 1, MPI_LONG, MPI_SUM, comm);
+  }
+  return m;
 }
 
 }  // namespace tissue

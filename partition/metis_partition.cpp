@@ -10,6 +10,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "partition/ptscotch_partition.hpp"
+
 namespace tissue {
 
 namespace {
@@ -67,6 +69,32 @@ std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionS
   for (int p : part) ++count[p];
   stats.imbalance = static_cast<double>(*std::max_element(count.begin(), count.end())) * size / n;
   return part;
+}
+
+std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionStats& stats,
+                                     const std::string& method) {
+  return method == "ptscotch" ? partition_ptscotch(body, comm, stats) : partition_molecules(body, comm, stats);
+}
+
+std::vector<int> partition_lattice(const Body& shape, MPI_Comm comm, PartitionStats& stats, const std::string& method) {
+  if (method == "ptscotch") {  // each rank hands over its block's rows, from the stencils: nobody builds the graph
+    int rank, size;
+    MPI_Comm_rank(comm, &rank);
+    MPI_Comm_size(comm, &size);
+    const std::int64_t n = shape.molecules();
+    std::vector<const TopologyStyle*> style;
+    for (int b = 0; b < shape.bodies(); ++b) style.push_back(find_topology(shape.body(b).topology));
+    std::vector<Neighbour> nb;
+    return ptscotch_block(
+        NaturalOrder::block_begin(n, size, rank), NaturalOrder::block_begin(n, size, rank + 1), n,
+        [&](std::int64_t g, std::vector<std::int64_t>& out) {
+          const int b = shape.body_of(g);
+          lattice_neighbours(*style[b], shape.body(b), g, nb);
+          for (const auto& x : nb) out.push_back(x.id);
+        },
+        comm, stats);  // the edge cut: counted by build_local_model from the connections
+  }
+  return partition_lattice(shape, comm, stats);
 }
 
 std::vector<int> partition_lattice(const Body& shape, MPI_Comm comm, PartitionStats& stats) {

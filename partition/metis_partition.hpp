@@ -3,6 +3,7 @@
 #pragma once
 #include <mpi.h>
 
+#include <string>
 #include <vector>
 
 #include "src/model/body.hpp"
@@ -17,10 +18,15 @@ struct PartitionStats {
 
 // part[m] = the rank that owns molecule m. One part is handled without METIS (METIS 5.1 crashes on it).
 std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionStats& stats);
+// The scene's partition.method: "metis" (above) or "ptscotch" (partition/ptscotch_partition.hpp).
+std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionStats& stats, const std::string& method);
 
 // The same for box lattices whose connections come from the topology stencils: rank 0 builds the graph from the
 // stencils (the only place it exists). Returns the parts of this rank's block of the natural order
 // (NaturalOrder::block_begin): no rank holds the whole partition.
 std::vector<int> partition_lattice(const Body& shape, MPI_Comm comm, PartitionStats& stats);
+// The same by partition.method: "metis" (above) or "ptscotch" (every rank its block's rows; the edge cut is left
+// 0 for the caller to count).
+std::vector<int> partition_lattice(const Body& shape, MPI_Comm comm, PartitionStats& stats, const std::string& method);
 
 }  // namespace tissue

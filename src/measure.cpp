@@ -12,6 +12,9 @@ Measurements measure(const Scene& scene, const LocalModel& model, const TensionT
   // [9..16] lateral faces (u-, u+, v-, v+: sum of displacement along the axis, count).
   std::array<double, 17> sum{};
   const int u = (test.axis + 1) % 3, w = (test.axis + 2) % 3;
+  // Explicit topologies: the test's named faces (no Poisson ratio: their lateral faces have no lattice planes).
+  const NamedFace* load_face = test.load_face.empty() ? nullptr : s.named_face(test.body, test.load_face);
+  const NamedFace* fixed_face = test.fixed_face.empty() ? nullptr : s.named_face(test.body, test.fixed_face);
   for (int i = 0; i < model.owned; ++i) {
     const std::int64_t g = model.id[i];
     const double* xi = x + 3 * i;
@@ -23,6 +26,11 @@ Measurements measure(const Scene& scene, const LocalModel& model, const TensionT
     if (!test.valid || model.body[i] != test.body) continue;
     double along = 0;
     for (int d = 0; d < 3; ++d) along += (xi[d] - x0[d]) * test.direction[d];
+    if (load_face || fixed_face) {
+      if (load_face && load_face->contains(g)) sum[5] += along, sum[6] += 1;
+      if (fixed_face && fixed_face->contains(g)) sum[7] += along, sum[8] += 1;
+      continue;
+    }
     if (s.on_face(g, test.axis, test.load_side)) sum[5] += along, sum[6] += 1;
     if (s.on_face(g, test.axis, test.fixed_side)) sum[7] += along, sum[8] += 1;
     const int lateral[2] = {u, w};
@@ -48,11 +56,11 @@ Measurements measure(const Scene& scene, const LocalModel& model, const TensionT
     bool free = true;
     auto touches = [&](const std::string& face) {
       int a, side;
-      parse_face(face, a, side);
-      return a != test.axis;
+      return !parse_face(face, a, side) || a != test.axis;
     };
     for (const auto& f : scene.fixes) free = free && !touches(f.face);
     for (const auto& l : scene.loads) free = free && !touches(l.face);
+    free = free && test.load_face.empty();
     if (free && dl != 0.0 && std::fabs(test.direction[test.axis]) > 0.5) {  // not for a shear load
       // Axial strain from the change of length (negative in compression), not from the displacement along the
       // load: a compressive load moves the loaded face toward the fixed one.

@@ -396,7 +396,9 @@ TEST(Scene, MalformedInputs) {
       {"bogus = 1\n" + base, "bogus"},
       {"body = 5\n", "body"},
       // body
-      {"[body]\nshape = \"mesh\"\n", "body.shape"},
+      {"[body]\nshape = \"mesh\"\n", "body.file"},
+      {"[body]\nshape = \"mesh\"\nfile = \"no_such.msh\"\n", "body.file"},
+      {body_head + "youngs_modulus = 1\nseed = 3\n" + fix, "body.seed"},
       {"[body]\nshape = \"ball\"\n", "body.shape"},
       {body_head + "youngs_modulus = 1\ncolour = \"red\"\n" + fix, "body.colour"},
       {"[body]\nspacing = [1,1,1]\nyoungs_modulus = 1\n" + fix, "body.molecules"},

@@ -75,7 +75,7 @@ LocalModel body_view(const LocalModel& m, int b, std::vector<int>& which) {
     if (!m.tetra_lloyd_sum.empty()) v.tetra_lloyd_sum.push_back(m.tetra_lloyd_sum[c]);
   }
   // Only a body with tetrahedra has them: another body's view has none (the tetrahedral methods check this).
-  if (v.shape.topology != "tetrahedral") v.tetra_volume.clear(), v.tetra_lloyd_sum.clear();
+  if (v.shape.topology != "tetrahedral" && !v.shape.unstructured()) v.tetra_volume.clear(), v.tetra_lloyd_sum.clear();
   for (int c : m.written_here())
     if (index_in_view[c] >= 0) ++v.written_count;
   return v;

@@ -58,6 +58,8 @@ std::vector<std::string> calibration_method_names();
 // Eq. 4 for one connection, k = E A / l0, with A and l0 the part of the body the connection stands for
 // (see linear.cpp); the divided and iterative methods scale it.
 double linear_stiffness(const LocalModel& model, int connection);
+// The same on an explicit topology (mesh, random): A l0 = half the volume of the tetrahedra around the connection.
+double linear_stiffness_tetrahedral(const LocalModel& model, int connection);
 
 // The statistical method's estimated number of directions D among a molecule's N connections (statistical.cpp
 // documents the reading of the paper's boundary cases N = 8, 12, 20).

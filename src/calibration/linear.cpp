@@ -13,6 +13,7 @@ namespace tissue {
 
 double linear_stiffness(const LocalModel& m, int c) {
   const BoxGeometry& s = m.shape.part(m.id[m.end_a[c]]);  // the body the connection lies in
+  if (s.unstructured()) return linear_stiffness_tetrahedral(m, c);  // linear_tetrahedral.cpp
   auto ia = s.index(m.id[m.end_a[c]]), ib = s.index(m.id[m.end_b[c]]);
   int differ[3], nd = 0;
   for (int d = 0; d < 3; ++d)

@@ -11,10 +11,10 @@
 namespace tissue {
 
 void require_tetrahedra(const CalibrationContext& ctx, const char* method) {
-  if (ctx.model.shape.topology != "tetrahedral" ||
+  if ((ctx.model.shape.topology != "tetrahedral" && !ctx.model.shape.unstructured()) ||
       ctx.model.tetra_volume.size() != static_cast<std::size_t>(ctx.model.connections()))
     throw InputError(ctx.scene.file, "calibration.method",
-                     std::string(method) + " needs topology = \"tetrahedral\" (it sums over the tetrahedra incident "
+                     std::string(method) + " needs tetrahedra (topology tetrahedral or random, or a mesh; it sums over the tetrahedra incident "
                                            "on each connection), not \"" + ctx.model.shape.topology + "\"");
 }
 

@@ -3,8 +3,11 @@
 #include <algorithm>
 #include <initializer_list>
 
+#include "io/gmsh_mesh.hpp"
 #include "src/model/material.hpp"
+#include "src/model/random_cloud.hpp"
 #include "src/model/topology.hpp"
+#include "src/model/unstructured.hpp"
 
 namespace tissue {
 
@@ -15,6 +18,11 @@ const char* class_name(ConnectionClass c) {
     case ConnectionClass::body: return "body";
   }
   return "?";
+}
+
+std::ptrdiff_t NamedFace::find(std::int64_t id) const {
+  auto it = std::lower_bound(molecules.begin(), molecules.end(), id);
+  return it != molecules.end() && *it == id ? it - molecules.begin() : -1;
 }
 
 namespace {
@@ -56,6 +64,14 @@ Body build_one(const BodySpec& spec, std::int64_t first) {
   return b;
 }
 
+// Explicit topologies (a mesh file, a random cloud) go through a tetrahedral mesh; boxes through their stencil.
+Body build_any(const Scene& scene, const BodySpec& spec, std::size_t index, std::size_t count, std::int64_t first) {
+  const std::string key = count > 1 ? "body[" + std::to_string(index) + "]" : "body";
+  if (spec.shape == "mesh") return build_unstructured(spec, read_gmsh(spec.file), first, scene.file, key);
+  if (spec.topology == "random") return build_unstructured(spec, random_cloud(spec), first, scene.file, key);
+  return build_one(spec, first);
+}
+
 std::vector<BodySpec> specs_of(const Scene& scene) {
   return scene.bodies.empty() ? std::vector<BodySpec>{scene.body} : scene.bodies;
 }
@@ -93,17 +109,25 @@ Body scene_shape(const Scene& scene) {
 
 Body build_body(const Scene& scene) {
   const std::vector<BodySpec> specs = specs_of(scene);
-  Body all = build_one(specs[0], 0);
+  Body all = build_any(scene, specs[0], 0, specs.size(), 0);
   all.parts.push_back(all);
   all.parts.back().first = 0;
   for (std::size_t i = 1; i < specs.size(); ++i) {
-    Body b = build_one(specs[i], all.molecules());
+    Body b = build_any(scene, specs[i], i, specs.size(), all.molecules());
     all.parts.push_back(static_cast<const BoxGeometry&>(b));
     all.connections.insert(all.connections.end(), b.connections.begin(), b.connections.end());
     all.tetrahedra.insert(all.tetrahedra.end(), b.tetrahedra.begin(), b.tetrahedra.end());
     all.youngs_modulus.insert(all.youngs_modulus.end(), b.youngs_modulus.begin(), b.youngs_modulus.end());
     all.mass.insert(all.mass.end(), b.mass.begin(), b.mass.end());
+    if (!all.points.empty() || !b.points.empty()) {  // explicit positions for all once one body has them
+      for (std::int64_t m = static_cast<std::int64_t>(all.points.size()); m < b.first; ++m)
+        all.points.push_back(all.part(m).rest_position(m));
+      for (std::int64_t m = b.first; m < b.first + b.molecules(); ++m)
+        all.points.push_back(b.points.empty() ? b.rest_position(m) : b.points[m - b.first]);
+    }
+    for (auto& f : b.faces) f.body = static_cast<int>(i), all.faces.push_back(f);
   }
+  check_face_names(scene, all);
   return all;
 }
 

@@ -31,8 +31,13 @@ struct BoxGeometry {
   std::string topology;
   std::int64_t first = 0;   // global id of molecule (0,0,0): bodies are numbered one after another
   double radius = 0.0;      // m, each molecule's contact sphere
+  // Explicit topologies (shape = "mesh", topology = "random"; src/model/unstructured.hpp): `count` molecules with
+  // their rest positions in Body::points and their faces in Body::faces; n, h are then only a nominal size.
+  std::int64_t count = 0;
+  double total_volume = 0.0;  // m^3, explicit topologies: the sum of the tetrahedra
+  bool unstructured() const { return count > 0; }
 
-  std::int64_t molecules() const { return static_cast<std::int64_t>(n[0]) * n[1] * n[2]; }
+  std::int64_t molecules() const { return count > 0 ? count : static_cast<std::int64_t>(n[0]) * n[1] * n[2]; }
   std::int64_t id(long i, long j, long k) const {
     return first + i + n[0] * (j + static_cast<std::int64_t>(n[1]) * k);
   }
@@ -76,6 +81,25 @@ struct BoxGeometry {
   double length(int axis) const { return (n[axis] - 1) * h[axis]; }  // the body's extent along an axis
 };
 
+// A named face of an explicit topology (a mesh's physical surface, or x-..z+ of a random box): the molecules on
+// it and the area each stands for (a third of each surface triangle it is a corner of).
+struct NamedFace {
+  int body = 0;
+  std::string name;
+  std::vector<std::int64_t> molecules;  // global ids, sorted
+  std::vector<double> area;             // m^2, per molecule
+  double total_area = 0.0;
+  Vec3 centroid{};                      // area-weighted centroid of the triangles
+  int axis = -1;  // the axis the face is normal to, when it is a plane normal to an axis (rollers need one)
+  // Roller holds beyond the normal component: both in-plane components of `anchor`, and component
+  // `anchor2_component` of `anchor2` (stops the rotation about the normal); -1 when not a plane.
+  std::int64_t anchor = -1, anchor2 = -1;
+  int anchor2_component = -1;
+
+  std::ptrdiff_t find(std::int64_t id) const;  // index in molecules, or -1
+  bool contains(std::int64_t id) const { return find(id) >= 0; }
+};
+
 // All the bodies of a scene in one global numbering (body 0's molecules, then body 1's, ...). The inherited
 // geometry is body 0's, so single-body code reads it as before; the per-molecule queries below look up the body
 // that holds the molecule. A Body built by hand with no parts is one body.
@@ -85,6 +109,10 @@ struct Body : BoxGeometry {
   std::vector<Tetrahedron> tetrahedra;  // filled by the tetrahedral topology only (Van Gelder's Eq. 5)
   std::vector<double> youngs_modulus;   // per molecule, Pa
   std::vector<double> mass;             // per molecule, kg
+  // Explicit topologies: rest positions of every molecule (global ids; box bodies' entries filled too), empty
+  // when all bodies are boxes. Not copied into LocalModel::shape (O(N)); `faces` are (O(surface)).
+  std::vector<Vec3> points;
+  std::vector<NamedFace> faces;
 
   int bodies() const { return parts.empty() ? 1 : static_cast<int>(parts.size()); }
   std::int64_t molecules() const {
@@ -98,7 +126,23 @@ struct Body : BoxGeometry {
   const BoxGeometry& part(std::int64_t id) const { return parts.size() <= 1 ? *this : parts[body_of(id)]; }
   const BoxGeometry& body(int b) const { return parts.empty() ? *this : parts[b]; }
   std::array<long, 3> index(std::int64_t id) const { return part(id).index(id); }
-  Vec3 rest_position(std::int64_t id) const { return part(id).rest_position(id); }
+  Vec3 rest_position(std::int64_t id) const {
+    return points.empty() ? part(id).rest_position(id) : points[static_cast<std::size_t>(id)];
+  }
+  // The rest length of a connection: from the lattice offset in a box (BoxGeometry::rest_distance), from the
+  // positions in an explicit topology.
+  double rest_distance(std::int64_t a, std::int64_t b) const {
+    if (points.empty()) return part(a).rest_distance(a, b);
+    const Vec3 &p = points[static_cast<std::size_t>(a)], &q = points[static_cast<std::size_t>(b)];
+    return std::sqrt((q[0] - p[0]) * (q[0] - p[0]) + (q[1] - p[1]) * (q[1] - p[1]) + (q[2] - p[2]) * (q[2] - p[2]));
+  }
+
+  // The face `name` of body b of an explicit topology, or nullptr.
+  const NamedFace* named_face(int b, const std::string& name) const {
+    for (const auto& f : faces)
+      if (f.body == b && f.name == name) return &f;
+    return nullptr;
+  }
   double volume(std::int64_t id) const { return part(id).volume(id); }
   bool on_face(std::int64_t id, int axis, int side) const { return part(id).on_face(id, axis, side); }
   double face_area(std::int64_t id, int axis) const { return part(id).face_area(id, axis); }

@@ -4,12 +4,18 @@
 #include <cmath>
 #include <string>
 
+#include "src/physics/named_faces.hpp"
+
 namespace tissue {
 
 TensionTest tension_test(const Scene& scene, const Body& shape) {
   TensionTest t;
   if (scene.loads.size() != 1) return t;
   if (scene.loads[0].period > 0) return t;  // a cyclic load measures no modulus
+  if (shape.body(scene.loads[0].body).unstructured()) {  // named faces: src/physics/named_faces.cpp
+    named_tension_test(scene, shape, t);
+    return t;
+  }
   int axis, side;
   parse_face(scene.loads[0].face, axis, side);
   t.body = scene.loads[0].body;
@@ -35,6 +41,10 @@ namespace {
 void hold(const Body& all, const FixSpec& fix, std::int64_t g, std::uint8_t* held) {
   if (all.body_of(g) != fix.body) return;
   const BoxGeometry& s = all.body(fix.body);
+  if (s.unstructured()) {
+    if (const NamedFace* face = all.named_face(fix.body, fix.face)) hold_named(*face, fix, g, held);
+    return;
+  }
   int axis, side;
   parse_face(fix.face, axis, side);
   if (!s.on_face(g, axis, side)) return;
@@ -56,6 +66,10 @@ void hold(const Body& all, const FixSpec& fix, std::int64_t g, std::uint8_t* hel
 
 void add_face_load(const LoadSpec& load, const LocalModel& model, double* out) {
   const BoxGeometry& s = model.shape.body(load.body);
+  if (s.unstructured()) {
+    if (const NamedFace* face = model.shape.named_face(load.body, load.face)) add_named_face_load(load, *face, model, out);
+    return;
+  }
   int axis, side;
   parse_face(load.face, axis, side);
   int u = (axis + 1) % 3, v = (axis + 2) % 3;

@@ -24,6 +24,7 @@ struct TensionTest {
   Vec3 direction{0, 0, -1};  // unit vector of the load
   double force = 0.0;        // N, total
   double rest_length = 0.0, cross_section = 0.0;
+  std::string load_face, fixed_face;  // explicit topologies (named faces): the two faces Eq. 3 reads
 };
 TensionTest tension_test(const Scene& scene, const Body& shape);
 

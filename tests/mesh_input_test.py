@@ -1,0 +1,97 @@
+#!/usr/bin/env python3
+"""Bad meshes fail cleanly: `tissue run` on a mesh scene whose mesh is missing, holds a non-tetrahedral
+element, an inverted or flat tetrahedron, another format version or the binary form, is cut short, or lacks the
+physical group a fix, load or region names, exits with code 2 and exactly one line on stderr naming the file
+and the problem, and writes nothing. A hand-made one-tetrahedron mesh is the valid reference (it must run)."""
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bad_input_test import Runner  # noqa: E402  the same one-line, exit-2, nothing-written checks
+
+NODES = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)]
+
+
+def msh(elements, nodes=NODES, version="4.1 0 8", volume_type=4):
+    """A Gmsh 4.1 ASCII mesh: one volume entity (physical "body") holding `elements` (node-tag tuples) of
+    `volume_type`, and two surface entities, physical "bottom" (z = 0) and "slope"."""
+    lines = ["$MeshFormat", version, "$EndMeshFormat",
+             "$PhysicalNames", "3", '2 2 "bottom"', '2 3 "slope"', '3 1 "body"', "$EndPhysicalNames",
+             "$Entities", "0 0 2 1",
+             "1 0 0 0 1 1 0 1 2 0", "2 0 0 0 1 1 1 1 3 0", "1 0 0 0 1 1 1 1 1 0", "$EndEntities",
+             "$Nodes", f"1 {len(nodes)} 1 {len(nodes)}", f"3 1 0 {len(nodes)}"]
+    lines += [str(i + 1) for i in range(len(nodes))]
+    lines += [" ".join(str(c) for c in x) for x in nodes]
+    lines += ["$EndNodes", "$Elements", f"3 {len(elements) + 2} 1 {len(elements) + 2}",
+              "2 1 2 1", "1 1 3 2", "2 2 2 1", "2 2 3 4", f"3 1 {volume_type} {len(elements)}"]
+    lines += [" ".join(str(v) for v in (i + 3, *e)) for i, e in enumerate(elements)]
+    lines += ["$EndElements"]
+    return "\n".join(lines) + "\n"
+
+
+def scene(mesh_name, face="slope", region=None):
+    text = f'[body]\nshape = "mesh"\nfile = "{mesh_name}"\nyoungs_modulus = 1.0e5\n'
+    if region:
+        text += f'[[body.region]]\nname = "{region}"\nyoungs_modulus = 2.0e5\n'
+    text += '[calibration]\nmethod = "tetrahedral"\n[[fix]]\nface = "bottom"\n'
+    text += f'[[load]]\nface = "{face}"\nforce = [0.0, 0.0, 1.0]\n'
+    return text
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--build", required=True)
+    parser.add_argument("--source", required=True)
+    args = parser.parse_args()
+    tissue = (Path(args.build) / "tissue").resolve()
+    runner = Runner(tissue, [])
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        # The reference: the valid one-tetrahedron mesh runs (exit 0).
+        (tmp / "good.msh").write_text(msh([(1, 2, 3, 4)]))
+        (tmp / "good.toml").write_text(scene("good.msh"))
+        env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+        p = subprocess.run([str(tissue), "run", str(tmp / "good.toml"), "--output", str(tmp / "good_out")],
+                           capture_output=True, env=env)
+        if p.returncode != 0:
+            print(f"FAIL the valid one-tetrahedron mesh did not run: {p.stderr.decode()}")
+            return 1
+        print("ok   valid one-tetrahedron mesh runs")
+
+        hex_nodes = NODES + [(1, 1, 0), (1, 0, 1), (0, 1, 1), (1, 1, 1)]
+        cases = [  # (label, mesh file name, its text or None for missing, scene kwargs, texts the message needs)
+            ("missing mesh", "absent.msh", None, {}, ["body.file", "absent.msh"]),
+            ("hexahedron", "hex.msh", msh([(1, 2, 5, 3, 4, 6, 8, 7)], nodes=hex_nodes, volume_type=5), {},
+             ["hex.msh", "hexahedron"]),
+            ("10-node tetrahedron", "tet10.msh", msh([(1, 2, 3, 4, 1, 2, 3, 4, 1, 2)], volume_type=11), {},
+             ["tet10.msh", "10-node tetrahedron"]),
+            ("inverted tetrahedron", "inverted.msh", msh([(1, 3, 2, 4)]), {}, ["inverted.msh", "inverted"]),
+            ("flat tetrahedron", "flat.msh", msh([(1, 2, 3, 4)], nodes=NODES[:3] + [(1, 1, 0)]), {},
+             ["flat.msh", "flat"]),
+            ("version 2.2", "old.msh", msh([(1, 2, 3, 4)], version="2.2 0 8"), {}, ["old.msh", "2.2"]),
+            ("binary", "binary.msh", msh([(1, 2, 3, 4)], version="4.1 1 8"), {}, ["binary.msh", "binary"]),
+            ("cut short", "short.msh", msh([(1, 2, 3, 4)])[:-40], {}, ["short.msh", "line"]),
+            ("unknown node", "node.msh", msh([(1, 2, 3, 9)]), {}, ["node.msh", "node 9"]),
+            ("not a mesh", "text.msh", "hello\n", {}, ["text.msh", "MeshFormat"]),
+            ("unknown face", "good.msh", "", {"face": "lid"}, ["load[0].face", "lid", "good.msh"]),
+            ("unknown region", "good.msh", "", {"region": "cortex"}, ["body.region[0].name", "cortex", "good.msh"]),
+        ]
+        for label, name, text, kw, expects in cases:
+            if text:
+                (tmp / name).write_text(text)
+            s = tmp / f"{label.replace(' ', '_')}.toml"
+            s.write_text(scene(name, **kw))
+            with tempfile.TemporaryDirectory() as work:
+                runner.check(label, s, expects, workdir=work)
+    for f in runner.failed:
+        print(f"FAIL {f}")
+    print(f"{runner.passed} passed, {len(runner.failed)} failed")
+    return 1 if runner.failed or runner.passed != len(cases) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,199 @@
+// Explicit topologies end to end (shape = "mesh", topology = "random"), in process at 1, 2 and 3 ranks: the same
+// answer as one rank (MPI_COMM_SELF, computed on every rank as the reference) to 1e-10; mass, volume and face
+// areas against the closed forms of the slab the mesh fills; loads balanced by the reactions.
+#include <gtest/gtest.h>
+#include <petscsys.h>
+
+#include <cmath>
+
+#include "tests/pipeline.hpp"
+
+using namespace tissue;
+using tissue::test_pipeline::run;
+
+namespace {
+
+// tests/meshes/two_layers.geo: 1 x 1 x 0.5 m, "deep" below z = 0.25, "surface" above.
+const std::string mesh_scene = std::string(R"(
+title = "two-layer slab"
+[body]
+shape = "mesh"
+file = ")") + TISSUE_SOURCE_DIR + R"(/tests/meshes/two_layers.msh"
+youngs_modulus = 1.0e5
+density = 1000.0
+[[body.region]]
+name = "surface"
+youngs_modulus = 3.0e5
+density = 1500.0
+[calibration]
+method = "tetrahedral"
+[[fix]]
+face = "bottom"
+mode = "roller"
+[[load]]
+face = "top"
+force = [0.0, 0.0, 20.0]
+)";
+
+const char* random_scene = R"(
+title = "random box"
+[body]
+molecules = [6, 5, 5]
+size = [1.0, 0.8, 0.8]
+topology = "random"
+seed = 7
+youngs_modulus = 1.0e5
+density = 1000.0
+[calibration]
+method = "tetrahedral"
+[[fix]]
+face = "x-"
+mode = "roller"
+[[load]]
+face = "x+"
+force = [10.0, 0.0, 0.0]
+)";
+
+// A box lattice (built rank by rank from its stencil) partitioned by PT-Scotch.
+const char* lattice_scene = R"(
+title = "box lattice, PT-Scotch"
+[body]
+molecules = [5, 4, 6]
+spacing = [0.1, 0.12, 0.09]
+topology = "face-diagonals"
+youngs_modulus = 1.0e5
+[[fix]]
+face = "z+"
+[[load]]
+face = "z-"
+force = [0.0, 0.0, -20.0]
+[partition]
+method = "ptscotch"
+)";
+
+double global_sum(double x) {
+  double s = 0;
+  MPI_Allreduce(&x, &s, 1, MPI_DOUBLE, MPI_SUM, PETSC_COMM_WORLD);
+  return s;
+}
+
+// Parallel and one-rank runs of a scene: positions to 1e-10, E to 1e-9.
+void same_on_any_rank_count(const std::string& scene, const std::string& kind, const std::string& method = "metis") {
+  std::vector<std::string> set = {"solver.kind=" + kind, "partition.method=" + method,
+                                  kind == "static" ? "solver.tolerance=1e-12" : "solver.tolerance=1e-11"};
+  auto parallel = run(scene, PETSC_COMM_WORLD, set);
+  auto serial = run(scene, MPI_COMM_SELF, set);
+  ASSERT_TRUE(parallel->report.converged && serial->report.converged) << kind;
+  const double* xp = parallel->state->x.array();
+  const double* xs = serial->state->x.array();  // one rank: local index == original id
+  double worst = 0;
+  for (int i = 0; i < parallel->model.owned; ++i) {
+    const std::int64_t g = parallel->model.id[i];
+    for (int d = 0; d < 3; ++d) worst = std::max(worst, std::fabs(xp[3 * i + d] - xs[3 * g + d]));
+  }
+  double all = 0;
+  MPI_Allreduce(&worst, &all, 1, MPI_DOUBLE, MPI_MAX, PETSC_COMM_WORLD);
+  EXPECT_LT(all, 1e-10) << kind;
+  ASSERT_TRUE(parallel->measured.youngs_modulus && serial->measured.youngs_modulus);
+  EXPECT_NEAR(*parallel->measured.youngs_modulus, *serial->measured.youngs_modulus,
+              1e-9 * *serial->measured.youngs_modulus);
+}
+
+TEST(Mesh, SameAnswerOnAnyRankCount) {
+  same_on_any_rank_count(mesh_scene, "static");
+  same_on_any_rank_count(mesh_scene, "relaxation");
+  same_on_any_rank_count(mesh_scene, "static", "ptscotch");  // PT-Scotch through PETSc's MatPartitioning
+}
+
+// PT-Scotch gives every rank molecules, and the edge cut it reports is the count of connections between ranks.
+TEST(Mesh, PtscotchPartitionQuality) {
+  auto r = run(mesh_scene, PETSC_COMM_WORLD, {"partition.method=ptscotch"}, /*do_solve=*/false);
+  EXPECT_GT(r->model.owned, 0);
+  long cut = 0;  // connections this rank holds whose ends are owned on different ranks, each counted by end a
+  for (int c : r->model.written_here()) cut += r->model.end_b[c] >= r->model.owned;
+  long total = 0;
+  MPI_Allreduce(&cut, &total, 1, MPI_LONG, MPI_SUM, PETSC_COMM_WORLD);
+  EXPECT_EQ(total, r->model.partition.edge_cut);
+  EXPECT_LT(r->model.partition.imbalance, 1.2);
+}
+
+TEST(Lattice, PtscotchSameAnswerOnAnyRankCount) {
+  same_on_any_rank_count(lattice_scene, "static", "ptscotch");
+  auto r = run(lattice_scene, PETSC_COMM_WORLD, {}, /*do_solve=*/false);
+  long cut = 0;  // the edge cut build_local_model counts for PT-Scotch on the lattice path: check it independently
+  for (int c = 0; c < r->model.connections(); ++c)
+    if (r->model.end_a[c] < r->model.owned && r->model.end_b[c] >= r->model.owned) ++cut;
+  long total = 0;
+  MPI_Allreduce(&cut, &total, 1, MPI_LONG, MPI_SUM, PETSC_COMM_WORLD);
+  EXPECT_EQ(total, r->model.partition.edge_cut);
+}
+
+TEST(Random, SameAnswerOnAnyRankCount) { same_on_any_rank_count(random_scene, "static"); }
+
+// The slab's closed forms: volume 0.5 m^3, mass 0.25 (1000 + 1500) kg, Eq. 3's l0 = 0.5 m and A = 1 m^2, the
+// top's area 1 m^2 (a quarter of each tetrahedron per molecule and a third of each triangle cover them exactly).
+TEST(Mesh, GeometryAgainstClosedForms) {
+  auto r = run(mesh_scene, PETSC_COMM_WORLD, {}, /*do_solve=*/false);
+  double m = 0;
+  for (int i = 0; i < r->model.owned; ++i) m += r->model.mass[i];
+  EXPECT_NEAR(global_sum(m), 0.25 * 1000.0 + 0.25 * 1500.0, 1e-10);
+  EXPECT_NEAR(r->model.shape.total_volume, 0.5, 1e-12);
+  ASSERT_TRUE(r->test.valid);
+  EXPECT_NEAR(r->test.rest_length, 0.5, 1e-12);
+  EXPECT_NEAR(r->test.cross_section, 1.0, 1e-12);
+  const NamedFace* top = r->model.shape.named_face(0, "top");
+  ASSERT_NE(top, nullptr);
+  EXPECT_NEAR(top->total_area, 1.0, 1e-12);
+  EXPECT_EQ(top->axis, 2);
+  // Moduli: molecules strictly above the interface are "surface" (3e5), strictly below "deep" (1e5).
+  for (int i = 0; i < r->model.local; ++i) {
+    const double z = r->model.rest[3 * i + 2];
+    if (z > 0.25 + 1e-9) EXPECT_EQ(r->model.youngs_modulus[i], 3.0e5);
+    if (z < 0.25 - 1e-9) EXPECT_EQ(r->model.youngs_modulus[i], 1.0e5);
+  }
+}
+
+// The applied loads sum to the scene's force, and at equilibrium the springs pass all of it to the held
+// components: their connection forces sum to the load (the support's reaction is minus that).
+TEST(Mesh, ReactionsBalanceTheLoad) {
+  auto r = run(mesh_scene, PETSC_COMM_WORLD, {"solver.tolerance=1e-12"});
+  ASSERT_TRUE(r->report.converged);
+  std::vector<double> f(3 * r->model.local, 0.0);
+  r->forces->connection_forces(r->state->x.array(), f.data());
+  double applied[3] = {0, 0, 0}, reaction[3] = {0, 0, 0};
+  const auto& held = r->forces->held();
+  for (int i = 0; i < r->model.owned; ++i)
+    for (int d = 0; d < 3; ++d) {
+      applied[d] += r->forces->applied()[3 * i + d];
+      if (held[3 * i + d]) reaction[d] += f[3 * i + d];
+    }
+  for (int d = 0; d < 3; ++d) {
+    const double F = d == 2 ? 20.0 : 0.0;
+    EXPECT_NEAR(global_sum(applied[d]), F, 1e-12);
+    EXPECT_NEAR(global_sum(reaction[d]), F, 1e-8);
+  }
+}
+
+// The random box fills its box: volume, faces as planes of the box's area, mass = density * volume, Eq. 3's l0
+// and A the box's length and cross-section.
+TEST(Random, FillsTheBox) {
+  auto r = run(random_scene, PETSC_COMM_WORLD, {}, /*do_solve=*/false);
+  EXPECT_NEAR(r->model.shape.total_volume, 0.64, 1e-12);
+  double m = 0;
+  for (int i = 0; i < r->model.owned; ++i) m += r->model.mass[i];
+  EXPECT_NEAR(global_sum(m), 640.0, 1e-9);
+  const double area[3] = {0.64, 0.8, 0.8};
+  for (const char* name : {"x-", "x+", "y-", "y+", "z-", "z+"}) {
+    const NamedFace* f = r->model.shape.named_face(0, name);
+    ASSERT_NE(f, nullptr) << name;
+    EXPECT_EQ(f->axis, name[0] - 'x') << name;
+    EXPECT_NEAR(f->total_area, area[name[0] - 'x'], 1e-12) << name;
+  }
+  ASSERT_TRUE(r->test.valid);
+  EXPECT_NEAR(r->test.rest_length, 1.0, 1e-12);
+  EXPECT_NEAR(r->test.cross_section, 0.64, 1e-12);
+  // The cloud has the lattice's count: boundary molecules plus (n - 2)^3 interior ones.
+  EXPECT_EQ(r->model.global_molecules, 6 * 5 * 5);
+}
+
+}  // namespace

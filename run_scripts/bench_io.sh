@@ -77,6 +77,6 @@ EOF
   rm -f "$dir/dd.bin"
   awk -v m=$molecules -v b=$bytes -v r=$RANKS -v t0=$t_tmp -v t1=$t_done -v t2=$t_sync -v tdd="$dd_out" -v c=$count \
     'BEGIN { w = t1 - t0; f = t2 - t0; if (w <= 0) w = 0.01;
-             printf "%10d %12d %8d %10.2f %14.1f %14.1f %10.1f\n", m, b, r, w, b / w / 1e6, b / f / 1e6, c * 1048576 / tdd / 1e6 }'
+             printf "%10d %12.0f %8d %10.2f %14.1f %14.1f %10.1f\n", m, b, r, w, b / w / 1e6, b / f / 1e6, c * 1048576 / tdd / 1e6 }'
   rm -f "$dir/final.h5"
 done

@@ -278,7 +278,7 @@ TEST(Physics, SeveralBodiesEachWithItsOwnMaterial) {
     Vec3 p = body.rest_position(g);
     for (int d = 0; d < 3; ++d) still = std::max(still, std::fabs(x[3 * g + d] - p[d]));
   }
-  EXPECT_LT(still, 1e-14);
+  EXPECT_LT(still, 1e-13);  // round-off: lattice rest lengths come from the offsets, not the rounded positions
   EXPECT_NEAR(body.rest_position(36)[0], 1.0, 1e-15);
   auto self = run(two_bodies, MPI_COMM_SELF);
   EXPECT_LT(max_difference(x, gather_positions(*self)), 1e-10);

@@ -155,8 +155,12 @@ template <typename Params>
 void spring_forces(int nc, const int* a, const int* b, Params params, const double* x, double* f) {
   constexpr int kBlock = 256;
   alignas(64) double d0[kBlock], d1[kBlock], d2[kBlock], k[kBlock], l0[kBlock], s[kBlock];
-  for (int begin = 0; begin < nc; begin += kBlock) {
-    const int n = std::min(kBlock, nc - begin);
+  for (int begin = 0, n = 0; begin < nc; begin += n) {
+    // A block never splits a run of the same end a: where the runs end does not depend on the partition, where
+    // a block of 256 ends does, and a split run would sum the force on a in another grouping.
+    n = std::min(kBlock, nc - begin);
+    if (begin + n < nc)
+      while (n > 1 && a[begin + n] == a[begin + n - 1]) --n;
     for (int i = 0; i < n; ++i) {
       const int c = begin + i;
       const double* xa = x + 3 * a[c];

@@ -85,6 +85,7 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
   }
   report.iterations = state.step;
   report.guard_checks = guard.checks();
+  report.guard_seconds = guard.seconds();
   report.converged = !report.interrupted;
   report.energy_final = leapfrog_energy(model, forces, state, dt);
   return report;

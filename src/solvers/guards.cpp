@@ -15,6 +15,13 @@ namespace tissue {
 
 namespace {
 
+// Adds the wall time of its scope to `total` (the guard's own cost, reported as solver.guard_seconds).
+struct Timer {
+  double& total;
+  double start = MPI_Wtime();
+  ~Timer() { total += MPI_Wtime() - start; }
+};
+
 int rank_of(MPI_Comm comm) {
   int r;
   MPI_Comm_rank(comm, &r);
@@ -138,6 +145,7 @@ std::int64_t largest_force_molecule(const LocalModel& model, const double* f) {
 StepGuard::StepGuard(const char* solver, const Scene& scene, const LocalModel& model, const ForceModel& forces,
                      SolverState& state, long every)
     : solver_(solver), scene_(scene), model_(model), forces_(forces), state_(state), every_(std::max(1L, every)) {
+  Timer timer{seconds_};
   const char* env = std::getenv("TISSUE_GUARDS");
   enabled_ = !(env && std::strcmp(env, "off") == 0);
   if (!enabled_ && rank_of(model.comm) == 0)
@@ -218,6 +226,7 @@ void StepGuard::check_lengths() {
 }
 
 void StepGuard::full_check() {
+  Timer timer{seconds_};
   ++checks_;
   check_finite_state();
   check_lengths();
@@ -226,6 +235,7 @@ void StepGuard::full_check() {
 
 void StepGuard::dynamic_step(double local_kinetic) {
   if (!enabled_) return;
+  Timer timer{seconds_};
   MPI_Allreduce(&local_kinetic, &kinetic_, 1, MPI_DOUBLE, MPI_SUM, model_.comm);
   if (!std::isfinite(kinetic_)) {
     check_finite_state();  // names the first non-finite molecule and throws
@@ -259,6 +269,7 @@ void StepGuard::dynamic_step(double local_kinetic) {
 
 void StepGuard::relaxation_step(double residual) {
   if (!enabled_) return;
+  Timer timer{seconds_};
   if (!std::isfinite(residual)) {
     check_finite_state();
     fail("non-finite residual", largest_force_molecule(model_, state_.f.data()));

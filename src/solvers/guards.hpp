@@ -67,6 +67,7 @@ public:
 
   double kinetic_energy() const { return kinetic_; }
   long checks() const { return checks_; }  // full checks made so far (energy and/or lengths)
+  double seconds() const { return seconds_; }  // wall time spent inside the guard's calls so far
   long last_good_step() const { return good_step_; }
 
 private:
@@ -87,6 +88,7 @@ private:
   std::vector<double> good_x_, good_v_;
   long good_step_ = 0;
   long checks_ = 0;
+  double seconds_ = 0.0;
   double good_time_ = 0.0;
 };
 

@@ -33,7 +33,7 @@
 # update (2 solves, the second warm-started) instead of 3-4; on rollers C does not depend on n at all (the
 # lattice is scale-free), so it needs no update. Set-up (the body and METIS on rank 0) is the rest: ~3% at n = 64.
 # Measured 2026-11-23 (docs/methods.md): n = 32 takes 10-45 s a run, n = 64 (262,144 molecules, 2.3-3.3 M springs,
-# 1.5 GB) 5-9 minutes a run on the shared 2-core machine at load average 12-16 (the solve is 95% of it;
+# 1.5 GB per rank) 2.5-10 minutes a run on the shared 2-core machine at load average 12-16 (the solve is 95% of it;
 # -log_view at n = 32: GAMG set-up 36%, its V-cycles 49%, Jacobian assembly 8%), so the 64^3 runs were made
 # with NS=64 APPEND=1 and, for time, without the clamped body-diagonals iterative and tetrahedral runs
 # (CLAMPED_MAX_N=32 for the tetrahedral topology).

@@ -170,12 +170,15 @@ void StepGuard::keep() {
 
 // Potential energy of the springs and the work of the loads and gravity (both global) at the current positions;
 // returns spring - work. Each connection is counted once over all ranks (written_here).
-double StepGuard::energy(double* spring, double* work) const {
+double StepGuard::energy(double* spring, double* work) {
   const double* x = state_.x.array();
   double local[2] = {0, 0};
+  worst_ratio_ = std::numeric_limits<double>::infinity(), worst_id_ = -1, worst_c_ = -1;
   for (int c : model_.written_here) {
-    const double stretch = length_of(x, model_.end_a[c], model_.end_b[c]) - model_.rest_length[c];
+    const double length = length_of(x, model_.end_a[c], model_.end_b[c]);
+    const double stretch = length - model_.rest_length[c], ratio = length / model_.rest_length[c];
     local[0] += 0.5 * model_.stiffness[c] * stretch * stretch;
+    if (ratio < worst_ratio_) worst_ratio_ = ratio, worst_id_ = model_.connection_id[c], worst_c_ = c;
   }
   const auto& applied = forces_.applied();
   const auto& g = scene_.physics.gravity;
@@ -201,17 +204,21 @@ void StepGuard::check_finite_state() {
   MPI_Allreduce(&any, &all, 1, MPI_INT, MPI_MAX, model_.comm);
   if (!all) return;
   // The first non-finite molecule: bad = 1 is the largest value, ties go to the smallest id.
-  fail("non-finite position, velocity or force", argmax_molecule(model_, bad));
+  fail("non-finite position, velocity or force" + first_seen_, argmax_molecule(model_, bad));
 }
 
-void StepGuard::check_lengths() {
+void StepGuard::check_lengths(bool from_energy) {
   const double* x = state_.x.array();
   double worst = std::numeric_limits<double>::infinity();
   long long worst_id = -1;
   int worst_c = -1;
-  for (int c : model_.written_here) {
-    const double ratio = length_of(x, model_.end_a[c], model_.end_b[c]) / model_.rest_length[c];
-    if (ratio < worst) worst = ratio, worst_id = model_.connection_id[c], worst_c = c;
+  if (from_energy) {
+    worst = worst_ratio_, worst_id = worst_id_, worst_c = worst_c_;
+  } else {
+    for (int c : model_.written_here) {
+      const double ratio = length_of(x, model_.end_a[c], model_.end_b[c]) / model_.rest_length[c];
+      if (ratio < worst) worst = ratio, worst_id = model_.connection_id[c], worst_c = c;
+    }
   }
   double global = 0;
   MPI_Allreduce(&worst, &global, 1, MPI_DOUBLE, MPI_MIN, model_.comm);
@@ -236,10 +243,17 @@ void StepGuard::full_check() {
 void StepGuard::dynamic_step(double local_kinetic) {
   if (!enabled_) return;
   Timer timer{seconds_};
-  MPI_Allreduce(&local_kinetic, &kinetic_, 1, MPI_DOUBLE, MPI_SUM, model_.comm);
-  if (!std::isfinite(kinetic_)) {
+  if (!std::isfinite(local_kinetic) && first_bad_step_ < 0) first_bad_step_ = state_.step;
+  if (state_.step % kReduceEvery != 0) return;  // the solver's full_check() at the last step covers the rest
+  double local[2] = {first_bad_step_ >= 0 ? 0.0 : local_kinetic, first_bad_step_ >= 0 ? 1.0 : 0.0}, global[2];
+  MPI_Allreduce(local, global, 2, MPI_DOUBLE, MPI_SUM, model_.comm);
+  kinetic_ = global[0];
+  if (global[1] > 0 || !std::isfinite(kinetic_)) {
+    long mine = first_bad_step_ >= 0 ? first_bad_step_ : state_.step, first = 0;
+    MPI_Allreduce(&mine, &first, 1, MPI_LONG, MPI_MIN, model_.comm);
+    first_seen_ = fmt::format(" (first non-finite kinetic energy at step {})", first);
     check_finite_state();  // names the first non-finite molecule and throws
-    fail("non-finite kinetic energy", -1);
+    fail("non-finite kinetic energy" + first_seen_, -1);
   }
   const bool grown = kinetic_ > 2.0 * kinetic_checked_;
   if (!grown && state_.step % every_ != 0) return;
@@ -264,7 +278,11 @@ void StepGuard::dynamic_step(double local_kinetic) {
                      e, energy0_, kinetic_),
          argmax_molecule(model_, ke));
   }
-  full_check();
+  // The full check, reusing the connection pass energy() just made.
+  ++checks_;
+  check_finite_state();
+  check_lengths(/*from_energy=*/true);
+  keep();
 }
 
 void StepGuard::relaxation_step(double residual) {

@@ -16,7 +16,8 @@
 # smallest and largest pair (the spread is the machine's noise: other jobs share its cores).
 # Output: docs/bench_guards.csv (one row per run) and a Markdown table on stdout.
 #
-# How to run (from the repository root; about 10 minutes on an idle 2-core machine with the defaults):
+# How to run (from the repository root; with N = 40 about a minute a run at load average 12-16 on 2 cores; the
+# defaults, N = 60 and 5 pairs, are meant for a quieter machine: 40 runs):
 #   cmake -S . -B build -DCMAKE_BUILD_TYPE=Release && cmake --build build -j2 --target tissue
 #   run_scripts/bench_guards.sh
 # Knobs (environment): TISSUE (default build/tissue), N (default 60), STEPS (dynamic steps, default 500),

@@ -263,7 +263,7 @@ void StepGuard::dynamic_step(double local_kinetic) {
   // far, and every `every` steps. A stable run's kinetic energy is bounded, so after its first rise (a few
   // doublings from rest) only the periodic checks remain; an unstable mode outgrows every earlier maximum and is
   // checked at each doubling. (Measured against the last check's kinetic energy instead, every oscillation that
-  // passed near rest re-armed a dozen checks: 25 checks per 1000 steps of a loaded 40^3 box, now 15; each costs
+  // passed near rest re-armed a dozen checks: 25 checks per 1000 steps of a loaded 40^3 box, now 11; each costs
   // about one force evaluation. docs/stability.md.)
   kinetic_checked_ = std::max(kinetic_checked_, kinetic_);
   double spring, work;

@@ -191,6 +191,7 @@ void Output::summary(const TensionTest& test, const Measurements& measured, cons
                  {"seconds", report.seconds},
                  {"cpu_seconds", report.cpu_seconds},
                  {"guard_checks", report.kind == "static" ? json(nullptr) : json(report.guard_checks)},
+                 {"guard_seconds", report.kind == "static" ? json(nullptr) : json(report.guard_seconds)},
                  {"failure", failure.empty() ? json(nullptr) : json(failure)}};
   s["time"] = dynamic ? json(state.time) : json(nullptr);
   s["steps"] = dynamic ? json(state.step) : json(nullptr);

@@ -9,12 +9,15 @@
 # rank count. Time = summary.json solver.seconds (wall time of the solve alone, no set-up or output; fields = []
 # writes no snapshot) and solver.cpu_seconds (rank 0's CPU time over the same span: far less sensitive to other
 # jobs on the machine than wall time, but it also counts MPI's busy waiting). The guards do not change the
-# trajectory (they only read the state), so both runs do the same steps; solver.guard_checks counts the full checks.
+# trajectory (they only read the state), so both runs do the same steps; solver.guard_checks counts the full checks
+# and solver.guard_seconds is the wall time spent inside the guard's calls (timed in the run itself, so a busy
+# machine slows the guard and the steps alike: the third, least noisy measure, guard_seconds / seconds).
 # Reported: per-step time of each, and the overhead = median over pairs of (guarded / unguarded - 1), with the
 # smallest and largest pair (the spread is the machine's noise: other jobs share its cores).
 # Output: docs/bench_guards.csv (one row per run) and a Markdown table on stdout.
 #
-# How to run (from the repository root; about 10 minutes on an idle 2-core machine with the defaults):
+# How to run (from the repository root; with N = 40 about a minute a run at load average 12-16 on 2 cores; the
+# defaults, N = 60 and 5 pairs, are meant for a quieter machine: 40 runs):
 #   cmake -S . -B build -DCMAKE_BUILD_TYPE=Release && cmake --build build -j2 --target tissue
 #   run_scripts/bench_guards.sh
 # Knobs (environment): TISSUE (default build/tissue), N (default 60), STEPS (dynamic steps, default 500),
@@ -42,7 +45,7 @@ WORK=${WORK:-/tmp/tissue_bench_guards}
 CSV=${CSV:-docs/bench_guards.csv}
 [ -x "$TISSUE" ] || { echo "bench_guards.sh: no binary $TISSUE (build it, see the header)" >&2; exit 1; }
 mkdir -p "$WORK" "$(dirname "$CSV")"
-echo "solver,ranks,pair,guards,molecules,connections,steps,guard_checks,solve_seconds,seconds_per_step,cpu_seconds,cpu_seconds_per_step,exit_code" >"$CSV"
+echo "solver,ranks,pair,guards,molecules,connections,steps,guard_checks,guard_seconds,solve_seconds,seconds_per_step,cpu_seconds,cpu_seconds_per_step,exit_code" >"$CSV"
 
 # 2. The runs.
 run() {  # solver ranks pair guards(on|off)
@@ -62,10 +65,11 @@ j = json.load(open(path))
 steps = j["solver"]["iterations"]
 s = j["solver"]
 print(",".join(str(x) for x in (solver, np_, pair, guards, j["molecules"], j["connections"], steps, s["guard_checks"],
+                                repr(s["guard_seconds"]),
                                 repr(s["seconds"]), repr(s["seconds"] / steps), repr(s["cpu_seconds"]),
                                 repr(s["cpu_seconds"] / steps), rc)))
 PY
-  printf '%-10s np=%s pair %s guards %-3s rc=%s %s\n' "$solver" "$np" "$pair" "$guards" "$rc" "$(tail -1 "$CSV" | cut -d, -f10,12)"
+  printf '%-10s np=%s pair %s guards %-3s rc=%s %s\n' "$solver" "$np" "$pair" "$guards" "$rc" "$(tail -1 "$CSV" | cut -d, -f11,13)"
 }
 for solver in $SOLVERS; do
   for np in $NPS; do
@@ -97,4 +101,8 @@ for key in sorted({(r["solver"], r["ranks"]) for r in rows}):
         print("| %s | %s | %s | %s | %s | %s | %.4g | %.4g | %+.2f %% [%+.2f, %+.2f] |" % (
             key[0], key[1], mine[0]["molecules"], mine[0]["steps"], "/".join(checks), label, on, off,
             100 * statistics.median(ratios), 100 * min(ratios), 100 * max(ratios)))
+    share = [float(r["guard_seconds"]) / float(r["solve_seconds"]) for r in mine if r["guards"] == "on"]
+    print("| %s | %s | %s | %s | %s | time inside the guards / solve time (guarded runs) | | | %.2f %% [%.2f, %.2f] |" % (
+        key[0], key[1], mine[0]["molecules"], mine[0]["steps"], "/".join(checks), 100 * statistics.median(share),
+        100 * min(share), 100 * max(share)))
 PY

@@ -25,11 +25,18 @@
 # "2 4 8 16"; "2 3 4 6 8 12 16 24 32" on an idle machine), ALL_CLAMPED=1 (clamped runs for linear and statistical
 # too; by default only homogenized, tetrahedral and iterative, the methods that can approach the clamped continuum), WORK (default /tmp/tissue_convergence), CSV (default docs/convergence.csv),
 # PNG (default docs/convergence.png), APPEND=1 (keep the rows already in CSV and add these: a large n run on its
-# own, e.g. NS=64 APPEND=1 after NS="2 4 8 16 32").
+# own, e.g. NS=64 APPEND=1 after NS="2 4 8 16 32"), TOPOLOGIES (default "face-diagonals body-diagonals
+# tetrahedral"), RUN_METHODS (only these methods), CLAMPED_MAX_N (clamped runs only for n <= this; default: all).
 # Cost at large n: every run is one static solve (2 Newton iterations, ~19 CG iterations each, at every n), except
 # iterative, which re-solves until C settles. Iterative therefore starts from the C it found at the previous n
 # (same topology and support; from CSV when appending) instead of 3.75: C changes little with n, so it needs one
-# update (2 solves, the second warm-started) instead of 3-4. Set-up (the body and METIS on rank 0) is the rest.
+# update (2 solves, the second warm-started) instead of 3-4; on rollers C does not depend on n at all (the
+# lattice is scale-free), so it needs no update. Set-up (the body and METIS on rank 0) is the rest: ~3% at n = 64.
+# Measured 2026-11-23 (docs/methods.md): n = 32 takes 10-45 s a run, n = 64 (262,144 molecules, 2.3-3.3 M springs,
+# 1.5 GB per rank) 2.5-10 minutes a run on the shared 2-core machine at load average 12-16 (the solve is 95% of it;
+# -log_view at n = 32: GAMG set-up 36%, its V-cycles 49%, Jacobian assembly 8%), so the 64^3 runs were made
+# with NS=64 APPEND=1 and, for time, without the clamped body-diagonals iterative and tetrahedral runs
+# (CLAMPED_MAX_N=32 for the tetrahedral topology).
 #
 # Steps:
 #   1. Settings and checks (binary, python3 with matplotlib).
@@ -65,9 +72,11 @@ methods_for() {
   esac
 }
 for n in $NS; do
-  for topology in face-diagonals body-diagonals tetrahedral; do
+  for topology in ${TOPOLOGIES:-face-diagonals body-diagonals tetrahedral}; do
     for method in $(methods_for "$topology"); do
+      if [ -n "${RUN_METHODS:-}" ] && [[ " $RUN_METHODS " != *" $method "* ]]; then continue; fi
       for support in roller clamped; do
+        if [ "$support" = clamped ] && [ -n "${CLAMPED_MAX_N:-}" ] && [ "$n" -gt "$CLAMPED_MAX_N" ]; then continue; fi
         # Clamped: only the methods that can converge to the clamped continuum (the others drift anyway).
         if [ "$support" = clamped ] && [ -z "${ALL_CLAMPED:-}" ]; then
           case $method in linear|statistical) continue;; esac

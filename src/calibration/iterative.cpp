@@ -38,7 +38,8 @@ void solve_iterative(const Scene& scene, LocalModel& model, const ForceModel& fo
   const double target = scene.body.youngs_modulus;
   double C = scene.calibration.divisor;
   long iterations = 0, linear_iterations = 0;
-  double seconds = 0.0, cpu_seconds = 0.0;
+  double seconds = 0.0, cpu_seconds = 0.0, guard_seconds = 0.0;
+  long guard_checks = 0;
   std::string history;
   for (long update = 0;; ++update) {
     for (int c = 0; c < model.connections(); ++c) model.stiffness[c] = linear_stiffness(model, c) / C;
@@ -47,6 +48,8 @@ void solve_iterative(const Scene& scene, LocalModel& model, const ForceModel& fo
     report.iterations = iterations, report.linear_iterations = linear_iterations;
     seconds += report.seconds, report.seconds = seconds;  // every solve's
     cpu_seconds += report.cpu_seconds, report.cpu_seconds = cpu_seconds;
+    guard_seconds += report.guard_seconds, report.guard_seconds = guard_seconds;
+    guard_checks += report.guard_checks, report.guard_checks = guard_checks;
     report.calibration_divisor = C;
     report.calibration_updates = update;
     if (!report.converged) {

@@ -50,8 +50,8 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
   forces.set_time(state.time);  // time-dependent terms (cyclic loads) read the time of the evaluation
   forces.forces(x, v, f);
   report.energy_initial = leapfrog_energy(model, forces, state, dt);
-  // NaN, Inf and energy growth caught within one step (one reduction of the kinetic energy per step), connection
-  // lengths every 128 steps; the last good state is kept (guards.hpp).
+  // NaN, Inf and energy growth caught within 16 steps (one reduction per 16 steps, the first non-finite step
+  // named), connection lengths every 128 steps; the last good state is kept (guards.hpp).
   StepGuard guard("dynamic", scene, model, forces, state);
   const long total = scene.solver.steps;
   while (state.step < total) {
@@ -92,6 +92,7 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
   }
   report.iterations = state.step;
   report.guard_checks = guard.checks();
+  report.guard_seconds = guard.seconds();
   report.converged = !report.interrupted;
   report.energy_final = leapfrog_energy(model, forces, state, dt);
   return report;

@@ -15,6 +15,13 @@ namespace tissue {
 
 namespace {
 
+// Adds the wall time of its scope to `total` (the guard's own cost, reported as solver.guard_seconds).
+struct Timer {
+  double& total;
+  double start = MPI_Wtime();
+  ~Timer() { total += MPI_Wtime() - start; }
+};
+
 int rank_of(MPI_Comm comm) {
   int r;
   MPI_Comm_rank(comm, &r);
@@ -139,6 +146,7 @@ std::int64_t largest_force_molecule(const LocalModel& model, const double* f) {
 StepGuard::StepGuard(const char* solver, const Scene& scene, const LocalModel& model, const ForceModel& forces,
                      SolverState& state, long every)
     : solver_(solver), scene_(scene), model_(model), forces_(forces), state_(state), every_(std::max(1L, every)) {
+  Timer timer{seconds_};
   const char* env = std::getenv("TISSUE_GUARDS");
   enabled_ = !(env && std::strcmp(env, "off") == 0);
   if (!enabled_ && rank_of(model.comm) == 0)
@@ -163,12 +171,15 @@ void StepGuard::keep() {
 
 // Potential energy of the springs and the work of the loads and gravity (both global) at the current positions;
 // returns spring - work. Each connection is counted once over all ranks (written_here).
-double StepGuard::energy(double* spring, double* work) const {
+double StepGuard::energy(double* spring, double* work) {
   const double* x = state_.x.array();
   double local[2] = {0, 0};
+  worst_ratio_ = std::numeric_limits<double>::infinity(), worst_id_ = -1, worst_c_ = -1;
   for (int c : model_.written_here()) {
-    const double stretch = length_of(x, model_.end_a[c], model_.end_b[c]) - model_.l0(c);
+    const double length = length_of(x, model_.end_a[c], model_.end_b[c]);
+    const double stretch = length - model_.l0(c), ratio = length / model_.l0(c);
     local[0] += 0.5 * model_.k(c) * stretch * stretch;
+    if (ratio < worst_ratio_) worst_ratio_ = ratio, worst_id_ = model_.connection_id(c), worst_c_ = c;
   }
   for (const auto& a : forces_.applied()) local[1] += a.value * (x[a.component] - model_.rest[a.component]);
   if (const auto& g = scene_.physics.gravity)
@@ -191,17 +202,21 @@ void StepGuard::check_finite_state() {
   MPI_Allreduce(&any, &all, 1, MPI_INT, MPI_MAX, model_.comm);
   if (!all) return;
   // The first non-finite molecule: bad = 1 is the largest value, ties go to the smallest id.
-  fail("non-finite position, velocity or force", argmax_molecule(model_, bad));
+  fail("non-finite position, velocity or force" + first_seen_, argmax_molecule(model_, bad));
 }
 
-void StepGuard::check_lengths() {
+void StepGuard::check_lengths(bool from_energy) {
   const double* x = state_.x.array();
   double worst = std::numeric_limits<double>::infinity();
   long long worst_id = -1;
   int worst_c = -1;
-  for (int c : model_.written_here()) {
-    const double ratio = length_of(x, model_.end_a[c], model_.end_b[c]) / model_.l0(c);
-    if (ratio < worst) worst = ratio, worst_id = model_.connection_id(c), worst_c = c;
+  if (from_energy) {
+    worst = worst_ratio_, worst_id = worst_id_, worst_c = worst_c_;
+  } else {
+    for (int c : model_.written_here()) {
+      const double ratio = length_of(x, model_.end_a[c], model_.end_b[c]) / model_.l0(c);
+      if (ratio < worst) worst = ratio, worst_id = model_.connection_id(c), worst_c = c;
+    }
   }
   double global = 0;
   MPI_Allreduce(&worst, &global, 1, MPI_DOUBLE, MPI_MIN, model_.comm);
@@ -216,6 +231,7 @@ void StepGuard::check_lengths() {
 }
 
 void StepGuard::full_check() {
+  Timer timer{seconds_};
   ++checks_;
   check_finite_state();
   check_lengths();
@@ -224,10 +240,18 @@ void StepGuard::full_check() {
 
 void StepGuard::dynamic_step(double local_kinetic) {
   if (!enabled_) return;
-  MPI_Allreduce(&local_kinetic, &kinetic_, 1, MPI_DOUBLE, MPI_SUM, model_.comm);
-  if (!std::isfinite(kinetic_)) {
+  Timer timer{seconds_};
+  if (!std::isfinite(local_kinetic) && first_bad_step_ < 0) first_bad_step_ = state_.step;
+  if (state_.step % kReduceEvery != 0) return;  // the solver's full_check() at the last step covers the rest
+  double local[2] = {first_bad_step_ >= 0 ? 0.0 : local_kinetic, first_bad_step_ >= 0 ? 1.0 : 0.0}, global[2];
+  MPI_Allreduce(local, global, 2, MPI_DOUBLE, MPI_SUM, model_.comm);
+  kinetic_ = global[0];
+  if (global[1] > 0 || !std::isfinite(kinetic_)) {
+    long mine = first_bad_step_ >= 0 ? first_bad_step_ : state_.step, first = 0;
+    MPI_Allreduce(&mine, &first, 1, MPI_LONG, MPI_MIN, model_.comm);
+    first_seen_ = fmt::format(" (first non-finite kinetic energy at step {})", first);
     check_finite_state();  // names the first non-finite molecule and throws
-    fail("non-finite kinetic energy", -1);
+    fail("non-finite kinetic energy" + first_seen_, -1);
   }
   const bool grown = kinetic_ > 2.0 * kinetic_checked_;
   if (!grown && state_.step % every_ != 0) return;
@@ -237,7 +261,7 @@ void StepGuard::dynamic_step(double local_kinetic) {
   // far, and every `every` steps. A stable run's kinetic energy is bounded, so after its first rise (a few
   // doublings from rest) only the periodic checks remain; an unstable mode outgrows every earlier maximum and is
   // checked at each doubling. (Measured against the last check's kinetic energy instead, every oscillation that
-  // passed near rest re-armed a dozen checks: 25 checks per 1000 steps of a loaded 40^3 box, now 15; each costs
+  // passed near rest re-armed a dozen checks: 25 checks per 1000 steps of a loaded 40^3 box, now 11; each costs
   // about one force evaluation. docs/stability.md.)
   kinetic_checked_ = std::max(kinetic_checked_, kinetic_);
   double spring, work;
@@ -252,11 +276,16 @@ void StepGuard::dynamic_step(double local_kinetic) {
                      e, energy0_, kinetic_),
          argmax_molecule(model_, ke));
   }
-  full_check();
+  // The full check, reusing the connection pass energy() just made.
+  ++checks_;
+  check_finite_state();
+  check_lengths(/*from_energy=*/true);
+  keep();
 }
 
 void StepGuard::relaxation_step(double residual) {
   if (!enabled_) return;
+  Timer timer{seconds_};
   if (!std::isfinite(residual)) {
     check_finite_state();
     fail("non-finite residual", largest_force_molecule(model_, state_.f.data()));

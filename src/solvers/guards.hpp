@@ -3,8 +3,10 @@
 //  - the time step: one above the critical time step is refused (InputError naming solver.time_step, exit 2)
 //    unless the scene sets solver.allow_unstable_time_step = true (then used as given, with a warning);
 //  - at set-up: a connection of zero (or non-finite) rest length is refused (InputError naming body);
-//  - during the solve (StepGuard): NaN or Inf caught within one step, energy growth (dynamic) and divergence
-//    (relaxation) caught early, a connection shorter than 1e-3 of its rest length (inverted, collapsed) caught
+//  - during the solve (StepGuard): NaN or Inf caught within kReduceEvery (16) steps and the step where it first
+//    appeared named (dynamic: each rank notes the first step its kinetic energy is non-finite, at no cost; the
+//    ranks compare notes every 16 steps, the cadence of the signal check; relaxation: every iteration),
+//    energy growth (dynamic, within 16 steps) and divergence (relaxation) caught early, a connection shorter than 1e-3 of its rest length (inverted, collapsed) caught
 //    at every full check; each is a SolverFailure naming the solver, the step, the molecule and the connection
 //    with the largest strain at that molecule;
 //  - TISSUE_GUARDS=off in the environment (benchmarks only: run_scripts/bench_guards.sh measures the guards'
@@ -23,6 +25,9 @@ namespace tissue {
 
 // A connection shorter than this fraction of its rest length is a failure (collapsed or inverted).
 constexpr double kCollapsedLengthRatio = 1e-3;
+// Dynamic: steps between the guard's reductions (the global kinetic energy, any rank's non-finite state). One
+// MPI_Allreduce per step cost 26-29 % of a 40^3 2-rank step on a loaded machine (docs/stability.md).
+constexpr long kReduceEvery = 16;
 
 // The time step an explicit solver uses: `requested` (the scene's, or absent) checked against `critical`.
 // Throws InputError naming solver.time_step when it is above critical and the scene does not allow it; prints
@@ -50,7 +55,8 @@ public:
             SolverState& state, long every = 128);
 
   // Dynamic, after every step: `local_kinetic` is this rank's sum of m v^2 / 2 (computed in the solver's own
-  // loop; NaN and Inf propagate into it). One reduction. Throws SolverFailure on a non-finite state or on
+  // loop; NaN and Inf propagate into it). No communication but every kReduceEvery steps (one reduction of two
+  // doubles). Throws SolverFailure on a non-finite state (naming the step where a rank first saw it) or on
   // energy growth; runs the full check every `every` steps and whenever the kinetic energy exceeds twice the
   // largest kinetic energy of any earlier check.
   void dynamic_step(double local_kinetic);
@@ -67,11 +73,14 @@ public:
 
   double kinetic_energy() const { return kinetic_; }
   long checks() const { return checks_; }  // full checks made so far (energy and/or lengths)
+  double seconds() const { return seconds_; }  // wall time spent inside the guard's calls so far
   long last_good_step() const { return good_step_; }
 
 private:
-  double energy(double* spring, double* work) const;  // collective: whole-step total energy and its parts
-  void check_lengths();                                 // collective
+  // Collective: whole-step total energy and its parts; the same pass over the connections finds the shortest one
+  // relative to its rest length, which check_lengths(true) then uses instead of a second pass.
+  double energy(double* spring, double* work);
+  void check_lengths(bool from_energy = false);         // collective
   void check_finite_state();                            // collective
 
   std::string solver_;
@@ -87,6 +96,12 @@ private:
   std::vector<double> good_x_, good_v_;
   long good_step_ = 0;
   long checks_ = 0;
+  long first_bad_step_ = -1;  // dynamic: the first step this rank's kinetic energy was non-finite
+  std::string first_seen_;     // " (first non-finite kinetic energy at step S)", once the ranks compared notes
+  double worst_ratio_ = 0.0;   // from energy(): the shortest connection's length / rest length on this rank
+  long long worst_id_ = -1;
+  int worst_c_ = -1;
+  double seconds_ = 0.0;
   double good_time_ = 0.0;
 };
 

@@ -96,6 +96,7 @@ SolveReport solve_relaxation(const Scene& scene, const LocalModel& model, const 
   guard.full_check();
   report.iterations = it;
   report.guard_checks = guard.checks();
+  report.guard_seconds = guard.seconds();
   report.residual = residual;
   report.residual_history.push_back(residual);
   if (report.converged) std::fill(state.v.begin(), state.v.end(), 0.0);  // equilibrium: at rest

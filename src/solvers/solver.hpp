@@ -55,6 +55,7 @@ struct SolveReport {
   double seconds = 0.0;      // wall time of the solve alone (rank 0's; no set-up, calibration or output)
   double cpu_seconds = 0.0;  // CPU time of rank 0's process over the same span
   long guard_checks = 0;     // relaxation, dynamic: full guard checks made (each about one force evaluation)
+  double guard_seconds = 0.0;  // relaxation, dynamic: rank 0's wall time inside the guards (of `seconds`)
 };
 
 struct SolverHooks {

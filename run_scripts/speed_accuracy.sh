@@ -58,9 +58,9 @@ WORK=${WORK:-/tmp/tissue_speed_accuracy}
 CSV=${CSV:-docs/speed_accuracy.csv}
 JACOBI_MAX_N=${JACOBI_MAX_N:-40}
 HYPRE_MAX_N=${HYPRE_MAX_N:-20}
-STATIC_CONFIGS=${STATIC_CONFIGS:-"mg gamg hypre jacobi"}
-RELAX_TOLS=${RELAX_TOLS:-"1e-4 1e-6 1e-8"}
-PEER_RANKS=${PEER_RANKS:-"1 2"}
+STATIC_CONFIGS=${STATIC_CONFIGS-"mg gamg hypre jacobi"}
+RELAX_TOLS=${RELAX_TOLS-"1e-4 1e-6 1e-8"}
+PEER_RANKS=${PEER_RANKS-"1 2"}
 BIGMEM_N=${BIGMEM_N:-80}
 if [[ "${QUICK:-0}" == 1 ]]; then
   NS=${NS-"10 20 40"}

@@ -2,11 +2,39 @@
 
 #include <metis.h>
 
+#include "partition/natural_order.hpp"
+#include "src/model/topology.hpp"
+
 #include <algorithm>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
 namespace tissue {
+
+namespace {
+
+// METIS k-way on a CSR graph (both directions of every connection), on the calling rank. Seeded: the same
+// partition every run.
+std::vector<idx_t> run_metis(std::vector<idx_t>& xadj, std::vector<idx_t>& adjncy, int parts, long& edge_cut,
+                             int& status) {
+  idx_t nvtxs = static_cast<idx_t>(xadj.size() - 1), ncon = 1, nparts = parts, objval = 0;
+  idx_t options[METIS_NOPTIONS];
+  METIS_SetDefaultOptions(options);
+  options[METIS_OPTION_SEED] = 1;
+  std::vector<idx_t> p(nvtxs);
+  status = METIS_PartGraphKway(&nvtxs, &ncon, xadj.data(), adjncy.data(), nullptr, nullptr, nullptr, &nparts,
+                               nullptr, nullptr, options, &objval, p.data());
+  edge_cut = objval;
+  return p;
+}
+
+void check_status(int status, MPI_Comm comm) {
+  MPI_Bcast(&status, 1, MPI_INT, 0, comm);
+  if (status != METIS_OK) throw std::runtime_error("METIS_PartGraphKway failed with status " + std::to_string(status));
+}
+
+}  // namespace
 
 std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionStats& stats) {
   int rank, size;
@@ -29,23 +57,61 @@ std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionS
       adjncy[fill[c.a]++] = static_cast<idx_t>(c.b);
       adjncy[fill[c.b]++] = static_cast<idx_t>(c.a);
     }
-    idx_t nvtxs = static_cast<idx_t>(n), ncon = 1, nparts = size, objval = 0;
-    idx_t options[METIS_NOPTIONS];
-    METIS_SetDefaultOptions(options);
-    options[METIS_OPTION_SEED] = 1;  // the same partition every run
-    std::vector<idx_t> p(n);
-    status = METIS_PartGraphKway(&nvtxs, &ncon, xadj.data(), adjncy.data(), nullptr, nullptr, nullptr, &nparts,
-                                 nullptr, nullptr, options, &objval, p.data());
+    std::vector<idx_t> p = run_metis(xadj, adjncy, size, stats.edge_cut, status);
     std::copy(p.begin(), p.end(), part.begin());
-    stats.edge_cut = objval;
   }
-  MPI_Bcast(&status, 1, MPI_INT, 0, comm);
-  if (status != METIS_OK) throw std::runtime_error("METIS_PartGraphKway failed with status " + std::to_string(status));
+  check_status(status, comm);
   MPI_Bcast(part.data(), static_cast<int>(n), MPI_INT, 0, comm);
   MPI_Bcast(&stats.edge_cut, 1, MPI_LONG, 0, comm);
   std::vector<long> count(size, 0);
   for (int p : part) ++count[p];
   stats.imbalance = static_cast<double>(*std::max_element(count.begin(), count.end())) * size / n;
+  return part;
+}
+
+std::vector<int> partition_lattice(const Body& shape, MPI_Comm comm, PartitionStats& stats) {
+  int rank, size;
+  MPI_Comm_rank(comm, &rank);
+  MPI_Comm_size(comm, &size);
+  const std::int64_t n = shape.molecules();
+  stats = PartitionStats{};
+  const std::int64_t begin = NaturalOrder::block_begin(n, size, rank), end = NaturalOrder::block_begin(n, size, rank + 1);
+  std::vector<int> part(end - begin, 0);
+  if (size == 1) return part;
+  if (n < size) throw std::runtime_error("the body has fewer molecules than ranks");
+  if (n > std::numeric_limits<idx_t>::max()) throw std::runtime_error("the body has more molecules than METIS's idx_t holds");
+
+  int status = METIS_OK;
+  std::vector<int> all;  // rank 0: the part of every molecule, until scattered
+  if (rank == 0) {
+    // The same CSR graph as partition_molecules() builds from the global list (neighbours in increasing id),
+    // so both paths get the same partition.
+    std::vector<idx_t> xadj(n + 1, 0), adjncy;
+    std::vector<Neighbour> nb;
+    for (int b = 0; b < shape.bodies(); ++b) {
+      const BoxGeometry& box = shape.body(b);
+      const TopologyStyle& style = *find_topology(box.topology);
+      for (std::int64_t g = box.first; g < box.first + box.molecules(); ++g) {
+        lattice_neighbours(style, box, g, nb);
+        for (const auto& x : nb) adjncy.push_back(static_cast<idx_t>(x.id));
+        xadj[g + 1] = static_cast<idx_t>(adjncy.size());
+      }
+    }
+    std::vector<idx_t> p = run_metis(xadj, adjncy, size, stats.edge_cut, status);
+    all.assign(p.begin(), p.end());
+  }
+  check_status(status, comm);
+  std::vector<int> counts(size), displs(size);
+  for (int r = 0; r < size; ++r) {
+    displs[r] = static_cast<int>(NaturalOrder::block_begin(n, size, r));
+    counts[r] = static_cast<int>(NaturalOrder::block_begin(n, size, r + 1)) - displs[r];
+  }
+  MPI_Scatterv(all.data(), counts.data(), displs.data(), MPI_INT, part.data(), counts[rank], MPI_INT, 0, comm);
+  MPI_Bcast(&stats.edge_cut, 1, MPI_LONG, 0, comm);
+  std::vector<long> count(size, 0), total(size, 0);
+  for (int p : part) ++count[p];
+  MPI_Allreduce(count.data(), total.data(), size, MPI_LONG, MPI_SUM, comm);
+  stats.imbalance = static_cast<double>(*std::max_element(total.begin(), total.end())) * size / n;
   return part;
 }
 

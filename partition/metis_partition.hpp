@@ -18,4 +18,9 @@ struct PartitionStats {
 // part[m] = the rank that owns molecule m. One part is handled without METIS (METIS 5.1 crashes on it).
 std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionStats& stats);
 
+// The same for box lattices whose connections come from the topology stencils: rank 0 builds the graph from the
+// stencils (the only place it exists). Returns the parts of this rank's block of the natural order
+// (NaturalOrder::block_begin): no rank holds the whole partition.
+std::vector<int> partition_lattice(const Body& shape, MPI_Comm comm, PartitionStats& stats);
+
 }  // namespace tissue

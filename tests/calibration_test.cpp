@@ -59,10 +59,7 @@ struct Built {
 std::unique_ptr<Built> build(const Scene& scene, MPI_Comm comm) {
   auto b = std::make_unique<Built>();
   b->scene = scene;
-  Body body = build_body(b->scene);
-  PartitionStats stats;
-  std::vector<int> part = partition_molecules(body, comm, stats);
-  b->model = distribute(body, part, stats, comm);
+  b->model = build_local_model(b->scene, comm);
   find_calibration(b->scene.calibration.method)->compute(CalibrationContext{b->scene, b->model}, b->model.stiffness);
   return b;
 }
@@ -263,7 +260,7 @@ TEST(Calibration, IndependentOfRankCount) {
     auto world = build(c, PETSC_COMM_WORLD);
     ASSERT_EQ(self->model.connections(), self->model.global_connections);
     for (int i = 0; i < world->model.connections(); ++i) {
-      const std::int64_t g = world->model.connection_id[i];
+      const std::int64_t g = world->model.connection_id(i);
       EXPECT_DOUBLE_EQ(world->model.stiffness[i], self->model.stiffness[g]) << mt.method << " " << mt.topology;
     }
   }
@@ -286,7 +283,7 @@ TEST(Calibration, IndependentOfRankCount) {
   rs(xs.data());
   rw(xw.data());
   for (int i = 0; i < world->model.connections(); ++i)
-    EXPECT_DOUBLE_EQ(world->model.stiffness[i], self->model.stiffness[world->model.connection_id[i]]);
+    EXPECT_DOUBLE_EQ(world->model.stiffness[i], self->model.stiffness[world->model.connection_id(i)]);
 }
 
 namespace {

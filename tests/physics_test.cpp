@@ -272,7 +272,7 @@ TEST(Physics, SeveralBodiesEachWithItsOwnMaterial) {
   ASSERT_TRUE(r->measured.youngs_modulus.has_value());
   EXPECT_NEAR(*r->measured.youngs_modulus, 3.0e5, 1e-6 * 3.0e5);
   auto x = gather_positions(*r);
-  Body body = build_body(r->scene);
+  Body body = scene_shape(r->scene);
   double still = 0;
   for (std::int64_t g = 0; g < 36; ++g) {
     Vec3 p = body.rest_position(g);

@@ -33,12 +33,10 @@ inline std::unique_ptr<RunResult> run(const std::string& text, MPI_Comm comm, co
   auto r = std::make_unique<RunResult>();
   r->scene = parse_scene(text, "test.toml", set);
   r->scene.output.progress = false;
-  Body body = build_body(r->scene);
-  PartitionStats stats;
-  auto part = partition_molecules(body, comm, stats);
-  r->model = distribute(body, part, stats, comm);
-  r->test = tension_test(r->scene, body);
+  r->model = build_local_model(r->scene, comm);
+  r->test = tension_test(r->scene, r->model.shape);
   r->refresh = calibrate_scene(r->scene, r->model, r->model.stiffness);  // step 4 as main() does it
+  if (stiffness_is_final(r->scene, r->refresh)) compact_connection_types(r->model);
   r->forces = std::make_unique<ForceModel>(r->scene, r->model);
   r->state = std::make_unique<SolverState>(r->model);
   if (before_solve) before_solve(*r);

@@ -19,37 +19,34 @@ const char* class_name(ConnectionClass c) {
 
 namespace {
 
-// One body of the scene, numbered from `first`: geometry, topology, per-molecule material and mass.
-Body build_one(const BodySpec& spec, std::int64_t first) {
-  Body b;
+// The geometry of one body of the scene, numbered from `first`.
+BoxGeometry geometry_of(const BodySpec& spec, std::int64_t first) {
+  BoxGeometry b;
   b.n = spec.molecules;
   b.h = spec.spacing;
   b.offset = spec.offset;
   b.topology = spec.topology;
   b.radius = spec.radius ? *spec.radius : 0.5 * std::min({spec.spacing[0], spec.spacing[1], spec.spacing[2]});
+  b.first = first;
+  return b;
+}
+
+// One body of the scene, numbered from `first`: geometry, topology, per-molecule material and mass.
+Body build_one(const BodySpec& spec, std::int64_t first) {
+  Body b;
+  static_cast<BoxGeometry&>(b) = geometry_of(spec, 0);
   find_topology(spec.topology)->build(b);  // the scene reader has checked the name
   std::sort(b.connections.begin(), b.connections.end(), [](const Connection& x, const Connection& y) {
     return x.a != y.a ? x.a < y.a : x.b < y.b;
   });
-
-  // Material per molecule: the body's, then each region in turn (the last region holding a molecule wins).
-  // A connection across a region's boundary joins two materials: the calibration methods see both ends' E
-  // (linear uses their mean).
   const std::int64_t n = b.molecules();
-  b.youngs_modulus.assign(n, spec.youngs_modulus);
-  std::vector<double> density(n, spec.density);
-  for (const auto& r : spec.regions)
-    for (std::int64_t m = 0; m < n; ++m) {
-      Vec3 x = b.rest_position(m);
-      bool inside = true;
-      for (int a = 0; a < 3; ++a) {
-        double xa = x[a] - b.offset[a], tol = 1e-9 * b.h[a];
-        inside = inside && xa >= r.lo[a] - tol && xa <= r.hi[a] + tol;
-      }
-      if (inside) b.youngs_modulus[m] = r.youngs_modulus, density[m] = r.density;
-    }
+  b.youngs_modulus.resize(n);
   b.mass.resize(n);
-  for (std::int64_t m = 0; m < n; ++m) b.mass[m] = density[m] * b.volume(m);
+  for (std::int64_t m = 0; m < n; ++m) {
+    const MoleculeMaterial mat = molecule_material(spec, b, m);
+    b.youngs_modulus[m] = mat.youngs_modulus;
+    b.mass[m] = mat.density * b.volume(m);
+  }
   if (first != 0) {
     for (auto& c : b.connections) c.a += first, c.b += first;
     for (auto& t : b.tetrahedra)
@@ -59,11 +56,43 @@ Body build_one(const BodySpec& spec, std::int64_t first) {
   return b;
 }
 
+std::vector<BodySpec> specs_of(const Scene& scene) {
+  return scene.bodies.empty() ? std::vector<BodySpec>{scene.body} : scene.bodies;
+}
+
 }  // namespace
 
+// Material per molecule: the body's, then each region in turn (the last region holding a molecule wins). A
+// connection across a region's boundary joins two materials: the calibration methods see both ends' E.
+MoleculeMaterial molecule_material(const BodySpec& spec, const BoxGeometry& box, std::int64_t id) {
+  MoleculeMaterial m{spec.youngs_modulus, spec.density};
+  if (spec.regions.empty()) return m;
+  const Vec3 x = box.rest_position(id);
+  for (const auto& r : spec.regions) {
+    bool inside = true;
+    for (int a = 0; a < 3; ++a) {
+      double xa = x[a] - box.offset[a], tol = 1e-9 * box.h[a];
+      inside = inside && xa >= r.lo[a] - tol && xa <= r.hi[a] + tol;
+    }
+    if (inside) m = {r.youngs_modulus, r.density};
+  }
+  return m;
+}
+
+Body scene_shape(const Scene& scene) {
+  const std::vector<BodySpec> specs = specs_of(scene);
+  Body all;
+  std::int64_t first = 0;
+  for (const auto& spec : specs) {
+    all.parts.push_back(geometry_of(spec, first));
+    first += all.parts.back().molecules();
+  }
+  static_cast<BoxGeometry&>(all) = all.parts[0];
+  return all;
+}
+
 Body build_body(const Scene& scene) {
-  const std::vector<BodySpec> single{scene.body};
-  const std::vector<BodySpec>& specs = scene.bodies.empty() ? single : scene.bodies;
+  const std::vector<BodySpec> specs = specs_of(scene);
   Body all = build_one(specs[0], 0);
   all.parts.push_back(all);
   all.parts.back().first = 0;

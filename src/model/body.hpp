@@ -3,6 +3,7 @@
 // offset + (i h_x, j h_y, k h_z).
 #pragma once
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -43,6 +44,18 @@ struct BoxGeometry {
   Vec3 rest_position(std::int64_t id) const {
     auto ijk = index(id);
     return {offset[0] + ijk[0] * h[0], offset[1] + ijk[1] * h[1], offset[2] + ijk[2] * h[2]};
+  }
+  // The rest distance between two molecules of this box, from their lattice offset ((i' - i) h_x, ...): the same
+  // double for every connection of the same offset, wherever it lies (positions would add round-off that
+  // differs from place to place), so equal connections get bit-equal k and share a connection type.
+  double rest_distance(std::int64_t a, std::int64_t b) const {
+    const auto ia = index(a), ib = index(b);
+    double sum = 0;
+    for (int d = 0; d < 3; ++d) {
+      const double x = static_cast<double>(ib[d] - ia[d]) * h[d];
+      sum += x * x;
+    }
+    return std::sqrt(sum);
   }
   // The tributary width of a molecule along an axis: h inside, h/2 on the boundary.
   double width(long i, int axis) const { return (i == 0 || i == n[axis] - 1) ? 0.5 * h[axis] : h[axis]; }
@@ -91,7 +104,17 @@ struct Body : BoxGeometry {
   double face_area(std::int64_t id, int axis) const { return part(id).face_area(id, axis); }
 };
 
-// Builds the body a scene describes: geometry, topology, per-molecule material and mass.
+// Builds the whole body a scene describes, on the calling rank: geometry, every connection, per-molecule
+// material and mass. The explicit path (and the reference the lattice stencils are tested against).
 Body build_body(const Scene& scene);
+
+// The bodies' geometry only (parts, no per-molecule or per-connection array): what every rank keeps.
+Body scene_shape(const Scene& scene);
+
+// A molecule's material: its body's, or that of the last region holding it. `id` is the global id.
+struct MoleculeMaterial {
+  double youngs_modulus, density;  // Pa, kg/m^3
+};
+MoleculeMaterial molecule_material(const BodySpec& spec, const BoxGeometry& box, std::int64_t id);
 
 }  // namespace tissue

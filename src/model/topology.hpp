@@ -1,5 +1,10 @@
-// Topologies: which molecules of a box a connection joins. A new topology is one function plus one line in the
-// registry (topology.cpp).
+// Topologies: which molecules of a box a connection joins. A new topology is one stencil (the lattice offsets
+// of a molecule's neighbours) plus one line in the registry (topology.cpp).
+//
+// Two views of the same topology: the stencil answers "who are molecule g's neighbours" for any g, so each rank
+// generates only the connections of its own molecules (partition/lattice_model.cpp) and no rank ever holds the
+// whole connection list; the explicit builder enumerates every connection (and tetrahedron) of the body, for the
+// unstructured path and as the independent reference the tests check the stencil against.
 #pragma once
 #include <string>
 #include <vector>
@@ -11,11 +16,32 @@ namespace tissue {
 // Fills body.connections (any order; build_body sorts them) and, for tetrahedral meshes, body.tetrahedra.
 using TopologyBuilder = void (*)(Body& body);
 
+// A lattice offset (di, dj, dk) to a neighbour; its class is the number of non-zero components minus one.
+struct StencilOffset {
+  int d[3];
+};
+
 struct TopologyStyle {
   const char* name;
   TopologyBuilder build;
   const char* description;
+  std::vector<StencilOffset> stencil;  // every offset, both signs (the relation is symmetric)
+  bool tetrahedra = false;             // connections are the edges of the cells' Kuhn tetrahedra (Eq. 5 needs them)
 };
+
+struct Neighbour {
+  std::int64_t id;
+  ConnectionClass cls;
+};
+
+// The neighbours of molecule g (global id) in its box, in increasing id order (the order of the global
+// connection list and of the METIS graph). `out` is cleared first.
+void lattice_neighbours(const TopologyStyle& style, const BoxGeometry& box, std::int64_t g, std::vector<Neighbour>& out);
+
+// Tetrahedral topology: how many of the cells' Kuhn tetrahedra contain both molecules a and b (the connection's
+// incident tetrahedra, Van Gelder's Eq. 5), and the volume of one (every Kuhn tetrahedron of a box has the same).
+int kuhn_tetrahedra_on(const BoxGeometry& box, std::int64_t a, std::int64_t b);
+double kuhn_tetrahedron_volume(const BoxGeometry& box);
 
 const std::vector<TopologyStyle>& topology_styles();
 const TopologyStyle* find_topology(const std::string& name);

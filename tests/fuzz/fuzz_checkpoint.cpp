@@ -61,15 +61,12 @@ extern "C" int LLVMFuzzerInitialize(int* argc, char*** argv) {
   if (PetscInitialize(&pargc, &pargv, nullptr, nullptr)) std::abort();
   fx = new Fixture;
   fx->scene = parse_scene(scene_text, "fuzz.toml");
-  Body body = build_body(fx->scene);
-  PartitionStats stats;
-  std::vector<int> part = partition_molecules(body, PETSC_COMM_WORLD, stats);
-  fx->model = distribute(body, part, stats, PETSC_COMM_WORLD);
+  fx->model = build_local_model(fx->scene, PETSC_COMM_WORLD);
   const LocalModel& m = fx->model;
   fx->molecules = std::make_unique<NaturalOrder>(
       m.comm, std::vector<std::int64_t>(m.id.begin(), m.id.begin() + m.owned), m.global_molecules);
   std::vector<std::int64_t> ids;
-  for (int c : m.written_here) ids.push_back(m.connection_id[c]);
+  for (int c : m.written_here()) ids.push_back(m.connection_id(c));
   fx->connections = std::make_unique<NaturalOrder>(m.comm, ids, m.global_connections);
   const char* tmp = std::getenv("TMPDIR");
   fx->path = std::string(tmp ? tmp : "/tmp") + "/fuzz_checkpoint_" + std::to_string(::getpid()) + ".h5";

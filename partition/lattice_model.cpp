@@ -1,0 +1,248 @@
+#include "partition/lattice_model.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include "partition/metis_partition.hpp"
+#include "partition/natural_order.hpp"
+#include "src/model/topology.hpp"
+
+namespace tissue {
+namespace {
+
+// One MPI_Alltoallv of int64 items, `width` per item, grouped by destination rank. Returns the received items
+// grouped by source rank, and their counts (in items) per source.
+std::vector<std::int64_t> exchange(MPI_Comm comm, const std::vector<std::vector<std::int64_t>>& out, int width,
+                                   std::vector<int>& received) {
+  const int size = static_cast<int>(out.size());
+  std::vector<int> scount(size), sdispl(size + 1, 0), rcount(size), rdispl(size + 1, 0);
+  for (int r = 0; r < size; ++r) {
+    if (out[r].size() > static_cast<std::size_t>(std::numeric_limits<int>::max()))
+      throw std::runtime_error("a rank sends more than 2^31 values to another: use more ranks");
+    scount[r] = static_cast<int>(out[r].size()), sdispl[r + 1] = sdispl[r] + scount[r];
+  }
+  MPI_Alltoall(scount.data(), 1, MPI_INT, rcount.data(), 1, MPI_INT, comm);
+  for (int r = 0; r < size; ++r) rdispl[r + 1] = rdispl[r] + rcount[r];
+  std::vector<std::int64_t> send(sdispl[size]), recv(rdispl[size]);
+  for (int r = 0; r < size; ++r) std::copy(out[r].begin(), out[r].end(), send.begin() + sdispl[r]);
+  MPI_Alltoallv(send.data(), scount.data(), sdispl.data(), MPI_INT64_T, recv.data(), rcount.data(), rdispl.data(),
+                MPI_INT64_T, comm);
+  received.resize(size);
+  for (int r = 0; r < size; ++r) received[r] = rcount[r] / width;
+  return recv;
+}
+
+// The index of id in the sorted range [begin, begin + n), or -1.
+long find_sorted(const std::int64_t* begin, long n, std::int64_t id) {
+  const std::int64_t* it = std::lower_bound(begin, begin + n, id);
+  return (it != begin + n && *it == id) ? static_cast<long>(it - begin) : -1;
+}
+long find_sorted(const std::vector<std::int64_t>& v, std::int64_t id) {
+  return find_sorted(v.data(), static_cast<long>(v.size()), id);
+}
+
+}  // namespace
+
+LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm) {
+  LocalModel m;
+  m.comm = comm;
+  MPI_Comm_rank(comm, &m.rank);
+  MPI_Comm_size(comm, &m.size);
+  m.shape = scene_shape(scene);
+  const std::vector<BodySpec> specs = scene.bodies.empty() ? std::vector<BodySpec>{scene.body} : scene.bodies;
+  const int nbodies = m.shape.bodies();
+  std::vector<const TopologyStyle*> style(nbodies);
+  for (int b = 0; b < nbodies; ++b) style[b] = find_topology(m.shape.body(b).topology);  // checked by the reader
+  const std::int64_t n = m.shape.molecules();
+  m.global_molecules = n;
+  if (n * 3 > std::numeric_limits<PetscInt>::max())
+    throw std::runtime_error("the body has more molecules than 32-bit PETSc indices can address");
+  std::vector<Neighbour> nb;
+  auto neighbours = [&](std::int64_t g) {
+    const int b = m.shape.body_of(g);
+    lattice_neighbours(*style[b], m.shape.body(b), g, nb);
+    return b;
+  };
+
+  // 1-2. This rank's block of the natural order, and the part (owning rank) of each of its molecules.
+  const std::int64_t begin = NaturalOrder::block_begin(n, m.size, m.rank);
+  const std::int64_t end = NaturalOrder::block_begin(n, m.size, m.rank + 1);
+  std::vector<int> part = partition_lattice(m.shape, comm, m.partition);
+
+  // The global connection order is (a, b) with a < b: molecule g's connections to higher ids come right after
+  // those of every lower id. A prefix sum of these forward counts over the blocks gives each molecule's first
+  // connection id.
+  std::vector<std::int64_t> first_connection(end - begin);
+  std::int64_t forward_total = 0;
+  for (std::int64_t g = begin; g < end; ++g) {
+    neighbours(g);
+    first_connection[g - begin] = forward_total;
+    for (const auto& x : nb) forward_total += x.id > g;
+  }
+  std::int64_t offset = 0;
+  MPI_Exscan(&forward_total, &offset, 1, MPI_INT64_T, MPI_SUM, comm);
+  if (m.rank == 0) offset = 0;
+  for (auto& f : first_connection) f += offset;
+  MPI_Allreduce(&forward_total, &m.global_connections, 1, MPI_INT64_T, MPI_SUM, comm);
+
+  // 3. Molecules to their owners, with their first connection id. Blocks arrive in rank order and ascend within,
+  //    so the owned ids arrive sorted.
+  std::vector<std::vector<std::int64_t>> out(m.size);
+  for (std::int64_t g = begin; g < end; ++g) {
+    out[part[g - begin]].push_back(g);
+    out[part[g - begin]].push_back(first_connection[g - begin]);
+  }
+  std::vector<int> from;
+  std::vector<std::int64_t> in = exchange(comm, out, 2, from);
+  m.owned = static_cast<int>(in.size() / 2);
+  std::vector<std::int64_t> owned_ids(m.owned), owned_first(m.owned);
+  for (int i = 0; i < m.owned; ++i) owned_ids[i] = in[2 * i], owned_first[i] = in[2 * i + 1];
+  in = std::vector<std::int64_t>();
+  long long owned = m.owned, before = 0;
+  MPI_Exscan(&owned, &before, 1, MPI_LONG_LONG, MPI_SUM, comm);
+  if (m.rank == 0) before = 0;
+  m.first_block = static_cast<PetscInt>(before);
+
+  // 4. The directory: each block rank learns the PETSc block id of its molecules (owners answer in the order
+  //    they received them).
+  std::vector<PetscInt> directory_block(end - begin);
+  {
+    std::vector<std::vector<std::int64_t>> back(m.size);
+    int i = 0;
+    for (int r = 0; r < m.size; ++r)
+      for (int k = 0; k < from[r]; ++k, ++i) back[r].push_back(m.first_block + i);
+    std::vector<int> got;
+    std::vector<std::int64_t> blocks = exchange(comm, back, 1, got);
+    std::vector<std::size_t> next(m.size + 1, 0);  // where each owner's answers start
+    for (int r = 0; r < m.size; ++r) next[r + 1] = next[r] + got[r];
+    for (std::int64_t g = begin; g < end; ++g) directory_block[g - begin] = static_cast<PetscInt>(blocks[next[part[g - begin]]++]);
+  }
+
+  // Ghosts: the neighbours of owned molecules that another rank owns.
+  std::vector<std::int64_t> ghosts;
+  for (std::int64_t g : owned_ids) {
+    neighbours(g);
+    for (const auto& x : nb)
+      if (find_sorted(owned_ids, x.id) < 0) ghosts.push_back(x.id);
+  }
+  std::sort(ghosts.begin(), ghosts.end());
+  ghosts.erase(std::unique(ghosts.begin(), ghosts.end()), ghosts.end());
+
+  // Ask the directory for each ghost's block id and first connection id.
+  std::vector<std::int64_t> ghost_first(ghosts.size());
+  std::vector<PetscInt> ghost_block(ghosts.size());
+  {
+    std::vector<std::vector<std::int64_t>> ask(m.size);
+    for (std::int64_t g : ghosts) ask[NaturalOrder::block_owner(n, m.size, g)].push_back(g);
+    std::vector<int> asked;
+    std::vector<std::int64_t> questions = exchange(comm, ask, 1, asked);
+    std::vector<std::vector<std::int64_t>> answer(m.size);
+    std::size_t q = 0;
+    for (int r = 0; r < m.size; ++r)
+      for (int k = 0; k < asked[r]; ++k, ++q) {
+        const std::int64_t g = questions[q];
+        answer[r].push_back(directory_block[g - begin]);
+        answer[r].push_back(first_connection[g - begin]);
+      }
+    std::vector<int> answered;
+    std::vector<std::int64_t> answers = exchange(comm, answer, 2, answered);
+    // Answers come back grouped by directory rank, in the order asked; ghosts are sorted, and so are blocks.
+    std::vector<std::size_t> next(m.size + 1, 0);
+    for (int r = 0; r < m.size; ++r) next[r + 1] = next[r] + 2 * answered[r];
+    for (std::size_t i = 0; i < ghosts.size(); ++i) {
+      std::size_t& k = next[NaturalOrder::block_owner(n, m.size, ghosts[i])];
+      ghost_block[i] = static_cast<PetscInt>(answers[k]), ghost_first[i] = answers[k + 1];
+      k += 2;
+    }
+  }
+  part = std::vector<int>(), directory_block = std::vector<PetscInt>(), first_connection = std::vector<std::int64_t>();
+
+  // Per-molecule arrays: owned, then ghosts.
+  m.local = m.owned + static_cast<int>(ghosts.size());
+  m.id = owned_ids;
+  m.id.insert(m.id.end(), ghosts.begin(), ghosts.end());
+  m.block.resize(m.local), m.rest.resize(3 * m.local), m.mass.resize(m.local);
+  m.youngs_modulus.resize(m.local), m.degree.resize(m.local), m.body.resize(m.local);
+  m.first_connection.resize(m.local);
+  for (int i = 0; i < m.local; ++i) {
+    m.first_connection[i] = i < m.owned ? owned_first[i] : ghost_first[i - m.owned];
+    const std::int64_t g = m.id[i];
+    m.block[i] = i < m.owned ? m.first_block + i : ghost_block[i - m.owned];
+    const int b = neighbours(g);
+    const BoxGeometry& box = m.shape.body(b);
+    const Vec3 x = box.rest_position(g);
+    for (int d = 0; d < 3; ++d) m.rest[3 * i + d] = x[d];
+    const MoleculeMaterial mat = molecule_material(specs[b], box, g);
+    m.mass[i] = mat.density * box.volume(g);
+    m.youngs_modulus[i] = mat.youngs_modulus;
+    m.degree[i] = static_cast<int>(nb.size());
+    m.body[i] = b;
+  }
+  owned_ids = owned_first = ghost_first = std::vector<std::int64_t>();  // m.id and m.first_connection hold them
+  auto owned_index = [&](std::int64_t g) { return find_sorted(m.id.data(), m.owned, g); };
+
+  // 5. Connections with at least one owned end: walk the local molecules in increasing id and emit each one's
+  //    forward connections, which yields the global (a, b) order directly.
+  std::vector<int> order(m.local);  // local indices by increasing id (owned and ghosts interleave)
+  {
+    std::vector<int> sequence(m.local);
+    for (int i = 0; i < m.local; ++i) sequence[i] = i;
+    std::merge(sequence.begin(), sequence.begin() + m.owned, sequence.begin() + m.owned, sequence.end(),
+               order.begin(), [&](int x, int y) { return m.id[x] < m.id[y]; });
+  }
+  bool any_tetrahedra = false;
+  for (int b = 0; b < nbodies; ++b) any_tetrahedra = any_tetrahedra || style[b]->tetrahedra;
+  // Two walks: the first counts, so the arrays are allocated once at their size (no doubling at the peak).
+  std::size_t count = 0;
+  auto walk = [&](bool emit) {
+    for (int i : order) {
+      const std::int64_t a = m.id[i];
+      const bool a_owned = i < m.owned;
+      const int b = neighbours(a);
+      const BoxGeometry& box = m.shape.body(b);
+      int rank_of_b = 0;  // position of the connection among a's forward ones
+      for (const auto& x : nb) {
+        if (x.id < a) continue;
+        const int forward = rank_of_b++;
+        const long owned_j = owned_index(x.id);
+        if (!a_owned && owned_j < 0) continue;
+        if (!emit) {
+          ++count;
+          continue;
+        }
+        const int j = static_cast<int>(owned_j >= 0 ? owned_j : m.owned + find_sorted(ghosts, x.id));
+        m.end_a.push_back(i), m.end_b.push_back(j);
+        m.forward_rank.push_back(static_cast<std::uint16_t>(forward));
+        m.connection_class.push_back(x.cls);
+        m.rest_length.push_back(box.rest_distance(a, x.id));
+        if (a_owned) ++m.written_count;
+        if (any_tetrahedra) {
+          // Tetrahedra incident on the connection (Van Gelder's Eq. 5, Lloyd's sum): every Kuhn tetrahedron of
+          // a box has the same volume; summed one by one, as the explicit path sums them.
+          double volume = 0, lloyd = 0;
+          if (style[b]->tetrahedra) {
+            const double v = kuhn_tetrahedron_volume(box), l_equiv = std::cbrt(6.0 * std::sqrt(2.0) * v);
+            for (int t = kuhn_tetrahedra_on(box, a, x.id); t > 0; --t) volume += v, lloyd += l_equiv;
+          }
+          m.tetra_volume.push_back(volume), m.tetra_lloyd_sum.push_back(lloyd);
+        }
+      }
+    }
+  };
+  walk(false);
+  m.end_a.reserve(count), m.end_b.reserve(count), m.forward_rank.reserve(count);
+  m.connection_class.reserve(count), m.rest_length.reserve(count);
+  if (any_tetrahedra) m.tetra_volume.reserve(count), m.tetra_lloyd_sum.reserve(count);
+  walk(true);
+  m.stiffness.assign(m.end_a.size(), 0.0);
+
+  const int ghosts_here = m.local - m.owned, owned_count = std::max(m.owned, 1);
+  double ratio = static_cast<double>(ghosts_here) / owned_count, worst = 0;
+  MPI_Allreduce(&ratio, &worst, 1, MPI_DOUBLE, MPI_MAX, comm);
+  m.partition.surface_to_volume = worst;
+  return m;
+}
+
+}  // namespace tissue

@@ -35,8 +35,9 @@
 # CSV (default docs/speed_accuracy.csv), JACOBI_MAX_N (CG + Jacobi only up to this N; default 40: its iterations
 # grow like N), HYPRE_MAX_N (default 20: BoomerAMG's set-up on this lattice is slow), RELAX_TOLS (default
 # "1e-4 1e-6 1e-8"), STATIC_CONFIGS (default "mg gamg hypre jacobi"), PEER_RANKS (default "1 2"), PEER_INPUT
-# (the LAMMPS input), APPEND=1 (add rows to an existing CSV instead of starting it). NS="" or PEER_NS="" skips
-# that part.
+# (the LAMMPS input), APPEND=1 (add rows to an existing CSV instead of starting it), NO_REF=1 (no reference
+# solve in the sweep: errors left blank; for the biggest N, where every run holds the big-memory lock).
+# NS="", PEER_NS="", STATIC_CONFIGS="" or RELAX_TOLS="" skips that part.
 #
 # Steps:
 #   1. Settings and checks (binary, lmp, python3 with matplotlib).
@@ -58,9 +59,9 @@ WORK=${WORK:-/tmp/tissue_speed_accuracy}
 CSV=${CSV:-docs/speed_accuracy.csv}
 JACOBI_MAX_N=${JACOBI_MAX_N:-40}
 HYPRE_MAX_N=${HYPRE_MAX_N:-20}
-STATIC_CONFIGS=${STATIC_CONFIGS:-"mg gamg hypre jacobi"}
-RELAX_TOLS=${RELAX_TOLS:-"1e-4 1e-6 1e-8"}
-PEER_RANKS=${PEER_RANKS:-"1 2"}
+STATIC_CONFIGS=${STATIC_CONFIGS-"mg gamg hypre jacobi"}
+RELAX_TOLS=${RELAX_TOLS-"1e-4 1e-6 1e-8"}
+PEER_RANKS=${PEER_RANKS-"1 2"}
 BIGMEM_N=${BIGMEM_N:-80}
 if [[ "${QUICK:-0}" == 1 ]]; then
   NS=${NS-"10 20 40"}
@@ -161,7 +162,7 @@ reference() {
 # 2. The sweep over N.
 for n in $NS; do
   echo "N = $n ($((n * n * n)) molecules), $RANKS ranks"
-  reference sweep "$n"
+  [[ "${NO_REF:-0}" == 1 ]] || reference sweep "$n"
   for config in $STATIC_CONFIGS; do
     case $config in
       mg) ours sweep static mg "$n" 1e-8 ;;

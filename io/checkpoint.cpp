@@ -54,10 +54,11 @@ void write_checked(Hdf5File& f, const std::string& name, std::int64_t global_row
   f.set_attribute(name, "checksum", as_signed(checksum(block, width, offset, comm)));
 }
 
-std::vector<double> connection_values(const LocalModel& m, const std::vector<double>& all) {
+template <typename Value>
+std::vector<double> connection_values(const LocalModel& m, Value value) {
   std::vector<double> v;
-  v.reserve(m.written_here.size());
-  for (int c : m.written_here) v.push_back(all[c]);
+  v.reserve(m.written_here().size());
+  for (int c : m.written_here()) v.push_back(value(c));
   return v;
 }
 
@@ -100,10 +101,11 @@ std::string write_checkpoint(const std::string& directory, int keep, const Scene
     write_checked(f, "/molecules/velocities", model.global_molecules, 3, molecules.begin(),
                   molecules.to_natural(state.v.data(), 3), comm);
     std::vector<std::int64_t> ends;
-    for (int c : model.written_here) ends.push_back(model.id[model.end_a[c]]), ends.push_back(model.id[model.end_b[c]]);
+    for (int c : model.written_here()) ends.push_back(model.id[model.end_a[c]]), ends.push_back(model.id[model.end_b[c]]);
     write_checked(f, "/connections/endpoints", model.global_connections, 2, connections.begin(),
                   connections.to_natural_ids(ends.data(), 2), comm);
-    auto k = connection_values(model, model.stiffness), l0 = connection_values(model, model.rest_length);
+    auto k = connection_values(model, [&](int c) { return model.k(c); });
+    auto l0 = connection_values(model, [&](int c) { return model.l0(c); });
     write_checked(f, "/connections/stiffness", model.global_connections, 1, connections.begin(),
                   connections.to_natural(k.data(), 1), comm);
     write_checked(f, "/connections/rest_length", model.global_connections, 1, connections.begin(),
@@ -255,12 +257,13 @@ void read_checkpoint_state(const std::string& path, const LocalModel& model, con
     auto mine_l0 = connections.from_natural(l0.data(), 1);
     int mismatch = 0;
     const char* what = "";
-    for (std::size_t w = 0; w < model.written_here.size(); ++w) {
-      const int c = model.written_here[w];
+    std::size_t w = 0;
+    for (int c : model.written_here()) {
       if (mine_ends[2 * w] != model.id[model.end_a[c]] || mine_ends[2 * w + 1] != model.id[model.end_b[c]])
         mismatch = 1, what = "/connections/endpoints";
-      else if (mine_l0[w] != model.rest_length[c]) mismatch = 2, what = "/connections/rest_length";
-      else if (check_stiffness && mine_k[w] != model.stiffness[c]) mismatch = 3, what = "/connections/stiffness";
+      else if (mine_l0[w] != model.l0(c)) mismatch = 2, what = "/connections/rest_length";
+      else if (check_stiffness && mine_k[w] != model.k(c)) mismatch = 3, what = "/connections/stiffness";
+      ++w;
     }
     int worst = 0;
     MPI_Allreduce(&mismatch, &worst, 1, MPI_INT, MPI_MAX, model.comm);

@@ -20,8 +20,8 @@ namespace {
 
 std::vector<std::int64_t> written_connection_ids(const LocalModel& m) {
   std::vector<std::int64_t> ids;
-  ids.reserve(m.written_here.size());
-  for (int c : m.written_here) ids.push_back(m.connection_id[c]);
+  ids.reserve(m.written_here().size());
+  for (int c : m.written_here()) ids.push_back(m.connection_id(c));
   return ids;
 }
 
@@ -98,18 +98,19 @@ void Output::snapshot(const SolverState& state, const ForceModel& forces, bool f
     frame.forces = molecules().to_natural(f.data(), 3);
   }
   // Connections: end points (original ids), strain and force of the ones this rank writes.
-  const std::size_t nw = model_.written_here.size();
+  const std::size_t nw = model_.written_here().size();
   std::vector<std::int64_t> ends(2 * nw);
   std::vector<double> strain(nw), tension(nw);
-  for (std::size_t w = 0; w < nw; ++w) {
-    const int c = model_.written_here[w];
+  std::size_t w = 0;
+  for (int c : model_.written_here()) {
     ends[2 * w] = model_.id[model_.end_a[c]], ends[2 * w + 1] = model_.id[model_.end_b[c]];
     const double* xa = x + 3 * model_.end_a[c];
     const double* xb = x + 3 * model_.end_b[c];
     double len = std::sqrt((xb[0] - xa[0]) * (xb[0] - xa[0]) + (xb[1] - xa[1]) * (xb[1] - xa[1]) +
                            (xb[2] - xa[2]) * (xb[2] - xa[2]));
-    strain[w] = (len - model_.rest_length[c]) / model_.rest_length[c];
-    tension[w] = model_.stiffness[c] * (len - model_.rest_length[c]);
+    strain[w] = (len - model_.l0(c)) / model_.l0(c);
+    tension[w] = model_.k(c) * (len - model_.l0(c));
+    ++w;
   }
   frame.endpoints = connections().to_natural_ids(ends.data(), 2);
   if (wants(scene_, "connection_strain")) frame.connection_strain = connections().to_natural(strain.data(), 1);

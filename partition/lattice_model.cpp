@@ -34,10 +34,13 @@ std::vector<std::int64_t> exchange(MPI_Comm comm, const std::vector<std::vector<
   return recv;
 }
 
-// The index of id in a sorted vector, or -1.
+// The index of id in the sorted range [begin, begin + n), or -1.
+long find_sorted(const std::int64_t* begin, long n, std::int64_t id) {
+  const std::int64_t* it = std::lower_bound(begin, begin + n, id);
+  return (it != begin + n && *it == id) ? static_cast<long>(it - begin) : -1;
+}
 long find_sorted(const std::vector<std::int64_t>& v, std::int64_t id) {
-  auto it = std::lower_bound(v.begin(), v.end(), id);
-  return (it != v.end() && *it == id) ? static_cast<long>(it - v.begin()) : -1;
+  return find_sorted(v.data(), static_cast<long>(v.size()), id);
 }
 
 }  // namespace
@@ -162,7 +165,9 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm) {
   m.id.insert(m.id.end(), ghosts.begin(), ghosts.end());
   m.block.resize(m.local), m.rest.resize(3 * m.local), m.mass.resize(m.local);
   m.youngs_modulus.resize(m.local), m.degree.resize(m.local), m.body.resize(m.local);
+  m.first_connection.resize(m.local);
   for (int i = 0; i < m.local; ++i) {
+    m.first_connection[i] = i < m.owned ? owned_first[i] : ghost_first[i - m.owned];
     const std::int64_t g = m.id[i];
     m.block[i] = i < m.owned ? m.first_block + i : ghost_block[i - m.owned];
     const int b = neighbours(g);
@@ -175,10 +180,8 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm) {
     m.degree[i] = static_cast<int>(nb.size());
     m.body[i] = b;
   }
-  auto local_index = [&](std::int64_t g) {
-    long i = find_sorted(owned_ids, g);
-    return static_cast<int>(i >= 0 ? i : m.owned + find_sorted(ghosts, g));
-  };
+  owned_ids = owned_first = ghost_first = std::vector<std::int64_t>();  // m.id and m.first_connection hold them
+  auto owned_index = [&](std::int64_t g) { return find_sorted(m.id.data(), m.owned, g); };
 
   // 5. Connections with at least one owned end: walk the local molecules in increasing id and emit each one's
   //    forward connections, which yields the global (a, b) order directly.
@@ -199,28 +202,22 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm) {
       const bool a_owned = i < m.owned;
       const int b = neighbours(a);
       const BoxGeometry& box = m.shape.body(b);
-      const std::int64_t first = a_owned ? owned_first[i] : ghost_first[i - m.owned];
-      std::int64_t rank_of_b = 0;  // position of the connection among a's forward ones
+      int rank_of_b = 0;  // position of the connection among a's forward ones
       for (const auto& x : nb) {
         if (x.id < a) continue;
-        const std::int64_t id = first + rank_of_b++;
-        const long owned_j = find_sorted(owned_ids, x.id);
+        const int forward = rank_of_b++;
+        const long owned_j = owned_index(x.id);
         if (!a_owned && owned_j < 0) continue;
         if (!emit) {
           ++count;
           continue;
         }
-        const int j = owned_j >= 0 ? static_cast<int>(owned_j) : local_index(x.id);
+        const int j = static_cast<int>(owned_j >= 0 ? owned_j : m.owned + find_sorted(ghosts, x.id));
         m.end_a.push_back(i), m.end_b.push_back(j);
-        m.connection_id.push_back(id);
+        m.forward_rank.push_back(static_cast<std::uint16_t>(forward));
         m.connection_class.push_back(x.cls);
-        double len2 = 0;
-        for (int d = 0; d < 3; ++d) {
-          const double dx = m.rest[3 * j + d] - m.rest[3 * i + d];
-          len2 += dx * dx;
-        }
-        m.rest_length.push_back(std::sqrt(len2));
-        if (a_owned) m.written_here.push_back(static_cast<int>(m.end_a.size() - 1));
+        m.rest_length.push_back(box.rest_distance(a, x.id));
+        if (a_owned) ++m.written_count;
         if (any_tetrahedra) {
           // Tetrahedra incident on the connection (Van Gelder's Eq. 5, Lloyd's sum): every Kuhn tetrahedron of
           // a box has the same volume; summed one by one, as the explicit path sums them.
@@ -235,7 +232,7 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm) {
     }
   };
   walk(false);
-  m.end_a.reserve(count), m.end_b.reserve(count), m.connection_id.reserve(count);
+  m.end_a.reserve(count), m.end_b.reserve(count), m.forward_rank.reserve(count);
   m.connection_class.reserve(count), m.rest_length.reserve(count);
   if (any_tetrahedra) m.tetra_volume.reserve(count), m.tetra_lloyd_sum.reserve(count);
   walk(true);

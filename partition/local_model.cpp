@@ -1,6 +1,7 @@
 #include "partition/local_model.hpp"
 
 #include <algorithm>
+#include <cstring>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -38,6 +39,14 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
 
   std::vector<int> degree(n, 0);
   for (const auto& c : body.connections) ++degree[c.a], ++degree[c.b];
+  // The global id of each molecule's first connection to a higher id (connections are sorted by (a, b)).
+  std::vector<std::int64_t> first_forward(n + 1, 0);
+  for (const auto& c : body.connections) ++first_forward[c.a + 1];
+  for (std::int64_t g = 0; g < n; ++g) {
+    first_forward[g + 1] += first_forward[g];
+    if (first_forward[g + 1] - first_forward[g] > 65535)
+      throw std::runtime_error("a molecule has more than 65535 connections");
+  }
 
   // Owned molecules, then ghosts in original order.
   std::unordered_map<std::int64_t, int> local_of;
@@ -61,8 +70,10 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
 
   m.block.resize(m.local), m.rest.resize(3 * m.local), m.mass.resize(m.local);
   m.youngs_modulus.resize(m.local), m.degree.resize(m.local), m.body.resize(m.local);
+  m.first_connection.resize(m.local);
   for (int i = 0; i < m.local; ++i) {
     std::int64_t g = m.id[i];
+    m.first_connection[i] = first_forward[g];
     m.block[i] = block_of[g];
     Vec3 x = body.rest_position(g);
     for (int d = 0; d < 3; ++d) m.rest[3 * i + d] = x[d];
@@ -75,20 +86,15 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
   // Tetrahedra incident on each connection (Van Gelder's Eq. 5), summed per connection.
   std::unordered_map<std::int64_t, int> local_connection;  // key a * n + b
   const std::size_t nc = mine.size();
-  m.end_a.resize(nc), m.end_b.resize(nc), m.connection_id.resize(nc), m.connection_class.resize(nc);
+  m.end_a.resize(nc), m.end_b.resize(nc), m.forward_rank.resize(nc), m.connection_class.resize(nc);
   m.rest_length.resize(nc), m.stiffness.assign(nc, 0.0);
   for (std::size_t l = 0; l < nc; ++l) {
     const auto& con = body.connections[mine[l]];
     m.end_a[l] = local_of[con.a], m.end_b[l] = local_of[con.b];
-    m.connection_id[l] = static_cast<std::int64_t>(mine[l]);
+    m.forward_rank[l] = static_cast<std::uint16_t>(mine[l] - first_forward[con.a]);
     m.connection_class[l] = con.cls;
-    double len2 = 0;
-    for (int d = 0; d < 3; ++d) {
-      double dx = m.rest[3 * m.end_b[l] + d] - m.rest[3 * m.end_a[l] + d];
-      len2 += dx * dx;
-    }
-    m.rest_length[l] = std::sqrt(len2);
-    if (part[con.a] == m.rank) m.written_here.push_back(static_cast<int>(l));
+    m.rest_length[l] = body.rest_distance(con.a, con.b);
+    if (part[con.a] == m.rank) ++m.written_count;
     if (!body.tetrahedra.empty()) local_connection[con.a * n + con.b] = static_cast<int>(l);
   }
   if (!body.tetrahedra.empty()) {
@@ -121,6 +127,32 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
   return m;
 }
 
+bool compact_connection_types(LocalModel& m) {
+  if (m.typed() || m.connections() == 0) return m.typed();
+  struct PairHash {
+    std::size_t operator()(const std::pair<std::uint64_t, std::uint64_t>& p) const {
+      return std::hash<std::uint64_t>()(p.first * 0x9E3779B97F4A7C15ULL ^ p.second);
+    }
+  };
+  std::unordered_map<std::pair<std::uint64_t, std::uint64_t>, std::uint16_t, PairHash> types;
+  std::vector<std::uint16_t> type(m.connections());
+  std::vector<double> tk, tl;
+  for (int c = 0; c < m.connections(); ++c) {
+    std::uint64_t kb, lb;  // by bits: two different doubles are two types, -0.0 and 0.0 included
+    std::memcpy(&kb, &m.stiffness[c], 8), std::memcpy(&lb, &m.rest_length[c], 8);
+    auto [it, added] = types.try_emplace({kb, lb}, static_cast<std::uint16_t>(tk.size()));
+    if (added) {
+      if (tk.size() == 65536) return false;
+      tk.push_back(m.stiffness[c]), tl.push_back(m.rest_length[c]);
+    }
+    type[c] = it->second;
+  }
+  m.connection_type = std::move(type);
+  m.type_stiffness = std::move(tk), m.type_rest_length = std::move(tl);
+  m.stiffness = std::vector<double>(), m.rest_length = std::vector<double>();
+  return true;
+}
+
 LocalModel build_local_model(const Scene& scene, MPI_Comm comm) {
   // Explicit topologies (meshes, random clouds) come as lists: the explicit path. Box lattices from stencils.
   const std::vector<BodySpec>& specs = scene.bodies;
@@ -139,7 +171,7 @@ LocalModel build_local_model(const Scene& scene, MPI_Comm comm) {
     // PT-Scotch's blocks cannot see their neighbours' parts: count the cut connections here, each once (by the
     // rank writing it, which owns end a; it is cut when end b is a ghost).
     long cut = 0;
-    for (int c : m.written_here) cut += m.end_b[c] >= m.owned;
+    for (int c : m.written_here()) cut += m.end_b[c] >= m.owned;
     MPI_Allreduce(&cut, &m.partition.edge_cut, 1, MPI_LONG, MPI_SUM, comm);
   }
   return m;

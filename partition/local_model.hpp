@@ -17,6 +17,41 @@
 
 namespace tissue {
 
+// The connections this rank writes to files: those whose end a it owns (each connection is written by exactly
+// one rank). A view, not a list: connections are sorted by (a, b) and owned molecules come first, so "end a is
+// owned" is end_a[c] < owned.
+class WrittenConnections {
+public:
+  class iterator {
+  public:
+    iterator(const int* end_a, int c, int n, int owned) : a_(end_a), c_(c), n_(n), owned_(owned) { skip(); }
+    int operator*() const { return c_; }
+    iterator& operator++() {
+      ++c_;
+      skip();
+      return *this;
+    }
+    bool operator!=(const iterator& o) const { return c_ != o.c_; }
+
+  private:
+    void skip() {
+      while (c_ < n_ && a_[c_] >= owned_) ++c_;
+    }
+    const int* a_;
+    int c_, n_, owned_;
+  };
+  WrittenConnections(const std::vector<int>& end_a, const int& owned, const std::size_t& count)
+      : end_a_(end_a), owned_(owned), count_(count) {}
+  iterator begin() const { return {end_a_.data(), 0, static_cast<int>(end_a_.size()), owned_}; }
+  iterator end() const { return {end_a_.data(), static_cast<int>(end_a_.size()), static_cast<int>(end_a_.size()), owned_}; }
+  std::size_t size() const { return count_; }
+
+private:
+  const std::vector<int>& end_a_;
+  const int& owned_;
+  const std::size_t& count_;
+};
+
 struct LocalModel {
   MPI_Comm comm = MPI_COMM_NULL;
   int rank = 0, size = 1;
@@ -34,19 +69,39 @@ struct LocalModel {
   std::vector<double> youngs_modulus;  // local, Pa
   std::vector<int> degree;           // local, number of connections of each molecule in the whole body
   std::vector<int> body;             // local, which body ([[body]] index) each molecule belongs to
+  // local: the global id of the molecule's first connection to a higher id (the global connection order is
+  // (a, b), so molecule a's connections to higher ids are numbered one after another from there).
+  std::vector<std::int64_t> first_connection;
 
-  // Connections (structure of arrays): local end indices, global id, class, rest length, stiffness.
+  // Connections (structure of arrays), sorted by (a, b) in global ids: local end indices, class, rest length,
+  // stiffness, and b's position among a's connections to higher ids (with first_connection, the global id:
+  // 2 bytes a connection instead of 8).
   std::vector<int> end_a, end_b;
-  std::vector<std::int64_t> connection_id;
+  std::vector<std::uint16_t> forward_rank;
   std::vector<ConnectionClass> connection_class;
   std::vector<double> rest_length, stiffness;
   std::vector<double> tetra_volume;  // tetrahedral topology: volume of the tetrahedra incident on each connection
   std::vector<double> tetra_lloyd_sum;  // tetrahedral: sum over incident tetrahedra of l_equiv = (6 sqrt2 V)^(1/3)
-  // The rank that owns end a writes the connection to files (each connection written exactly once).
-  std::vector<int> written_here;     // local connection indices this rank writes
+  std::size_t written_count = 0;     // connections whose end a this rank owns
+  // Connection types: after calibration, when the (k, l0) pairs take few distinct values (a lattice of one
+  // material has a handful: interior, face, edge, by class), each connection keeps a 2-byte type into these
+  // tables and stiffness and rest_length are released (16 bytes a connection; see compact_connection_types).
+  std::vector<std::uint16_t> connection_type;
+  std::vector<double> type_stiffness, type_rest_length;
 
   int connections() const { return static_cast<int>(end_a.size()); }
+  bool typed() const { return !connection_type.empty(); }
+  double k(int c) const { return typed() ? type_stiffness[connection_type[c]] : stiffness[c]; }
+  double l0(int c) const { return typed() ? type_rest_length[connection_type[c]] : rest_length[c]; }
+  std::int64_t connection_id(int c) const { return first_connection[end_a[c]] + forward_rank[c]; }
+  // The rank that owns end a writes the connection to files (each connection written exactly once).
+  WrittenConnections written_here() const { return {end_a, owned, written_count}; }
 };
+
+// Replaces the per-connection stiffness and rest length by types when this rank has at most 65536 distinct
+// (k, l0) pairs; returns whether it did. Exact: the tables hold the same doubles. Call it only once the
+// stiffness no longer changes (not under angles-update or iterative calibration).
+bool compact_connection_types(LocalModel& model);
 
 // Collective. Builds this rank's LocalModel from the global body and the partition (the explicit path: every
 // rank holds the whole body while it runs).

@@ -27,7 +27,7 @@ namespace {
 // Every connection's k by global connection id, on every rank.
 std::vector<double> gather_stiffness(const LocalModel& m) {
   std::vector<double> mine(m.global_connections, 0.0), all(mine.size());
-  for (int c : m.written_here) mine[m.connection_id[c]] = m.stiffness[c];
+  for (int c : m.written_here()) mine[m.connection_id(c)] = m.k(c);
   MPI_Allreduce(mine.data(), all.data(), static_cast<int>(mine.size()), MPI_DOUBLE, MPI_SUM, m.comm);
   return all;
 }
@@ -109,7 +109,7 @@ TEST(Bodies, EachBodyGetsWhatItsMethodGivesItAlone) {
   EXPECT_EQ(differ, 0) << "connections whose k differs from the body's alone";
   // and the methods really differ: linear k on body A would be another set
   double sums[2] = {0, 0}, total[2];
-  for (int c : a->model.written_here) sums[0] += linear_stiffness(a->model, c), sums[1] += a->model.stiffness[c];
+  for (int c : a->model.written_here()) sums[0] += linear_stiffness(a->model, c), sums[1] += a->model.k(c);
   MPI_Allreduce(sums, total, 2, MPI_DOUBLE, MPI_SUM, PETSC_COMM_WORLD);
   EXPECT_GT(std::fabs(total[0] - total[1]), 0.1 * total[1]);
 

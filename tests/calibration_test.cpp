@@ -260,7 +260,7 @@ TEST(Calibration, IndependentOfRankCount) {
     auto world = build(c, PETSC_COMM_WORLD);
     ASSERT_EQ(self->model.connections(), self->model.global_connections);
     for (int i = 0; i < world->model.connections(); ++i) {
-      const std::int64_t g = world->model.connection_id[i];
+      const std::int64_t g = world->model.connection_id(i);
       EXPECT_DOUBLE_EQ(world->model.stiffness[i], self->model.stiffness[g]) << mt.method << " " << mt.topology;
     }
   }
@@ -283,7 +283,7 @@ TEST(Calibration, IndependentOfRankCount) {
   rs(xs.data());
   rw(xw.data());
   for (int i = 0; i < world->model.connections(); ++i)
-    EXPECT_DOUBLE_EQ(world->model.stiffness[i], self->model.stiffness[world->model.connection_id[i]]);
+    EXPECT_DOUBLE_EQ(world->model.stiffness[i], self->model.stiffness[world->model.connection_id(i)]);
 }
 
 namespace {

@@ -5,12 +5,15 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <random>
 #include <string>
 
 #include "io/scene.hpp"
 #include "partition/lattice_model.hpp"
 #include "partition/local_model.hpp"
 #include "partition/metis_partition.hpp"
+#include "src/calibration/calibration.hpp"
+#include "src/physics/force_model.hpp"
 #include "src/model/body.hpp"
 #include "src/model/topology.hpp"
 
@@ -23,6 +26,29 @@ LocalModel explicit_path(const Scene& scene, MPI_Comm comm) {
   PartitionStats stats;
   std::vector<int> part = partition_molecules(body, comm, stats);
   return distribute(body, part, stats, comm);
+}
+
+// Every local connection's global id names that connection in the whole body's sorted list; each rank writes
+// exactly the connections whose end a it owns, and together the ranks write each connection once.
+void expect_numbering(const LocalModel& m, const Body& body) {
+  for (int c = 0; c < m.connections(); ++c) {
+    const std::int64_t g = m.connection_id(c);
+    ASSERT_GE(g, 0);
+    ASSERT_LT(g, static_cast<std::int64_t>(body.connections.size()));
+    EXPECT_EQ(body.connections[g].a, m.id[m.end_a[c]]) << c;
+    EXPECT_EQ(body.connections[g].b, m.id[m.end_b[c]]) << c;
+  }
+  long long written = 0, all = 0, prev = -1;
+  bool ascending = true;
+  for (int c : m.written_here()) {
+    ++written;
+    EXPECT_LT(m.end_a[c], m.owned);
+    ascending = ascending && m.connection_id(c) > prev, prev = m.connection_id(c);
+  }
+  EXPECT_TRUE(ascending);
+  EXPECT_EQ(static_cast<std::size_t>(written), m.written_here().size());
+  MPI_Allreduce(&written, &all, 1, MPI_LONG_LONG, MPI_SUM, m.comm);
+  EXPECT_EQ(all, static_cast<long long>(body.connections.size()));
 }
 
 void expect_same(const LocalModel& x, const LocalModel& y) {
@@ -43,10 +69,11 @@ void expect_same(const LocalModel& x, const LocalModel& y) {
   EXPECT_EQ(x.body, y.body);
   EXPECT_EQ(x.end_a, y.end_a);
   EXPECT_EQ(x.end_b, y.end_b);
-  EXPECT_EQ(x.connection_id, y.connection_id);
+  EXPECT_EQ(x.first_connection, y.first_connection);
+  EXPECT_EQ(x.forward_rank, y.forward_rank);
   EXPECT_EQ(x.connection_class, y.connection_class);
   EXPECT_EQ(x.rest_length, y.rest_length);
-  EXPECT_EQ(x.written_here, y.written_here);
+  EXPECT_EQ(x.written_count, y.written_count);
   // The explicit path computes each tetrahedron's volume from its corners (round-off differs cell to cell); the
   // lattice path uses h_x h_y h_z / 6 for all.
   ASSERT_EQ(x.tetra_volume.size(), y.tetra_volume.size());
@@ -81,7 +108,9 @@ class EveryTopology : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(EveryTopology, LatticePathEqualsExplicitPath) {
   const Scene scene = parse_scene(one_body(GetParam()), "lattice.toml");
-  expect_same(build_lattice_model(scene, PETSC_COMM_WORLD), explicit_path(scene, PETSC_COMM_WORLD));
+  const LocalModel lattice = build_lattice_model(scene, PETSC_COMM_WORLD);
+  expect_same(lattice, explicit_path(scene, PETSC_COMM_WORLD));
+  expect_numbering(lattice, build_body(scene));
 }
 
 INSTANTIATE_TEST_SUITE_P(Topologies, EveryTopology,
@@ -113,7 +142,9 @@ topology = "face-diagonals"
 youngs_modulus = 1.0e4
 )";
   const Scene scene = parse_scene(text, "bodies.toml");
-  expect_same(build_lattice_model(scene, PETSC_COMM_WORLD), explicit_path(scene, PETSC_COMM_WORLD));
+  const LocalModel lattice = build_lattice_model(scene, PETSC_COMM_WORLD);
+  expect_same(lattice, explicit_path(scene, PETSC_COMM_WORLD));
+  expect_numbering(lattice, build_body(scene));
 }
 
 // The stencil's neighbour counts against closed forms: the paper's Fig. 8 box has 7560 connections.
@@ -126,6 +157,70 @@ topology = "face-diagonals"
 youngs_modulus = 1.0e5
 )", "fig8.toml");
   EXPECT_EQ(build_lattice_model(scene, PETSC_COMM_WORLD).global_connections, 7560);
+}
+
+}  // namespace
+
+namespace {
+
+// The optimized kernel (connection types, the templated loop of force_model.cpp) against a plain reference loop
+// written here: per connection, the force k (l - l0) along the current direction, added to both ends, with k and
+// l0 straight from the calibration's arrays. Positions perturbed at random so every spring carries a force.
+TEST(LatticeModel, TypedKernelEqualsPlainReferenceLoop) {
+  const Scene scene = parse_scene(std::string(solver) + R"(
+[body]
+molecules = [7, 6, 8]
+spacing = [0.1, 0.13, 0.07]
+topology = "body-diagonals"
+youngs_modulus = 1.0e5
+[[body.region]]
+lo = [0.0, 0.0, 0.0]
+hi = [0.3, 0.7, 0.2]
+youngs_modulus = 2.0e7
+[calibration]
+method = "linear"
+)", "kernel.toml");
+  LocalModel model = build_local_model(scene, PETSC_COMM_WORLD);
+  ASSERT_FALSE(calibrate_scene(scene, model, model.stiffness));
+  ASSERT_TRUE(stiffness_is_final(scene, {}));
+  const std::vector<double> k = model.stiffness, l0 = model.rest_length;
+  ASSERT_TRUE(compact_connection_types(model));
+  EXPECT_TRUE(model.stiffness.empty());
+  // A lattice of two materials has few distinct springs: by class, direction, boundary and material.
+  EXPECT_LT(model.type_stiffness.size(), 200u);
+  for (int c = 0; c < model.connections(); ++c) {
+    ASSERT_EQ(model.k(c), k[c]);
+    ASSERT_EQ(model.l0(c), l0[c]);
+  }
+
+  std::mt19937 random(7);
+  std::uniform_real_distribution<double> jitter(-0.02, 0.02);
+  std::vector<double> x(model.rest);
+  for (int i = 0; i < model.local; ++i)  // the same perturbation of a molecule on every rank: seeded by its id
+    for (int d = 0; d < 3; ++d) {
+      std::mt19937 r(static_cast<unsigned>(model.id[i] * 3 + d));
+      x[3 * i + d] += jitter(r);
+    }
+  ForceModel forces(scene, model);
+  std::vector<double> f(3 * model.local);
+  forces.connection_forces(x.data(), f.data());
+
+  std::vector<double> reference(3 * model.local, 0.0);
+  for (int c = 0; c < model.connections(); ++c) {
+    const int a = model.end_a[c], b = model.end_b[c];
+    double d[3], len = 0;
+    for (int j = 0; j < 3; ++j) d[j] = x[3 * b + j] - x[3 * a + j], len += d[j] * d[j];
+    len = std::sqrt(len);
+    for (int j = 0; j < 3; ++j) {
+      const double force = k[c] * (len - l0[c]) * d[j] / len;
+      reference[3 * a + j] += force, reference[3 * b + j] -= force;
+    }
+  }
+  double largest = 0, worst = 0;
+  for (int j = 0; j < 3 * model.owned; ++j) largest = std::max(largest, std::fabs(reference[j]));
+  for (int j = 0; j < 3 * model.owned; ++j) worst = std::max(worst, std::fabs(f[j] - reference[j]));
+  ASSERT_GT(largest, 0.0);
+  EXPECT_LT(worst, 1e-12 * largest);
 }
 
 }  // namespace

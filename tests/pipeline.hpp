@@ -36,6 +36,7 @@ inline std::unique_ptr<RunResult> run(const std::string& text, MPI_Comm comm, co
   r->model = build_local_model(r->scene, comm);
   r->test = tension_test(r->scene, r->model.shape);
   r->refresh = calibrate_scene(r->scene, r->model, r->model.stiffness);  // step 4 as main() does it
+  if (stiffness_is_final(r->scene, r->refresh)) compact_connection_types(r->model);
   r->forces = std::make_unique<ForceModel>(r->scene, r->model);
   r->state = std::make_unique<SolverState>(r->model);
   if (before_solve) before_solve(*r);

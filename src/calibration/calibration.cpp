@@ -61,7 +61,7 @@ LocalModel body_view(const LocalModel& m, int b, std::vector<int>& which) {
   v.partition = m.partition;
   v.owned = m.owned, v.local = m.local, v.first_block = m.first_block;
   v.id = m.id, v.block = m.block, v.rest = m.rest, v.mass = m.mass, v.youngs_modulus = m.youngs_modulus;
-  v.degree = m.degree, v.body = m.body;
+  v.degree = m.degree, v.body = m.body, v.first_connection = m.first_connection;
   which.clear();
   std::vector<int> index_in_view(m.connections(), -1);
   for (int c = 0; c < m.connections(); ++c) {
@@ -69,19 +69,26 @@ LocalModel body_view(const LocalModel& m, int b, std::vector<int>& which) {
     index_in_view[c] = static_cast<int>(which.size());
     which.push_back(c);
     v.end_a.push_back(m.end_a[c]), v.end_b.push_back(m.end_b[c]);
-    v.connection_id.push_back(m.connection_id[c]), v.connection_class.push_back(m.connection_class[c]);
+    v.forward_rank.push_back(m.forward_rank[c]), v.connection_class.push_back(m.connection_class[c]);
     v.rest_length.push_back(m.rest_length[c]), v.stiffness.push_back(m.stiffness[c]);
     if (!m.tetra_volume.empty()) v.tetra_volume.push_back(m.tetra_volume[c]);
     if (!m.tetra_lloyd_sum.empty()) v.tetra_lloyd_sum.push_back(m.tetra_lloyd_sum[c]);
   }
   // Only a body with tetrahedra has them: another body's view has none (the tetrahedral methods check this).
   if (v.shape.topology != "tetrahedral" && !v.shape.unstructured()) v.tetra_volume.clear(), v.tetra_lloyd_sum.clear();
-  for (int c : m.written_here)
-    if (index_in_view[c] >= 0) v.written_here.push_back(index_in_view[c]);
+  for (int c : m.written_here())
+    if (index_in_view[c] >= 0) ++v.written_count;
   return v;
 }
 
 }  // namespace
+
+bool stiffness_is_final(const Scene& scene, const CalibrationRefresher& refresh) {
+  if (refresh || scene.calibration.method == "iterative") return false;
+  for (const auto& c : scene.calibrations)
+    if (c.method == "iterative") return false;
+  return true;
+}
 
 CalibrationRefresher calibrate_scene(const Scene& scene, const LocalModel& model, std::vector<double>& stiffness) {
   const int nbodies = model.shape.bodies();

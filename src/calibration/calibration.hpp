@@ -45,6 +45,10 @@ struct CalibrationStyle {
 // first body and the body's calibration as the view's scene.calibration, and its k are copied back. Returns the
 // refreshers of the bodies whose method follows the deformation (angles-update), chained in body order (an empty
 // function if none): install it as SolverHooks::refresh. Collective.
+// Whether the stiffness stays as calibrated for the whole solve (no angles-update refresh, no iterative outer
+// updates of C): then the connections can be stored by type (compact_connection_types).
+bool stiffness_is_final(const Scene& scene, const CalibrationRefresher& refresh);
+
 CalibrationRefresher calibrate_scene(const Scene& scene, const LocalModel& model, std::vector<double>& stiffness);
 
 const std::vector<CalibrationStyle>& calibration_styles();

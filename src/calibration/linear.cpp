@@ -30,7 +30,7 @@ double linear_stiffness(const LocalModel& m, int c) {
     volume = s.h[0] * s.h[1] * s.h[2] / (tetrahedral ? 1.0 : 4.0);
   }
   const double E = 0.5 * (m.youngs_modulus[m.end_a[c]] + m.youngs_modulus[m.end_b[c]]);
-  const double l0 = m.rest_length[c];
+  const double l0 = m.l0(c);
   return E * volume / (l0 * l0);
 }
 

@@ -3,6 +3,7 @@
 // offset + (i h_x, j h_y, k h_z).
 #pragma once
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -48,6 +49,18 @@ struct BoxGeometry {
   Vec3 rest_position(std::int64_t id) const {
     auto ijk = index(id);
     return {offset[0] + ijk[0] * h[0], offset[1] + ijk[1] * h[1], offset[2] + ijk[2] * h[2]};
+  }
+  // The rest distance between two molecules of this box, from their lattice offset ((i' - i) h_x, ...): the same
+  // double for every connection of the same offset, wherever it lies (positions would add round-off that
+  // differs from place to place), so equal connections get bit-equal k and share a connection type.
+  double rest_distance(std::int64_t a, std::int64_t b) const {
+    const auto ia = index(a), ib = index(b);
+    double sum = 0;
+    for (int d = 0; d < 3; ++d) {
+      const double x = static_cast<double>(ib[d] - ia[d]) * h[d];
+      sum += x * x;
+    }
+    return std::sqrt(sum);
   }
   // The tributary width of a molecule along an axis: h inside, h/2 on the boundary.
   double width(long i, int axis) const { return (i == 0 || i == n[axis] - 1) ? 0.5 * h[axis] : h[axis]; }
@@ -115,6 +128,13 @@ struct Body : BoxGeometry {
   std::array<long, 3> index(std::int64_t id) const { return part(id).index(id); }
   Vec3 rest_position(std::int64_t id) const {
     return points.empty() ? part(id).rest_position(id) : points[static_cast<std::size_t>(id)];
+  }
+  // The rest distance of two molecules of one body: a box's from the lattice indices (BoxGeometry's), an explicit
+  // topology's from the positions.
+  double rest_distance(std::int64_t a, std::int64_t b) const {
+    if (!part(a).unstructured()) return part(a).rest_distance(a, b);
+    const Vec3 x = rest_position(a), y = rest_position(b);
+    return std::sqrt((y[0] - x[0]) * (y[0] - x[0]) + (y[1] - x[1]) * (y[1] - x[1]) + (y[2] - x[2]) * (y[2] - x[2]));
   }
   // The face `name` of body b of an explicit topology, or nullptr.
   const NamedFace* named_face(int b, const std::string& name) const {

@@ -90,10 +90,13 @@ ForceModel::ForceModel(const Scene& scene, const LocalModel& model) : model_(mod
   for (int i = 0; i < model.local; ++i)
     for (const auto& fix : scene.fixes) hold(s, fix, model.id[i], &held_[3 * i]);
 
-  // Constant face loads; cyclic ones (period > 0) are a term of their own.
-  applied_.assign(3 * model.owned, 0.0);
-  std::vector<double> cyclic(3 * model.owned, 0.0);
-  for (const auto& load : scene.loads) add_face_load(load, model, (load.period > 0 ? cyclic : applied_).data());
+  // Constant face loads; cyclic ones (period > 0) are a term of their own. Kept sparse: only loaded faces carry
+  // them, and a dense copy would cost 24 bytes a molecule.
+  std::vector<double> constant(3 * model.owned, 0.0), cyclic;
+  bool any_cyclic = false;
+  for (const auto& load : scene.loads) any_cyclic = any_cyclic || load.period > 0;
+  if (any_cyclic) cyclic.assign(3 * model.owned, 0.0);
+  for (const auto& load : scene.loads) add_face_load(load, model, (load.period > 0 ? cyclic : constant).data());
   for (const auto& style : term_styles())
     if (style.listed(scene)) terms_.push_back(style.make(TermContext{scene, model}));
 
@@ -102,9 +105,11 @@ ForceModel::ForceModel(const Scene& scene, const LocalModel& model) : model_(mod
   double sum = 0;
   for (int i = 0; i < model.owned; ++i)
     for (int d = 0; d < 3; ++d) {
-      double fe = applied_[3 * i + d] + cyclic[3 * i + d] + model.mass[i] * g[d];
+      double fe = constant[3 * i + d] + (any_cyclic ? cyclic[3 * i + d] : 0.0) + model.mass[i] * g[d];
       if (!held_[3 * i + d]) sum += fe * fe;
     }
+  for (int j = 0; j < 3 * model.owned; ++j)
+    if (constant[j] != 0.0) applied_.push_back({j, constant[j]});
   MPI_Allreduce(&sum, &applied_norm_, 1, MPI_DOUBLE, MPI_SUM, model.comm);
   applied_norm_ = std::sqrt(applied_norm_);
 }
@@ -136,20 +141,21 @@ ForceModel::Contact ForceModel::contact_totals() const {
   return c;
 }
 
-void ForceModel::connection_forces(const double* x, double* f) const {
-  const int nc = model_.connections();
-  const int* a = model_.end_a.data();
-  const int* b = model_.end_b.data();
-  const double* k = model_.stiffness.data();
-  const double* l0 = model_.rest_length.data();
-  std::fill(f, f + 3 * model_.local, 0.0);
+namespace {
+
+// The connection-force kernel: one pass over the connections, no call and no allocation per connection.
+// Params gives k and l0 of connection c: straight from the per-connection arrays, or through the type tables.
+template <typename Params>
+void spring_forces(int nc, const int* a, const int* b, Params params, const double* x, double* f) {
   // Geometrically exact: the force acts along the current direction, k times the change of length.
   for (int c = 0; c < nc; ++c) {
     const double* xa = x + 3 * a[c];
     const double* xb = x + 3 * b[c];
     double d0 = xb[0] - xa[0], d1 = xb[1] - xa[1], d2 = xb[2] - xa[2];
     double len = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
-    double s = k[c] * (len - l0[c]) / len;
+    double k, l0;
+    params(c, k, l0);
+    double s = k * (len - l0) / len;
     double* fa = f + 3 * a[c];
     double* fb = f + 3 * b[c];
     fa[0] += s * d0, fa[1] += s * d1, fa[2] += s * d2;
@@ -157,10 +163,29 @@ void ForceModel::connection_forces(const double* x, double* f) const {
   }
 }
 
+}  // namespace
+
+void ForceModel::connection_forces(const double* x, double* f) const {
+  const LocalModel& m = model_;
+  std::fill(f, f + 3 * m.local, 0.0);
+  if (m.typed()) {
+    const std::uint16_t* type = m.connection_type.data();
+    const double* tk = m.type_stiffness.data();
+    const double* tl = m.type_rest_length.data();
+    spring_forces(m.connections(), m.end_a.data(), m.end_b.data(),
+                  [=](int c, double& k, double& l0) { k = tk[type[c]], l0 = tl[type[c]]; }, x, f);
+  } else {
+    const double* ks = m.stiffness.data();
+    const double* ls = m.rest_length.data();
+    spring_forces(m.connections(), m.end_a.data(), m.end_b.data(),
+                  [=](int c, double& k, double& l0) { k = ks[c], l0 = ls[c]; }, x, f);
+  }
+}
+
 void ForceModel::forces(const double* x, const double* v, double* f, double load_factor) const {
   connection_forces(x, f);
   const int n = model_.owned;
-  for (int i = 0; i < 3 * n; ++i) f[i] += load_factor * applied_[i];
+  for (const auto& a : applied_) f[a.component] += load_factor * a.value;
   for (const auto& t : terms_) t->add_forces(x, v, time_, f);  // one call per term, none per connection
   for (int i = 0; i < 3 * n; ++i)
     if (held_[i]) f[i] = 0.0;
@@ -168,18 +193,14 @@ void ForceModel::forces(const double* x, const double* v, double* f, double load
 
 double ForceModel::potential_energy(const double* x, double load_factor) const {
   double e = 0;
-  for (int c : model_.written_here) {  // each connection counted once over all ranks
+  for (int c : model_.written_here()) {  // each connection counted once over all ranks
     const double* xa = x + 3 * model_.end_a[c];
     const double* xb = x + 3 * model_.end_b[c];
     double d0 = xb[0] - xa[0], d1 = xb[1] - xa[1], d2 = xb[2] - xa[2];
-    double stretch = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2) - model_.rest_length[c];
-    e += 0.5 * model_.stiffness[c] * stretch * stretch;
+    double stretch = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2) - model_.l0(c);
+    e += 0.5 * model_.k(c) * stretch * stretch;
   }
-  for (int i = 0; i < model_.owned; ++i)
-    for (int d = 0; d < 3; ++d) {
-      double u = x[3 * i + d] - model_.rest[3 * i + d];
-      e -= load_factor * applied_[3 * i + d] * u;
-    }
+  for (const auto& a : applied_) e -= load_factor * a.value * (x[a.component] - model_.rest[a.component]);
   for (const auto& t : terms_) e += t->potential_energy(x);
   return e;
 }
@@ -187,8 +208,8 @@ double ForceModel::potential_energy(const double* x, double load_factor) const {
 double ForceModel::largest_stiffness_rate() const {
   std::vector<double> ksum(model_.local, 0.0);
   for (int c = 0; c < model_.connections(); ++c) {
-    ksum[model_.end_a[c]] += model_.stiffness[c];
-    ksum[model_.end_b[c]] += model_.stiffness[c];
+    ksum[model_.end_a[c]] += model_.k(c);
+    ksum[model_.end_b[c]] += model_.k(c);
   }
   for (const auto& t : terms_) t->add_stiffness_bound(ksum);
   double rate = 0;
@@ -244,7 +265,7 @@ PetscErrorCode ForceModel::assemble_tangent(const double* x, Mat J) const {
     const double* xb = x + 3 * b;
     double d[3] = {xb[0] - xa[0], xb[1] - xa[1], xb[2] - xa[2]};
     double len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-    double k = model_.stiffness[c], geo = 1.0 - model_.rest_length[c] / len;
+    double k = model_.k(c), geo = 1.0 - model_.l0(c) / len;
     // K = k [ n n^T + (1 - l0/l)(I - n n^T) ]: the material part along the spring, the geometric part across.
     double K[9];
     for (int r = 0; r < 3; ++r)

@@ -47,7 +47,12 @@ public:
   PetscErrorCode create_tangent(Mat* J) const;  // AIJ, block size 3, preallocated
 
   const std::vector<std::uint8_t>& held() const { return held_; }   // 3 * owned: 1 = held component
-  const std::vector<double>& applied() const { return applied_; }   // 3 * owned: face loads at factor 1
+  // The constant face loads at factor 1: component j (= 3 * owned molecule + axis) gets value (N).
+  struct AppliedForce {
+    int component;
+    double value;
+  };
+  const std::vector<AppliedForce>& applied() const { return applied_; }
   double applied_norm() const { return applied_norm_; }             // global 2-norm of loads + gravity
   double largest_stiffness_rate() const;  // max over molecules of 2 sum k / m (Gershgorin bound of omega^2)
 
@@ -66,7 +71,7 @@ public:
 private:
   const LocalModel& model_;
   std::vector<std::uint8_t> held_;
-  std::vector<double> applied_;
+  std::vector<AppliedForce> applied_;  // non-zero components only
   std::vector<std::unique_ptr<Term>> terms_;  // only what the scene lists, in the registry's order
   double applied_norm_ = 0.0;
   mutable double time_ = 0.0;

@@ -74,10 +74,11 @@ double checked_time_step(const Scene& scene, const LocalModel& model, double req
 void check_connections(const Scene& scene, const LocalModel& model) {
   // The first bad connection (smallest global id) over all ranks.
   long long bad = std::numeric_limits<long long>::max();
+  const bool calibrated = model.typed() || !model.stiffness.empty();
   for (int c = 0; c < model.connections(); ++c) {
-    const double l0 = model.rest_length[c], k = model.stiffness.empty() ? 0.0 : model.stiffness[c];
+    const double l0 = model.l0(c), k = calibrated ? model.k(c) : 0.0;
     if (!(l0 > 0) || !std::isfinite(l0) || !(k >= 0) || !std::isfinite(k))
-      bad = std::min<long long>(bad, model.connection_id[c]);
+      bad = std::min<long long>(bad, model.connection_id(c));
   }
   long long first = 0;
   MPI_Allreduce(&bad, &first, 1, MPI_LONG_LONG, MPI_MIN, model.comm);
@@ -85,12 +86,12 @@ void check_connections(const Scene& scene, const LocalModel& model) {
   std::string text;
   int holder = -1, root = 0;
   for (int c = 0; c < model.connections(); ++c)
-    if (model.connection_id[c] == first) {
+    if (model.connection_id(c) == first) {
       holder = model.rank;
       text = fmt::format("connection {} (molecules {}-{}) has rest length {:.6g} m and stiffness {:.6g} N/m: "
                          "coincident molecules or a degenerate calibration",
-                         first, model.id[model.end_a[c]], model.id[model.end_b[c]], model.rest_length[c],
-                         model.stiffness.empty() ? 0.0 : model.stiffness[c]);
+                         first, model.id[model.end_a[c]], model.id[model.end_b[c]], model.l0(c),
+                         calibrated ? model.k(c) : 0.0);
       break;
     }
   MPI_Allreduce(&holder, &root, 1, MPI_INT, MPI_MAX, model.comm);
@@ -108,7 +109,7 @@ std::string describe_molecule(const LocalModel& model, const double* x, std::int
     double worst = -1;
     for (int c = 0; c < model.connections(); ++c) {
       if (model.end_a[c] != i && model.end_b[c] != i) continue;
-      const double s = (length_of(x, model.end_a[c], model.end_b[c]) - model.rest_length[c]) / model.rest_length[c];
+      const double s = (length_of(x, model.end_a[c], model.end_b[c]) - model.l0(c)) / model.l0(c);
       const double size = std::isfinite(s) ? std::fabs(s) : std::numeric_limits<double>::infinity();
       if (size > worst) worst = size, best = c;
     }
@@ -116,8 +117,8 @@ std::string describe_molecule(const LocalModel& model, const double* x, std::int
       const double l = length_of(x, model.end_a[best], model.end_b[best]);
       text += fmt::format("; its most strained connection {} (molecules {}-{}) has strain {:.6g} (length {:.6g} m, "
                           "rest {:.6g} m)",
-                          model.connection_id[best], model.id[model.end_a[best]], model.id[model.end_b[best]],
-                          (l - model.rest_length[best]) / model.rest_length[best], l, model.rest_length[best]);
+                          model.connection_id(best), model.id[model.end_a[best]], model.id[model.end_b[best]],
+                          (l - model.l0(best)) / model.l0(best), l, model.l0(best));
     }
     break;
   }
@@ -158,17 +159,14 @@ void StepGuard::keep() {
 double StepGuard::energy(double* spring, double* work) const {
   const double* x = state_.x.array();
   double local[2] = {0, 0};
-  for (int c : model_.written_here) {
-    const double stretch = length_of(x, model_.end_a[c], model_.end_b[c]) - model_.rest_length[c];
-    local[0] += 0.5 * model_.stiffness[c] * stretch * stretch;
+  for (int c : model_.written_here()) {
+    const double stretch = length_of(x, model_.end_a[c], model_.end_b[c]) - model_.l0(c);
+    local[0] += 0.5 * model_.k(c) * stretch * stretch;
   }
-  const auto& applied = forces_.applied();
-  const auto& g = scene_.physics.gravity;
-  for (int i = 0; i < model_.owned; ++i)
-    for (int d = 0; d < 3; ++d) {
-      const double u = x[3 * i + d] - model_.rest[3 * i + d];
-      local[1] += applied[3 * i + d] * u + (g ? model_.mass[i] * (*g)[d] * u : 0.0);
-    }
+  for (const auto& a : forces_.applied()) local[1] += a.value * (x[a.component] - model_.rest[a.component]);
+  if (const auto& g = scene_.physics.gravity)
+    for (int i = 0; i < model_.owned; ++i)
+      for (int d = 0; d < 3; ++d) local[1] += model_.mass[i] * (*g)[d] * (x[3 * i + d] - model_.rest[3 * i + d]);
   double global[2];
   MPI_Allreduce(local, global, 2, MPI_DOUBLE, MPI_SUM, model_.comm);
   *spring = global[0], *work = global[1];
@@ -194,9 +192,9 @@ void StepGuard::check_lengths() {
   double worst = std::numeric_limits<double>::infinity();
   long long worst_id = -1;
   int worst_c = -1;
-  for (int c : model_.written_here) {
-    const double ratio = length_of(x, model_.end_a[c], model_.end_b[c]) / model_.rest_length[c];
-    if (ratio < worst) worst = ratio, worst_id = model_.connection_id[c], worst_c = c;
+  for (int c : model_.written_here()) {
+    const double ratio = length_of(x, model_.end_a[c], model_.end_b[c]) / model_.l0(c);
+    if (ratio < worst) worst = ratio, worst_id = model_.connection_id(c), worst_c = c;
   }
   double global = 0;
   MPI_Allreduce(&worst, &global, 1, MPI_DOUBLE, MPI_MIN, model_.comm);

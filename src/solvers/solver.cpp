@@ -18,7 +18,7 @@ double critical_time_step(const ForceModel& forces) {
 double reachable_tolerance(const Scene& scene, const LocalModel& model, const ForceModel& forces) {
   std::vector<double> scale(model.local, 0.0);
   for (int c = 0; c < model.connections(); ++c) {
-    const double kl = std::fabs(model.stiffness[c]) * model.rest_length[c];
+    const double kl = std::fabs(model.k(c)) * model.l0(c);
     scale[model.end_a[c]] += kl, scale[model.end_b[c]] += kl;
   }
   double sum = 0, total = 0;

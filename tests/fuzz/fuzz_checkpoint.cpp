@@ -66,7 +66,7 @@ extern "C" int LLVMFuzzerInitialize(int* argc, char*** argv) {
   fx->molecules = std::make_unique<NaturalOrder>(
       m.comm, std::vector<std::int64_t>(m.id.begin(), m.id.begin() + m.owned), m.global_molecules);
   std::vector<std::int64_t> ids;
-  for (int c : m.written_here) ids.push_back(m.connection_id[c]);
+  for (int c : m.written_here()) ids.push_back(m.connection_id(c));
   fx->connections = std::make_unique<NaturalOrder>(m.comm, ids, m.global_connections);
   const char* tmp = std::getenv("TMPDIR");
   fx->path = std::string(tmp ? tmp : "/tmp") + "/fuzz_checkpoint_" + std::to_string(::getpid()) + ".h5";

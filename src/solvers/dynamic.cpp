@@ -39,7 +39,6 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
                                            : 0.5 * report.critical_time_step;
   report.time_step = dt;
   state.time_step = dt;
-  const int n = 3 * model.owned;
   const double* m = model.mass.data();
   double* x = state.x.array();
   double* v = state.v.data();
@@ -56,19 +55,27 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
   StepGuard guard("dynamic", scene, model, forces, state);
   const long total = scene.solver.steps;
   while (state.step < total) {
-    for (int i = 0; i < model.owned; ++i)
+    for (int i = 0; i < model.owned; ++i) {
+      const double kick = 0.5 * dt / m[i];  // one division a molecule, not one a component
       for (int d = 0; d < 3; ++d) {
         const int j = 3 * i + d;
-        v[j] = held[j] ? 0.0 : v[j] + 0.5 * dt * f[j] / m[i];  // half kick
-        x[j] += dt * v[j];                                      // drift
+        v[j] = held[j] ? 0.0 : v[j] + kick * f[j];  // half kick
+        x[j] += dt * v[j];                          // drift
       }
+    }
     state.x.update_ghosts();
     forces.set_time(state.time + dt);
     forces.forces(x, v, f);
     double kinetic = 0;
-    for (int i = 0; i < n; ++i) {
-      v[i] += 0.5 * dt * f[i] / m[i / 3];  // half kick (held: f = 0, v = 0)
-      kinetic += m[i / 3] * v[i] * v[i];
+    for (int i = 0; i < model.owned; ++i) {
+      const double kick = 0.5 * dt / m[i];
+      double vv = 0;
+      for (int d = 0; d < 3; ++d) {
+        const int j = 3 * i + d;
+        v[j] += kick * f[j];  // half kick (held: f = 0, v = 0)
+        vv += v[j] * v[j];
+      }
+      kinetic += m[i] * vv;
     }
     ++state.step;
     state.time += dt;

@@ -162,7 +162,7 @@ TEST(Mesh, ReactionsBalanceTheLoad) {
   r->forces->connection_forces(r->state->x.array(), f.data());
   double applied[3] = {0, 0, 0}, reaction[3] = {0, 0, 0};
   const auto& held = r->forces->held();
-  for (const auto& a : r->forces->applied()) applied[a.component % 3] += a.value;
+  for (const auto& a : r->forces->applied()) applied[a.component % 3] += a.value;  // sparse: loaded only
   for (int i = 0; i < r->model.owned; ++i)
     for (int d = 0; d < 3; ++d)
       if (held[3 * i + d]) reaction[d] += f[3 * i + d];

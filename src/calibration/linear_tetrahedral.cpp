@@ -13,7 +13,7 @@ namespace tissue {
 
 double linear_stiffness_tetrahedral(const LocalModel& m, int c) {
   const double E = 0.5 * (m.youngs_modulus[m.end_a[c]] + m.youngs_modulus[m.end_b[c]]);
-  const double l0 = m.rest_length[c];
+  const double l0 = m.l0(c);
   return E * 0.5 * m.tetra_volume.at(c) / (l0 * l0);
 }
 

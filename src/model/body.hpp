@@ -129,14 +129,13 @@ struct Body : BoxGeometry {
   Vec3 rest_position(std::int64_t id) const {
     return points.empty() ? part(id).rest_position(id) : points[static_cast<std::size_t>(id)];
   }
-  // The rest length of a connection: from the lattice offset in a box (BoxGeometry::rest_distance), from the
-  // positions in an explicit topology.
+  // The rest distance of two molecules of one body: a box's from the lattice indices (BoxGeometry's), an explicit
+  // topology's from the positions.
   double rest_distance(std::int64_t a, std::int64_t b) const {
-    if (points.empty()) return part(a).rest_distance(a, b);
-    const Vec3 &p = points[static_cast<std::size_t>(a)], &q = points[static_cast<std::size_t>(b)];
-    return std::sqrt((q[0] - p[0]) * (q[0] - p[0]) + (q[1] - p[1]) * (q[1] - p[1]) + (q[2] - p[2]) * (q[2] - p[2]));
+    if (!part(a).unstructured()) return part(a).rest_distance(a, b);
+    const Vec3 x = rest_position(a), y = rest_position(b);
+    return std::sqrt((y[0] - x[0]) * (y[0] - x[0]) + (y[1] - x[1]) * (y[1] - x[1]) + (y[2] - x[2]) * (y[2] - x[2]));
   }
-
   // The face `name` of body b of an explicit topology, or nullptr.
   const NamedFace* named_face(int b, const std::string& name) const {
     for (const auto& f : faces)

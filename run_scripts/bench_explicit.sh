@@ -69,7 +69,11 @@ for n in $NS; do
       echo "N = $n ($((n * n * n)) molecules), $np rank(s), repetition $rep"
       log="$WORK/lammps-$n-np$np-$rep.log"
       t0=$(date +%s.%N)
-      mpirun -np "$np" /usr/bin/time -f "MAXRSS_KB %M" "$LMP" -in "$PEER_INPUT" -var N "$n" -log none > "$log" 2>&1
+      # each rank's /usr/bin/time writes its own file: on one shared log the ranks' lines interleave
+      rm -f "$log".rss.*
+      mpirun -np "$np" sh -c '/usr/bin/time -f "MAXRSS_KB %M" -o "$0.rss.$OMPI_COMM_WORLD_RANK" "$@"' "$log" \
+        "$LMP" -in "$PEER_INPUT" -var N "$n" -log none > "$log" 2>&1
+      cat "$log".rss.* >> "$log"
       t1=$(date +%s.%N)
       "$PYTHON" - "$log" "$n" "$np" "$t0" "$t1" "$STEPS" >> "$CSV" <<'EOF'
 import re, sys

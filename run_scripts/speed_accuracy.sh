@@ -119,7 +119,11 @@ EOF
 peer() {
   local n=$1 np=$2 log="$WORK/lammps-$1-np$2.log" t0 t1
   t0=$(date +%s.%N)
-  mpirun -np "$np" /usr/bin/time -f "MAXRSS_KB %M CPU %U %S" "$LMP" -in "$PEER_INPUT" -var N "$n" -log none > "$log" 2>&1
+  # each rank's /usr/bin/time writes its own file: on one shared log the ranks' lines interleave
+  rm -f "$log".rss.*
+  mpirun -np "$np" sh -c '/usr/bin/time -f "MAXRSS_KB %M CPU %U %S" -o "$0.rss.$OMPI_COMM_WORLD_RANK" "$@"' "$log" \
+    "$LMP" -in "$PEER_INPUT" -var N "$n" -log none > "$log" 2>&1
+  cat "$log".rss.* >> "$log"
   t1=$(date +%s.%N)
   "$PYTHON" - "$log" "$n" "$np" "$t0" "$t1" "${REF[$n]:-}" >> "$CSV" <<'EOF'
 import re, sys

@@ -1,32 +1,21 @@
 # Renders an example's final state to a PNG with ParaView (pvbatch): molecules as spheres coloured by
 # displacement magnitude, obstacles in translucent grey. Usage (absolute paths):
 #   xvfb-run -a pvbatch run_scripts/render_example.py OUT_DIR/tissue.xdmf SCENE.toml IMAGE.png
+import os
 import sys
 import tomllib
 
 from paraview.simple import *  # noqa: F401,F403
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from pv_common import colour_by_displacement, last_frame, title  # noqa: E402
 
 xdmf, scene_path, image = sys.argv[1], sys.argv[2], sys.argv[3]
 with open(scene_path, "rb") as f:
     scene = tomllib.load(f)
 bodies = scene["body"] if isinstance(scene["body"], list) else [scene["body"]]
 
-reader = Xdmf3ReaderS(FileName=[xdmf])
-reader.UpdatePipeline()
-times = reader.TimestepValues
-view = GetActiveViewOrCreate("RenderView")
-view.ViewSize = [1000, 750]
-view.Background = [1, 1, 1]
-try:
-    view.UseColorPaletteForBackground = 0
-except AttributeError:
-    pass
-times = list(times) if hasattr(times, "__len__") else ([times] if times is not None else [])
-if times:  # the last frame of a series (snapshots + final)
-    view.ViewTime = times[-1]
-    GetAnimationScene().AnimationTime = times[-1]
-calc = Calculator(Input=reader, ResultArrayName="|u| (m)", Function="mag(displacement)")
-calc.AttributeType = "Point Data"
+view, calc = last_frame(xdmf, [1000, 750])
 spacing = min(min(b.get("spacing", [s / (n - 1) for s, n in zip(b.get("size", [1, 1, 1]), b["molecules"])]))
               for b in bodies)
 glyph = Glyph(Input=calc, GlyphType="Sphere")
@@ -36,13 +25,7 @@ glyph.GlyphMode = "All Points"
 glyph.GlyphType.ThetaResolution = 12
 glyph.GlyphType.PhiResolution = 12
 d = Show(glyph, view)
-ColorBy(d, ("POINTS", "|u| (m)"))
-lut = GetColorTransferFunction("|u| (m)")
-lut.ApplyPreset("Viridis (matplotlib)", True)
-d.SetScalarBarVisibility(view, True)
-bar = GetScalarBar(lut, view)
-bar.TitleColor = [0, 0, 0]
-bar.LabelColor = [0, 0, 0]
+colour_by_displacement(d, view)
 lines = Show(calc, view)  # the connections as thin lines
 lines.SetRepresentationType("Wireframe")
 lines.AmbientColor = lines.DiffuseColor = [0.3, 0.3, 0.3]
@@ -71,11 +54,7 @@ for o in scene.get("obstacle", []):
     od.AmbientColor = od.DiffuseColor = [0.6, 0.6, 0.6]
     od.Opacity = 0.35
 
-text = Text(Text=scene.get("title", ""))
-td = Show(text, view)
-td.Color = [0, 0, 0]
-td.FontSize = 14
-td.WindowLocation = "Upper Center"
+title(scene.get("title", ""), view)
 view.CameraPosition = [1, -1.6, 0.9]
 view.CameraFocalPoint = [0, 0, 0]
 view.CameraViewUp = [0, 0, 1]

@@ -88,6 +88,11 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
   PetscFunctionBeginUser;
   const Body& shape = model.shape;
   const int nb = shape.bodies();
+  // Meshes and random clouds have no lattice planes to coarsen: their ids are no (i, j, k), so the caller falls
+  // back to GAMG.
+  *levels = 1;
+  for (int b = 0; b < nb; ++b)
+    if (shape.body(b).unstructured()) PetscFunctionReturn(0);
   // planes[l][b][a]: the lattice planes level l keeps along axis a of body b; level 0 keeps all.
   using Planes = std::vector<std::array<std::vector<long>, 3>>;
   std::vector<Planes> planes(1, Planes(nb));

@@ -6,6 +6,8 @@
 
 #include <cmath>
 
+#include "io/gmsh_mesh.hpp"
+#include "src/model/mesh_cloud.hpp"
 #include "tests/pipeline.hpp"
 
 using namespace tissue;
@@ -42,6 +44,49 @@ molecules = [6, 5, 5]
 size = [1.0, 0.8, 0.8]
 topology = "random"
 seed = 7
+youngs_modulus = 1.0e5
+density = 1000.0
+[calibration]
+method = "tetrahedral"
+[[fix]]
+face = "x-"
+mode = "roller"
+[[load]]
+face = "x+"
+force = [10.0, 0.0, 0.0]
+)";
+
+// shape = "mesh", topology = "random": the slab's boundary nodes and 150 molecules at random inside it. No region
+// here, so mass = density * volume exactly; RandomInMesh.RegionsByCentroid adds them.
+const std::string slab_cloud_scene = std::string(R"(
+title = "random cloud in the slab"
+[body]
+shape = "mesh"
+file = ")") + TISSUE_SOURCE_DIR + R"(/tests/meshes/two_layers.msh"
+topology = "random"
+interior_molecules = 150
+seed = 5
+youngs_modulus = 1.0e5
+density = 1000.0
+[calibration]
+method = "tetrahedral"
+[[fix]]
+face = "bottom"
+mode = "roller"
+[[load]]
+face = "top"
+force = [0.0, 0.0, 20.0]
+)";
+
+// The L (tests/meshes/l_shape.geo): non-convex, its Delaunay hull would fill the notch x > 0.5, y > 0.5.
+const std::string l_cloud_scene = std::string(R"(
+title = "random cloud in an L"
+[body]
+shape = "mesh"
+file = ")") + TISSUE_SOURCE_DIR + R"(/tests/meshes/l_shape.msh"
+topology = "random"
+interior_molecules = 200
+seed = 3
 youngs_modulus = 1.0e5
 density = 1000.0
 [calibration]
@@ -193,6 +238,137 @@ TEST(Random, FillsTheBox) {
   EXPECT_NEAR(r->test.cross_section, 0.64, 1e-12);
   // The cloud has the lattice's count: boundary molecules plus (n - 2)^3 interior ones.
   EXPECT_EQ(r->model.global_molecules, 6 * 5 * 5);
+}
+
+// Random clouds in a mesh volume: every rank count ends a static tension solve at the one-rank positions.
+TEST(RandomInMesh, SameAnswerOnAnyRankCount) {
+  same_on_any_rank_count(slab_cloud_scene, "static");
+  same_on_any_rank_count(l_cloud_scene, "static");
+}
+
+double tet_volume(const Body& b, const Tetrahedron& t) {
+  return signed_volume(b.points[t[0]], b.points[t[1]], b.points[t[2]], b.points[t[3]]);
+}
+
+// The slab is convex: the carved Delaunay tetrahedra fill it exactly (0.5 m^3), the molecules are the slab's
+// boundary nodes (counted here by position: on one of its six planes) plus the 150 asked for, and the mass is
+// density * volume.
+TEST(RandomInMesh, FillsTheSlab) {
+  const Scene scene = parse_scene(slab_cloud_scene, "test.toml");
+  const Body b = build_body(scene);
+  const TetMesh slab = read_gmsh(scene.body.file);
+  std::int64_t on_boundary = 0;
+  for (const auto& x : slab.nodes)
+    on_boundary += x[0] == 0 || x[0] == 1 || x[1] == 0 || x[1] == 1 || x[2] == 0 || x[2] == 0.5;
+  EXPECT_EQ(b.molecules(), on_boundary + 150);
+  double volume = 0, mass = 0;
+  for (const auto& t : b.tetrahedra) volume += tet_volume(b, t);
+  for (double m : b.mass) mass += m;
+  EXPECT_NEAR(volume, 0.5, 1e-12);
+  EXPECT_NEAR(b.total_volume, 0.5, 1e-12);
+  EXPECT_NEAR(mass, 1000.0 * volume, 1e-9);
+  // The interior molecules lie inside the slab, clear of its faces.
+  for (std::int64_t i = on_boundary; i < b.molecules(); ++i) {
+    const Vec3& x = b.points[i];
+    EXPECT_TRUE(x[0] > 0 && x[0] < 1 && x[1] > 0 && x[1] < 1 && x[2] > 0 && x[2] < 0.5) << i;
+  }
+  // The named faces keep the mesh's molecules and areas: the top is 1 m^2, Eq. 3's l0 and A the slab's.
+  const NamedFace* top = b.named_face(0, "top");
+  ASSERT_NE(top, nullptr);
+  EXPECT_NEAR(top->total_area, 1.0, 1e-12);
+  for (auto id : top->molecules) EXPECT_EQ(b.points[id][2], 0.5);
+  auto r = run(slab_cloud_scene, PETSC_COMM_WORLD, {}, /*do_solve=*/false);
+  ASSERT_TRUE(r->test.valid);
+  EXPECT_NEAR(r->test.rest_length, 0.5, 1e-12);
+  EXPECT_NEAR(r->test.cross_section, 1.0, 1e-12);
+}
+
+// Each tetrahedron takes the physical volume holding its centroid ("surface" above z = 0.25): the mass is
+// 1000 kg/m^3 times the volume below plus 1500 times the volume above, counted here from the centroids.
+TEST(RandomInMesh, RegionsByCentroid) {
+  const Scene scene = parse_scene(slab_cloud_scene + R"(
+[[body.region]]
+name = "surface"
+youngs_modulus = 3.0e5
+density = 1500.0
+)", "test.toml");
+  const Body b = build_body(scene);
+  double below = 0, above = 0, mass = 0, longest = 0;
+  for (const auto& t : b.tetrahedra) {
+    double z = 0;
+    for (auto v : t) z += 0.25 * b.points[v][2];
+    (z > 0.25 ? above : below) += tet_volume(b, t);
+  }
+  for (double m : b.mass) mass += m;
+  EXPECT_NEAR(mass, 1000.0 * below + 1500.0 * above, 1e-9);
+  EXPECT_NEAR(above, 0.25, 0.03);  // tetrahedra straddle the interface: the split is the carving's, not exact
+  // A molecule farther from the interface than the longest connection has all its tetrahedra on its side.
+  for (const auto& c : b.connections) longest = std::max(longest, b.rest_distance(c.a, c.b));
+  for (std::int64_t i = 0; i < b.molecules(); ++i) {
+    const double z = b.points[i][2];
+    if (z > 0.25 + longest) EXPECT_EQ(b.youngs_modulus[i], 3.0e5) << i;
+    if (z < 0.25 - longest) EXPECT_EQ(b.youngs_modulus[i], 1.0e5) << i;
+  }
+}
+
+// The L is not convex: no connection crosses the notch (its midpoint outside the L), the volume is the L's
+// 0.3 m^3 (the hull's would be 0.35), and the mass density * volume.
+TEST(RandomInMesh, NoConnectionAcrossTheNotch) {
+  const Body b = build_body(parse_scene(l_cloud_scene, "test.toml"));
+  std::int64_t outside = 0;
+  for (const auto& c : b.connections) {
+    Vec3 m;
+    for (int d = 0; d < 3; ++d) m[d] = 0.5 * (b.points[c.a][d] + b.points[c.b][d]);
+    outside += m[0] > 0.5 + 1e-12 && m[1] > 0.5 + 1e-12;
+  }
+  EXPECT_EQ(outside, 0);
+  double volume = 0, mass = 0;
+  for (const auto& t : b.tetrahedra) volume += tet_volume(b, t);
+  for (double m : b.mass) mass += m;
+  EXPECT_NEAR(volume, 0.3, 0.003);  // within 1 %: the carving's error along the notch
+  EXPECT_NEAR(mass, 1000.0 * volume, 1e-9);
+}
+
+// The seed fixes the cloud: the same seed gives the same positions bit for bit, another seed other ones.
+TEST(RandomInMesh, Seeded) {
+  const Body a = build_body(parse_scene(l_cloud_scene, "test.toml"));
+  const Body same = build_body(parse_scene(l_cloud_scene, "test.toml"));
+  const Body other = build_body(parse_scene(l_cloud_scene, "test.toml", {"body.seed=4"}));
+  ASSERT_EQ(a.points.size(), same.points.size());
+  EXPECT_TRUE(a.points == same.points);
+  EXPECT_TRUE(a.connections.size() == same.connections.size());
+  EXPECT_FALSE(a.points == other.points);
+}
+
+// Two cubes apart: the Delaunay tetrahedra that join them have centroids in the gap, so the carved body falls in
+// two pieces, which is refused (exit 2 in main), naming the key.
+TEST(RandomInMesh, RefusesABodyInPieces) {
+  TetMesh two;
+  two.file = "two_cubes";
+  for (int cube = 0; cube < 2; ++cube) {
+    const std::int64_t first = static_cast<std::int64_t>(two.nodes.size());
+    for (int k = 0; k < 2; ++k)
+      for (int j = 0; j < 2; ++j)
+        for (int i = 0; i < 2; ++i) two.nodes.push_back({i + 3.0 * cube, 1.0 * j, 1.0 * k});
+    // The cube's 6 tetrahedra around its diagonal 0-7 (Kuhn), oriented positively.
+    const int paths[6][2] = {{1, 3}, {1, 5}, {2, 3}, {2, 6}, {4, 5}, {4, 6}};
+    for (const auto& p : paths) {
+      std::array<std::int64_t, 4> t{first, first + p[0], first + p[1], first + 7};
+      if (signed_volume(two.nodes[t[0]], two.nodes[t[1]], two.nodes[t[2]], two.nodes[t[3]]) < 0) std::swap(t[2], t[3]);
+      two.tets.push_back(t);
+    }
+  }
+  BodySpec spec;
+  spec.shape = "mesh";
+  spec.topology = "random";
+  spec.interior_molecules = 16;
+  try {
+    random_in_mesh(two, spec, "scene.toml", "body");
+    ADD_FAILURE() << "two cubes apart were accepted as one body";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("body.interior_molecules"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("2 pieces"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

@@ -88,6 +88,13 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
   PetscFunctionBeginUser;
   const Body& shape = model.shape;
   const int nb = shape.bodies();
+  // Explicit topologies (meshes, random clouds) have no lattice planes, only a nominal n: GAMG's instead (their
+  // nominal n^3 is not their molecule count, and the hierarchy's sizes would not match the tangent's).
+  for (int b = 0; b < nb; ++b)
+    if (shape.body(b).unstructured()) {
+      *levels = 1;
+      PetscFunctionReturn(0);
+    }
   // planes[l][b][a]: the lattice planes level l keeps along axis a of body b; level 0 keeps all.
   using Planes = std::vector<std::array<std::vector<long>, 3>>;
   std::vector<Planes> planes(1, Planes(nb));

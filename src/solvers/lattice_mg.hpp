@@ -18,7 +18,7 @@ namespace tissue {
 
 // Collective. Makes pc a PCMG with the lattice hierarchy (coarsest level at most about coarse_nodes molecules,
 // solved by PCMG's default redundant LU). levels = number of levels built (1: the lattice is already that small
-// and pc is left untouched).
+// and pc is left untouched; also for a scene with an explicit topology, which has no lattice).
 PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::uint8_t>& held, PC pc,
                                 long coarse_nodes, PetscInt* levels);
 

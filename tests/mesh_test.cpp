@@ -56,48 +56,20 @@ face = "x+"
 force = [10.0, 0.0, 0.0]
 )";
 
-// shape = "mesh", topology = "random": the slab's boundary nodes and 150 molecules at random inside it. No region
-// here, so mass = density * volume exactly; RandomInMesh.RegionsByCentroid adds them.
-const std::string slab_cloud_scene = std::string(R"(
-title = "random cloud in the slab"
-[body]
-shape = "mesh"
-file = ")") + TISSUE_SOURCE_DIR + R"(/tests/meshes/two_layers.msh"
-topology = "random"
-interior_molecules = 150
-seed = 5
-youngs_modulus = 1.0e5
-density = 1000.0
-[calibration]
-method = "tetrahedral"
-[[fix]]
-face = "bottom"
-mode = "roller"
-[[load]]
-face = "top"
-force = [0.0, 0.0, 20.0]
-)";
+// shape = "mesh", topology = "random": `count` molecules at random inside tests/meshes/`mesh`, rolled on `fixed`,
+// pulled on `loaded`. No region, so mass = density * volume exactly (RandomInMesh.RegionsByCentroid adds one).
+std::string cloud_scene(const std::string& mesh, long count, long seed, const std::string& fixed,
+                        const std::string& loaded, const std::string& force) {
+  return "[body]\nshape = \"mesh\"\nfile = \"" + std::string(TISSUE_SOURCE_DIR) + "/tests/meshes/" + mesh +
+         "\"\ntopology = \"random\"\ninterior_molecules = " + std::to_string(count) + "\nseed = " +
+         std::to_string(seed) + "\nyoungs_modulus = 1.0e5\ndensity = 1000.0\n[calibration]\nmethod = \"tetrahedral\"\n" +
+         "[[fix]]\nface = \"" + fixed + "\"\nmode = \"roller\"\n[[load]]\nface = \"" + loaded + "\"\nforce = " + force + "\n";
+}
 
+// The slab's boundary nodes and 150 molecules inside.
+const std::string slab_cloud_scene = cloud_scene("two_layers.msh", 150, 5, "bottom", "top", "[0.0, 0.0, 20.0]");
 // The L (tests/meshes/l_shape.geo): non-convex, its Delaunay hull would fill the notch x > 0.5, y > 0.5.
-const std::string l_cloud_scene = std::string(R"(
-title = "random cloud in an L"
-[body]
-shape = "mesh"
-file = ")") + TISSUE_SOURCE_DIR + R"(/tests/meshes/l_shape.msh"
-topology = "random"
-interior_molecules = 200
-seed = 3
-youngs_modulus = 1.0e5
-density = 1000.0
-[calibration]
-method = "tetrahedral"
-[[fix]]
-face = "x-"
-mode = "roller"
-[[load]]
-face = "x+"
-force = [10.0, 0.0, 0.0]
-)";
+const std::string l_cloud_scene = cloud_scene("l_shape.msh", 200, 3, "x-", "x+", "[10.0, 0.0, 0.0]");
 
 // A box lattice (built rank by rank from its stencil) partitioned by PT-Scotch.
 const char* lattice_scene = R"(

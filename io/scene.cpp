@@ -396,7 +396,7 @@ void read_material(const Section& s, std::string& material, double& E, double& d
 // shape = "mesh": a Gmsh file, its physical volumes as regions (by name). The file is read with the body.
 BodySpec read_mesh_body(const Section& s, BodySpec b) {
   s.allow({"shape", "file", "topology", "material", "youngs_modulus", "density", "offset", "region", "radius",
-           "calibration"});
+           "calibration", "seed", "interior_molecules"});
   s.require("file", "the Gmsh 4.1 mesh (.msh) of the body");
   b.file = *s.string("file");
   if (b.file.empty()) s.fail("file", "empty path");
@@ -404,7 +404,19 @@ BodySpec read_mesh_body(const Section& s, BodySpec b) {
   if (fs::path(b.file).is_relative()) b.file = (fs::path(s.file()).parent_path() / b.file).lexically_normal().string();
   std::error_code ec;
   if (!fs::is_regular_file(b.file, ec)) s.fail("file", fmt::format("cannot open \"{}\": no such file", b.file));
-  b.topology = s.choice("topology", {"mesh"}).value_or("mesh");
+  // topology = "random": the mesh's boundary nodes and interior_molecules points at random inside it, Delaunay
+  // (src/model/mesh_cloud.hpp); "mesh": the mesh's own tetrahedra.
+  b.topology = s.choice("topology", {"mesh", "random"}).value_or("mesh");
+  for (const char* k : {"seed", "interior_molecules"})
+    if (s.has(k) && b.topology != "random") s.fail(k, "only topology = \"random\" has it");
+  b.seed = s.integer("seed").value_or(b.seed);
+  if (b.topology == "random") {
+    s.require("interior_molecules", "the number of molecules to sample inside the mesh's volume");
+    b.interior_molecules = *s.integer("interior_molecules");
+    s.at_least("interior_molecules", b.interior_molecules, 1);
+    if (b.interior_molecules > 2000000000L)
+      s.fail("interior_molecules", fmt::format("{} molecules, more than the 2e9 supported", b.interior_molecules));
+  }
   read_material(s, b.material, b.youngs_modulus, b.density);
   b.offset = s.vec3("offset").value_or(b.offset);
   b.radius = s.number("radius");

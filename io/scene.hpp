@@ -44,6 +44,7 @@ struct BodySpec {
   // the seed of the cloud. Both are explicit topologies (src/model/unstructured.hpp), whose faces are named.
   std::string file;
   long seed = 1;
+  long interior_molecules = 0;  // shape = "mesh", topology = "random": points sampled inside the mesh's volume
   bool unstructured() const { return shape == "mesh" || topology == "random"; }
 };
 

@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Bad meshes fail cleanly: `tissue run` on a mesh scene whose mesh is missing, holds a non-tetrahedral
 element, an inverted or flat tetrahedron, another format version or the binary form, is cut short, or lacks the
-physical group a fix, load or region names, exits with code 2 and exactly one line on stderr naming the file
+physical group a fix, load or region names, or that asks for a random cloud in it with a count missing, below 1
+or more than fits, exits with code 2 and exactly one line on stderr naming the file
 and the problem, and writes nothing. A hand-made one-tetrahedron mesh is the valid reference (it must run)."""
 import argparse
 import os
@@ -33,8 +34,8 @@ def msh(elements, nodes=NODES, version="4.1 0 8", volume_type=4):
     return "\n".join(lines) + "\n"
 
 
-def scene(mesh_name, face="slope", region=None):
-    text = f'[body]\nshape = "mesh"\nfile = "{mesh_name}"\nyoungs_modulus = 1.0e5\n'
+def scene(mesh_name, face="slope", region=None, body=""):
+    text = f'[body]\nshape = "mesh"\nfile = "{mesh_name}"\nyoungs_modulus = 1.0e5\n{body}'
     if region:
         text += f'[[body.region]]\nname = "{region}"\nyoungs_modulus = 2.0e5\n'
     text += '[calibration]\nmethod = "tetrahedral"\n[[fix]]\nface = "bottom"\n'
@@ -79,6 +80,19 @@ def main():
             ("not a mesh", "text.msh", "hello\n", {}, ["text.msh", "MeshFormat"]),
             ("unknown face", "good.msh", "", {"face": "lid"}, ["load[0].face", "lid", "good.msh"]),
             ("unknown region", "good.msh", "", {"region": "cortex"}, ["body.region[0].name", "cortex", "good.msh"]),
+            # topology = "random" in the mesh's volume (src/model/mesh_cloud.hpp)
+            ("no interior count", "good.msh", "", {"body": 'topology = "random"\n'},
+             ["body.interior_molecules", "missing"]),
+            ("zero interior molecules", "good.msh", "", {"body": 'topology = "random"\ninterior_molecules = 0\n'},
+             ["body.interior_molecules", ">= 1", "0"]),
+            ("negative interior molecules", "good.msh", "",
+             {"body": 'topology = "random"\ninterior_molecules = -5\n'}, ["body.interior_molecules", "-5"]),
+            ("interior count without random", "good.msh", "", {"body": 'interior_molecules = 10\n'},
+             ["body.interior_molecules", "random"]),
+            ("seed without random", "good.msh", "", {"body": 'seed = 2\n'}, ["body.seed", "random"]),
+            # One tetrahedron's inradius (0.21 m) is below the spacing one molecule asks for (0.28 m): no room.
+            ("no room inside", "good.msh", "", {"body": 'topology = "random"\ninterior_molecules = 1\n'},
+             ["body.interior_molecules", "good.msh", "placed only 0 of 1"]),
         ]
         for label, name, text, kw, expects in cases:
             if text:

@@ -6,6 +6,8 @@
 
 #include <cmath>
 
+#include "io/gmsh_mesh.hpp"
+#include "src/model/mesh_cloud.hpp"
 #include "tests/pipeline.hpp"
 
 using namespace tissue;
@@ -54,6 +56,21 @@ face = "x+"
 force = [10.0, 0.0, 0.0]
 )";
 
+// shape = "mesh", topology = "random": `count` molecules at random inside tests/meshes/`mesh`, rolled on `fixed`,
+// pulled on `loaded`. No region, so mass = density * volume exactly (RandomInMesh.RegionsByCentroid adds one).
+std::string cloud_scene(const std::string& mesh, long count, long seed, const std::string& fixed,
+                        const std::string& loaded, const std::string& force) {
+  return "[body]\nshape = \"mesh\"\nfile = \"" + std::string(TISSUE_SOURCE_DIR) + "/tests/meshes/" + mesh +
+         "\"\ntopology = \"random\"\ninterior_molecules = " + std::to_string(count) + "\nseed = " +
+         std::to_string(seed) + "\nyoungs_modulus = 1.0e5\ndensity = 1000.0\n[calibration]\nmethod = \"tetrahedral\"\n" +
+         "[[fix]]\nface = \"" + fixed + "\"\nmode = \"roller\"\n[[load]]\nface = \"" + loaded + "\"\nforce = " + force + "\n";
+}
+
+// The slab's boundary nodes and 150 molecules inside.
+const std::string slab_cloud_scene = cloud_scene("two_layers.msh", 150, 5, "bottom", "top", "[0.0, 0.0, 20.0]");
+// The L (tests/meshes/l_shape.geo): non-convex, its Delaunay hull would fill the notch x > 0.5, y > 0.5.
+const std::string l_cloud_scene = cloud_scene("l_shape.msh", 200, 3, "x-", "x+", "[10.0, 0.0, 0.0]");
+
 // A box lattice (built rank by rank from its stencil) partitioned by PT-Scotch.
 const char* lattice_scene = R"(
 title = "box lattice, PT-Scotch"
@@ -78,9 +95,10 @@ double global_sum(double x) {
 }
 
 // Parallel and one-rank runs of a scene: positions to 1e-10, E to 1e-9.
-void same_on_any_rank_count(const std::string& scene, const std::string& kind, const std::string& method = "metis") {
-  std::vector<std::string> set = {"solver.kind=" + kind, "partition.method=" + method,
-                                  kind == "static" ? "solver.tolerance=1e-12" : "solver.tolerance=1e-11"};
+void same_on_any_rank_count(const std::string& scene, const std::string& kind, const std::string& method = "metis",
+                            std::vector<std::string> set = {}) {
+  set.insert(set.end(), {"solver.kind=" + kind, "partition.method=" + method,
+                         kind == "static" ? "solver.tolerance=1e-12" : "solver.tolerance=1e-11"});
   auto parallel = run(scene, PETSC_COMM_WORLD, set);
   auto serial = run(scene, MPI_COMM_SELF, set);
   ASSERT_TRUE(parallel->report.converged && serial->report.converged) << kind;
@@ -193,6 +211,143 @@ TEST(Random, FillsTheBox) {
   EXPECT_NEAR(r->test.cross_section, 0.64, 1e-12);
   // The cloud has the lattice's count: boundary molecules plus (n - 2)^3 interior ones.
   EXPECT_EQ(r->model.global_molecules, 6 * 5 * 5);
+}
+
+// Random clouds in a mesh volume: every rank count ends a static tension solve at the one-rank positions.
+TEST(RandomInMesh, SameAnswerOnAnyRankCount) {
+  same_on_any_rank_count(slab_cloud_scene, "static");
+  same_on_any_rank_count(l_cloud_scene, "static");
+}
+
+// Above 1000 molecules the static solver's default preconditioner would be the lattice multigrid, which an
+// explicit topology (no lattice, a nominal 11^3 here) must not get: it falls back to GAMG, the same answer.
+TEST(RandomInMesh, StaticSolveOfAThousandMolecules) {
+  same_on_any_rank_count(slab_cloud_scene, "static", "metis", {"body.interior_molecules=1200"});
+}
+
+double tet_volume(const Body& b, const Tetrahedron& t) {
+  return signed_volume(b.points[t[0]], b.points[t[1]], b.points[t[2]], b.points[t[3]]);
+}
+
+// The slab is convex: the carved Delaunay tetrahedra fill it exactly (0.5 m^3), the molecules are the slab's
+// boundary nodes (counted here by position: on one of its six planes) plus the 150 asked for, and the mass is
+// density * volume.
+TEST(RandomInMesh, FillsTheSlab) {
+  const Scene scene = parse_scene(slab_cloud_scene, "test.toml");
+  const Body b = build_body(scene);
+  const TetMesh slab = read_gmsh(scene.body.file);
+  std::int64_t on_boundary = 0;
+  for (const auto& x : slab.nodes)
+    on_boundary += x[0] == 0 || x[0] == 1 || x[1] == 0 || x[1] == 1 || x[2] == 0 || x[2] == 0.5;
+  EXPECT_EQ(b.molecules(), on_boundary + 150);
+  double volume = 0, mass = 0;
+  for (const auto& t : b.tetrahedra) volume += tet_volume(b, t);
+  for (double m : b.mass) mass += m;
+  EXPECT_NEAR(volume, 0.5, 1e-12);
+  EXPECT_NEAR(b.total_volume, 0.5, 1e-12);
+  EXPECT_NEAR(mass, 1000.0 * volume, 1e-9);
+  // The interior molecules lie inside the slab, clear of its faces.
+  for (std::int64_t i = on_boundary; i < b.molecules(); ++i) {
+    const Vec3& x = b.points[i];
+    EXPECT_TRUE(x[0] > 0 && x[0] < 1 && x[1] > 0 && x[1] < 1 && x[2] > 0 && x[2] < 0.5) << i;
+  }
+  // The named faces keep the mesh's molecules and areas: the top is 1 m^2, Eq. 3's l0 and A the slab's.
+  const NamedFace* top = b.named_face(0, "top");
+  ASSERT_NE(top, nullptr);
+  EXPECT_NEAR(top->total_area, 1.0, 1e-12);
+  for (auto id : top->molecules) EXPECT_EQ(b.points[id][2], 0.5);
+  auto r = run(slab_cloud_scene, PETSC_COMM_WORLD, {}, /*do_solve=*/false);
+  ASSERT_TRUE(r->test.valid);
+  EXPECT_NEAR(r->test.rest_length, 0.5, 1e-12);
+  EXPECT_NEAR(r->test.cross_section, 1.0, 1e-12);
+}
+
+// Each tetrahedron takes the physical volume holding its centroid ("surface" above z = 0.25): the mass is
+// 1000 kg/m^3 times the volume below plus 1500 times the volume above, counted here from the centroids.
+TEST(RandomInMesh, RegionsByCentroid) {
+  const Scene scene = parse_scene(slab_cloud_scene + R"(
+[[body.region]]
+name = "surface"
+youngs_modulus = 3.0e5
+density = 1500.0
+)", "test.toml");
+  const Body b = build_body(scene);
+  double below = 0, above = 0, mass = 0, longest = 0;
+  for (const auto& t : b.tetrahedra) {
+    double z = 0;
+    for (auto v : t) z += 0.25 * b.points[v][2];
+    (z > 0.25 ? above : below) += tet_volume(b, t);
+  }
+  for (double m : b.mass) mass += m;
+  EXPECT_NEAR(mass, 1000.0 * below + 1500.0 * above, 1e-9);
+  EXPECT_NEAR(above, 0.25, 0.03);  // tetrahedra straddle the interface: the split is the carving's, not exact
+  // A molecule farther from the interface than the longest connection has all its tetrahedra on its side.
+  for (const auto& c : b.connections) longest = std::max(longest, b.rest_distance(c.a, c.b));
+  for (std::int64_t i = 0; i < b.molecules(); ++i) {
+    const double z = b.points[i][2];
+    if (z > 0.25 + longest) EXPECT_EQ(b.youngs_modulus[i], 3.0e5) << i;
+    if (z < 0.25 - longest) EXPECT_EQ(b.youngs_modulus[i], 1.0e5) << i;
+  }
+}
+
+// The L is not convex: no connection crosses the notch (its midpoint outside the L), the volume is the L's
+// 0.3 m^3 (the hull's would be 0.35), and the mass density * volume.
+TEST(RandomInMesh, NoConnectionAcrossTheNotch) {
+  const Body b = build_body(parse_scene(l_cloud_scene, "test.toml"));
+  std::int64_t outside = 0;
+  for (const auto& c : b.connections) {
+    Vec3 m;
+    for (int d = 0; d < 3; ++d) m[d] = 0.5 * (b.points[c.a][d] + b.points[c.b][d]);
+    outside += m[0] > 0.5 + 1e-12 && m[1] > 0.5 + 1e-12;
+  }
+  EXPECT_EQ(outside, 0);
+  double volume = 0, mass = 0;
+  for (const auto& t : b.tetrahedra) volume += tet_volume(b, t);
+  for (double m : b.mass) mass += m;
+  EXPECT_NEAR(volume, 0.3, 0.003);  // within 1 %: the carving's error along the notch
+  EXPECT_NEAR(mass, 1000.0 * volume, 1e-9);
+}
+
+// The seed fixes the cloud: the same seed gives the same positions bit for bit, another seed other ones.
+TEST(RandomInMesh, Seeded) {
+  const Body a = build_body(parse_scene(l_cloud_scene, "test.toml"));
+  const Body same = build_body(parse_scene(l_cloud_scene, "test.toml"));
+  const Body other = build_body(parse_scene(l_cloud_scene, "test.toml", {"body.seed=4"}));
+  ASSERT_EQ(a.points.size(), same.points.size());
+  EXPECT_TRUE(a.points == same.points);
+  EXPECT_TRUE(a.connections.size() == same.connections.size());
+  EXPECT_FALSE(a.points == other.points);
+}
+
+// Two cubes apart: the Delaunay tetrahedra that join them have centroids in the gap, so the carved body falls in
+// two pieces, which is refused (exit 2 in main), naming the key.
+TEST(RandomInMesh, RefusesABodyInPieces) {
+  TetMesh two;
+  two.file = "two_cubes";
+  for (int cube = 0; cube < 2; ++cube) {
+    const std::int64_t first = static_cast<std::int64_t>(two.nodes.size());
+    for (int k = 0; k < 2; ++k)
+      for (int j = 0; j < 2; ++j)
+        for (int i = 0; i < 2; ++i) two.nodes.push_back({i + 3.0 * cube, 1.0 * j, 1.0 * k});
+    // The cube's 6 tetrahedra around its diagonal 0-7 (Kuhn), oriented positively.
+    const int paths[6][2] = {{1, 3}, {1, 5}, {2, 3}, {2, 6}, {4, 5}, {4, 6}};
+    for (const auto& p : paths) {
+      std::array<std::int64_t, 4> t{first, first + p[0], first + p[1], first + 7};
+      if (signed_volume(two.nodes[t[0]], two.nodes[t[1]], two.nodes[t[2]], two.nodes[t[3]]) < 0) std::swap(t[2], t[3]);
+      two.tets.push_back(t);
+    }
+  }
+  BodySpec spec;
+  spec.shape = "mesh";
+  spec.topology = "random";
+  spec.interior_molecules = 16;
+  try {
+    random_in_mesh(two, spec, "scene.toml", "body");
+    ADD_FAILURE() << "two cubes apart were accepted as one body";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("body.interior_molecules"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("2 pieces"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

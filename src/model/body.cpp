@@ -5,6 +5,7 @@
 
 #include "io/gmsh_mesh.hpp"
 #include "src/model/material.hpp"
+#include "src/model/mesh_cloud.hpp"
 #include "src/model/random_cloud.hpp"
 #include "src/model/topology.hpp"
 #include "src/model/unstructured.hpp"
@@ -67,6 +68,8 @@ Body build_one(const BodySpec& spec, std::int64_t first) {
 // Explicit topologies (a mesh file, a random cloud) go through a tetrahedral mesh; boxes through their stencil.
 Body build_any(const Scene& scene, const BodySpec& spec, std::size_t index, std::size_t count, std::int64_t first) {
   const std::string key = count > 1 ? "body[" + std::to_string(index) + "]" : "body";
+  if (spec.shape == "mesh" && spec.topology == "random")
+    return build_unstructured(spec, random_in_mesh(read_gmsh(spec.file), spec, scene.file, key), first, scene.file, key);
   if (spec.shape == "mesh") return build_unstructured(spec, read_gmsh(spec.file), first, scene.file, key);
   if (spec.topology == "random") return build_unstructured(spec, random_cloud(spec), first, scene.file, key);
   return build_one(spec, first);

@@ -85,7 +85,7 @@ Body build_unstructured(const BodySpec& spec, const TetMesh& mesh, std::int64_t 
   Body b;
   const std::int64_t n = static_cast<std::int64_t>(mesh.nodes.size());
   b.count = n;
-  b.topology = spec.shape == "mesh" ? "mesh" : spec.topology;
+  b.topology = spec.topology;  // "mesh" (its own tetrahedra) or "random" (in a box or in a mesh volume)
   b.offset = spec.offset;
   b.first = first;
   b.points.resize(n);

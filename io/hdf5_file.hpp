@@ -14,6 +14,7 @@
 #include <mpi.h>
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -24,8 +25,16 @@ class Hdf5File {
 public:
   // Collective. Create (truncating) <path>.tmp for writing; close() moves it to <path>.
   static Hdf5File create(const std::string& path, MPI_Comm comm);
-  // Collective. Open an existing file read-only.
-  static Hdf5File open(const std::string& path, MPI_Comm comm);
+  // Collective. Open an existing file read-only: check its seal, then let `walk` read, on a serially opened copy
+  // (open_serial) in a child process of rank 0, the metadata that the caller will read (io/isolated_parse.hpp), and
+  // only then parse the file here. A file that crashes HDF5 in the child is refused with one InputError line
+  // ("... corrupt or crafted WHAT"); a problem the walk throws is thrown here, on every rank. A null walk opens the
+  // file only (superblock and root group).
+  using Walk = std::function<void(const Hdf5File&)>;
+  static Hdf5File open(const std::string& path, MPI_Comm comm, const std::string& what, const Walk& walk);
+  // Not collective, no MPI at all: open read-only with HDF5's default serial (sec2) driver, without the seal check.
+  // For the metadata walk of open() in its child process; collective reads (read_double, read_int64) are refused.
+  static Hdf5File open_serial(const std::string& path);
 
   Hdf5File(Hdf5File&& other) noexcept;
   Hdf5File& operator=(Hdf5File&& other) noexcept;
@@ -55,6 +64,9 @@ public:
 
   // The shape {rows, width} of a 2-D dataset (a 1-D dataset reads as width 1).
   std::vector<int64_t> shape(const std::string& dataset) const;
+  // Throws unless the dataset is stored as tissue writes it: contiguous, unfiltered, of 8-byte floats (or 8-byte
+  // integers), so that reading its rows decodes no further metadata (no chunk index, no filter, no heap).
+  void check_plain(const std::string& dataset, bool integer) const;
   // Collective read of rows [offset, offset + rows) of a dataset: rows * width values.
   std::vector<double> read_double(const std::string& dataset, int64_t offset, int64_t rows) const;
   std::vector<int64_t> read_int64(const std::string& dataset, int64_t offset, int64_t rows) const;

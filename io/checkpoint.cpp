@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -214,13 +215,35 @@ CheckpointHeader header_metadata(const Hdf5File& f, const std::string& path, std
   return h;
 }
 
-// Opens a checkpoint for reading after its metadata has been walked in a child process (io/isolated_parse.hpp).
+// What identifies a file's bytes without reading them: a write changes the change time (ctime), which no user
+// can set back.
+std::array<long long, 7> identity(const struct stat& st) {
+  return {static_cast<long long>(st.st_dev), static_cast<long long>(st.st_ino), static_cast<long long>(st.st_size),
+          st.st_mtim.tv_sec, st.st_mtim.tv_nsec, st.st_ctim.tv_sec, st.st_ctim.tv_nsec};
+}
+
+// The checkpoint whose metadata the last isolated parse of this process passed (rank 0's view). A restart opens
+// its checkpoint twice, for the header before the model exists and for the state after; the second fork would copy
+// the page tables of a process holding the model (0.5 s at 10^6 molecules), for a walk of the same bytes.
+std::array<long long, 7> walked_identity{};
+std::string walked_path;
+
+// Opens a checkpoint for reading after its metadata has been walked in a child process (io/isolated_parse.hpp),
+// unless this process walked the same, unchanged file before.
 Hdf5File open_checkpoint(const std::string& path, MPI_Comm comm) {
   struct stat st;
   if (stat(path.c_str(), &st) != 0) throw InputError(path, "", "no such file");
   if (!S_ISREG(st.st_mode)) throw InputError(path, "", "not a regular file");
   const std::int64_t bytes = static_cast<std::int64_t>(st.st_size);
-  return Hdf5File::open(path, comm, "checkpoint", [&](const Hdf5File& f) { header_metadata(f, path, bytes); });
+  int rank = 0;
+  MPI_Comm_rank(comm, &rank);
+  int walked = rank == 0 && path == walked_path && identity(st) == walked_identity;
+  MPI_Bcast(&walked, 1, MPI_INT, 0, comm);  // rank 0 alone forks: every rank must take the same branch
+  if (walked) return Hdf5File::open_walked(path, comm);
+  Hdf5File f = Hdf5File::open(path, comm, "checkpoint", [&](const Hdf5File& c) { header_metadata(c, path, bytes); });
+  walked_path = path;
+  walked_identity = identity(st);
+  return f;
 }
 
 }  // namespace

@@ -166,13 +166,21 @@ Hdf5File Hdf5File::create(const std::string& path, MPI_Comm comm) {
 
 Hdf5File Hdf5File::open(const std::string& path, MPI_Comm comm, const std::string& what, const Walk& walk) {
   quiet_hdf5();
-  Hdf5File f(path, comm, false);
   verify_seal(path, comm);
   parse_isolated(path, what, comm, [&] {
     Hdf5File copy = open_serial(path);
     if (walk) walk(copy);
     copy.close();
   });
+  return open_parsed(path, comm, false);
+}
+
+Hdf5File Hdf5File::open_walked(const std::string& path, MPI_Comm comm) { return open_parsed(path, comm, true); }
+
+Hdf5File Hdf5File::open_parsed(const std::string& path, MPI_Comm comm, bool check_seal) {
+  quiet_hdf5();
+  Hdf5File f(path, comm, false);
+  if (check_seal) verify_seal(path, comm);
   Handle fapl(file_access(comm), H5Pclose);
   if (!fapl.ok()) f.fail("", "cannot set up MPI-IO file access");
   f.file_ = H5Fopen(path.c_str(), H5F_ACC_RDONLY, fapl.get());

@@ -32,6 +32,9 @@ public:
   // file only (superblock and root group).
   using Walk = std::function<void(const Hdf5File&)>;
   static Hdf5File open(const std::string& path, MPI_Comm comm, const std::string& what, const Walk& walk);
+  // Collective. Open read-only after checking the seal, without the isolated parse: only for a file whose metadata
+  // the same walk has passed in a child process, unchanged since (the caller checks that it is the same file).
+  static Hdf5File open_walked(const std::string& path, MPI_Comm comm);
   // Not collective, no MPI at all: open read-only with HDF5's default serial (sec2) driver, without the seal check.
   // For the metadata walk of open() in its child process; collective reads (read_double, read_int64) are refused.
   static Hdf5File open_serial(const std::string& path);
@@ -88,6 +91,7 @@ public:
 
 private:
   Hdf5File(std::string path, MPI_Comm comm, bool writable);
+  static Hdf5File open_parsed(const std::string& path, MPI_Comm comm, bool check_seal);
   void set_int64_attribute(const std::string& object, const std::string& name, int64_t value);
   void write_block(const std::string& dataset, int64_t global_rows, int width, int64_t offset, int64_t rows,
                    const void* data, hid_t file_type, hid_t mem_type);

@@ -3,6 +3,8 @@
 # stays g++) and runs each for SECONDS seconds (default 60), seeded with tests/fuzz_regressions/ and the example
 # and bad scenes. Crashes land in out/fuzz/TARGET/ (crash-*, leak-*, timeout-*): copy each into
 # tests/fuzz_regressions/scene/ or .../checkpoint/ so that the normal build's fuzz_regressions test replays it.
+# A crash-* of fuzz_checkpoint with TISSUE_FUZZ_RESEAL=1 is the input before the target resealed it: reseal it
+# (reseal() in tests/checkpoint_test.py) before copying, or it stops at the seal.
 #
 #   bash run_scripts/fuzz.sh [SECONDS] [TARGET ...]     # targets: fuzz_scene fuzz_scene_set fuzz_checkpoint
 set -euo pipefail

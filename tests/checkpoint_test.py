@@ -466,6 +466,11 @@ def main():
         check(code == 2 and len(lines) == 1 and line.startswith(crafted + ": ") and words and
               not os.path.exists(res), "e. the H5Aexists crash input at %d rank%s: exit 2, one line naming the file"
               % (np_, "s" if np_ > 1 else ""), "exit %d in %.2f s: %s" % (code, t, " | ".join(lines)))
+    code, text, err, t = run([exe, "info", crafted], timeout=60)  # `tissue info` parses it in a child too
+    lines = [l for l in err.splitlines() if l.strip()]
+    check(code == 2 and len(lines) == 1 and lines[0].startswith(crafted + ": ") and not text.strip(),
+          "e. tissue info on the H5Aexists crash input: exit 2, one line naming the file, nothing printed",
+          "exit %d: %s | stdout %r" % (code, " | ".join(lines), text[:200]))
 
     # ---- f. tissue info -------------------------------------------------------------------------------------------
     with h5py.File(good, "r") as f:

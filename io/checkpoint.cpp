@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -144,44 +145,116 @@ std::string write_checkpoint(const std::string& directory, int keep, const Scene
   return path;
 }
 
-CheckpointHeader read_checkpoint_header(const std::string& path, MPI_Comm comm) {
+namespace {
+
+// The datasets of a checkpoint: name, integer (else double), width; rows are molecules or connections.
+struct DatasetSpec {
+  const char* name;
+  bool integer;
+  int width;
+  bool per_molecule;
+};
+constexpr DatasetSpec kDatasets[] = {{"/molecules/positions", false, 3, true},
+                                     {"/molecules/velocities", false, 3, true},
+                                     {"/connections/endpoints", true, 2, false},
+                                     {"/connections/stiffness", false, 1, false},
+                                     {"/connections/rest_length", false, 1, false}};
+
+// Every piece of metadata that the readers below touch, read and checked without MPI and without the bulk data:
+// the root attributes, and each dataset's presence, shape, type, layout and checksum attribute. Run first in a
+// child process (Hdf5File::open), then here. `bytes` is the file's size.
+CheckpointHeader header_metadata(const Hdf5File& f, const std::string& path, std::int64_t bytes) {
+  CheckpointHeader h;
+  h.path = path;
+  auto need = [&](const char* name) {
+    if (!f.has_attribute("/", name)) throw InputError(path, name, "attribute missing: not a tissue checkpoint");
+  };
+  need("kind");
+  if (f.string_attribute("/", "kind") != "checkpoint")
+    throw InputError(path, "kind", "is \"" + f.string_attribute("/", "kind") + "\", not a checkpoint");
+  for (const char* a : {"version", "scene", "step", "ranks", "molecules", "connections", "title", "solver_kind"})
+    need(a);
+  h.version = f.string_attribute("/", "version");
+  if (h.version != TISSUE_VERSION)
+    throw InputError(path, "version", "written by tissue " + h.version + ", this is " + TISSUE_VERSION);
+  h.scene_text = f.string_attribute("/", "scene");
+  h.title = f.string_attribute("/", "title");
+  h.solver_kind = f.string_attribute("/", "solver_kind");
+  h.step = f.int64_attribute("/", "step");
+  h.ranks = static_cast<int>(f.int64_attribute("/", "ranks"));
+  h.molecules = f.int64_attribute("/", "molecules");
+  h.connections = f.int64_attribute("/", "connections");
+  for (const char* a : {"time", "time_step", "divisor", "fire_dt", "fire_alpha"}) {
+    need(a);
+    f.double_attribute("/", a);  // read by read_checkpoint_state
+  }
+  for (const char* a : {"calibration_updates", "fire_positive"}) {
+    need(a);
+    f.int64_attribute("/", a);
+  }
+  if (h.molecules < 1 || h.connections < 0)
+    throw InputError(path, h.molecules < 1 ? "molecules" : "connections", "is out of range");
+  // Our datasets are contiguous and uncompressed: 48 bytes per molecule and 32 per connection must fit in the
+  // file. Checked before any allocation, so that a damaged count cannot ask for more memory than the file holds.
+  if (h.molecules > bytes / 48 || h.connections > bytes / 32 || 48 * h.molecules + 32 * h.connections > bytes)
+    throw InputError(path, "molecules",
+                     std::to_string(h.molecules) + " molecules and " + std::to_string(h.connections) +
+                         " connections do not fit in the file's " + std::to_string(bytes) + " bytes");
+  for (const DatasetSpec& d : kDatasets) {
+    const std::int64_t rows = d.per_molecule ? h.molecules : h.connections;
+    if (!f.exists(d.name)) throw InputError(path, d.name, "dataset missing");
+    auto shape = f.shape(d.name);
+    if (shape.size() != 2 || shape[0] != rows || shape[1] != d.width)
+      throw InputError(path, d.name, "has shape [" + std::to_string(shape[0]) + " x " + std::to_string(shape[1]) +
+                                         "], the header says [" + std::to_string(rows) + " x " +
+                                         std::to_string(d.width) + "]");
+    f.check_plain(d.name, d.integer);
+    if (!f.has_attribute(d.name, "checksum")) throw InputError(path, d.name, "checksum attribute missing");
+    f.int64_attribute(d.name, "checksum");
+  }
+  return h;
+}
+
+// What identifies a file's bytes without reading them: a write changes the change time (ctime), which no user
+// can set back.
+std::array<long long, 7> identity(const struct stat& st) {
+  return {static_cast<long long>(st.st_dev), static_cast<long long>(st.st_ino), static_cast<long long>(st.st_size),
+          st.st_mtim.tv_sec, st.st_mtim.tv_nsec, st.st_ctim.tv_sec, st.st_ctim.tv_nsec};
+}
+
+// The checkpoint whose metadata the last isolated parse of this process passed (rank 0's view). A restart opens
+// its checkpoint twice, for the header before the model exists and for the state after; the second fork would copy
+// the page tables of a process holding the model (0.5 s at 10^6 molecules), for a walk of the same bytes.
+std::array<long long, 7> walked_identity{};
+std::string walked_path;
+
+// Opens a checkpoint for reading after its metadata has been walked in a child process (io/isolated_parse.hpp),
+// unless this process walked the same, unchanged file before.
+Hdf5File open_checkpoint(const std::string& path, MPI_Comm comm) {
   struct stat st;
   if (stat(path.c_str(), &st) != 0) throw InputError(path, "", "no such file");
   if (!S_ISREG(st.st_mode)) throw InputError(path, "", "not a regular file");
+  const std::int64_t bytes = static_cast<std::int64_t>(st.st_size);
+  int rank = 0;
+  MPI_Comm_rank(comm, &rank);
+  int walked = rank == 0 && path == walked_path && identity(st) == walked_identity;
+  MPI_Bcast(&walked, 1, MPI_INT, 0, comm);  // rank 0 alone forks: every rank must take the same branch
+  if (walked) return Hdf5File::open_walked(path, comm);
+  Hdf5File f = Hdf5File::open(path, comm, "checkpoint", [&](const Hdf5File& c) { header_metadata(c, path, bytes); });
+  walked_path = path;
+  walked_identity = identity(st);
+  return f;
+}
+
+}  // namespace
+
+CheckpointHeader read_checkpoint_header(const std::string& path, MPI_Comm comm) {
   CheckpointHeader h;
-  h.path = path;
   try {
-    Hdf5File f = Hdf5File::open(path, comm);
-    auto need = [&](const char* name) {
-      if (!f.has_attribute("/", name)) throw InputError(path, name, "attribute missing: not a tissue checkpoint");
-    };
-    need("kind");
-    if (f.string_attribute("/", "kind") != "checkpoint")
-      throw InputError(path, "kind", "is \"" + f.string_attribute("/", "kind") + "\", not a checkpoint");
-    for (const char* a : {"version", "scene", "step", "ranks", "molecules", "connections", "title", "solver_kind"})
-      need(a);
-    h.version = f.string_attribute("/", "version");
-    if (h.version != TISSUE_VERSION)
-      throw InputError(path, "version", "written by tissue " + h.version + ", this is " + TISSUE_VERSION);
-    h.scene_text = f.string_attribute("/", "scene");
-    h.title = f.string_attribute("/", "title");
-    h.solver_kind = f.string_attribute("/", "solver_kind");
-    h.step = f.int64_attribute("/", "step");
-    h.ranks = static_cast<int>(f.int64_attribute("/", "ranks"));
-    h.molecules = f.int64_attribute("/", "molecules");
-    h.connections = f.int64_attribute("/", "connections");
-    for (const char* a : {"time", "time_step", "divisor", "calibration_updates", "fire_dt", "fire_alpha",
-                          "fire_positive"})
-      need(a);
-    if (h.molecules < 1 || h.connections < 0)
-      throw InputError(path, h.molecules < 1 ? "molecules" : "connections", "is out of range");
-    // Our datasets are contiguous and uncompressed: 48 bytes per molecule and 32 per connection must fit in the
-    // file. Checked before any allocation, so that a damaged count cannot ask for more memory than the file holds.
-    const std::int64_t bytes = static_cast<std::int64_t>(st.st_size);
-    if (h.molecules > bytes / 48 || h.connections > bytes / 32 || 48 * h.molecules + 32 * h.connections > bytes)
-      throw InputError(path, "molecules",
-                       std::to_string(h.molecules) + " molecules and " + std::to_string(h.connections) +
-                           " connections do not fit in the file's " + std::to_string(bytes) + " bytes");
+    Hdf5File f = open_checkpoint(path, comm);
+    // The same walk again, here: the child survived it, and it reads nothing the child did not.
+    struct stat st;
+    h = header_metadata(f, path, stat(path.c_str(), &st) == 0 ? static_cast<std::int64_t>(st.st_size) : 0);
     // Every dataset is verified here (shape, checksum, finiteness), before the run prints anything or builds the
     // model, so that a damaged file stops the restart with its one line. Each rank checks an even block of rows.
     int rank = 0, size = 1;
@@ -189,13 +262,6 @@ CheckpointHeader read_checkpoint_header(const std::string& path, MPI_Comm comm) 
     MPI_Comm_size(comm, &size);
     auto verify = [&](const char* name, std::int64_t rows, int width, auto tag) {
       using T = decltype(tag);
-      if (!f.exists(name)) throw InputError(path, name, "dataset missing");
-      auto shape = f.shape(name);
-      if (shape.size() != 2 || shape[0] != rows || shape[1] != width)
-        throw InputError(path, name, "has shape [" + std::to_string(shape[0]) + " x " + std::to_string(shape[1]) +
-                                         "], the header says [" + std::to_string(rows) + " x " +
-                                         std::to_string(width) + "]");
-      if (!f.has_attribute(name, "checksum")) throw InputError(path, name, "checksum attribute missing");
       const std::int64_t first = rows * rank / size, count = rows * (rank + 1) / size - first;
       std::vector<T> block;
       if constexpr (std::is_same_v<T, double>) block = f.read_double(name, first, count);
@@ -225,7 +291,7 @@ CheckpointHeader read_checkpoint_header(const std::string& path, MPI_Comm comm) 
 void read_checkpoint_state(const std::string& path, const LocalModel& model, const NaturalOrder& molecules,
                            const NaturalOrder& connections, SolverState& state, bool check_stiffness) {
   try {
-    Hdf5File f = Hdf5File::open(path, model.comm);
+    Hdf5File f = open_checkpoint(path, model.comm);
     auto load = [&](const char* name, std::int64_t rows, int width, const NaturalOrder& order, auto tag) {
       using T = decltype(tag);
       if (!f.exists(name)) throw InputError(path, name, "dataset missing");

@@ -14,6 +14,8 @@
 #include <stdexcept>
 #include <utility>
 
+#include "io/isolated_parse.hpp"
+
 namespace tissue {
 
 namespace {
@@ -162,13 +164,34 @@ Hdf5File Hdf5File::create(const std::string& path, MPI_Comm comm) {
   return f;
 }
 
-Hdf5File Hdf5File::open(const std::string& path, MPI_Comm comm) {
+Hdf5File Hdf5File::open(const std::string& path, MPI_Comm comm, const std::string& what, const Walk& walk) {
+  quiet_hdf5();
+  verify_seal(path, comm);
+  parse_isolated(path, what, comm, [&] {
+    Hdf5File copy = open_serial(path);
+    if (walk) walk(copy);
+    copy.close();
+  });
+  return open_parsed(path, comm, false);
+}
+
+Hdf5File Hdf5File::open_walked(const std::string& path, MPI_Comm comm) { return open_parsed(path, comm, true); }
+
+Hdf5File Hdf5File::open_parsed(const std::string& path, MPI_Comm comm, bool check_seal) {
   quiet_hdf5();
   Hdf5File f(path, comm, false);
-  verify_seal(path, comm);
+  if (check_seal) verify_seal(path, comm);
   Handle fapl(file_access(comm), H5Pclose);
   if (!fapl.ok()) f.fail("", "cannot set up MPI-IO file access");
   f.file_ = H5Fopen(path.c_str(), H5F_ACC_RDONLY, fapl.get());
+  if (f.file_ < 0) f.fail("", "cannot open");
+  return f;
+}
+
+Hdf5File Hdf5File::open_serial(const std::string& path) {
+  quiet_hdf5();
+  Hdf5File f(path, MPI_COMM_NULL, false);
+  f.file_ = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);  // the default file access: the sec2 driver
   if (f.file_ < 0) f.fail("", "cannot open");
   return f;
 }
@@ -340,6 +363,20 @@ std::vector<int64_t> Hdf5File::shape(const std::string& dataset) const {
   return {static_cast<int64_t>(dims[0]), static_cast<int64_t>(rank == 2 ? dims[1] : 1)};
 }
 
+void Hdf5File::check_plain(const std::string& dataset, bool integer) const {
+  if (file_ < 0) fail(dataset, "file is closed");
+  Handle dset(H5Dopen2(file_, dataset.c_str(), H5P_DEFAULT), H5Dclose);
+  if (!dset.ok()) fail(dataset, "no such dataset");
+  Handle type(H5Dget_type(dset.get()), H5Tclose);
+  if (!type.ok()) fail(dataset, "cannot get the datatype");
+  if (H5Tget_class(type.get()) != (integer ? H5T_INTEGER : H5T_FLOAT) || H5Tget_size(type.get()) != 8)
+    fail(dataset, std::string("is not stored as 8-byte ") + (integer ? "integers" : "floating-point numbers"));
+  Handle dcpl(H5Dget_create_plist(dset.get()), H5Pclose);
+  if (!dcpl.ok()) fail(dataset, "cannot get the creation properties");
+  if (H5Pget_layout(dcpl.get()) != H5D_CONTIGUOUS || H5Pget_nfilters(dcpl.get()) != 0)
+    fail(dataset, "is not stored contiguously without filters (as tissue writes it)");
+}
+
 std::vector<double> Hdf5File::read_double(const std::string& dataset, int64_t offset, int64_t rows) const {
   const auto s = shape(dataset);
   std::vector<double> out(static_cast<size_t>(rows > 0 ? rows : 0) * s[1]);
@@ -356,6 +393,7 @@ std::vector<int64_t> Hdf5File::read_int64(const std::string& dataset, int64_t of
 
 void Hdf5File::read_block(const std::string& dataset, int64_t offset, int64_t rows, void* data,
                           hid_t mem_type) const {
+  if (comm_ == MPI_COMM_NULL) fail(dataset, "collective read on a file opened without MPI");
   Handle dset(H5Dopen2(file_, dataset.c_str(), H5P_DEFAULT), H5Dclose);
   if (!dset.ok()) fail(dataset, "no such dataset");
   Handle file_space(H5Dget_space(dset.get()), H5Sclose);

@@ -14,6 +14,7 @@
 #include <mpi.h>
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -24,8 +25,19 @@ class Hdf5File {
 public:
   // Collective. Create (truncating) <path>.tmp for writing; close() moves it to <path>.
   static Hdf5File create(const std::string& path, MPI_Comm comm);
-  // Collective. Open an existing file read-only.
-  static Hdf5File open(const std::string& path, MPI_Comm comm);
+  // Collective. Open an existing file read-only: check its seal, then let `walk` read, on a serially opened copy
+  // (open_serial) in a child process of rank 0, the metadata that the caller will read (io/isolated_parse.hpp), and
+  // only then parse the file here. A file that crashes HDF5 in the child is refused with one InputError line
+  // ("... corrupt or crafted WHAT"); a problem the walk throws is thrown here, on every rank. A null walk opens the
+  // file only (superblock and root group).
+  using Walk = std::function<void(const Hdf5File&)>;
+  static Hdf5File open(const std::string& path, MPI_Comm comm, const std::string& what, const Walk& walk);
+  // Collective. Open read-only after checking the seal, without the isolated parse: only for a file whose metadata
+  // the same walk has passed in a child process, unchanged since (the caller checks that it is the same file).
+  static Hdf5File open_walked(const std::string& path, MPI_Comm comm);
+  // Not collective, no MPI at all: open read-only with HDF5's default serial (sec2) driver, without the seal check.
+  // For the metadata walk of open() in its child process; collective reads (read_double, read_int64) are refused.
+  static Hdf5File open_serial(const std::string& path);
 
   Hdf5File(Hdf5File&& other) noexcept;
   Hdf5File& operator=(Hdf5File&& other) noexcept;
@@ -55,6 +67,9 @@ public:
 
   // The shape {rows, width} of a 2-D dataset (a 1-D dataset reads as width 1).
   std::vector<int64_t> shape(const std::string& dataset) const;
+  // Throws unless the dataset is stored as tissue writes it: contiguous, unfiltered, of 8-byte floats (or 8-byte
+  // integers), so that reading its rows decodes no further metadata (no chunk index, no filter, no heap).
+  void check_plain(const std::string& dataset, bool integer) const;
   // Collective read of rows [offset, offset + rows) of a dataset: rows * width values.
   std::vector<double> read_double(const std::string& dataset, int64_t offset, int64_t rows) const;
   std::vector<int64_t> read_int64(const std::string& dataset, int64_t offset, int64_t rows) const;
@@ -76,6 +91,7 @@ public:
 
 private:
   Hdf5File(std::string path, MPI_Comm comm, bool writable);
+  static Hdf5File open_parsed(const std::string& path, MPI_Comm comm, bool check_seal);
   void set_int64_attribute(const std::string& object, const std::string& name, int64_t value);
   void write_block(const std::string& dataset, int64_t global_rows, int width, int64_t offset, int64_t rows,
                    const void* data, hid_t file_type, hid_t mem_type);

@@ -211,6 +211,41 @@ void Output::summary(const TensionTest& test, const Measurements& measured, cons
   write_json_atomically(scene_.output.directory + "/summary.json", s);
 }
 
+namespace {
+
+// What `tissue info` prints about a file: it reads root attributes and dataset shapes only (metadata, no MPI), so
+// that it is also the walk of the file's isolated parse (Hdf5File::open).
+std::string describe(const Hdf5File& file) {
+  const std::string& path = file.path();
+  if (!file.has_attribute("/", "kind")) throw InputError(path, "kind", "not a snapshot or checkpoint of tissue");
+  auto text = [&](const char* name) {
+    return file.has_attribute("/", name) ? file.string_attribute("/", name) : std::string("(absent)");
+  };
+  auto number = [&](const char* name) {
+    return file.has_attribute("/", name) ? std::to_string(file.int64_attribute("/", name)) : std::string("(absent)");
+  };
+  char time[64];
+  std::snprintf(time, sizeof time, "%.9g", file.has_attribute("/", "time") ? file.double_attribute("/", "time") : 0.0);
+  std::string out = path + ": a tissue " + text("kind") + "\n";
+  out += "  title:       " + text("title") + "\n";
+  out += "  step:        " + number("step") + "\n";
+  out += "  time:        " + std::string(time) + " s\n";
+  out += "  molecules:   " + number("molecules") + "\n";
+  out += "  connections: " + number("connections") + "\n";
+  out += "  written by:  " + number("ranks") + " ranks, tissue " + text("version") + "\n";
+  out += "  datasets:   ";
+  for (const char* d : {"/molecules/positions", "/molecules/displacements", "/molecules/velocities",
+                        "/molecules/forces", "/connections/endpoints", "/connections/strain", "/connections/force"})
+    if (file.exists(d)) {
+      auto shape = file.shape(d);
+      out += std::string(" ") + d + " [" + std::to_string(shape[0]) + " x " +
+             std::to_string(shape.size() > 1 ? shape[1] : 1) + "]";
+    }
+  return out + "\n";
+}
+
+}  // namespace
+
 int info(const std::string& path, MPI_Comm comm) {
   int rank;
   MPI_Comm_rank(comm, &rank);
@@ -218,38 +253,17 @@ int info(const std::string& path, MPI_Comm comm) {
   if (stat(path.c_str(), &st) != 0) throw InputError(path, "", "no such file");
   Hdf5File file = [&] {
     try {
-      return Hdf5File::open(path, comm);
-    } catch (const std::exception& e) {
-      throw InputError(path, "", "not an HDF5 file written by tissue");
+      return Hdf5File::open(path, comm, "file", [](const Hdf5File& f) { describe(f); });
+    } catch (const InputError&) {
+      throw;  // the isolated parse's verdict, or the walk's own refusal
+    } catch (const std::exception& e) {  // the seal, HDF5, or the walk's HDF5 failure: its reason, without the path
+      std::string reason = e.what();
+      if (reason.rfind(path + ": ", 0) == 0) reason.erase(0, path.size() + 2);
+      throw InputError(path, "", "not a readable HDF5 file written by tissue (" + reason + ")");
     }
   }();
-  auto text = [&](const char* name) {
-    return file.has_attribute("/", name) ? file.string_attribute("/", name) : std::string("(absent)");
-  };
-  auto number = [&](const char* name) {
-    return file.has_attribute("/", name) ? std::to_string(file.int64_attribute("/", name)) : std::string("(absent)");
-  };
-  if (!file.has_attribute("/", "kind")) throw InputError(path, "kind", "not a snapshot or checkpoint of tissue");
-  if (rank == 0) {
-    std::printf("%s: a tissue %s\n", path.c_str(), text("kind").c_str());
-    std::printf("  title:       %s\n", text("title").c_str());
-    std::printf("  step:        %s\n", number("step").c_str());
-    std::printf("  time:        %.9g s\n", file.has_attribute("/", "time") ? file.double_attribute("/", "time") : 0.0);
-    std::printf("  molecules:   %s\n", number("molecules").c_str());
-    std::printf("  connections: %s\n", number("connections").c_str());
-    std::printf("  written by:  %s ranks, tissue %s\n", number("ranks").c_str(), text("version").c_str());
-    const char* datasets[] = {"/molecules/positions", "/molecules/displacements", "/molecules/velocities",
-                              "/molecules/forces", "/connections/endpoints", "/connections/strain",
-                              "/connections/force"};
-    std::printf("  datasets:   ");
-    for (const char* d : datasets)
-      if (file.exists(d)) {
-        auto shape = file.shape(d);
-        std::printf(" %s [%lld x %lld]", d, static_cast<long long>(shape[0]),
-                    static_cast<long long>(shape.size() > 1 ? shape[1] : 1));
-      }
-    std::printf("\n");
-  }
+  const std::string text = describe(file);  // every rank: a refusal stops them all
+  if (rank == 0) std::fputs(text.c_str(), stdout);
   return 0;
 }
 

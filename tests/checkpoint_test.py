@@ -12,7 +12,8 @@ c. kill -9 of the tissue processes at random moments (0.3 - 2 s) of a run that c
 d. SIGTERM to the tissue processes (as srun does, not to mpirun): exit 0, a message naming the checkpoint, and the
    restart ends in the uninterrupted run's state.
 e. damaged, foreign and mismatched files: exit 2 with one stderr line naming the file and the dataset or
-   attribute, no output directory left, in under 5 s.
+   attribute, no output directory left, in under 5 s; the crafted file that crashed HDF5 (issue #8) at 1 and 2
+   ranks.
 f. `tissue info` on a snapshot and a checkpoint: title, step, time, molecules, ranks, version.
 
 Usage: checkpoint_test.py --build BUILD_DIR --source SOURCE_DIR [--seed S]      Prints 'N passed, M failed'."""
@@ -444,6 +445,32 @@ def main():
     code, _, err, t = run(mpi(exe, 2, ["restart", cases[1][1], "--output", out + "/bad_np2"]), timeout=30)
     check(code == 2 and "seal" in err and t < 10, "e. a flipped byte on 2 ranks stops cleanly",
           "exit %d in %.2f s" % (code, t))
+
+    # Issue #8: a crafted, resealed checkpoint on which HDF5 1.10 itself reads past a buffer (ASan: heap-buffer-
+    # overflow in H5O__msg_iterate_real <- H5Aexists), before any check of ours can look. HDF5 first parses it in a
+    # child process (io/isolated_parse.cpp): whether that child dies (the ASan build: "died with signal 6") or reads
+    # past the buffer silently and refuses an attribute (this build), the restart exits 2 with one line naming the
+    # file, on every rank count, and writes nothing.
+    crafted = os.path.join(args.source, "tests", "fuzz_regressions", "checkpoint",
+                           "crash-resealed-attribute-message-H5Aexists-overflow.h5")
+    died = re.compile(re.escape(crafted) + r": HDF5 could not parse the file \(the child process parsing it died with "
+                      r"signal \d+\): corrupt or crafted checkpoint$")
+    for np_ in (1, 2):
+        res = "%s/bad_crafted_np%d" % (out, np_)
+        code, _, err, t = run(["mpirun", "--quiet", "--oversubscribe", "-np", str(np_), exe, "restart", crafted,
+                               "--output", res], timeout=60)
+        lines = [l for l in err.splitlines() if l.strip()]
+        line = lines[0] if lines else ""
+        # a child's death must be reported in exactly the documented words
+        words = not line.startswith(crafted + ": HDF5 could not parse") or died.match(line) is not None
+        check(code == 2 and len(lines) == 1 and line.startswith(crafted + ": ") and words and
+              not os.path.exists(res), "e. the H5Aexists crash input at %d rank%s: exit 2, one line naming the file"
+              % (np_, "s" if np_ > 1 else ""), "exit %d in %.2f s: %s" % (code, t, " | ".join(lines)))
+    code, text, err, t = run([exe, "info", crafted], timeout=60)  # `tissue info` parses it in a child too
+    lines = [l for l in err.splitlines() if l.strip()]
+    check(code == 2 and len(lines) == 1 and lines[0].startswith(crafted + ": ") and not text.strip(),
+          "e. tissue info on the H5Aexists crash input: exit 2, one line naming the file, nothing printed",
+          "exit %d: %s | stdout %r" % (code, " | ".join(lines), text[:200]))
 
     # ---- f. tissue info -------------------------------------------------------------------------------------------
     with h5py.File(good, "r") as f:

@@ -159,7 +159,8 @@ TEST(Snapshot, WritesLatticeSeries) {
 
   for (int s = 0; s < 2; ++s) {
     const int64_t step = STEPS[s];
-    Hdf5File f = Hdf5File::open(dir + "/" + prefix() + "_step" + std::to_string(step) + ".h5", MPI_COMM_WORLD);
+    Hdf5File f =
+        Hdf5File::open(dir + "/" + prefix() + "_step" + std::to_string(step) + ".h5", MPI_COMM_WORLD, "file", nullptr);
     EXPECT_EQ(f.string_attribute("/", "kind"), "snapshot");
     EXPECT_EQ(f.string_attribute("/", "title"), "lattice 4 x 3 x 2 & <test>");
     EXPECT_EQ(f.string_attribute("/", "version"), TISSUE_VERSION);
@@ -234,7 +235,7 @@ TEST(Snapshot, RanksWithoutRowsTakePart) {
   const XdmfEntry e = write_snapshot(path, MPI_COMM_WORLD, f);
   EXPECT_TRUE(e.positions);
   EXPECT_FALSE(e.endpoints);
-  Hdf5File h = Hdf5File::open(path, MPI_COMM_WORLD);
+  Hdf5File h = Hdf5File::open(path, MPI_COMM_WORLD, "file", nullptr);
   EXPECT_EQ(h.read_double("/molecules/positions", 0, 1), (std::vector<double>{1.5, -2.5, 3.5}));
   EXPECT_FALSE(h.exists("/connections/endpoints"));
   EXPECT_EQ(h.int64_attribute("/", "connections"), 0);
@@ -265,7 +266,7 @@ TEST(Snapshot, ErrorsAreOneLineAndLeaveNoFile) {
   // A missing file names itself; a missing dataset names the file and the dataset.
   const std::string missing = dir + "/" + prefix() + "_missing.h5";
   try {
-    Hdf5File::open(missing, MPI_COMM_WORLD);
+    Hdf5File::open(missing, MPI_COMM_WORLD, "file", nullptr);
     ADD_FAILURE() << "opened a missing file";
   } catch (const std::runtime_error& e) {
     const std::string what = e.what();
@@ -295,7 +296,7 @@ TEST(Snapshot, ErrorsAreOneLineAndLeaveNoFile) {
   MPI_Barrier(MPI_COMM_WORLD);
   EXPECT_FALSE(fs::exists(abandoned));
   EXPECT_FALSE(fs::exists(abandoned + ".tmp"));
-  Hdf5File r = Hdf5File::open(tiny, MPI_COMM_WORLD);
+  Hdf5File r = Hdf5File::open(tiny, MPI_COMM_WORLD, "file", nullptr);
   EXPECT_EQ(r.int64_attribute("/a/b", "n"), 7);
   try {
     r.read_double("/a/nothing", 0, 1);

@@ -6,7 +6,11 @@
 // parses anything), so a mutated file is refused at the seal and the default run explores the seal check only. With
 // TISSUE_FUZZ_RESEAL=1 the target writes a fresh seal over the input's first 512 bytes before reading it, so that
 // the mutations reach HDF5 and the checkpoint reader behind the seal (what a hand-crafted, validly sealed file could
-// do). HDF5 1.10 itself still crashes on some corrupt metadata: crashes in that mode inside H5* are HDF5's.
+// do). HDF5 1.10 itself still crashes on some corrupt metadata, so the reader first parses the file's metadata in a
+// child process (io/isolated_parse.cpp, the same path as `tissue restart`): an input that crashes HDF5 there kills
+// the child (its ASan report is printed, and libFuzzer's death callback, inherited, saves the input as crash-*) and
+// comes back here as an InputError. What fails the run is a crash of this process: HDF5 crashing on metadata that
+// the child walked without harm, or any bug of ours.
 #include <petscsys.h>
 #include <unistd.h>
 

@@ -76,9 +76,17 @@ TEST(FuzzRegressions, SetOverrides) {
 }
 
 TEST(FuzzRegressions, CheckpointHeaders) {
-  for (const auto& p : files_in("checkpoint")) {
+  auto files = files_in("checkpoint");
+  EXPECT_GE(files.size(), 18u);
+  for (const auto& p : files) {
     // The header must be refused (or read) cleanly; a refused header stops a restart before the state is read.
-    std::string msg = outcome(p, [&] { read_checkpoint_header(p.string(), PETSC_COMM_WORLD); });
-    (void)msg;
+    // HDF5 first parses the file in a child process (io/isolated_parse.cpp): an input that crashes HDF5 (every
+    // crash-* here did, in the ASan build of its day) kills that child, not this test.
+    const std::string name = p.filename().string();
+    const std::string msg = outcome(p, [&] { read_checkpoint_header(p.string(), PETSC_COMM_WORLD); });
+    const bool refused = name.rfind("crash-", 0) == 0 || name.find("vlen") != std::string::npos ||
+                         name.find("snapshot") != std::string::npos;
+    if (refused) EXPECT_EQ(msg.rfind(p.string() + ": ", 0), 0u) << p << ": not refused with a line naming it: " << msg;
+    if (name == "seed_sealed_checkpoint_3x3x3.h5") EXPECT_EQ(msg, "") << p << ": the current seed is refused";
   }
 }

@@ -140,6 +140,12 @@ void verify_seal(const std::string& path, MPI_Comm comm) {
   if (!ok || std::strncmp(header, kSealTag, sizeof kSealTag - 1) != 0 ||
       std::sscanf(header + sizeof kSealTag - 1, "%llu %llx", &size, &hash) != 2)
     throw std::runtime_error(path + ": not a file written by tissue (no seal in its first 512 bytes)");
+  // The hash covers the bytes after the user block only: the block itself must be exactly what the writer puts
+  // there (the seal line, then zeros), so that no byte of the file escapes the check.
+  char expected[kUserBlock] = {0};
+  std::snprintf(expected, sizeof expected, "%s%llu %016llx\n", kSealTag, size, hash);
+  if (std::memcmp(header, expected, kUserBlock) != 0)
+    throw std::runtime_error(path + ": damaged: its seal block (the first 512 bytes) was altered");
   const std::uint64_t actual = file_size(path);
   if (actual != size)
     throw std::runtime_error(path + ": truncated or extended: " + std::to_string(actual) + " bytes, sealed at " +

@@ -346,6 +346,11 @@ def main():
         f.write(bytes([b[0] ^ 0x10]))
     # A damaged file is refused by its seal before HDF5 parses it (HDF5 can crash on corrupt metadata).
     cases.append(("a byte flipped in /molecules/positions", p_, [], "seal"))
+    p_ = copy("seal_padding.h5")
+    with open(p_, "r+b") as f:  # the seal block's zero padding is outside the hash: checked byte for byte
+        f.seek(300)
+        f.write(b"\x01")
+    cases.append(("a byte set in the seal block's padding", p_, [], "seal block"))
     p_ = os.path.join(bad, "foreign.h5")
     with h5py.File(p_, "w") as f:
         f["/molecules/positions"] = np.zeros((240, 3))

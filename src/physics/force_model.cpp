@@ -88,6 +88,8 @@ ForceModel::ForceModel(const Scene& scene, const LocalModel& model) : model_(mod
   held_.assign(3 * model.local, 0);
   for (int i = 0; i < model.local; ++i)
     for (const auto& fix : scene.fixes) hold(s, fix, model.id[i], &held_[3 * i]);
+  for (int j = 0; j < 3 * model.owned; ++j)
+    if (held_[j]) held_owned_.push_back(j);
 
   // Constant face loads; cyclic ones (period > 0) are a term of their own. Kept sparse: only loaded faces carry
   // them, and a dense copy would cost 24 bytes a molecule.
@@ -144,11 +146,9 @@ void ForceModel::connection_forces(const double* x, double* f) const { kernel_.f
 
 void ForceModel::forces(const double* x, const double* v, double* f, double load_factor) const {
   connection_forces(x, f);
-  const int n = model_.owned;
   for (const auto& a : applied_) f[a.component] += load_factor * a.value;
   for (const auto& t : terms_) t->add_forces(x, v, time_, f);  // one call per term, none per connection
-  for (int i = 0; i < 3 * n; ++i)
-    if (held_[i]) f[i] = 0.0;
+  for (int i : held_owned_) f[i] = 0.0;
 }
 
 double ForceModel::potential_energy(const double* x, double load_factor) const {

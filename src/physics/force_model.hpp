@@ -49,6 +49,8 @@ public:
   PetscErrorCode create_tangent(Mat* J) const;  // AIJ, block size 3, exactly preallocated
 
   const std::vector<std::uint8_t>& held() const { return held_; }   // 3 * owned: 1 = held component
+  // The held components of owned molecules, ascending (few: faces only), so a step does not scan held().
+  const std::vector<int>& held_owned() const { return held_owned_; }
   // The constant face loads at factor 1: component j (= 3 * owned molecule + axis) gets value (N).
   struct AppliedForce {
     int component;
@@ -75,6 +77,7 @@ private:
   const LocalModel& model_;
   SpringKernel kernel_;  // the connection forces (src/physics/spring_kernel.hpp)
   std::vector<std::uint8_t> held_;
+  std::vector<int> held_owned_;
   std::vector<AppliedForce> applied_;  // non-zero components only
   std::vector<std::unique_ptr<Term>> terms_;  // only what the scene lists, in the registry's order
   double applied_norm_ = 0.0;

@@ -43,7 +43,7 @@ def read_table(path):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--step-seconds", type=float, default=0.0345,
+    ap.add_argument("--step-seconds", type=float, default=0.0306,
                     help="1-rank CPU seconds per step at N = 100 (docs/benchmarks.md, 2026-11-29)")
     ap.add_argument("--alpha", type=float, default=1.5e-6, help="network latency per message, s")
     ap.add_argument("--beta", type=float, default=10e9, help="network bandwidth per rank, bytes/s")
@@ -113,12 +113,12 @@ def main():
         print("scaling_model: no matplotlib, no plot", file=sys.stderr)
         return
     fig, ax = plt.subplots(1, 2, figsize=(10, 4))
-    for n, style in ((1_000_000, "o-"), (20_000_000, "s-"), (1_000_000_000, "^-")):
+    for n, style, color in ((1_000_000, "o-", "C0"), (20_000_000, "s-", "C1"), (1_000_000_000, "^-", "C2")):
         sel = [r for r in rows if r["molecules"] == n]
         ranks = [r["ranks"] for r in sel]
-        ax[0].loglog(ranks, [r["steps_per_s"] for r in sel], style, label=f"{n:,} molecules")
-        ax[1].semilogx(ranks, [r["efficiency"] for r in sel], style, label=f"{n:,} molecules")
-        ax[1].semilogx(ranks, [r["efficiency_overlap"] for r in sel], style, alpha=0.35)
+        ax[0].loglog(ranks, [r["steps_per_s"] for r in sel], style, color=color, label=f"{n:,} molecules")
+        ax[1].semilogx(ranks, [r["efficiency"] for r in sel], style, color=color, label=f"{n:,} molecules")
+        ax[1].semilogx(ranks, [r["efficiency_overlap"] for r in sel], style, color=color, alpha=0.35)
     ax[0].set_xlabel("ranks"), ax[0].set_ylabel("steps/s (projected)"), ax[0].legend()
     ax[1].set_xlabel("ranks"), ax[1].set_ylabel("parallel efficiency (faint: with overlap)")
     ax[1].set_ylim(0, 1.05)

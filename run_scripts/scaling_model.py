@@ -43,7 +43,7 @@ def read_table(path):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--step-seconds", type=float, default=0.0306,
+    ap.add_argument("--step-seconds", type=float, default=0.0292,
                     help="1-rank CPU seconds per step at N = 100 (docs/benchmarks.md, 2026-11-29)")
     ap.add_argument("--alpha", type=float, default=1.5e-6, help="network latency per message, s")
     ap.add_argument("--beta", type=float, default=10e9, help="network bandwidth per rank, bytes/s")

@@ -15,6 +15,7 @@
 //
 // Exit codes: 0 success, 2 bad input (one line naming file and key), 3 the solver failed.
 
+#include <malloc.h>
 #include <petscsys.h>
 
 #include <CLI/CLI.hpp>
@@ -202,6 +203,10 @@ void warn_unused_petsc_options(int code) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Large arrays (model set-up temporaries, tens of MB) in their own mappings, so freeing one gives its memory
+  // back at once: past glibc's adaptive threshold they land in the heap, where freed pages stay resident and
+  // raise the peak (docs/benchmarks.md, 2026-11-29).
+  mallopt(M_MMAP_THRESHOLD, 1 << 20);
   // PETSc options follow "--": they go to PETSc untouched, the rest to our command line.
   std::vector<char*> ours{argv[0]}, petsc{argv[0]};
   bool after = false;

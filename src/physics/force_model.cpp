@@ -83,11 +83,13 @@ void add_face_load(const LoadSpec& load, const LocalModel& model, double* out) {
   }
 }
 
-ForceModel::ForceModel(const Scene& scene, const LocalModel& model) : model_(model) {
+ForceModel::ForceModel(const Scene& scene, const LocalModel& model) : model_(model), kernel_(model) {
   const Body& s = model.shape;
   held_.assign(3 * model.local, 0);
   for (int i = 0; i < model.local; ++i)
     for (const auto& fix : scene.fixes) hold(s, fix, model.id[i], &held_[3 * i]);
+  for (int j = 0; j < 3 * model.owned; ++j)
+    if (held_[j]) held_owned_.push_back(j);
 
   // Constant face loads; cyclic ones (period > 0) are a term of their own. Kept sparse: only loaded faces carry
   // them, and a dense copy would cost 24 bytes a molecule.
@@ -140,81 +142,13 @@ ForceModel::Contact ForceModel::contact_totals() const {
   return c;
 }
 
-namespace {
-
-// The connection-force kernel: no call and no allocation per connection. Params gives k and l0 of connection
-// c: straight from the per-connection arrays, or through the type tables.
-//
-// Three passes over blocks of connections small enough to stay in L1: (1) gather the separation vectors and
-// k, l0; (2) the square root and the division, a plain loop over arrays that the compiler vectorizes (they are
-// the slow instructions: scalar, they stall the loop); (3) scatter the forces. Connections come sorted by end a,
-// in runs of the same a: the force on a is summed in registers over its run and stored once, so consecutive
-// connections do not wait on each other's store to f[a]. Every connection's arithmetic, and the order of the
-// sums (fixed by the global connection order), is the same on any partition, so the forces are too.
-template <typename Params>
-void spring_forces(int nc, const int* a, const int* b, Params params, const double* x, double* f) {
-  constexpr int kBlock = 256;
-  alignas(64) double d0[kBlock], d1[kBlock], d2[kBlock], k[kBlock], l0[kBlock], s[kBlock];
-  for (int begin = 0, n = 0; begin < nc; begin += n) {
-    // A block never splits a run of the same end a: where the runs end does not depend on the partition, where
-    // a block of 256 ends does, and a split run would sum the force on a in another grouping.
-    n = std::min(kBlock, nc - begin);
-    if (begin + n < nc)
-      while (n > 1 && a[begin + n] == a[begin + n - 1]) --n;
-    for (int i = 0; i < n; ++i) {
-      const int c = begin + i;
-      const double* xa = x + 3 * a[c];
-      const double* xb = x + 3 * b[c];
-      d0[i] = xb[0] - xa[0], d1[i] = xb[1] - xa[1], d2[i] = xb[2] - xa[2];
-      params(c, k[i], l0[i]);
-    }
-    // Geometrically exact: the force acts along the current direction, k times the change of length.
-    for (int i = 0; i < n; ++i) {
-      const double len = std::sqrt(d0[i] * d0[i] + d1[i] * d1[i] + d2[i] * d2[i]);
-      s[i] = k[i] * (len - l0[i]) / len;
-    }
-    int i = 0;
-    while (i < n) {
-      const int ia = a[begin + i];
-      double fa0 = 0, fa1 = 0, fa2 = 0;
-      for (; i < n && a[begin + i] == ia; ++i) {
-        const double g0 = s[i] * d0[i], g1 = s[i] * d1[i], g2 = s[i] * d2[i];
-        fa0 += g0, fa1 += g1, fa2 += g2;
-        double* fb = f + 3 * b[begin + i];
-        fb[0] -= g0, fb[1] -= g1, fb[2] -= g2;
-      }
-      double* fa = f + 3 * ia;
-      fa[0] += fa0, fa[1] += fa1, fa[2] += fa2;
-    }
-  }
-}
-
-}  // namespace
-
-void ForceModel::connection_forces(const double* x, double* f) const {
-  const LocalModel& m = model_;
-  std::fill(f, f + 3 * m.local, 0.0);
-  if (m.typed()) {
-    const std::uint16_t* type = m.connection_type.data();
-    const double* tk = m.type_stiffness.data();
-    const double* tl = m.type_rest_length.data();
-    spring_forces(m.connections(), m.end_a.data(), m.end_b.data(),
-                  [=](int c, double& k, double& l0) { k = tk[type[c]], l0 = tl[type[c]]; }, x, f);
-  } else {
-    const double* ks = m.stiffness.data();
-    const double* ls = m.rest_length.data();
-    spring_forces(m.connections(), m.end_a.data(), m.end_b.data(),
-                  [=](int c, double& k, double& l0) { k = ks[c], l0 = ls[c]; }, x, f);
-  }
-}
+void ForceModel::connection_forces(const double* x, double* f) const { kernel_.forces(x, f); }
 
 void ForceModel::forces(const double* x, const double* v, double* f, double load_factor) const {
   connection_forces(x, f);
-  const int n = model_.owned;
   for (const auto& a : applied_) f[a.component] += load_factor * a.value;
   for (const auto& t : terms_) t->add_forces(x, v, time_, f);  // one call per term, none per connection
-  for (int i = 0; i < 3 * n; ++i)
-    if (held_[i]) f[i] = 0.0;
+  for (int i : held_owned_) f[i] = 0.0;
 }
 
 double ForceModel::potential_energy(const double* x, double load_factor) const {

@@ -11,6 +11,7 @@
 
 #include "io/scene.hpp"
 #include "partition/local_model.hpp"
+#include "src/physics/spring_kernel.hpp"
 #include "src/physics/term.hpp"
 
 namespace tissue {
@@ -37,6 +38,7 @@ public:
   // load_factor scales the applied face loads (load stepping); held components get zero force.
   void forces(const double* x, const double* v, double* f, double load_factor = 1.0) const;
   // Connection forces only, into f (3 * local, ghost slots scratch), nothing zeroed for held components.
+  // Computed by SpringKernel (src/physics/spring_kernel.hpp).
   void connection_forces(const double* x, double* f) const;
   // Rank-local potential energy of the owned molecules' share: springs (half per end) and gravity and loads.
   double potential_energy(const double* x, double load_factor = 1.0) const;
@@ -47,6 +49,8 @@ public:
   PetscErrorCode create_tangent(Mat* J) const;  // AIJ, block size 3, exactly preallocated
 
   const std::vector<std::uint8_t>& held() const { return held_; }   // 3 * owned: 1 = held component
+  // The held components of owned molecules, ascending (few: faces only), so a step does not scan held().
+  const std::vector<int>& held_owned() const { return held_owned_; }
   // The constant face loads at factor 1: component j (= 3 * owned molecule + axis) gets value (N).
   struct AppliedForce {
     int component;
@@ -54,7 +58,8 @@ public:
   };
   const std::vector<AppliedForce>& applied() const { return applied_; }
   double applied_norm() const { return applied_norm_; }             // global 2-norm of loads + gravity
-  double largest_stiffness_rate() const;  // max over molecules of 2 sum k / m (Gershgorin bound of omega^2)
+  double largest_stiffness_rate() const;
+  const SpringKernel& kernel() const { return kernel_; }  // max over molecules of 2 sum k / m (Gershgorin bound of omega^2)
 
   // Time of the next force evaluation (s): time-dependent terms (cyclic loads) read it. The dynamic solver sets it.
   void set_time(double t) const { time_ = t; }
@@ -70,7 +75,9 @@ public:
 
 private:
   const LocalModel& model_;
+  SpringKernel kernel_;  // the connection forces (src/physics/spring_kernel.hpp)
   std::vector<std::uint8_t> held_;
+  std::vector<int> held_owned_;
   std::vector<AppliedForce> applied_;  // non-zero components only
   std::vector<std::unique_ptr<Term>> terms_;  // only what the scene lists, in the registry's order
   double applied_norm_ = 0.0;

@@ -1,0 +1,44 @@
+// The connection-force kernel (F_C of Eq. 2: k (l - l0) along the current direction, on both ends), in two
+// forms that give bit-identical forces:
+//   - generic: any connection list (gather, vectorized sqrt and division, scatter; blocks of 256);
+//   - stencil segments: runs of consecutive local molecules whose forward connections all follow one pattern
+//     (the same local offsets end b - end a and the same connection types), as a lattice's interior rows do on
+//     any partition. There end b is end a plus a fixed offset, so each direction is a contiguous stream with no
+//     index arrays and k, l0 are constants: the compiler vectorizes it (AVX2 / AVX-512 clones, picked at run time).
+// Both sum every molecule's force in the same order (connections on it as end b by increasing end a, then the
+// sum of its own forward connections by increasing end b: the order of the global connection list), with no
+// fused multiply-add, so forces do not depend on which form ran, nor on the partition.
+#pragma once
+#include <cstdint>
+#include <vector>
+
+#include "partition/local_model.hpp"
+
+namespace tissue {
+
+class SpringKernel {
+public:
+  // Finds the stencil segments when the model's connections are typed (k, l0 final); otherwise all generic.
+  explicit SpringKernel(const LocalModel& model);
+  // f: 3 * local values, zeroed here; the forces on ghosts are partial (scratch).
+  void forces(const double* x, double* f) const;
+  // Connections handled by stencil segments (the rest go through the generic form).
+  long structured_connections() const { return structured_; }
+
+private:
+  struct Segment {
+    int first_connection, first_molecule, molecules;  // molecules [first_molecule, + molecules), local indices
+    int pattern;                                      // index into offsets_ / types_ (directions_ entries each)
+  };
+  const LocalModel& model_;
+  std::vector<Segment> segments_;         // in connection order; generic connections between them
+  std::vector<int> offsets_;              // per pattern and direction: end b - end a
+  std::vector<std::uint16_t> types_;      // per pattern and direction: connection type
+  std::vector<double> k_, l0_;            // per pattern and direction: its type's k and l0
+  std::vector<int> scatter_;              // per pattern: its directions by decreasing offset
+  std::vector<int> directions_;           // per pattern: forward connections per molecule
+  std::vector<int> pattern_start_;        // per pattern: start in offsets_ / types_
+  long structured_ = 0;
+};
+
+}  // namespace tissue

@@ -1,5 +1,7 @@
 #include "src/physics/force_model.hpp"
 
+#include <petsc/private/petscimpl.h>  // PetscObjectStateIncrease: J changes through its SeqAIJ parts
+
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -297,6 +299,51 @@ PetscErrorCode ForceModel::create_tangent(Mat* J) const {
   PetscCall(MatSetOption(*J, MAT_SYMMETRY_ETERNAL, PETSC_TRUE));
   PetscCall(MatSetOption(*J, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
   PetscCall(MatSetOption(*J, MAT_NO_OFF_PROC_ENTRIES, PETSC_TRUE));  // owned rows only: assembly sends nothing
+  // The pattern, once (zeros): assemble_tangent then writes the values straight into the AIJ arrays.
+  std::vector<PetscInt> cols;
+  std::vector<double> zeros;
+  for (int i = 0; i < n; ++i) {
+    const int ncols = row_start_[i + 1] - row_start_[i];
+    cols.resize(ncols);
+    for (int q = 0; q < ncols; ++q) cols[q] = model_.block[row_cols_[row_start_[i] + q]];
+    zeros.assign(9 * ncols, 0.0);
+    const PetscInt row = model_.block[i];
+    PetscCall(MatSetValuesBlocked(*J, 1, &row, ncols, cols.data(), zeros.data(), INSERT_VALUES));
+  }
+  PetscCall(MatAssemblyBegin(*J, MAT_FINAL_ASSEMBLY));
+  PetscCall(MatAssemblyEnd(*J, MAT_FINAL_ASSEMBLY));
+  // The direct writes rely on each scalar row holding, in the diagonal part, 3 columns per on-rank block
+  // column in block order, and in the off-diagonal part the same for the off-rank ones (PETSc keeps those
+  // sorted by global column): checked here once.
+  Mat Ad, Ao;
+  PetscCall(aij_parts(*J, &Ad, &Ao));
+  for (Mat part : {Ad, Ao}) {
+    if (!part) continue;
+    const PetscInt *ia, *ja;
+    PetscInt rows;
+    PetscBool done;
+    PetscCall(MatGetRowIJ(part, 0, PETSC_FALSE, PETSC_FALSE, &rows, &ia, &ja, &done));
+    PetscCheck(done && rows == 3 * n, model_.comm, PETSC_ERR_PLIB, "tangent: no row structure");
+    for (int i = 0; i < n; ++i)
+      for (int r = 0; r < 3; ++r)
+        PetscCheck(ia[3 * i + r + 1] - ia[3 * i + r] == 3 * (part == Ad ? dnnz[i] : onnz[i]), model_.comm,
+                   PETSC_ERR_PLIB, "tangent: the assembled pattern is not the preallocated one");
+    PetscCall(MatRestoreRowIJ(part, 0, PETSC_FALSE, PETSC_FALSE, &rows, &ia, &ja, &done));
+  }
+  PetscFunctionReturn(0);
+}
+
+// The diagonal and off-diagonal SeqAIJ parts of an AIJ matrix (one rank: the matrix itself, no off-diagonal part).
+PetscErrorCode ForceModel::aij_parts(Mat J, Mat* Ad, Mat* Ao) const {
+  PetscFunctionBeginUser;
+  PetscBool mpi = PETSC_FALSE;
+  PetscCall(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(J), MATMPIAIJ, &mpi));
+  *Ao = nullptr;
+  if (mpi) {
+    PetscCall(MatMPIAIJGetSeqAIJ(J, Ad, Ao, nullptr));
+  } else {
+    *Ad = J;
+  }
   PetscFunctionReturn(0);
 }
 
@@ -305,9 +352,20 @@ PetscErrorCode ForceModel::assemble_tangent(const double* x, Mat J) const {
   const int n = model_.owned;
   PetscCheck(static_cast<int>(row_start_.size()) == n + 1, model_.comm, PETSC_ERR_ORDER,
              "assemble_tangent needs a matrix from create_tangent");
-  // One MatSetValuesBlocked per block row, with every column of the row in block order: each row is written
-  // exactly once (INSERT), so no zeroing pass and no search per connection. The values are the row-major
-  // 3 x (3 ncols) array PETSc expects.
+  // Each block row is computed whole (row-major 3 x 3 ncols, columns in block order) and copied straight into
+  // the AIJ arrays (the pattern is fixed by create_tangent): every value is written exactly once, so no zeroing
+  // pass and no MatSetValues search.
+  Mat Ad, Ao;
+  PetscCall(aij_parts(J, &Ad, &Ao));
+  const PetscInt *dia, *dja, *oia = nullptr, *oja;
+  PetscInt rows;
+  PetscBool done;
+  PetscCall(MatGetRowIJ(Ad, 0, PETSC_FALSE, PETSC_FALSE, &rows, &dia, &dja, &done));
+  if (Ao) PetscCall(MatGetRowIJ(Ao, 0, PETSC_FALSE, PETSC_FALSE, &rows, &oia, &oja, &done));
+  PetscScalar *dv, *ov = nullptr;
+  PetscCall(MatSeqAIJGetArray(Ad, &dv));
+  if (Ao) PetscCall(MatSeqAIJGetArray(Ao, &ov));
+  const PetscInt first = model_.first_block, last = model_.first_block + n;
   std::vector<double> vals;
   std::vector<PetscInt> cols;
   for (int i = 0; i < n; ++i) {
@@ -349,13 +407,24 @@ PetscErrorCode ForceModel::assemble_tangent(const double* x, Mat J) const {
         std::fill(vals.begin() + r * width, vals.begin() + (r + 1) * width, 0.0);
         vals[r * width + 3 * self + r] = 1.0;
       }
-    const PetscInt row = model_.block[i];
-    PetscCall(MatSetValuesBlocked(J, 1, &row, ncols, cols.data(), vals.data(), INSERT_VALUES));
+    for (int r = 0; r < 3; ++r) {
+      double* d = dv + dia[3 * i + r];
+      double* o = ov ? ov + oia[3 * i + r] : nullptr;
+      const double* v = vals.data() + r * width;
+      for (int q = 0; q < ncols; ++q, v += 3) {
+        double*& to = cols[q] >= first && cols[q] < last ? d : o;
+        to[0] = v[0], to[1] = v[1], to[2] = v[2];
+        to += 3;
+      }
+    }
   }
+  PetscCall(MatSeqAIJRestoreArray(Ad, &dv));
+  if (Ao) PetscCall(MatSeqAIJRestoreArray(Ao, &ov));
+  PetscCall(MatRestoreRowIJ(Ad, 0, PETSC_FALSE, PETSC_FALSE, &rows, &dia, &dja, &done));
+  if (Ao) PetscCall(MatRestoreRowIJ(Ao, 0, PETSC_FALSE, PETSC_FALSE, &rows, &oia, &oja, &done));
+  PetscCall(PetscObjectStateIncrease(reinterpret_cast<PetscObject>(J)));  // J changed through its parts
   if (!terms_.empty()) {
     // The terms' blocks (obstacles, contact) are added on top, with the same held mask.
-    PetscCall(MatAssemblyBegin(J, MAT_FLUSH_ASSEMBLY));
-    PetscCall(MatAssemblyEnd(J, MAT_FLUSH_ASSEMBLY));
     auto put = [&](int row, int col, const double K[9]) -> PetscErrorCode {
       PetscFunctionBeginUser;
       double block[9];

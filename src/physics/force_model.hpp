@@ -79,6 +79,7 @@ private:
   // row_cols_[row_start_[i] .. row_start_[i+1]) sorted by PETSc block id, itself included; its connections are
   // row_conns_[conn_start_[i] .. conn_start_[i+1]). Row-wise assembly then sets each row once, in order.
   mutable std::vector<int> row_start_, row_cols_, conn_start_, row_conns_;
+  PetscErrorCode aij_parts(Mat J, Mat* Ad, Mat* Ao) const;
 };
 
 }  // namespace tissue

@@ -173,8 +173,10 @@ PetscErrorCode run_static(const Scene& scene, const LocalModel& model, const For
   // peaked at 5.9 kB per molecule against 8.5 kB with PETSc's default (scalable) algorithm, in no more time.
   // The option is global, so it is set only for this solve and only for the lattice multigrid (GAMG's
   // products with it gave NaN on a contact test); -matptap_via or -mat_product_algorithm override it.
+  // On one rank hypre's product of the sequential matrices came out wrong (the first Krylov solve diverged at
+  // iteration 1 and every 1-rank run fell back to GAMG), so it is used on 2+ ranks only.
   bool set_ptap = false;
-  if (lattice_mg) {
+  if (lattice_mg && model.size > 1) {
     PetscBool user_ptap = PETSC_FALSE, user_product = PETSC_FALSE;
     PetscCall(PetscOptionsHasName(nullptr, nullptr, "-matptap_via", &user_ptap));
     PetscCall(PetscOptionsHasName(nullptr, nullptr, "-mat_product_algorithm", &user_product));

@@ -324,6 +324,19 @@ PetscErrorCode ForceModel::create_tangent(Mat* J) const {
   } else {
     PetscCall(MatCreateSeqAIJWithArrays(model_.comm, 3 * n, 3 * n, tan_di_.data(), tan_dj_.data(), tan_dv_.data(), J));
   }
+  {
+    // The arrays are freed when J is (a container composed with J), not kept for the ForceModel's lifetime.
+    PetscContainer owner;
+    PetscCall(PetscContainerCreate(PETSC_COMM_SELF, &owner));
+    PetscCall(PetscContainerSetPointer(owner, const_cast<ForceModel*>(this)));
+    PetscCall(PetscContainerSetUserDestroy(owner, [](void* p) -> PetscErrorCode {
+      static_cast<const ForceModel*>(p)->release_tangent_arrays();
+      return 0;
+    }));
+    PetscCall(PetscObjectCompose(reinterpret_cast<PetscObject>(*J), "tissue_tangent_arrays",
+                                 reinterpret_cast<PetscObject>(owner)));
+    PetscCall(PetscContainerDestroy(&owner));
+  }
   PetscCall(MatSetBlockSize(*J, 3));  // AIJ with block size 3: what GAMG wants (not BAIJ)
   PetscCall(MatSetOption(*J, MAT_SYMMETRIC, PETSC_TRUE));
   PetscCall(MatSetOption(*J, MAT_SYMMETRY_ETERNAL, PETSC_TRUE));
@@ -350,6 +363,11 @@ PetscErrorCode ForceModel::create_tangent(Mat* J) const {
     PetscCall(MatRestoreRowIJ(part, 0, PETSC_FALSE, PETSC_FALSE, &rows, &ia, &ja, &done));
   }
   PetscFunctionReturn(0);
+}
+
+void ForceModel::release_tangent_arrays() const {
+  for (auto* v : {&tan_di_, &tan_dj_, &tan_oi_, &tan_oj_}) std::vector<PetscInt>().swap(*v);
+  for (auto* v : {&tan_dv_, &tan_ov_}) std::vector<PetscScalar>().swap(*v);
 }
 
 // The diagonal and off-diagonal SeqAIJ parts of an AIJ matrix (one rank: the matrix itself, no off-diagonal part).

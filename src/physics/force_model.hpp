@@ -86,6 +86,12 @@ private:
   // row_cols_[row_start_[i] .. row_start_[i+1]) sorted by PETSc block id, itself included; its connections are
   // row_conns_[conn_start_[i] .. conn_start_[i+1]). Row-wise assembly then sets each row once, in order.
   mutable std::vector<int> row_start_, row_cols_, conn_start_, row_conns_;
+  // The tangent's CSR arrays, diagonal (d) and off-diagonal (o) parts: the storage of the matrix create_tangent
+  // makes (PETSc does not copy them); released when that matrix is destroyed.
+  mutable std::vector<PetscInt> tan_di_, tan_dj_, tan_oi_, tan_oj_;
+  mutable std::vector<PetscScalar> tan_dv_, tan_ov_;
+  void release_tangent_arrays() const;
+  PetscErrorCode aij_parts(Mat J, Mat* Ad, Mat* Ao) const;
 };
 
 }  // namespace tissue

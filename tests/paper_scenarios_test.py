@@ -12,16 +12,8 @@ import subprocess
 import sys
 
 SCENES = ["fig7_a", "fig7_b", "fig7_c", "fig7_d", "table2"]
-passed = failed = 0
-
-
-def check(ok, what):
-    global passed, failed
-    if ok:
-        passed += 1
-    else:
-        failed += 1
-        print("FAILED:", what)
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from checks import check, report  # noqa: E402
 
 
 def main():
@@ -53,8 +45,7 @@ def main():
                     c1, c = results[1]["calibration"]["divisor"], results[ranks]["calibration"]["divisor"]
                     check(abs(e - e1) <= 1e-9 * abs(e1) and abs(c - c1) <= 1e-9 * abs(c1),
                           "%s: %d ranks agree with 1 (E %r vs %r, C %r vs %r)" % (scene, ranks, e, e1, c, c1))
-    print("%d passed, %d failed" % (passed, failed))
-    return 1 if failed else 0
+    return report()
 
 
 if __name__ == "__main__":

@@ -48,16 +48,8 @@ KEYS = ["molecules", "connections", "ranks", "youngs_modulus_target", "youngs_mo
         "steps", "kinetic_energy", "center_of_mass_initial", "center_of_mass", "contact_force", "wall_seconds",
         "peak_memory_bytes"]
 
-passed = failed = 0
-
-
-def check(ok, what):
-    global passed, failed
-    if ok:
-        passed += 1
-    else:
-        failed += 1
-        print("FAILED:", what)
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from checks import check, report  # noqa: E402
 
 
 def run(build, workdir, ranks):
@@ -127,8 +119,7 @@ def main():
         check(abs(other["elongation"] - summary["elongation"]) <= 1e-10 * abs(elongation),
               f"{ranks} ranks: same elongation ({other['elongation']!r} vs {summary['elongation']!r})")
 
-    print(f"{passed} passed, {failed} failed")
-    return 1 if failed else 0
+    return report()
 
 
 if __name__ == "__main__":

@@ -30,17 +30,8 @@ STEPS = [0, 10]
 TIMES = [0.0, 0.5]
 RANKS = 2
 
-passed = 0
-failed = 0
-
-
-def check(ok, what):
-    global passed, failed
-    if ok:
-        passed += 1
-    else:
-        failed += 1
-        print(f"FAILED: {what}")
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from checks import check, report  # noqa: E402
 
 
 def close(a, b, what):
@@ -95,8 +86,7 @@ def main():
                          env=env, capture_output=True, text=True, timeout=300)
     check(run.returncode == 0, f"snapshot_test wrote the files (exit {run.returncode}):\n{run.stdout}{run.stderr}")
     if run.returncode != 0:
-        print(f"{passed} passed, {failed} failed")
-        return 1
+        return report()
 
     prefix = os.path.join(out, f"snapshot_np{RANKS}")
     for step, time in zip(STEPS, TIMES):
@@ -147,8 +137,7 @@ def main():
             close(np.ravel(cell_data["connection_force"][0]), [100.0 + c + step for c in range(C)],
                   f"meshio step {k} connection_force")
 
-    print(f"{passed} passed, {failed} failed")
-    return 1 if failed else 0
+    return report()
 
 
 if __name__ == "__main__":

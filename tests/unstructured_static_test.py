@@ -14,16 +14,8 @@ import shutil
 import subprocess
 import sys
 
-passed = failed = 0
-
-
-def check(ok, what):
-    global passed, failed
-    if ok:
-        passed += 1
-    else:
-        failed += 1
-        print("FAILED:", what)
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from checks import check, report  # noqa: E402
 
 
 def run(tissue, scene, out, ranks, extra):
@@ -72,8 +64,7 @@ def main():
         if r is not None and 1 in static:
             rel = abs(r["elongation"] - static[1]) / abs(static[1])
             check(rel < 1e-6, f"{name}: relaxation elongation differs from static by {rel:.2e}")
-    print(f"{passed} passed, {failed} failed")
-    return 1 if failed else 0
+    return report()
 
 
 if __name__ == "__main__":

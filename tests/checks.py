@@ -1,0 +1,16 @@
+"""The python tests' tally: check() counts a passed or failed assertion (printing the failed ones), report()
+prints 'N passed, M failed' and gives the exit code."""
+counts = {"passed": 0, "failed": 0}
+
+
+def check(ok, what):
+    if ok:
+        counts["passed"] += 1
+    else:
+        counts["failed"] += 1
+        print("FAILED:", what)
+
+
+def report():
+    print(f"{counts['passed']} passed, {counts['failed']} failed")
+    return 1 if counts["failed"] else 0

@@ -66,7 +66,7 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
   // starts step s + 1 and its drift are one pass over the molecules instead of two, with the same arithmetic.
   auto unobserved = [&](long s) {
     const long snap = hooks.snapshot ? scene.output.snapshot_every : 0, ckpt = scene.output.checkpoint_every;
-    return s < total && s % 16 != 0 && !(snap > 0 && s % snap == 0) && !(ckpt > 0 && s % ckpt == 0);
+    return s < total && s % kReduceEvery != 0 && !(snap > 0 && s % snap == 0) && !(ckpt > 0 && s % ckpt == 0);
   };
   bool drifted = false;  // the last pass already did this step's half kick and drift
   while (state.step < total) {

@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <stdexcept>
+#include <unordered_map>
 
 #include "partition/metis_partition.hpp"
 #include "partition/natural_order.hpp"
@@ -195,6 +197,23 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm) {
   }
   bool any_tetrahedra = false;
   for (int b = 0; b < nbodies; ++b) any_tetrahedra = any_tetrahedra || style[b]->tetrahedra;
+  // Rest lengths by type (LocalModel::length_type): the distinct lengths by their bits, with the last length
+  // seen at each forward position as a shortcut (neighbouring molecules repeat their stencil's lengths).
+  std::unordered_map<std::uint64_t, std::uint16_t> length_index;
+  std::vector<std::pair<std::uint64_t, std::uint16_t>> recent;
+  auto length_type = [&](int forward, double l) {
+    std::uint64_t bits;
+    std::memcpy(&bits, &l, 8);
+    if (forward >= static_cast<int>(recent.size())) recent.resize(forward + 1, {~bits, 0});
+    if (recent[forward].first == bits) return recent[forward].second;
+    auto [it, added] = length_index.try_emplace(bits, static_cast<std::uint16_t>(m.length_table.size()));
+    if (added) {
+      if (m.length_table.size() == 65536) throw std::runtime_error("more than 65,536 distinct rest lengths in a lattice");
+      m.length_table.push_back(l);
+    }
+    recent[forward] = {bits, it->second};
+    return it->second;
+  };
   // Two walks: the first counts, so the arrays are allocated once at their size (no doubling at the peak).
   std::size_t count = 0;
   auto walk = [&](bool emit) {
@@ -217,7 +236,7 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm) {
         m.end_a.push_back(i), m.end_b.push_back(j);
         m.forward_rank.push_back(static_cast<std::uint16_t>(forward));
         m.connection_class.push_back(x.cls);
-        m.rest_length.push_back(box.rest_distance(a, x.id));
+        m.length_type.push_back(length_type(forward, box.rest_distance(a, x.id)));
         if (a_owned) ++m.written_count;
         if (any_tetrahedra) {
           // Tetrahedra incident on the connection (Van Gelder's Eq. 5, Lloyd's sum): every Kuhn tetrahedron of
@@ -234,7 +253,7 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm) {
   };
   walk(false);
   m.end_a.reserve(count), m.end_b.reserve(count), m.forward_rank.reserve(count);
-  m.connection_class.reserve(count), m.rest_length.reserve(count);
+  m.connection_class.reserve(count), m.length_type.reserve(count);
   if (any_tetrahedra) m.tetra_volume.reserve(count), m.tetra_lloyd_sum.reserve(count);
   walk(true);
   m.stiffness.assign(m.end_a.size(), 0.0);

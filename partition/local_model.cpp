@@ -138,9 +138,10 @@ bool compact_connection_types(LocalModel& m) {
   std::vector<double> tk, tl;
   auto type_of = [&](int c) {  // by bits: two different doubles are two types, -0.0 and 0.0 included
     std::uint64_t kb, lb;
-    std::memcpy(&kb, &m.stiffness[c], 8), std::memcpy(&lb, &m.rest_length[c], 8);
+    const double l0 = m.l0(c);
+    std::memcpy(&kb, &m.stiffness[c], 8), std::memcpy(&lb, &l0, 8);
     auto [it, added] = types.try_emplace({kb, lb}, static_cast<std::uint16_t>(std::min<std::size_t>(tk.size(), 65535)));
-    if (added) tk.push_back(m.stiffness[c]), tl.push_back(m.rest_length[c]);
+    if (added) tk.push_back(m.stiffness[c]), tl.push_back(l0);
     return it->second;
   };
   // First the table alone: past 65,536 types nothing changes.
@@ -158,6 +159,7 @@ bool compact_connection_types(LocalModel& m) {
     std::memcpy(packed + 2 * static_cast<std::size_t>(c), &t, 2);
   }
   m.rest_length = std::vector<double>();
+  m.length_type = std::vector<std::uint16_t>(), m.length_table = std::vector<double>();
   m.connection_type.resize(nc);
   std::memcpy(m.connection_type.data(), packed, 2 * static_cast<std::size_t>(nc));
   m.stiffness = std::vector<double>();

@@ -80,6 +80,12 @@ struct LocalModel {
   std::vector<std::uint16_t> forward_rank;
   std::vector<ConnectionClass> connection_class;
   std::vector<double> rest_length, stiffness;
+  // Box lattices: rest lengths by geometry. A lattice has a handful of distinct lengths (one per stencil
+  // direction and body), so each connection keeps a 2-byte index into length_table and rest_length stays empty:
+  // 6 bytes a connection less while the stiffness is still per connection, which is the set-up's memory peak.
+  // Explicit topologies (meshes, clouds) keep rest_length. Read either through l0(c).
+  std::vector<std::uint16_t> length_type;
+  std::vector<double> length_table;
   std::vector<double> tetra_volume;  // tetrahedral topology: volume of the tetrahedra incident on each connection
   std::vector<double> tetra_lloyd_sum;  // tetrahedral: sum over incident tetrahedra of l_equiv = (6 sqrt2 V)^(1/3)
   std::size_t written_count = 0;     // connections whose end a this rank owns
@@ -92,7 +98,10 @@ struct LocalModel {
   int connections() const { return static_cast<int>(end_a.size()); }
   bool typed() const { return !connection_type.empty(); }
   double k(int c) const { return typed() ? type_stiffness[connection_type[c]] : stiffness[c]; }
-  double l0(int c) const { return typed() ? type_rest_length[connection_type[c]] : rest_length[c]; }
+  double l0(int c) const {
+    if (typed()) return type_rest_length[connection_type[c]];
+    return length_type.empty() ? rest_length[c] : length_table[length_type[c]];
+  }
   std::int64_t connection_id(int c) const { return first_connection[end_a[c]] + forward_rank[c]; }
   // The rank that owns end a writes the connection to files (each connection written exactly once).
   WrittenConnections written_here() const { return {end_a, owned, written_count}; }

@@ -130,6 +130,7 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
   SolveReport report;
   int code = 0;
   std::string failure;
+  bool state_usable = true;
   try {
     if (scene.calibration.method == "iterative")  // wraps the solver: C adjusted until Eq. 3 reads E (one body)
       solve_iterative(scene, model, forces, state, hooks, test, report);
@@ -145,7 +146,7 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
                 " iterations (relative residual " + std::to_string(report.residual) + ")";
     }
   } catch (const SolverFailure& e) {
-    code = 3, failure = e.what();
+    code = 3, failure = e.what(), state_usable = e.state_usable();
     report.kind = scene.solver.kind;
   }
 
@@ -158,7 +159,9 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   // A solver failure caught by the guards (src/solvers/guards.hpp) has put the last good state back into `state`:
   // it is written as DIR/last_good.h5, never as final.h5. A non-finite state is not written at all.
-  if (failure.find("last good state") != std::string::npos)
+  if (!state_usable) {
+    // nothing to write: the guard had no good state to put back
+  } else if (failure.find("last good state") != std::string::npos)
     out.snapshot(state, forces, /*final=*/false, "last_good.h5");
   else if (failure.find("non-finite") == std::string::npos && !report.interrupted)
     out.snapshot(state, forces, /*final=*/true);
@@ -203,10 +206,6 @@ void warn_unused_petsc_options(int code) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  // Large arrays (model set-up temporaries, tens of MB) in their own mappings, so freeing one gives its memory
-  // back at once: past glibc's adaptive threshold they land in the heap, where freed pages stay resident and
-  // raise the peak (docs/benchmarks.md, 2026-11-29).
-  mallopt(M_MMAP_THRESHOLD, 1 << 20);
   // PETSc options follow "--": they go to PETSc untouched, the rest to our command line.
   std::vector<char*> ours{argv[0]}, petsc{argv[0]};
   bool after = false;
@@ -245,6 +244,12 @@ int main(int argc, char** argv) {
   int petsc_argc = static_cast<int>(petsc.size());
   char** petsc_argv = petsc.data();
   PetscCall(PetscInitialize(&petsc_argc, &petsc_argv, nullptr, nullptr));
+  // Large arrays (model set-up temporaries, tens of MB) in their own mappings, so freeing one gives its memory
+  // back at once: in the heap, freed pages stay resident and raise the peak (docs/benchmarks.md, 2026-11-29).
+  // Set after MPI start-up: set before it (as until 2026-11-29) they were lost, and mallinfo2 showed every array
+  // in the heap (at 10^6 molecules on 2 ranks, 25 MB a rank of freed set-up memory stayed resident).
+  mallopt(M_MMAP_MAX, 1 << 16);
+  mallopt(M_MMAP_THRESHOLD, 1 << 20);
   const bool root = rank_of(PETSC_COMM_WORLD) == 0;
   int code = 0;
   try {

@@ -56,11 +56,11 @@ fields = ["positions"]
 
 class Cell:
     def __init__(self, axis, value, solver, n=(5, 5, 5), size=(1.0, 1.0, 1.0), E=1e5, rho=1000.0, strain=1e-3,
-                 region_ratio=None, dt_factor=None, allow=False, steps=None, timeout=600):
+                 region_ratio=None, dt_factor=None, allow=False, steps=None, timeout=600, guards=True):
         self.axis, self.value, self.solver = axis, value, solver
         self.n, self.size, self.E, self.rho, self.strain = n, size, E, rho, strain
         self.region_ratio, self.dt_factor, self.allow, self.steps = region_ratio, dt_factor, allow, steps
-        self.timeout = timeout
+        self.timeout, self.guards = timeout, guards
 
     def scene(self, dt=None):
         region = ""
@@ -82,7 +82,7 @@ class Cell:
                            solver_extra="\n".join(e for e in extra if e))
 
     def label(self):
-        return f"{self.axis}={self.value} {self.solver}"
+        return f"{self.axis}={self.value} {self.solver}" + ("" if self.guards else " TISSUE_GUARDS=off")
 
 
 def finite(x):
@@ -91,6 +91,8 @@ def finite(x):
 
 def run_cell(tissue, launcher, cell, workdir):
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    if not cell.guards:
+        env["TISSUE_GUARDS"] = "off"
     scene = Path(workdir) / "cell.toml"
     out = Path(workdir) / "out"
     dt = None
@@ -142,6 +144,13 @@ def run_cell(tissue, launcher, cell, workdir):
         message = (failure or not_converged or [""])[-1]
         if "last good state" in message and not (out / "last_good.h5").exists():
             problems.append("last good state announced but last_good.h5 missing")
+        if not cell.guards:
+            # unguarded (benchmarks): no earlier state is kept, so the failed run must write no state at all
+            if "TISSUE_GUARDS=off" not in message:
+                problems.append("unguarded failure without saying that no state was kept")
+            for name in ("final.h5", "last_good.h5"):
+                if (out / name).exists():
+                    problems.append(f"unguarded failure wrote {name}")
     elif code == 2:
         # the refusal comes after the start-up lines (counts, critical time step) that main() prints first
         err = [l for l in stderr.splitlines() if "solver.time_step" in l]
@@ -188,6 +197,8 @@ def fast_cells():
     for f in (0.5, 1.5):
         cells.append(Cell("time_step", f, "dynamic", dt_factor=f, allow=True, n=(4, 4, 4), steps=400))
     cells.append(Cell("time_step", "1.5 (not allowed)", "dynamic", dt_factor=1.5, n=(4, 4, 4)))
+    # unguarded: only the final check runs, it must still refuse the blown-up state and write nothing
+    cells.append(Cell("time_step", 10, "dynamic", dt_factor=10, allow=True, n=(4, 4, 4), steps=400, guards=False))
     for k in ("static", "relaxation"):
         cells.append(Cell("strain", 0.5, k, strain=0.5, n=(4, 4, 4)))
     return cells

@@ -70,12 +70,17 @@ LocalModel body_view(const LocalModel& m, int b, std::vector<int>& which) {
     which.push_back(c);
     v.end_a.push_back(m.end_a[c]), v.end_b.push_back(m.end_b[c]);
     v.forward_rank.push_back(m.forward_rank[c]), v.connection_class.push_back(m.connection_class[c]);
-    v.rest_length.push_back(m.rest_length[c]), v.stiffness.push_back(m.stiffness[c]);
+    v.stiffness.push_back(m.stiffness[c]);
+    if (m.length_type.empty())
+      v.rest_length.push_back(m.rest_length[c]);
+    else
+      v.length_type.push_back(m.length_type[c]);
     if (!m.tetra_volume.empty()) v.tetra_volume.push_back(m.tetra_volume[c]);
     if (!m.tetra_lloyd_sum.empty()) v.tetra_lloyd_sum.push_back(m.tetra_lloyd_sum[c]);
   }
   // Only a body with tetrahedra has them: another body's view has none (the tetrahedral methods check this).
   if (v.shape.topology != "tetrahedral" && !v.shape.unstructured()) v.tetra_volume.clear(), v.tetra_lloyd_sum.clear();
+  v.length_table = m.length_table;
   for (int c : m.written_here())
     if (index_in_view[c] >= 0) ++v.written_count;
   return v;

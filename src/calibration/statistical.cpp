@@ -34,10 +34,10 @@ void calibrate_statistical(const CalibrationContext& ctx, std::vector<double>& k
   for (int c = 0; c < m.connections(); ++c) {
     const int a = m.end_a[c], b = m.end_b[c];
     const double Ea = m.youngs_modulus[a], Eb = m.youngs_modulus[b];
-    const double A = linear_stiffness(m, c) * m.rest_length[c] / (0.5 * (Ea + Eb));  // Eq. 4's A
+    const double A = linear_stiffness(m, c) * m.l0(c) / (0.5 * (Ea + Eb));  // Eq. 4's A
     const double area_a = 2.0 * A / statistical_directions(m.degree[a]);
     const double area_b = 2.0 * A / statistical_directions(m.degree[b]);
-    k[c] = (Ea * area_a + Eb * area_b) / (2.0 * m.rest_length[c]);
+    k[c] = (Ea * area_a + Eb * area_b) / (2.0 * m.l0(c));
   }
 }
 

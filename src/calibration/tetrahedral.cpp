@@ -23,7 +23,7 @@ void calibrate_tetrahedral(const CalibrationContext& ctx, std::vector<double>& k
   const LocalModel& m = ctx.model;
   for (int c = 0; c < m.connections(); ++c) {
     const double E = 0.5 * (m.youngs_modulus[m.end_a[c]] + m.youngs_modulus[m.end_b[c]]);
-    const double l = m.rest_length[c];
+    const double l = m.l0(c);
     k[c] = E * m.tetra_volume[c] / (l * l);
   }
 }

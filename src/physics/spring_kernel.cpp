@@ -13,8 +13,8 @@ namespace {
 // the same bits.
 #define TISSUE_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
 
-// Generic: connections [begin, end) of any list, sorted by end a. k and l0 come through the type tables when
-// `type` is given, else from the per-connection arrays.
+// Generic: connections [begin, end) of any list, sorted by end a. k comes through the type table ks when
+// `ktype` is given, else per connection; l0 likewise through `ltype` and ls.
 //
 // Three passes over blocks of connections small enough to stay in L1: (1) gather the separation vectors and
 // k, l0; (2) the square root and the division, a plain loop the compiler vectorizes; (3) scatter the forces. The
@@ -22,8 +22,8 @@ namespace {
 // of the same end a: where the runs end does not depend on the partition, where a block ends does, and a split
 // run would sum the force on a in another grouping.
 TISSUE_CLONES
-void generic_forces(int begin_c, int end_c, const int* a, const int* b, const std::uint16_t* type, const double* ks,
-                    const double* ls, const double* x, double* f) {
+void generic_forces(int begin_c, int end_c, const int* a, const int* b, const std::uint16_t* ktype,
+                    const std::uint16_t* ltype, const double* ks, const double* ls, const double* x, double* f) {
   constexpr int kBlock = 256;
   alignas(64) double d0[kBlock], d1[kBlock], d2[kBlock], k[kBlock], l0[kBlock], s[kBlock];
   for (int begin = begin_c, n = 0; begin < end_c; begin += n) {
@@ -35,10 +35,8 @@ void generic_forces(int begin_c, int end_c, const int* a, const int* b, const st
       const double* xa = x + 3 * a[c];
       const double* xb = x + 3 * b[c];
       d0[i] = xb[0] - xa[0], d1[i] = xb[1] - xa[1], d2[i] = xb[2] - xa[2];
-      if (type)
-        k[i] = ks[type[c]], l0[i] = ls[type[c]];
-      else
-        k[i] = ks[c], l0[i] = ls[c];
+      k[i] = ks[ktype ? ktype[c] : c];
+      l0[i] = ls[ltype ? ltype[c] : c];
     }
     // Geometrically exact: the force acts along the current direction, k times the change of length.
     for (int i = 0; i < n; ++i) {
@@ -175,18 +173,20 @@ void SpringKernel::forces(const double* x, double* f) const {
   const int* a = m.end_a.data();
   const int* b = m.end_b.data();
   const bool typed = m.typed();
-  const std::uint16_t* type = typed ? m.connection_type.data() : nullptr;
+  // Typed: k and l0 by connection type. Otherwise k per connection, and l0 per connection or by length type.
+  const std::uint16_t* ktype = typed ? m.connection_type.data() : nullptr;
+  const std::uint16_t* ltype = typed ? ktype : m.length_type.empty() ? nullptr : m.length_type.data();
   const double* ks = typed ? m.type_stiffness.data() : m.stiffness.data();
-  const double* ls = typed ? m.type_rest_length.data() : m.rest_length.data();
+  const double* ls = typed ? m.type_rest_length.data() : ltype ? m.length_table.data() : m.rest_length.data();
   int c = 0;
   for (const Segment& seg : segments_) {
-    if (c < seg.first_connection) generic_forces(c, seg.first_connection, a, b, type, ks, ls, x, f);
+    if (c < seg.first_connection) generic_forces(c, seg.first_connection, a, b, ktype, ltype, ks, ls, x, f);
     const int p = seg.pattern, start = pattern_start_[p];
     stencil_forces(seg.first_molecule, seg.molecules, directions_[p], offsets_.data() + start,
                    scatter_.data() + start, k_.data() + start, l0_.data() + start, x, f);
     c = seg.first_connection + seg.molecules * directions_[p];
   }
-  if (c < m.connections()) generic_forces(c, m.connections(), a, b, type, ks, ls, x, f);
+  if (c < m.connections()) generic_forces(c, m.connections(), a, b, ktype, ltype, ks, ls, x, f);
 }
 
 }  // namespace tissue

@@ -16,7 +16,14 @@ namespace tissue {
 // The solver failed (diverged, not converged, NaN): main() reports it and exits 3.
 class SolverFailure : public std::runtime_error {
 public:
-  using std::runtime_error::runtime_error;
+  // state_usable: the SolverState holds a state worth writing (the last good one, or the failed solve's finite
+  // state); false when a failure found nothing to put back (TISSUE_GUARDS=off keeps no earlier state).
+  explicit SolverFailure(const std::string& what, bool state_usable = true)
+      : std::runtime_error(what), state_usable_(state_usable) {}
+  bool state_usable() const { return state_usable_; }
+
+private:
+  bool state_usable_;
 };
 
 struct SolverState {

@@ -133,6 +133,7 @@ std::vector<int> partition_lattice_blocks(const Body& shape, MPI_Comm comm, int 
     idx_t options[METIS_NOPTIONS];
     METIS_SetDefaultOptions(options);
     options[METIS_OPTION_SEED] = 1;
+    options[METIS_OPTION_UFACTOR] = kMetisImbalance;
     std::vector<idx_t> p(nv, 0);
     if (parts > 1)
       status = METIS_PartGraphKway(&nvtxs, &ncon, xadj.data(), adjncy.data(), vwgt.data(), nullptr, adjwgt.data(),

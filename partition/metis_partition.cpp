@@ -25,6 +25,7 @@ std::vector<idx_t> run_metis(std::vector<idx_t>& xadj, std::vector<idx_t>& adjnc
   idx_t options[METIS_NOPTIONS];
   METIS_SetDefaultOptions(options);
   options[METIS_OPTION_SEED] = 1;
+  options[METIS_OPTION_UFACTOR] = kMetisImbalance;
   std::vector<idx_t> p(nvtxs);
   status = METIS_PartGraphKway(&nvtxs, &ncon, xadj.data(), adjncy.data(), nullptr, nullptr, nullptr, &nparts,
                                nullptr, nullptr, options, &objval, p.data());

@@ -23,7 +23,8 @@
 #   cmake -S . -B build-bench -DCMAKE_BUILD_TYPE=Release -DTISSUE_TESTS=OFF && cmake --build build-bench -j2 --target tissue
 #   apt-get install -y lammps
 #   run_scripts/bench_explicit.sh
-# Knobs (environment): TISSUE, LMP, NS (default "50 100"), NPS (default "1 2"), REPEAT (default 1), WORK, CSV.
+# Knobs (environment): TISSUE, LMP, NS (default "50 100"), NPS (default "1 2"), REPEAT (default 1), WORK, CSV,
+# TISSUE_GUARDS (off: our per-step guards off, as for the quoted comparison; the CSV's guards column says which).
 #
 # Steps:
 #   1. Settings and checks.
@@ -48,7 +49,10 @@ STEPS=200
 [[ -x "$TISSUE" ]] || { echo "bench_explicit: $TISSUE not built (see the header)" >&2; exit 1; }
 command -v "$LMP" >/dev/null || { echo "bench_explicit: $LMP not found (apt-get install -y lammps)" >&2; exit 1; }
 mkdir -p "$WORK" "$(dirname "$CSV")"
-echo "code,N,molecules,springs,ranks,steps,wall_s,setup_s,loop_s,steps_per_s,spring_evals_per_s_per_core,peak_bytes,bytes_per_molecule,process_s,loadavg" > "$CSV"
+echo "code,N,molecules,springs,ranks,steps,wall_s,setup_s,loop_s,steps_per_s,spring_evals_per_s_per_core,peak_bytes,bytes_per_molecule,process_s,loadavg,guards" > "$CSV"
+# Our per-step guards (src/solvers/guards.hpp) are on unless TISSUE_GUARDS=off: LAMMPS has none, so the speed
+# comparison is made with them off; with them on, a run also keeps the last good state (48 B a molecule).
+GUARDS=${TISSUE_GUARDS:-on}
 
 # ours N NP STEPS: prints "wall_seconds peak_memory_bytes connections process_seconds"
 ours() {
@@ -89,7 +93,7 @@ rate = steps / loop
 load = open("/proc/loadavg").read().split()[0]
 print(",".join(str(v) for v in ["lammps", n, n**3, springs, np, steps, "", "", loop, rate,
       rate * springs / np if springs else "", max(int(x) * 1024 for x in re.findall(r"MAXRSS_KB (\d+)", text)),
-      round(rss / n**3), round(float(t1) - float(t0), 3), load]))
+      round(rss / n**3), round(float(t1) - float(t0), 3), load, ""]))
 EOF
       tail -n 1 "$CSV"
       read -r w200 p200 conn proc200 < <(ours "$n" "$np" "$STEPS")
@@ -101,7 +105,7 @@ loop = w200 - w0
 rate = steps / loop
 load = open("/proc/loadavg").read().split()[0]
 print(",".join(str(v) for v in ["tissue", n, n**3, conn, np, steps, w200, w0, round(loop, 4), rate,
-      rate * conn / np, peak, round(peak * np / n**3), $proc200, load]))
+      rate * conn / np, peak, round(peak * np / n**3), $proc200, load, "$GUARDS"]))
 EOF
       tail -n 1 "$CSV"
     done

@@ -1,6 +1,7 @@
 #include "src/model/topology.hpp"
 
 #include <algorithm>
+#include <iterator>
 
 namespace tissue {
 namespace {
@@ -122,14 +123,23 @@ void tetrahedral(Body& b) {
 }  // namespace
 
 const std::vector<TopologyStyle>& topology_styles() {
-  static const std::vector<TopologyStyle> styles = {
-      {"rectangular", rectangular, "the 6 axis neighbours (cell edges)", axis_offsets()},
-      {"face-diagonals", face_diagonals, "cell edges and both diagonals of every cell face",
-       with_face_diagonals(axis_offsets())},
-      {"body-diagonals", body_diagonals, "face-diagonals plus the 4 diagonals of every cell",
-       with_body_diagonals(with_face_diagonals(axis_offsets()))},
-      {"tetrahedral", tetrahedral, "every cell split into 6 tetrahedra; their edges", kuhn_offsets(), true},
-  };
+  static const std::vector<TopologyStyle> styles = [] {
+    std::vector<TopologyStyle> s = {
+        {"rectangular", rectangular, "the 6 axis neighbours (cell edges)", axis_offsets()},
+        {"face-diagonals", face_diagonals, "cell edges and both diagonals of every cell face",
+         with_face_diagonals(axis_offsets())},
+        {"body-diagonals", body_diagonals, "face-diagonals plus the 4 diagonals of every cell",
+         with_body_diagonals(with_face_diagonals(axis_offsets()))},
+        {"tetrahedral", tetrahedral, "every cell split into 6 tetrahedra; their edges", kuhn_offsets(), true},
+    };
+    // Stencils by (dk, dj, di): the order of the neighbours' ids in any box whose sides hold more molecules than
+    // an offset spans, so lattice_neighbours() finds them already sorted (the set-up calls it 5 times a molecule).
+    for (auto& style : s)
+      std::sort(style.stencil.begin(), style.stencil.end(), [](const StencilOffset& x, const StencilOffset& y) {
+        return std::lexicographical_compare(std::rbegin(x.d), std::rend(x.d), std::rbegin(y.d), std::rend(y.d));
+      });
+    return s;
+  }();
   return styles;
 }
 
@@ -144,7 +154,8 @@ void lattice_neighbours(const TopologyStyle& style, const BoxGeometry& box, std:
     const int nonzero = (o.d[0] != 0) + (o.d[1] != 0) + (o.d[2] != 0);
     out.push_back({box.id(q[0], q[1], q[2]), static_cast<ConnectionClass>(nonzero - 1)});
   }
-  std::sort(out.begin(), out.end(), [](const Neighbour& x, const Neighbour& y) { return x.id < y.id; });
+  auto by_id = [](const Neighbour& x, const Neighbour& y) { return x.id < y.id; };
+  if (!std::is_sorted(out.begin(), out.end(), by_id)) std::sort(out.begin(), out.end(), by_id);
 }
 
 int kuhn_tetrahedra_on(const BoxGeometry& box, std::int64_t a, std::int64_t b) {

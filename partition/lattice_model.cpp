@@ -231,18 +231,19 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm) {
   // Rest lengths by type (LocalModel::length_type): the distinct lengths by their bits, with the last length
   // seen at each forward position as a shortcut (neighbouring molecules repeat their stencil's lengths).
   std::unordered_map<std::uint64_t, std::uint16_t> length_index;
-  std::vector<std::pair<std::uint64_t, std::uint16_t>> recent;
+  std::vector<std::pair<std::uint64_t, int>> recent;  // per forward position: (bits, type), type -1: none yet
   auto length_type = [&](int forward, double l) {
     std::uint64_t bits;
     std::memcpy(&bits, &l, 8);
-    if (forward >= static_cast<int>(recent.size())) recent.resize(forward + 1, {~bits, 0});
-    if (recent[forward].first == bits) return recent[forward].second;
+    if (forward >= static_cast<int>(recent.size())) recent.resize(forward + 1, {0, -1});
+    if (recent[forward].second >= 0 && recent[forward].first == bits)
+      return static_cast<std::uint16_t>(recent[forward].second);
     auto [it, added] = length_index.try_emplace(bits, static_cast<std::uint16_t>(m.length_table.size()));
     if (added) {
       if (m.length_table.size() == 65536) throw std::runtime_error("more than 65,536 distinct rest lengths in a lattice");
       m.length_table.push_back(l);
     }
-    recent[forward] = {bits, it->second};
+    recent[forward] = {bits, static_cast<int>(it->second)};
     return it->second;
   };
   // Two walks: the first counts, so the arrays are allocated once at their size (no doubling at the peak).

@@ -269,7 +269,6 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm) {
         }
         const int j = static_cast<int>(owned_j >= 0 ? owned_j : m.owned + find_sorted(ghosts, x.id));
         m.end_a.push_back(i), m.end_b.push_back(j);
-        m.forward_rank.push_back(static_cast<std::uint16_t>(forward));
         m.connection_class.push_back(x.cls);
         m.length_type.push_back(length_type(forward, box.rest_distance(a, x.id)));
         if (a_owned) ++m.written_count;
@@ -287,7 +286,7 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm) {
     }
   };
   walk(false);
-  m.end_a.reserve(count), m.end_b.reserve(count), m.forward_rank.reserve(count);
+  m.end_a.reserve(count), m.end_b.reserve(count);
   m.connection_class.reserve(count), m.length_type.reserve(count);
   if (any_tetrahedra) m.tetra_volume.reserve(count), m.tetra_lloyd_sum.reserve(count);
   walk(true);

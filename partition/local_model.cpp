@@ -8,6 +8,7 @@
 #include <unordered_map>
 
 #include "partition/lattice_model.hpp"
+#include "src/model/topology.hpp"
 
 namespace tissue {
 
@@ -125,6 +126,23 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
   MPI_Allreduce(&ratio, &worst, 1, MPI_DOUBLE, MPI_MAX, comm);
   m.partition.surface_to_volume = worst;
   return m;
+}
+
+int LocalModel::lattice_forward_rank(int c) const {
+  // An owned end a has all its connections here, consecutive and in order: the position in its run.
+  if (end_a[c] < owned) {
+    int r = 0;
+    while (r < c && end_a[c - r - 1] == end_a[c]) ++r;
+    return r;
+  }
+  // A ghost end a keeps only its connections to owned molecules: count in its stencil.
+  const std::int64_t a = id[end_a[c]], b = id[end_b[c]];
+  const BoxGeometry& box = shape.body(shape.body_of(a));
+  thread_local std::vector<Neighbour> nb;
+  lattice_neighbours(*find_topology(box.topology), box, a, nb);
+  int rank = 0;
+  for (const auto& x : nb) rank += x.id > a && x.id < b;
+  return rank;
 }
 
 bool compact_connection_types(LocalModel& m) {

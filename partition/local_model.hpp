@@ -75,7 +75,9 @@ struct LocalModel {
 
   // Connections (structure of arrays), sorted by (a, b) in global ids: local end indices, class, rest length,
   // stiffness, and b's position among a's connections to higher ids (with first_connection, the global id:
-  // 2 bytes a connection instead of 8).
+  // 2 bytes a connection instead of 8). Box lattices leave forward_rank empty: the position comes from the
+  // topology's stencil when a connection's id is asked for (output plans, guard messages: never per step), and
+  // the 2 bytes a connection are saved.
   std::vector<int> end_a, end_b;
   std::vector<std::uint16_t> forward_rank;
   std::vector<ConnectionClass> connection_class;
@@ -102,7 +104,10 @@ struct LocalModel {
     if (typed()) return type_rest_length[connection_type[c]];
     return length_type.empty() ? rest_length[c] : length_table[length_type[c]];
   }
-  std::int64_t connection_id(int c) const { return first_connection[end_a[c]] + forward_rank[c]; }
+  std::int64_t connection_id(int c) const {
+    return first_connection[end_a[c]] + (forward_rank.empty() ? lattice_forward_rank(c) : forward_rank[c]);
+  }
+  int lattice_forward_rank(int c) const;  // b's position among a's forward neighbours (box lattices)
   // The rank that owns end a writes the connection to files (each connection written exactly once).
   WrittenConnections written_here() const { return {end_a, owned, written_count}; }
 };

@@ -69,7 +69,8 @@ LocalModel body_view(const LocalModel& m, int b, std::vector<int>& which) {
     index_in_view[c] = static_cast<int>(which.size());
     which.push_back(c);
     v.end_a.push_back(m.end_a[c]), v.end_b.push_back(m.end_b[c]);
-    v.forward_rank.push_back(m.forward_rank[c]), v.connection_class.push_back(m.connection_class[c]);
+    if (!m.forward_rank.empty()) v.forward_rank.push_back(m.forward_rank[c]);
+    v.connection_class.push_back(m.connection_class[c]);
     v.stiffness.push_back(m.stiffness[c]);
     if (m.length_type.empty())
       v.rest_length.push_back(m.rest_length[c]);

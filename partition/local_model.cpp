@@ -145,6 +145,11 @@ int LocalModel::lattice_forward_rank(int c) const {
   return rank;
 }
 
+void release_calibration_inputs(LocalModel& m) {
+  m.youngs_modulus = std::vector<double>();
+  m.degree = std::vector<int>();
+}
+
 bool compact_connection_types(LocalModel& m) {
   if (m.typed() || m.connections() == 0) return m.typed();
   struct PairHash {

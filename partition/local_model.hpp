@@ -66,6 +66,7 @@ struct LocalModel {
   std::vector<PetscInt> block;       // PETSc block id of each local molecule (ghosts too)
   std::vector<double> rest;          // 3 * local, rest positions
   std::vector<double> mass;          // local, kg
+  // Read by calibration only: emptied by release_calibration_inputs once the stiffness is final.
   std::vector<double> youngs_modulus;  // local, Pa
   std::vector<int> degree;           // local, number of connections of each molecule in the whole body
   std::vector<int> body;             // local, which body ([[body]] index) each molecule belongs to
@@ -116,6 +117,10 @@ struct LocalModel {
 // (k, l0) pairs; returns whether it did. Exact: the tables hold the same doubles. Call it only once the
 // stiffness no longer changes (not under angles-update or iterative calibration).
 bool compact_connection_types(LocalModel& model);
+
+// Frees what only calibration reads (each molecule's E and degree: 12 bytes a molecule). Call it only once the
+// stiffness no longer changes, as compact_connection_types.
+void release_calibration_inputs(LocalModel& model);
 
 // Collective. Builds this rank's LocalModel from the global body and the partition (the explicit path: every
 // rank holds the whole body while it runs).

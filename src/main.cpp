@@ -105,8 +105,11 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
   //    deformation (angles-update), installed as the solver's refresh hook in step 6.
   const CalibrationRefresher refresh = calibrate_scene(scene, model, model.stiffness);
   // A k that no longer changes is stored by connection type when few distinct (k, l0) pairs exist: 2 bytes a
-  // connection instead of 16, and less memory traffic in the force kernel.
-  if (stiffness_is_final(scene, refresh)) compact_connection_types(model);
+  // connection instead of 16, and less memory traffic in the force kernel; what only calibration reads goes.
+  if (stiffness_is_final(scene, refresh)) {
+    compact_connection_types(model);
+    release_calibration_inputs(model);
+  }
 
   // 5. The force model: the connection forces plus only the terms the scene lists; loads and holds.
   ForceModel forces(scene, model);

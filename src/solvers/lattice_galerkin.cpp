@@ -134,9 +134,16 @@ PetscErrorCode LatticeGalerkin::applies(Mat fine, bool* ok) const {
     PetscBool done;
     PetscCall(MatGetRowIJ(part, 0, PETSC_FALSE, PETSC_FALSE, &rows, &ia, &ja, &done));
     good = done && rows == 3 * model_.owned;
-    // Whole 3x3 blocks (three consecutive columns from a multiple of 3), each within one plane step.
+    // Whole 3x3 blocks (three consecutive columns from a multiple of 3), each within one plane step; the three
+    // rows of a molecule have the same columns, so only the first is checked block by block.
     for (PetscInt r = 0; good && r < rows; ++r) {
-      good = (ia[r + 1] - ia[r]) % 3 == 0;
+      const PetscInt len = ia[r + 1] - ia[r];
+      good = len % 3 == 0;
+      if (r % 3) {
+        const PetscInt f = ia[r - r % 3];
+        good = good && len == ia[r - r % 3 + 1] - f && std::equal(ja + ia[r], ja + ia[r + 1], ja + f);
+        continue;
+      }
       for (PetscInt e = ia[r]; good && e < ia[r + 1]; e += 3) {
         const PetscInt c = part == parts.Ad ? ja[e] : parts.garray[ja[e]];
         const PetscInt c2 = part == parts.Ad ? ja[e + 2] : parts.garray[ja[e + 2]];

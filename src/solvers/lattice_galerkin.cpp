@@ -214,6 +214,12 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Ro
   //    collected too and sent in step 3.
   Rows acc;
   const auto& nodes = levels_.owned_nodes[l];
+  {
+    // About this rank's coarse nodes and a layer more: no regrowth (a copy and fresh pages) while filling.
+    const std::size_t expect = levels_.owned_nodes[l + 1].size() * 5 / 4 + 64;
+    acc.id.reserve(expect), acc.present.reserve(expect), acc.a.reserve(expect * kSlots * kBlock);
+    acc.index.reserve(expect);
+  }
   std::array<double, kSlots * kBlock> blocks{};
   std::array<double, 64 * kBlock> T{};
   for (std::size_t n = 0; n < nodes.size(); ++n) {

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cstdlib>
 #include <unordered_map>
 
 namespace tissue {
@@ -231,11 +232,18 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Ro
     // The node's blocks by stencil slot.
     std::uint32_t present = 0;
     const double* src = nullptr;
+    bool off_stencil = false;
     if (l == 0) {
       blocks.fill(0.0);
       // Rows come in whole 3x3 blocks (applies() checked): three values a block column.
       auto put = [&](int r, int j, const PetscScalar* v) {
-        const int s = slot_of(ijk_[j][0] - ijk_[i][0], ijk_[j][1] - ijk_[i][1], ijk_[j][2] - ijk_[i][2]);
+        const int d0 = ijk_[j][0] - ijk_[i][0], d1 = ijk_[j][1] - ijk_[i][1], d2 = ijk_[j][2] - ijk_[i][2];
+        // The pattern was checked once (applies()); a block added since (a new contact pair) is not a stencil's.
+        if (std::abs(d0) > 1 || std::abs(d1) > 1 || std::abs(d2) > 1 || model_.body[j] != b) {
+          off_stencil = true;
+          return;
+        }
+        const int s = slot_of(d0, d1, d2);
         double* to = blocks.data() + s * kBlock + 3 * r;
         to[0] = v[0], to[1] = v[1], to[2] = v[2];
         present |= 1u << s;
@@ -247,6 +255,8 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Ro
         if (oia)
           for (PetscInt e = oia[row]; e < oia[row + 1]; e += 3) put(r, off_local[oja[e]], ov + e);
       }
+      PetscCheck(!off_stencil, PETSC_COMM_SELF, PETSC_ERR_SUP,
+                 "lattice Galerkin product: the tangent has a block beyond the lattice stencil");
       src = blocks.data();
     } else {
       present = stencil->present[n];

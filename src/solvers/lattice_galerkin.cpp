@@ -206,7 +206,10 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Ro
       std::unordered_map<PetscInt, int> ghost;
       for (int j = model_.owned; j < model_.local; ++j) ghost.emplace(model_.block[j], j);
       off_local.resize(cols);
-      for (PetscInt c = 0; c < cols; ++c) off_local[c] = ghost.at(parts.garray[c] / 3);
+      for (PetscInt c = 0; c < cols; ++c) {
+        const auto it = ghost.find(parts.garray[c] / 3);
+        off_local[c] = it == ghost.end() ? -1 : it->second;  // -1: not a molecule of this rank's stencils
+      }
     }
   }
 
@@ -237,6 +240,10 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Ro
       blocks.fill(0.0);
       // Rows come in whole 3x3 blocks (applies() checked): three values a block column.
       auto put = [&](int r, int j, const PetscScalar* v) {
+        if (j < 0) {
+          off_stencil = true;
+          return;
+        }
         const int d0 = ijk_[j][0] - ijk_[i][0], d1 = ijk_[j][1] - ijk_[i][1], d2 = ijk_[j][2] - ijk_[i][2];
         // The pattern was checked once (applies()); a block added since (a new contact pair) is not a stencil's.
         if (std::abs(d0) > 1 || std::abs(d1) > 1 || std::abs(d2) > 1 || model_.body[j] != b) {

@@ -85,6 +85,7 @@ struct LatticeGalerkin::Rows {
   std::vector<std::uint32_t> present;
   std::vector<double> a;  // kSlots * kBlock per node
   std::unordered_map<std::int64_t, int> index;
+  std::vector<int> row;  // once complete: the row of each of this rank's nodes (owned order), -1 for none
 
   int find_or_add(std::int64_t g) {
     const auto [it, added] = index.emplace(g, static_cast<int>(id.size()));
@@ -99,10 +100,18 @@ struct LatticeGalerkin::Rows {
 };
 
 LatticeGalerkin::LatticeGalerkin(const LocalModel& model, const std::vector<std::uint8_t>& held, LatticeLevels levels)
-    : model_(model), held_(held), levels_(std::move(levels)), ijk_(model.local), csr_(levels_.planes.size()),
+    : model_(model), held_(held), levels_(std::move(levels)), csr_(levels_.planes.size()),
       coarse_(levels_.planes.size(), nullptr) {
-  for (int i = 0; i < model.local; ++i) {
-    const auto ijk = model.shape.body(model.body[i]).index(model.id[i]);
+  // Level 0's nodes are all owned molecules in order, and its numbering is the tangent's: not kept (4 MB a rank
+  // at 10^6 molecules, where the peak memory is within 0.5 % of its target).
+  levels_.owned_nodes[0] = {};
+  levels_.base[0] = {};
+}
+
+void LatticeGalerkin::index_molecules() const {
+  ijk_.resize(model_.local);
+  for (int i = 0; i < model_.local; ++i) {
+    const auto ijk = model_.shape.body(model_.body[i]).index(model_.id[i]);
     ijk_[i] = {static_cast<int>(ijk[0]), static_cast<int>(ijk[1]), static_cast<int>(ijk[2])};
   }
 }
@@ -122,6 +131,7 @@ PetscErrorCode LatticeGalerkin::applies(Mat fine, bool* ok) const {
   good = good && bs == 3;
   std::unordered_map<PetscInt, int> ghost;
   for (int j = model_.owned; j < model_.local; ++j) ghost.emplace(model_.block[j], j);
+  index_molecules();
   auto near = [&](int i, int j) {
     if (j < 0 || model_.body[i] != model_.body[j]) return false;
     for (int d = 0; d < 3; ++d)
@@ -161,6 +171,7 @@ PetscErrorCode LatticeGalerkin::applies(Mat fine, bool* ok) const {
     }
     PetscCall(MatRestoreRowIJ(part, 0, PETSC_FALSE, PETSC_FALSE, &rows, &ia, &ja, &done));
   }
+  ijk_ = {};
   int mine = good ? 1 : 0, all = 0;
   PetscCallMPI(MPI_Allreduce(&mine, &all, 1, MPI_INT, MPI_MIN, model_.comm));
   *ok = all == 1;
@@ -217,7 +228,8 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Ro
   //    row I += w_iI T for the coarse nodes I that i interpolates from. Rows of coarse nodes owned elsewhere are
   //    collected too and sent in step 3.
   Rows acc;
-  const auto& nodes = levels_.owned_nodes[l];
+  const auto& nodes = levels_.owned_nodes[l];  // level 0: all owned molecules, 0 .. owned - 1
+  const std::size_t nnodes = l == 0 ? static_cast<std::size_t>(model_.owned) : nodes.size();
   {
     // About this rank's coarse nodes and a layer more: no regrowth (a copy and fresh pages) while filling.
     const std::size_t expect = levels_.owned_nodes[l + 1].size() * 5 / 4 + 64;
@@ -226,8 +238,8 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Ro
   }
   std::array<double, kSlots * kBlock> blocks{};
   std::array<double, 64 * kBlock> T{};
-  for (std::size_t n = 0; n < nodes.size(); ++n) {
-    const int i = nodes[n];
+  for (std::size_t n = 0; n < nnodes; ++n) {
+    const int i = l == 0 ? static_cast<int>(n) : nodes[n];
     const int b = model_.body[i];
     const BoxGeometry& box = shape.body(b);
     std::array<int, 3> p;
@@ -266,8 +278,10 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Ro
                  "lattice Galerkin product: the tangent has a block beyond the lattice stencil");
       src = blocks.data();
     } else {
-      present = stencil->present[n];
-      src = stencil->a.data() + n * kSlots * kBlock;
+      const int r = stencil->row[n];
+      if (r < 0) continue;  // every component held
+      present = stencil->present[r];
+      src = stencil->a.data() + static_cast<std::size_t>(r) * kSlots * kBlock;
     }
     if (!present) continue;
     const std::array<const AxisWeights*, 3> wi{&weights[b][0][p[0]], &weights[b][1][p[1]], &weights[b][2][p[2]]};
@@ -346,31 +360,44 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Ro
   }
 
   // 2. The level l+1 numbers (8 first unknown + free mask) of every row collected and of every stencil
-  //    neighbour of this rank's coarse nodes, through the directory.
+  //    neighbour of this rank's coarse nodes: this rank's own from its list (ascending ids), the others through
+  //    the directory (asking for every neighbour was, at 10^6 molecules, the run's peak memory).
   const auto& cnodes = levels_.owned_nodes[l + 1];
   const auto& cbase = levels_.base[l + 1];
-  std::vector<std::int64_t> mine(cnodes.size()), asked(acc.id);
+  std::vector<std::int64_t> mine(cnodes.size()), asked;
   std::vector<PetscInt> packed(cnodes.size()), answers;
   std::vector<std::array<int, 3>> cplane(cnodes.size());
   for (std::size_t c = 0; c < cnodes.size(); ++c) {
     const int i = cnodes[c];
     mine[c] = model_.id[i], packed[c] = 8 * cbase[c] + free_mask(i);
     const int b = model_.body[i];
+    for (int a = 0; a < 3; ++a) cplane[c][a] = position(planes[l + 1][b][a], ijk_[i][a]);
+  }
+  const bool ascending = std::is_sorted(mine.begin(), mine.end());
+  auto own = [&](std::int64_t g) {
+    const auto it = std::lower_bound(mine.begin(), mine.end(), g);
+    return ascending && it != mine.end() && *it == g ? static_cast<std::ptrdiff_t>(it - mine.begin()) : -1;
+  };
+  for (std::int64_t g : acc.id)
+    if (own(g) < 0) asked.push_back(g);
+  for (std::size_t c = 0; c < cnodes.size(); ++c) {
+    const int b = model_.body[cnodes[c]];
     const BoxGeometry& box = shape.body(b);
-    const auto ijk = box.index(model_.id[i]);
-    for (int a = 0; a < 3; ++a) cplane[c][a] = position(planes[l + 1][b][a], ijk[a]);
     for (int s = 0; s < kSlots; ++s) {
       const int q[3] = {cplane[c][0] + s % 3 - 1, cplane[c][1] + s / 3 % 3 - 1, cplane[c][2] + s / 9 - 1};
       bool inside = true;
       for (int a = 0; a < 3; ++a) inside = inside && q[a] >= 0 && q[a] < static_cast<int>(planes[l + 1][b][a].size());
-      if (inside) asked.push_back(box.id(planes[l + 1][b][0][q[0]], planes[l + 1][b][1][q[1]], planes[l + 1][b][2][q[2]]));
+      if (!inside) continue;
+      const std::int64_t g = box.id(planes[l + 1][b][0][q[0]], planes[l + 1][b][1][q[1]], planes[l + 1][b][2][q[2]]);
+      if (own(g) < 0) asked.push_back(g);
     }
   }
   std::sort(asked.begin(), asked.end());
   asked.erase(std::unique(asked.begin(), asked.end()), asked.end());
   PetscCall(lattice_lookup(model_.comm, shape.molecules(), mine, packed, asked, answers));
   auto number = [&](std::int64_t g) {
-    return answers[std::lower_bound(asked.begin(), asked.end(), g) - asked.begin()];
+    const std::ptrdiff_t c = own(g);
+    return c >= 0 ? packed[c] : answers[std::lower_bound(asked.begin(), asked.end(), g) - asked.begin()];
   };
 
   // 3. Rows of coarse nodes owned elsewhere go to their owners (the rank whose unknowns hold the node's first);
@@ -417,11 +444,9 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Ro
     for (int e = 0; e < kSlots * kBlock; ++e) to[e] += recvbuf[q + 2 + e];
   }
 
-  // 4. This rank's coarse rows in owned order, held components (row's and column's) zeroed, and the matrix.
-  next = Rows{};
-  next.id = mine;
-  next.present.assign(cnodes.size(), 0);
-  next.a.assign(cnodes.size() * kSlots * kBlock, 0.0);
+  // 4. This rank's coarse rows, held components (row's and column's) zeroed in place (row[c]: where node c's
+  //    row is; a copy in owned order would double the largest temporary), and the matrix.
+  acc.row.assign(cnodes.size(), -1);
   const PetscInt cfirst = levels_.first[l + 1], clast = cfirst + levels_.count[l + 1];
   std::vector<PetscInt> dnnz(levels_.count[l + 1], 0), onnz(levels_.count[l + 1], 0);
   std::array<PetscInt, kSlots> jnum{};
@@ -431,8 +456,9 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Ro
     const int b = model_.body[cnodes[c]];
     const BoxGeometry& box = shape.body(b);
     norder = 0;
+    const std::uint32_t bits = acc.present[acc.row[c]];
     for (int s = 0; s < kSlots; ++s) {
-      if (!(next.present[c] >> s & 1)) continue;
+      if (!(bits >> s & 1)) continue;
       const int q[3] = {cplane[c][0] + s % 3 - 1, cplane[c][1] + s / 3 % 3 - 1, cplane[c][2] + s / 9 - 1};
       jnum[s] = number(box.id(planes[l + 1][b][0][q[0]], planes[l + 1][b][1][q[1]], planes[l + 1][b][2][q[2]]));
       order[norder++] = s;
@@ -445,18 +471,17 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Ro
     if (!mask) continue;
     const auto it = acc.index.find(mine[c]);
     PetscCheck(it != acc.index.end(), PETSC_COMM_SELF, PETSC_ERR_PLIB, "lattice Galerkin product: an empty coarse row");
-    next.present[c] = acc.present[it->second];
+    const int r = acc.row[c] = it->second;
     neighbours(c);
-    std::copy(acc.block(it->second, 0), acc.block(it->second, 0) + kSlots * kBlock, next.a.data() + c * kSlots * kBlock);
     for (int s = 0; s < kSlots; ++s) {
-      if (!(next.present[c] >> s & 1)) continue;
+      if (!(acc.present[r] >> s & 1)) continue;
       const int jmask = static_cast<int>(jnum[s] % 8);
-      double* blk = next.a.data() + (c * kSlots + s) * kBlock;
+      double* blk = acc.block(r, s);
       for (int k = 0; k < 3; ++k)
         for (int m = 0; m < 3; ++m)
           if (!(mask >> k & 1) || !(jmask >> m & 1)) blk[3 * k + m] = 0.0;
       if (!jmask) {
-        next.present[c] &= ~(1u << s);
+        acc.present[r] &= ~(1u << s);
         continue;
       }
       const PetscInt jb = jnum[s] / 8;
@@ -465,7 +490,6 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Ro
         if (mask >> k & 1) (local ? dnnz : onnz)[row++] += __builtin_popcount(jmask);
     }
   }
-  acc = Rows{};
   // The matrix's CSR arrays, diagonal and off-diagonal parts (off-diagonal columns global), written here and
   // handed to PETSc without a copy: the pattern is the lattice's, the same on every call, so a refill writes
   // the values in the same places.
@@ -489,7 +513,7 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Ro
       for (int q = 0; q < norder; ++q) {
         const int s = order[q];
         const int jmask = static_cast<int>(jnum[s] % 8);
-        const double* blk = next.a.data() + (c * kSlots + s) * kBlock;
+        const double* blk = acc.block(acc.row[c], s);
         const PetscInt jb = jnum[s] / 8;
         const bool local = jb >= cfirst && jb < clast;
         for (int mm = 0, col = static_cast<int>(jb); mm < 3; ++mm) {
@@ -520,12 +544,15 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Ro
   } else {
     PetscCall(PetscObjectStateIncrease(reinterpret_cast<PetscObject>(C)));  // new values in the same arrays
   }
+  acc.index = {};
+  next = std::move(acc);
   PetscFunctionReturn(0);
 }
 
 PetscErrorCode LatticeGalerkin::update(Mat fine, PC pc) {
   PetscFunctionBeginUser;
   PetscCall(PetscLogEventBegin(galerkin_event(), pc, fine, 0, 0));
+  index_molecules();
   const int L = static_cast<int>(levels_.planes.size());
   Rows stencil, next;
   for (int l = 0; l + 1 < L; ++l) {
@@ -535,6 +562,7 @@ PetscErrorCode LatticeGalerkin::update(Mat fine, PC pc) {
     PetscCall(PCMGGetSmoother(pc, L - 2 - l, &level));  // PCMG counts levels from the coarsest
     PetscCall(KSPSetOperators(level, coarse_[l + 1], coarse_[l + 1]));
   }
+  ijk_ = {};
   PetscCall(PetscLogEventEnd(galerkin_event(), pc, fine, 0, 0));
   PetscFunctionReturn(0);
 }

@@ -40,7 +40,8 @@ private:
   const LocalModel& model_;
   const std::vector<std::uint8_t>& held_;
   LatticeLevels levels_;
-  std::vector<std::array<int, 3>> ijk_;  // lattice indices of every local molecule (ghosts too)
+  void index_molecules() const;                  // fills ijk_, for the length of one call
+  mutable std::vector<std::array<int, 3>> ijk_;  // lattice indices of every local molecule (ghosts too)
   struct Csr {
     std::vector<PetscInt> di, dj, oi, oj;
     std::vector<PetscScalar> dv, ov;

@@ -200,7 +200,8 @@ PetscErrorCode run_static(const Scene& scene, const LocalModel& model, const For
   PetscCall(PetscOptionsHasName(nullptr, nullptr, "-snes_lag_preconditioner", &user_lag));
   // The coarse operators from the lattice structure (lattice_galerkin.hpp) when the tangent is a lattice stencil
   // and the preconditioner's rebuilds are ours (Reuse): at 64,000 molecules on 2 ranks hypre's triple product
-  // took 1.2e9 instructions a rank, this 0.1e9 (docs/benchmarks.md, "Static set-up, 2026-11-29 (afternoon)").
+  // took 1.2e9 instructions a rank and 0.17 s, this 0.5e9 and 0.13-0.14 s; at 10^6 molecules 6.1 s against
+  // 2.9-3.5 s (docs/benchmarks.md, "Static set-up, 2026-11-29 (afternoon)").
   std::unique_ptr<LatticeGalerkin> galerkin;
   if (lattice_mg && !user_lag) {
     galerkin = std::make_unique<LatticeGalerkin>(model, forces.held(), std::move(hierarchy));

@@ -57,9 +57,8 @@ private:
 }  // namespace
 
 int lattice_block_size(const Body& shape, int parts) {
-  const std::int64_t n = shape.molecules();
-  if (n <= 65536) return 1;
   const std::int64_t target = std::max<std::int64_t>(32768, 128 * static_cast<std::int64_t>(parts));
+  if (shape.molecules() <= target) return 1;
   for (int b = 2;; ++b)
     if (Blocks(shape, b).total() <= target || b >= 1024) return b;
 }

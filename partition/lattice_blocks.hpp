@@ -14,9 +14,11 @@
 
 namespace tissue {
 
-// The block edge for `parts` parts: 1 (partition the molecule graph itself, as the explicit path does) while the
-// lattice has at most 65,536 molecules; otherwise the smallest b that leaves at most max(32,768, 128 parts)
-// blocks, so rank 0's graph stays small and every part still gets many blocks to balance with.
+// The block edge for `parts` parts: the smallest b that leaves at most max(32,768, 128 parts) blocks, so rank 0's
+// graph stays small and every part still gets many blocks to balance with; b = 1 (the molecule graph itself, as
+// the explicit path partitions) for lattices within that count. At 64,000 molecules and 2 parts b = 2 gives
+// METIS 8,000 blocks: the cut 7,840 (the plane) against 8,304 on the molecule graph, in a tenth of the time
+// (docs/benchmarks.md, "Static set-up, 2026-11-29 (afternoon)").
 int lattice_block_size(const Body& shape, int parts);
 
 // Collective over comm. The parts (0 .. parts - 1) of this rank's block of the natural order

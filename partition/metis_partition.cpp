@@ -109,8 +109,8 @@ std::vector<int> partition_lattice(const Body& shape, MPI_Comm comm, PartitionSt
   std::vector<int> part(end - begin, 0);
   if (size == 1) return part;
   if (n < size) throw std::runtime_error("the body has fewer molecules than ranks");
-  // Past 65,536 molecules, METIS sees blocks of molecules (partition/lattice_blocks.hpp): the molecule graph of
-  // the whole lattice on rank 0 cost it about 460 bytes a molecule.
+  // Past 32,768 molecules (more for many ranks), METIS sees blocks of molecules (partition/lattice_blocks.hpp):
+  // the molecule graph of the whole lattice on rank 0 cost it about 460 bytes a molecule, and METIS's time.
   if (const int b = lattice_block_size(shape, size); b > 1) return partition_lattice_blocks(shape, comm, size, b, stats);
   if (n > std::numeric_limits<idx_t>::max()) throw std::runtime_error("the body has more molecules than METIS's idx_t holds");
 

@@ -27,7 +27,7 @@ std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionS
 std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionStats& stats, const std::string& method);
 
 // The same for box lattices whose connections come from the topology stencils: rank 0 builds the graph from the
-// stencils (the only place it exists); past 65,536 molecules the graph is of blocks of molecules
+// stencils (the only place it exists); past 32,768 molecules the graph is of blocks of molecules
 // (partition/lattice_blocks.hpp), so rank 0 holds a few bytes a molecule. Returns the parts of this rank's block of the natural order
 // (NaturalOrder::block_begin): no rank holds the whole partition.
 std::vector<int> partition_lattice(const Body& shape, MPI_Comm comm, PartitionStats& stats);

@@ -1,11 +1,11 @@
 // partition_table: how a box lattice splits into P parts, as the ghost exchange of the explicit solver sees it.
 // For each P given, partitions the N^3 face-diagonal lattice exactly as `tissue` does on P ranks (METIS on
 // blocks of b^3 molecules past 65,536 molecules, partition/lattice_blocks.hpp; `fine` as a last argument: METIS
-// on the molecule graph itself, as before) on this one process, and prints one CSV row per P: the block edge,
-// the edge cut, the imbalance, and over the parts the largest owned count, ghost count (molecules owned
+// on the molecule graph itself, as before; `block=B`: blocks of B^3) on this one process, and prints one CSV row
+// per P: the block edge, the edge cut, the imbalance, and over the parts the largest owned count, ghost count (molecules owned
 // elsewhere that share a connection with an owned one: what the ghost update brings in each step), ghosts /
 // owned, local connections (those with an owned end: what the kernel computes), and neighbour parts (messages).
-//   usage: partition_table N P [P ...] [fine]     (run_scripts/scaling_model.py runs it)
+//   usage: partition_table N P [P ...] [fine | block=B]     (run_scripts/scaling_model.py runs it)
 #include <mpi.h>
 
 #include <algorithm>
@@ -24,10 +24,12 @@ using namespace tissue;
 int main(int argc, char** argv) {
   MPI_Init(&argc, &argv);
   if (argc < 3) {
-    std::fprintf(stderr, "usage: partition_table N P [P ...] [fine]\n");
+    std::fprintf(stderr, "usage: partition_table N P [P ...] [fine | block=B]\n");
     return 2;
   }
-  const bool fine = std::string(argv[argc - 1]) == "fine";
+  const std::string last = argv[argc - 1];
+  const int forced = last == "fine" ? 1 : last.rfind("block=", 0) == 0 ? std::atoi(last.c_str() + 6) : 0;
+  const bool fine = forced > 0;
   Body shape;
   const long n1 = std::atol(argv[1]);
   shape.n = {n1, n1, n1};
@@ -42,7 +44,7 @@ int main(int argc, char** argv) {
     const int parts = std::atoi(argv[a]);
     const auto t0 = std::chrono::steady_clock::now();
     PartitionStats stats;
-    const int block = fine ? 1 : lattice_block_size(shape, parts);
+    const int block = fine ? forced : lattice_block_size(shape, parts);
     std::vector<int> part = partition_lattice_blocks(shape, MPI_COMM_SELF, parts, block, stats);
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::vector<long> owned(parts, 0), ghosts(parts, 0), local_connections(parts, 0);

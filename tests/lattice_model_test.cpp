@@ -321,8 +321,15 @@ TEST(LatticeBlocks, ValidBalancedAndIndependentOfTheRankCount) {
     EXPECT_LT(stats.imbalance, 1.15) << parts;  // blocks of 8 molecules among 1287 (METIS allows 3 %)
     EXPECT_GT(*std::min_element(count.begin(), count.end()), 0);
   }
-  // The block edge: the molecule graph itself for small lattices, blocks past 65,536 molecules.
+  // The block edge: the molecule graph itself up to 32,768 molecules (more parts: 128 a part), blocks past that.
   EXPECT_EQ(lattice_block_size(shape, 2), 1);
+  Body edge;
+  edge.n = {32, 32, 32};
+  edge.topology = "face-diagonals";
+  EXPECT_EQ(lattice_block_size(edge, 2), 1);    // 32,768 molecules
+  edge.n = {40, 40, 40};
+  EXPECT_EQ(lattice_block_size(edge, 2), 2);    // 64,000 molecules: 20^3 blocks
+  EXPECT_EQ(lattice_block_size(edge, 512), 1);  // 64,000 <= 128 x 512
   Body big;
   big.n = {100, 100, 100};
   big.topology = "face-diagonals";

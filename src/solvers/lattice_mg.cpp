@@ -38,11 +38,11 @@ PetscErrorCode exchange(MPI_Comm comm, const std::vector<std::int64_t>& out, con
   PetscFunctionReturn(0);
 }
 
-// The level numbers of molecules (global ids `asked`), from their owners' (ids `mine`, numbers `nums`), through a
-// directory: id g lives on rank g / chunk. No rank ever holds more than its chunk of the directory. Collective.
-PetscErrorCode lookup(MPI_Comm comm, std::int64_t total, const std::vector<std::int64_t>& mine,
-                      const std::vector<PetscInt>& nums, const std::vector<std::int64_t>& asked,
-                      std::vector<PetscInt>& answers) {
+}  // namespace
+
+PetscErrorCode lattice_lookup(MPI_Comm comm, std::int64_t total, const std::vector<std::int64_t>& mine,
+                              const std::vector<PetscInt>& nums, const std::vector<std::int64_t>& asked,
+                              std::vector<PetscInt>& answers) {
   PetscFunctionBeginUser;
   int size, rank;
   PetscCallMPI(MPI_Comm_size(comm, &size));
@@ -81,10 +81,8 @@ PetscErrorCode lookup(MPI_Comm comm, std::int64_t total, const std::vector<std::
   PetscFunctionReturn(0);
 }
 
-}  // namespace
-
 PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::uint8_t>& held, PC pc,
-                                long coarse_nodes, PetscInt* levels) {
+                                long coarse_nodes, PetscInt* levels, LatticeLevels* hierarchy) {
   PetscFunctionBeginUser;
   const Body& shape = model.shape;
   const int nb = shape.bodies();
@@ -94,7 +92,7 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
   for (int b = 0; b < nb; ++b)
     if (shape.body(b).unstructured()) PetscFunctionReturn(0);
   // planes[l][b][a]: the lattice planes level l keeps along axis a of body b; level 0 keeps all.
-  using Planes = std::vector<std::array<std::vector<long>, 3>>;
+  using Planes = LatticeLevels::Planes;
   std::vector<Planes> planes(1, Planes(nb));
   auto nodes = [&](const Planes& p) {
     std::int64_t total = 0;
@@ -195,7 +193,7 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
     std::vector<PetscInt> packed(cols.size()), answers;
     for (std::size_t c = 0; c < cols.size(); ++c) mine[c] = model.id[cols[c]], packed[c] = 8 * base[l + 1][c] + free_mask(cols[c]);
     for (std::size_t e = 0; e < entries.size(); ++e) asked[e] = entries[e].g;
-    PetscCall(lookup(model.comm, total, mine, packed, asked, answers));
+    PetscCall(lattice_lookup(model.comm, total, mine, packed, asked, answers));
     // Column of component k of a coarse node, or -1 when that component is held.
     auto column = [](PetscInt packed, int k) -> PetscInt {
       const int mask = static_cast<int>(packed % 8);
@@ -263,6 +261,7 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
     PetscFunctionReturn(0);
   }
 
+  if (hierarchy) *hierarchy = LatticeLevels{std::move(planes), std::move(owned_nodes), std::move(base), first, count};
   PetscCall(PCSetType(pc, PCMG));
   PetscCall(PCMGSetLevels(pc, L, nullptr));
   PetscCall(PCMGSetType(pc, PC_MG_MULTIPLICATIVE));
@@ -280,9 +279,14 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
     PetscCall(KSPChebyshevEstEigSet(smoother, 0, 0.1, 0, 1.1));
     // Galerkin operators of an SPD tangent are SPD: CG estimates the eigenvalues with 4 work vectors where the
     // default GMRES keeps ~15 per level (340 B per molecule at 64,000). -mg_levels_esteig_ksp_type overrides.
+    // 6 CG iterations instead of PETSc's 10: the same Krylov iterations (3 + 9) on the peer problem at 8,000,
+    // 64,000 and 262,144 molecules (5 gave 3 + 11 at 64,000); -mg_levels_esteig_ksp_max_it overrides.
     KSP estimator;
     PetscCall(KSPChebyshevEstEigGetKSP(smoother, &estimator));
-    if (estimator) PetscCall(KSPSetType(estimator, KSPCG));
+    if (estimator) {
+      PetscCall(KSPSetType(estimator, KSPCG));
+      PetscCall(KSPSetTolerances(estimator, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, 6));
+    }
     PetscCall(KSPSetTolerances(smoother, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, 2));
     PetscCall(KSPGetPC(smoother, &spc));
     PetscCall(PCSetType(spc, PCJACOBI));

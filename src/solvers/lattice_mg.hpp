@@ -9,6 +9,7 @@
 #pragma once
 #include <petscpc.h>
 
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -16,10 +17,26 @@
 
 namespace tissue {
 
+// The hierarchy as built, level 0 the finest: what the structured Galerkin product (lattice_galerkin.hpp) needs.
+struct LatticeLevels {
+  using Planes = std::vector<std::array<std::vector<long>, 3>>;  // [body][axis]: the lattice planes kept
+  std::vector<Planes> planes;
+  std::vector<std::vector<int>> owned_nodes;  // this rank's nodes (local molecule indices, owned order)
+  std::vector<std::vector<PetscInt>> base;    // the global number of each node's first unknown
+  std::vector<PetscInt> first, count;         // this rank's first unknown and number of unknowns
+};
+
 // Collective. Makes pc a PCMG with the lattice hierarchy (coarsest level at most about coarse_nodes molecules,
-// solved by PCMG's default redundant LU). levels = number of levels built (1: the lattice is already that small,
-// or a body is a mesh or random cloud, and pc is left untouched).
+// solved by PCMG's default redundant LU), Galerkin coarse operators. levels = number of levels built (1: the
+// lattice is already that small, or a body is a mesh or random cloud, and pc is left untouched). hierarchy, when
+// given and levels > 1, receives the levels' planes and numbering.
 PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::uint8_t>& held, PC pc,
-                                long coarse_nodes, PetscInt* levels);
+                                long coarse_nodes, PetscInt* levels, LatticeLevels* hierarchy = nullptr);
+
+// Collective. The numbers `answers` of molecules (global ids `asked`), from their owners' (ids `mine`, numbers
+// `nums`), through a directory: id g lives on rank g / chunk, so no rank holds more than its chunk of it.
+PetscErrorCode lattice_lookup(MPI_Comm comm, std::int64_t total, const std::vector<std::int64_t>& mine,
+                              const std::vector<PetscInt>& nums, const std::vector<std::int64_t>& asked,
+                              std::vector<PetscInt>& answers);
 
 }  // namespace tissue

@@ -11,8 +11,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <memory>
 
 #include "src/solvers/guards.hpp"
+#include "src/solvers/lattice_galerkin.hpp"
 #include "src/solvers/lattice_mg.hpp"
 #include "src/solvers/solver.hpp"
 
@@ -30,6 +32,8 @@ struct Context {
   const SolverHooks* hooks;
   // Krylov tolerance of the first Newton step of each load step and of the later ones (first_rtol 0: no change).
   double first_rtol = 0.0, rtol = 1e-10;
+  // The lattice multigrid's coarse operators from the lattice structure (null: PCMG's own Galerkin product).
+  LatticeGalerkin* galerkin = nullptr;
 };
 
 // Preconditioner reuse. The multigrid set-up (Galerkin products) costs several Krylov solves, and at the strains
@@ -117,11 +121,24 @@ PetscErrorCode before_newton_step(SNES snes, PetscInt step) {
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode tangent(SNES, Vec X, Mat J, Mat P, void* p) {
+PetscErrorCode tangent(SNES snes, Vec X, Mat J, Mat P, void* p) {
   PetscFunctionBeginUser;
   auto* ctx = static_cast<Context*>(p);
   PetscCall(load_positions(ctx, X));
   PetscCall(ctx->forces->assemble_tangent(ctx->state->x.array(), P));
+  if (ctx->galerkin) {
+    // The preconditioner is rebuilt after this call exactly when the lag is -2 (see Reuse); then its coarse
+    // operators must be this tangent's. -pc_mg_galerkin given by the user hands them back to PCMG.
+    PetscInt lag;
+    KSP ksp;
+    PC pc;
+    PCMGGalerkinType galerkin;
+    PetscCall(SNESGetLagPreconditioner(snes, &lag));
+    PetscCall(SNESGetKSP(snes, &ksp));
+    PetscCall(KSPGetPC(ksp, &pc));
+    PetscCall(PCMGGetGalerkin(pc, &galerkin));
+    if (lag == -2 && galerkin == PC_MG_GALERKIN_NONE) PetscCall(ctx->galerkin->update(P, pc));
+  }
   if (J != P) {
     PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
     PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
@@ -176,8 +193,27 @@ PetscErrorCode run_static(const Scene& scene, const LocalModel& model, const For
   PetscBool user_pc = PETSC_FALSE;
   PetscCall(PetscOptionsHasName(nullptr, nullptr, "-pc_type", &user_pc));
   PetscInt mg_levels = 1;
-  if (!user_pc) PetscCall(setup_lattice_mg(model, forces.held(), pc, 1000, &mg_levels));
+  LatticeLevels hierarchy;
+  if (!user_pc) PetscCall(setup_lattice_mg(model, forces.held(), pc, 1000, &mg_levels, &hierarchy));
   bool lattice_mg = mg_levels > 1;
+  PetscBool user_lag = PETSC_FALSE;
+  PetscCall(PetscOptionsHasName(nullptr, nullptr, "-snes_lag_preconditioner", &user_lag));
+  // The coarse operators from the lattice structure (lattice_galerkin.hpp) when the tangent is a lattice stencil
+  // and the preconditioner's rebuilds are ours (Reuse): at 64,000 molecules on 2 ranks hypre's triple product
+  // took 1.2e9 instructions a rank and 0.17 s, this 0.5e9 and 0.13-0.14 s; at 10^6 molecules 6.1 s against
+  // 2.9-3.5 s (docs/benchmarks.md, "Static set-up, 2026-11-29 (afternoon)").
+  std::unique_ptr<LatticeGalerkin> galerkin;
+  if (lattice_mg && !user_lag) {
+    galerkin = std::make_unique<LatticeGalerkin>(model, forces.held(), std::move(hierarchy));
+    bool stencil = false;
+    PetscCall(galerkin->applies(J, &stencil));
+    if (stencil) {
+      PetscCall(PCMGSetGalerkin(pc, PC_MG_GALERKIN_NONE));
+      ctx.galerkin = galerkin.get();
+    } else {
+      galerkin.reset();
+    }
+  }
   // The lattice multigrid's Galerkin products through hypre's triple product: at 64,000 molecules the run
   // peaked at 5.9 kB per molecule against 8.5 kB with PETSc's default (scalable) algorithm, in no more time.
   // The option is global, so it is set only for this solve and only for the lattice multigrid (GAMG's
@@ -239,8 +275,6 @@ PetscErrorCode run_static(const Scene& scene, const LocalModel& model, const For
     if (gamg) PetscCall(attach_rigid_modes(model, X, J));
   }
   {
-    PetscBool user_lag = PETSC_FALSE;
-    PetscCall(PetscOptionsHasName(nullptr, nullptr, "-snes_lag_preconditioner", &user_lag));
     reuse.active = lattice_mg && !user_lag;
     if (reuse.active) PetscCall(SNESMonitorSet(snes, watch_reuse, &reuse, nullptr));
   }
@@ -287,6 +321,7 @@ PetscErrorCode run_static(const Scene& scene, const LocalModel& model, const For
     if (lattice_mg) {
       // GAMG is the more general of the two (it sees the matrix, not the lattice): retry the increment with it.
       lattice_mg = false;
+      ctx.galerkin = nullptr;
       ctx.first_rtol = 0.0;  // see the forcing above
       PetscCall(KSPSetTolerances(ksp, ctx.rtol, PETSC_DEFAULT, PETSC_DEFAULT, 10000));
       PetscCall(clear_ptap());

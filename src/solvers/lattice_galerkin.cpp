@@ -1,0 +1,570 @@
+#include "src/solvers/lattice_galerkin.hpp"
+
+#include <petsc/private/petscimpl.h>  // PetscObjectStateIncrease: a refill writes the arrays directly
+#include <petscksp.h>
+
+#include <algorithm>
+#include <array>
+#include <cstdlib>
+#include <unordered_map>
+
+namespace tissue {
+
+namespace {
+
+constexpr int kSlots = 27;  // a 27-point stencil: offsets -1, 0, 1 along each axis
+constexpr int kBlock = 9;   // a 3x3 block, row-major
+
+constexpr int slot_of(int dx, int dy, int dz) { return (dx + 1) + 3 * (dy + 1) + 9 * (dz + 1); }
+
+// Box index t = x + 4 y + 16 z (0..3 each) as a slot offset: x + 3 y + 9 z, so that slot = shift + kBoxToSlot[t].
+constexpr std::array<int, 64> box_to_slot() {
+  std::array<int, 64> s{};
+  for (int t = 0; t < 64; ++t) s[t] = t % 4 + 3 * (t / 4 % 4) + 9 * (t / 16);
+  return s;
+}
+constexpr std::array<int, 64> kBoxToSlot = box_to_slot();
+
+// Where a plane of level l sits among the planes of level l+1: on one (n = 1, weight 1) or between two (n = 2),
+// the same weights as lattice_mg.cpp's interpolation.
+struct AxisWeights {
+  int n = 0;
+  std::array<int, 2> at{};
+  std::array<double, 2> w{};
+};
+
+std::vector<AxisWeights> axis_weights(const std::vector<long>& fine, const std::vector<long>& coarse) {
+  std::vector<AxisWeights> out(fine.size());
+  for (std::size_t p = 0; p < fine.size(); ++p) {
+    const long x = fine[p];
+    const auto c = static_cast<int>(std::lower_bound(coarse.begin(), coarse.end(), x) - coarse.begin());
+    if (coarse[c] == x) {
+      out[p].n = 1, out[p].at[0] = c, out[p].w[0] = 1.0;
+    } else {
+      const long lo = coarse[c - 1], hi = coarse[c];
+      out[p].n = 2;
+      out[p].at = {c - 1, c};
+      out[p].w = {double(hi - x) / double(hi - lo), double(x - lo) / double(hi - lo)};
+    }
+  }
+  return out;
+}
+
+int position(const std::vector<long>& planes, long x) {
+  return static_cast<int>(std::lower_bound(planes.begin(), planes.end(), x) - planes.begin());
+}
+
+PetscLogEvent galerkin_event() {
+  static PetscLogEvent event = -1;
+  if (event < 0) PetscCallAbort(PETSC_COMM_SELF, PetscLogEventRegister("LatticeGalerkin", PC_CLASSID, &event));
+  return event;
+}
+
+// The fine operator's parts: diagonal block (SeqAIJ) and, on 2+ ranks, off-diagonal block and its global columns.
+struct FineParts {
+  Mat Ad = nullptr, Ao = nullptr;
+  const PetscInt* garray = nullptr;
+};
+
+PetscErrorCode fine_parts(Mat A, FineParts* parts, bool* ok) {
+  PetscFunctionBeginUser;
+  PetscBool mpi = PETSC_FALSE, seq = PETSC_FALSE;
+  PetscCall(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(A), MATMPIAIJ, &mpi));
+  PetscCall(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(A), MATSEQAIJ, &seq));
+  *ok = mpi || seq;
+  if (mpi) PetscCall(MatMPIAIJGetSeqAIJ(A, &parts->Ad, &parts->Ao, &parts->garray));
+  if (seq) parts->Ad = A;
+  PetscFunctionReturn(0);
+}
+
+}  // namespace
+
+// One level's stencil rows: per node its global molecule id, which of the 27 blocks are there, and the blocks.
+struct LatticeGalerkin::Rows {
+  std::vector<std::int64_t> id;
+  std::vector<std::uint32_t> present;
+  std::vector<double> a;  // kSlots * kBlock per node
+  std::unordered_map<std::int64_t, int> index;
+  std::vector<int> row;  // once complete: the row of each of this rank's nodes (owned order), -1 for none
+
+  int find_or_add(std::int64_t g) {
+    const auto [it, added] = index.emplace(g, static_cast<int>(id.size()));
+    if (added) {
+      id.push_back(g);
+      present.push_back(0);
+      a.resize(a.size() + kSlots * kBlock, 0.0);
+    }
+    return it->second;
+  }
+  double* block(int r, int s) { return a.data() + (static_cast<std::size_t>(r) * kSlots + s) * kBlock; }
+};
+
+LatticeGalerkin::LatticeGalerkin(const LocalModel& model, const std::vector<std::uint8_t>& held, LatticeLevels levels)
+    : model_(model), held_(held), levels_(std::move(levels)), csr_(levels_.planes.size()),
+      coarse_(levels_.planes.size(), nullptr) {
+  // Level 0's nodes are all owned molecules in order, and its numbering is the tangent's: not kept (4 MB a rank
+  // at 10^6 molecules, where the peak memory is within 0.5 % of its target).
+  levels_.owned_nodes[0] = {};
+  levels_.base[0] = {};
+}
+
+void LatticeGalerkin::index_molecules() const {
+  ijk_.resize(model_.local);
+  for (int i = 0; i < model_.local; ++i) {
+    const auto ijk = model_.shape.body(model_.body[i]).index(model_.id[i]);
+    ijk_[i] = {static_cast<int>(ijk[0]), static_cast<int>(ijk[1]), static_cast<int>(ijk[2])};
+  }
+}
+
+LatticeGalerkin::~LatticeGalerkin() {
+  for (Mat& m : coarse_)
+    if (m) (void)MatDestroy(&m);
+}
+
+PetscErrorCode LatticeGalerkin::applies(Mat fine, bool* ok) const {
+  PetscFunctionBeginUser;
+  FineParts parts;
+  bool good = false;
+  PetscCall(fine_parts(fine, &parts, &good));
+  PetscInt bs = 1;
+  PetscCall(MatGetBlockSize(fine, &bs));
+  good = good && bs == 3;
+  std::unordered_map<PetscInt, int> ghost;
+  for (int j = model_.owned; j < model_.local; ++j) ghost.emplace(model_.block[j], j);
+  index_molecules();
+  auto near = [&](int i, int j) {
+    if (j < 0 || model_.body[i] != model_.body[j]) return false;
+    for (int d = 0; d < 3; ++d)
+      if (std::abs(ijk_[i][d] - ijk_[j][d]) > 1) return false;
+    return true;
+  };
+  for (Mat part : {parts.Ad, parts.Ao}) {
+    if (!good || !part) continue;
+    const PetscInt *ia, *ja;
+    PetscInt rows;
+    PetscBool done;
+    PetscCall(MatGetRowIJ(part, 0, PETSC_FALSE, PETSC_FALSE, &rows, &ia, &ja, &done));
+    good = done && rows == 3 * model_.owned;
+    // Whole 3x3 blocks (three consecutive columns from a multiple of 3), each within one plane step; the three
+    // rows of a molecule have the same columns, so only the first is checked block by block.
+    for (PetscInt r = 0; good && r < rows; ++r) {
+      const PetscInt len = ia[r + 1] - ia[r];
+      good = len % 3 == 0;
+      if (r % 3) {
+        const PetscInt f = ia[r - r % 3];
+        good = good && len == ia[r - r % 3 + 1] - f && std::equal(ja + ia[r], ja + ia[r + 1], ja + f);
+        continue;
+      }
+      for (PetscInt e = ia[r]; good && e < ia[r + 1]; e += 3) {
+        const PetscInt c = part == parts.Ad ? ja[e] : parts.garray[ja[e]];
+        const PetscInt c2 = part == parts.Ad ? ja[e + 2] : parts.garray[ja[e + 2]];
+        good = c % 3 == 0 && c2 == c + 2;
+        int j = -1;
+        if (part == parts.Ad) {
+          j = static_cast<int>(c / 3);
+        } else {
+          const auto it = ghost.find(c / 3);
+          if (it != ghost.end()) j = it->second;
+        }
+        good = good && near(static_cast<int>(r / 3), j);
+      }
+    }
+    PetscCall(MatRestoreRowIJ(part, 0, PETSC_FALSE, PETSC_FALSE, &rows, &ia, &ja, &done));
+  }
+  ijk_ = {};
+  int mine = good ? 1 : 0, all = 0;
+  PetscCallMPI(MPI_Allreduce(&mine, &all, 1, MPI_INT, MPI_MIN, model_.comm));
+  *ok = all == 1;
+  PetscFunctionReturn(0);
+}
+
+// Level l+1's operator from level l's: from the fine matrix (l = 0) or from level l's stencil rows. next receives
+// level l+1's rows (this rank's nodes, owned order, held components zeroed), and coarse_[l + 1] its matrix.
+PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Rows& next) {
+  PetscFunctionBeginUser;
+  const Body& shape = model_.shape;
+  const auto& planes = levels_.planes;
+  const int nb = shape.bodies();
+  auto free_mask = [&](int i) {
+    int m = 0;
+    for (int k = 0; k < 3; ++k)
+      if (!held_[3 * i + k]) m |= 1 << k;
+    return m;
+  };
+  // weights[b][a][p]: where plane p of level l sits among level l+1's planes.
+  std::vector<std::array<std::vector<AxisWeights>, 3>> weights(nb);
+  for (int b = 0; b < nb; ++b)
+    for (int a = 0; a < 3; ++a) weights[b][a] = axis_weights(planes[l][b][a], planes[l + 1][b][a]);
+
+  // The fine matrix's arrays (level 0).
+  FineParts parts;
+  const PetscInt *dia = nullptr, *dja = nullptr, *oia = nullptr, *oja = nullptr;
+  const PetscScalar *dv = nullptr, *ov = nullptr;
+  std::vector<int> off_local;  // local molecule of each off-diagonal column
+  if (l == 0) {
+    bool ok = false;
+    PetscCall(fine_parts(fine, &parts, &ok));
+    PetscCheck(ok, model_.comm, PETSC_ERR_SUP, "lattice Galerkin product: the tangent is not AIJ");
+    PetscInt rows;
+    PetscBool done;
+    PetscCall(MatGetRowIJ(parts.Ad, 0, PETSC_FALSE, PETSC_FALSE, &rows, &dia, &dja, &done));
+    PetscCall(MatSeqAIJGetArrayRead(parts.Ad, &dv));
+    if (parts.Ao) {
+      PetscInt cols;
+      PetscCall(MatGetRowIJ(parts.Ao, 0, PETSC_FALSE, PETSC_FALSE, &rows, &oia, &oja, &done));
+      PetscCall(MatSeqAIJGetArrayRead(parts.Ao, &ov));
+      PetscCall(MatGetSize(parts.Ao, nullptr, &cols));
+      std::unordered_map<PetscInt, int> ghost;
+      for (int j = model_.owned; j < model_.local; ++j) ghost.emplace(model_.block[j], j);
+      off_local.resize(cols);
+      for (PetscInt c = 0; c < cols; ++c) {
+        const auto it = ghost.find(parts.garray[c] / 3);
+        off_local[c] = it == ghost.end() ? -1 : it->second;  // -1: not a molecule of this rank's stencils
+      }
+    }
+  }
+
+  // 1. Every fine node's row, a block at a time: T = sum_j A_ij w_jJ over a 4x4x4 box of coarse nodes J, then
+  //    row I += w_iI T for the coarse nodes I that i interpolates from. Rows of coarse nodes owned elsewhere are
+  //    collected too and sent in step 3.
+  Rows acc;
+  const auto& nodes = levels_.owned_nodes[l];  // level 0: all owned molecules, 0 .. owned - 1
+  const std::size_t nnodes = l == 0 ? static_cast<std::size_t>(model_.owned) : nodes.size();
+  {
+    // About this rank's coarse nodes and a layer more: no regrowth (a copy and fresh pages) while filling.
+    const std::size_t expect = levels_.owned_nodes[l + 1].size() * 5 / 4 + 64;
+    acc.id.reserve(expect), acc.present.reserve(expect), acc.a.reserve(expect * kSlots * kBlock);
+    acc.index.reserve(expect);
+  }
+  std::array<double, kSlots * kBlock> blocks{};
+  std::array<double, 64 * kBlock> T{};
+  for (std::size_t n = 0; n < nnodes; ++n) {
+    const int i = l == 0 ? static_cast<int>(n) : nodes[n];
+    const int b = model_.body[i];
+    const BoxGeometry& box = shape.body(b);
+    std::array<int, 3> p;
+    for (int a = 0; a < 3; ++a) p[a] = l == 0 ? ijk_[i][a] : position(planes[l][b][a], ijk_[i][a]);
+    // The node's blocks by stencil slot.
+    std::uint32_t present = 0;
+    const double* src = nullptr;
+    bool off_stencil = false;
+    if (l == 0) {
+      blocks.fill(0.0);
+      // Rows come in whole 3x3 blocks (applies() checked): three values a block column.
+      auto put = [&](int r, int j, const PetscScalar* v) {
+        if (j < 0) {
+          off_stencil = true;
+          return;
+        }
+        const int d0 = ijk_[j][0] - ijk_[i][0], d1 = ijk_[j][1] - ijk_[i][1], d2 = ijk_[j][2] - ijk_[i][2];
+        // The pattern was checked once (applies()); a block added since (a new contact pair) is not a stencil's.
+        if (std::abs(d0) > 1 || std::abs(d1) > 1 || std::abs(d2) > 1 || model_.body[j] != b) {
+          off_stencil = true;
+          return;
+        }
+        const int s = slot_of(d0, d1, d2);
+        double* to = blocks.data() + s * kBlock + 3 * r;
+        to[0] = v[0], to[1] = v[1], to[2] = v[2];
+        present |= 1u << s;
+      };
+      for (int r = 0; r < 3; ++r) {
+        if (held_[3 * i + r]) continue;  // the identity row of a held component: not in the masked product
+        const PetscInt row = 3 * i + r;
+        for (PetscInt e = dia[row]; e < dia[row + 1]; e += 3) put(r, static_cast<int>(dja[e] / 3), dv + e);
+        if (oia)
+          for (PetscInt e = oia[row]; e < oia[row + 1]; e += 3) put(r, off_local[oja[e]], ov + e);
+      }
+      PetscCheck(!off_stencil, PETSC_COMM_SELF, PETSC_ERR_SUP,
+                 "lattice Galerkin product: the tangent has a block beyond the lattice stencil");
+      src = blocks.data();
+    } else {
+      const int r = stencil->row[n];
+      if (r < 0) continue;  // every component held
+      present = stencil->present[r];
+      src = stencil->a.data() + static_cast<std::size_t>(r) * kSlots * kBlock;
+    }
+    if (!present) continue;
+    const std::array<const AxisWeights*, 3> wi{&weights[b][0][p[0]], &weights[b][1][p[1]], &weights[b][2][p[2]]};
+    std::array<int, 3> c0;
+    for (int a = 0; a < 3; ++a) c0[a] = wi[a]->at[0] - 1;
+    std::uint64_t touched = 0;
+    for (int s = 0; s < kSlots; ++s) {
+      if (!(present >> s & 1)) continue;
+      const int d[3] = {s % 3 - 1, s / 3 % 3 - 1, s / 9 - 1};
+      std::array<const AxisWeights*, 3> wj;
+      for (int a = 0; a < 3; ++a) {
+        const int q = p[a] + d[a];
+        PetscCheck(q >= 0 && q < static_cast<int>(weights[b][a].size()), PETSC_COMM_SELF, PETSC_ERR_PLIB,
+                   "lattice Galerkin product: a block outside the lattice");
+        wj[a] = &weights[b][a][q];
+      }
+      const double* blk = src + s * kBlock;
+      for (int x = 0; x < wj[0]->n; ++x)
+        for (int y = 0; y < wj[1]->n; ++y)
+          for (int z = 0; z < wj[2]->n; ++z) {
+            const int J0 = wj[0]->at[x] - c0[0], J1 = wj[1]->at[y] - c0[1], J2 = wj[2]->at[z] - c0[2];
+            PetscCheck(J0 >= 0 && J0 < 4 && J1 >= 0 && J1 < 4 && J2 >= 0 && J2 < 4, PETSC_COMM_SELF, PETSC_ERR_PLIB,
+                       "lattice Galerkin product: a coarse node outside the box");
+            const int t = J0 + 4 * J1 + 16 * J2;
+            const double w = wj[0]->w[x] * wj[1]->w[y] * wj[2]->w[z];
+            double* to = T.data() + t * kBlock;
+            if (!(touched >> t & 1)) {
+              touched |= std::uint64_t{1} << t;
+              for (int e = 0; e < kBlock; ++e) to[e] = w * blk[e];
+            } else {
+              for (int e = 0; e < kBlock; ++e) to[e] += w * blk[e];
+            }
+          }
+    }
+    // Every touched J within one coarse plane of every I, so the slot arithmetic below cannot wrap.
+    std::array<int, 3> lo{4, 4, 4}, hi{-1, -1, -1};
+    for (std::uint64_t rest = touched; rest; rest &= rest - 1) {
+      const int t = __builtin_ctzll(rest), tc[3] = {t % 4, t / 4 % 4, t / 16};
+      for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], tc[a]), hi[a] = std::max(hi[a], tc[a]);
+    }
+    for (int a = 0; a < 3; ++a)
+      PetscCheck(c0[a] + lo[a] >= wi[a]->at[wi[a]->n - 1] - 1 && c0[a] + hi[a] <= wi[a]->at[0] + 1, PETSC_COMM_SELF,
+                 PETSC_ERR_PLIB, "lattice Galerkin product: a coarse block beyond the 27-point stencil");
+    for (int x = 0; x < wi[0]->n; ++x)
+      for (int y = 0; y < wi[1]->n; ++y)
+        for (int z = 0; z < wi[2]->n; ++z) {
+          const int I[3] = {wi[0]->at[x], wi[1]->at[y], wi[2]->at[z]};
+          const double w = wi[0]->w[x] * wi[1]->w[y] * wi[2]->w[z];
+          const int r = acc.find_or_add(box.id(planes[l + 1][b][0][I[0]], planes[l + 1][b][1][I[1]],
+                                               planes[l + 1][b][2][I[2]]));
+          // J - I along each axis is -1, 0 or 1 (a fine neighbour's enclosing planes are at most one coarse
+          // plane from the node's own), so slot = the box index shifted by the node's place in the box.
+          const int shift = slot_of(c0[0] - I[0], c0[1] - I[1], c0[2] - I[2]);
+          double* row = acc.block(r, 0);
+          std::uint32_t bits = 0;
+          for (std::uint64_t rest = touched; rest; rest &= rest - 1) {
+            const int t = __builtin_ctzll(rest);
+            const int s = shift + kBoxToSlot[t];
+            double* to = row + s * kBlock;
+            const double* from = T.data() + t * kBlock;
+            for (int e = 0; e < kBlock; ++e) to[e] += w * from[e];
+            bits |= 1u << s;
+          }
+          acc.present[r] |= bits;
+        }
+  }
+  if (l == 0) {
+    PetscInt rows;
+    PetscBool done;
+    PetscCall(MatSeqAIJRestoreArrayRead(parts.Ad, &dv));
+    PetscCall(MatRestoreRowIJ(parts.Ad, 0, PETSC_FALSE, PETSC_FALSE, &rows, &dia, &dja, &done));
+    if (parts.Ao) {
+      PetscCall(MatSeqAIJRestoreArrayRead(parts.Ao, &ov));
+      PetscCall(MatRestoreRowIJ(parts.Ao, 0, PETSC_FALSE, PETSC_FALSE, &rows, &oia, &oja, &done));
+    }
+  }
+
+  // 2. The level l+1 numbers (8 first unknown + free mask) of every row collected and of every stencil
+  //    neighbour of this rank's coarse nodes: this rank's own from its list (ascending ids), the others through
+  //    the directory (asking for every neighbour was, at 10^6 molecules, the run's peak memory).
+  const auto& cnodes = levels_.owned_nodes[l + 1];
+  const auto& cbase = levels_.base[l + 1];
+  std::vector<std::int64_t> mine(cnodes.size()), asked;
+  std::vector<PetscInt> packed(cnodes.size()), answers;
+  std::vector<std::array<int, 3>> cplane(cnodes.size());
+  for (std::size_t c = 0; c < cnodes.size(); ++c) {
+    const int i = cnodes[c];
+    mine[c] = model_.id[i], packed[c] = 8 * cbase[c] + free_mask(i);
+    const int b = model_.body[i];
+    for (int a = 0; a < 3; ++a) cplane[c][a] = position(planes[l + 1][b][a], ijk_[i][a]);
+  }
+  const bool ascending = std::is_sorted(mine.begin(), mine.end());
+  auto own = [&](std::int64_t g) {
+    const auto it = std::lower_bound(mine.begin(), mine.end(), g);
+    return ascending && it != mine.end() && *it == g ? static_cast<std::ptrdiff_t>(it - mine.begin()) : -1;
+  };
+  for (std::int64_t g : acc.id)
+    if (own(g) < 0) asked.push_back(g);
+  for (std::size_t c = 0; c < cnodes.size(); ++c) {
+    const int b = model_.body[cnodes[c]];
+    const BoxGeometry& box = shape.body(b);
+    for (int s = 0; s < kSlots; ++s) {
+      const int q[3] = {cplane[c][0] + s % 3 - 1, cplane[c][1] + s / 3 % 3 - 1, cplane[c][2] + s / 9 - 1};
+      bool inside = true;
+      for (int a = 0; a < 3; ++a) inside = inside && q[a] >= 0 && q[a] < static_cast<int>(planes[l + 1][b][a].size());
+      if (!inside) continue;
+      const std::int64_t g = box.id(planes[l + 1][b][0][q[0]], planes[l + 1][b][1][q[1]], planes[l + 1][b][2][q[2]]);
+      if (own(g) < 0) asked.push_back(g);
+    }
+  }
+  std::sort(asked.begin(), asked.end());
+  asked.erase(std::unique(asked.begin(), asked.end()), asked.end());
+  PetscCall(lattice_lookup(model_.comm, shape.molecules(), mine, packed, asked, answers));
+  auto number = [&](std::int64_t g) {
+    const std::ptrdiff_t c = own(g);
+    return c >= 0 ? packed[c] : answers[std::lower_bound(asked.begin(), asked.end(), g) - asked.begin()];
+  };
+
+  // 3. Rows of coarse nodes owned elsewhere go to their owners (the rank whose unknowns hold the node's first);
+  //    a node with every component held has no row at all.
+  const int size = model_.size;
+  std::vector<PetscInt> firsts(size), counts(size);
+  PetscCallMPI(MPI_Allgather(&levels_.first[l + 1], 1, MPIU_INT, firsts.data(), 1, MPIU_INT, model_.comm));
+  PetscCallMPI(MPI_Allgather(&levels_.count[l + 1], 1, MPIU_INT, counts.data(), 1, MPIU_INT, model_.comm));
+  auto owner = [&](PetscInt num) {
+    const PetscInt base = num / 8;
+    for (int r = 0; r < size; ++r)
+      if (base >= firsts[r] && base < firsts[r] + counts[r]) return r;
+    return -1;
+  };
+  constexpr int kRecord = 2 + kSlots * kBlock;  // id, presence bits, blocks
+  std::vector<std::vector<double>> out(size);
+  for (std::size_t r = 0; r < acc.id.size(); ++r) {
+    const PetscInt num = number(acc.id[r]);
+    if (num % 8 == 0) continue;
+    const int to = owner(num);
+    PetscCheck(to >= 0, model_.comm, PETSC_ERR_PLIB, "lattice Galerkin product: a coarse node has no owner");
+    if (to == model_.rank) continue;
+    auto& o = out[to];
+    o.push_back(static_cast<double>(acc.id[r]));
+    o.push_back(static_cast<double>(acc.present[r]));
+    o.insert(o.end(), acc.block(static_cast<int>(r), 0), acc.block(static_cast<int>(r), 0) + kSlots * kBlock);
+  }
+  std::vector<int> send(size), recv(size), sdisp(size + 1, 0), rdisp(size + 1, 0);
+  for (int r = 0; r < size; ++r) send[r] = static_cast<int>(out[r].size());
+  PetscCallMPI(MPI_Alltoall(send.data(), 1, MPI_INT, recv.data(), 1, MPI_INT, model_.comm));
+  std::vector<double> sendbuf;
+  for (int r = 0; r < size; ++r) {
+    sdisp[r + 1] = sdisp[r] + send[r], rdisp[r + 1] = rdisp[r] + recv[r];
+    sendbuf.insert(sendbuf.end(), out[r].begin(), out[r].end());
+  }
+  out = {};
+  std::vector<double> recvbuf(rdisp[size]);
+  PetscCallMPI(MPI_Alltoallv(sendbuf.data(), send.data(), sdisp.data(), MPI_DOUBLE, recvbuf.data(), recv.data(),
+                             rdisp.data(), MPI_DOUBLE, model_.comm));
+  for (std::size_t q = 0; q < recvbuf.size(); q += kRecord) {
+    const int r = acc.find_or_add(static_cast<std::int64_t>(recvbuf[q]));
+    acc.present[r] |= static_cast<std::uint32_t>(recvbuf[q + 1]);
+    double* to = acc.block(r, 0);
+    for (int e = 0; e < kSlots * kBlock; ++e) to[e] += recvbuf[q + 2 + e];
+  }
+
+  // 4. This rank's coarse rows, held components (row's and column's) zeroed in place (row[c]: where node c's
+  //    row is; a copy in owned order would double the largest temporary), and the matrix.
+  acc.row.assign(cnodes.size(), -1);
+  const PetscInt cfirst = levels_.first[l + 1], clast = cfirst + levels_.count[l + 1];
+  std::vector<PetscInt> dnnz(levels_.count[l + 1], 0), onnz(levels_.count[l + 1], 0);
+  std::array<PetscInt, kSlots> jnum{};
+  std::array<int, kSlots> order{};  // the present slots by column, once `neighbours` ran
+  int norder = 0;
+  auto neighbours = [&](std::size_t c) {
+    const int b = model_.body[cnodes[c]];
+    const BoxGeometry& box = shape.body(b);
+    norder = 0;
+    const std::uint32_t bits = acc.present[acc.row[c]];
+    for (int s = 0; s < kSlots; ++s) {
+      if (!(bits >> s & 1)) continue;
+      const int q[3] = {cplane[c][0] + s % 3 - 1, cplane[c][1] + s / 3 % 3 - 1, cplane[c][2] + s / 9 - 1};
+      jnum[s] = number(box.id(planes[l + 1][b][0][q[0]], planes[l + 1][b][1][q[1]], planes[l + 1][b][2][q[2]]));
+      order[norder++] = s;
+    }
+    // Columns in increasing order, as AIJ keeps them.
+    std::sort(order.begin(), order.begin() + norder, [&](int x, int y) { return jnum[x] < jnum[y]; });
+  };
+  for (std::size_t c = 0; c < cnodes.size(); ++c) {
+    const int mask = packed[c] % 8;
+    if (!mask) continue;
+    const auto it = acc.index.find(mine[c]);
+    PetscCheck(it != acc.index.end(), PETSC_COMM_SELF, PETSC_ERR_PLIB, "lattice Galerkin product: an empty coarse row");
+    const int r = acc.row[c] = it->second;
+    neighbours(c);
+    for (int s = 0; s < kSlots; ++s) {
+      if (!(acc.present[r] >> s & 1)) continue;
+      const int jmask = static_cast<int>(jnum[s] % 8);
+      double* blk = acc.block(r, s);
+      for (int k = 0; k < 3; ++k)
+        for (int m = 0; m < 3; ++m)
+          if (!(mask >> k & 1) || !(jmask >> m & 1)) blk[3 * k + m] = 0.0;
+      if (!jmask) {
+        acc.present[r] &= ~(1u << s);
+        continue;
+      }
+      const PetscInt jb = jnum[s] / 8;
+      const bool local = jb >= cfirst && jb < clast;
+      for (int k = 0, row = static_cast<int>(cbase[c] - cfirst); k < 3; ++k)
+        if (mask >> k & 1) (local ? dnnz : onnz)[row++] += __builtin_popcount(jmask);
+    }
+  }
+  // The matrix's CSR arrays, diagonal and off-diagonal parts (off-diagonal columns global), written here and
+  // handed to PETSc without a copy: the pattern is the lattice's, the same on every call, so a refill writes
+  // the values in the same places.
+  Csr& m = csr_[l + 1];
+  Mat& C = coarse_[l + 1];
+  const PetscInt nrows = levels_.count[l + 1];
+  if (!C) {
+    m.di.assign(nrows + 1, 0), m.oi.assign(nrows + 1, 0);
+    for (PetscInt r = 0; r < nrows; ++r) m.di[r + 1] = m.di[r] + dnnz[r], m.oi[r + 1] = m.oi[r] + onnz[r];
+    m.dj.resize(m.di[nrows]), m.dv.resize(m.di[nrows]);
+    m.oj.resize(m.oi[nrows]), m.ov.resize(m.oi[nrows]);
+  }
+  const bool fresh = !C;
+  for (std::size_t c = 0; c < cnodes.size(); ++c) {
+    const int mask = packed[c] % 8;
+    if (!mask) continue;
+    neighbours(c);
+    for (int k = 0, row = static_cast<int>(cbase[c] - cfirst); k < 3; ++k) {
+      if (!(mask >> k & 1)) continue;
+      PetscInt d = m.di[row], o = m.oi[row];
+      for (int q = 0; q < norder; ++q) {
+        const int s = order[q];
+        const int jmask = static_cast<int>(jnum[s] % 8);
+        const double* blk = acc.block(acc.row[c], s);
+        const PetscInt jb = jnum[s] / 8;
+        const bool local = jb >= cfirst && jb < clast;
+        for (int mm = 0, col = static_cast<int>(jb); mm < 3; ++mm) {
+          if (!(jmask >> mm & 1)) continue;
+          if (local) {
+            if (fresh) m.dj[d] = col - cfirst;
+            m.dv[d++] = blk[3 * k + mm];
+          } else {
+            if (fresh) m.oj[o] = col;
+            m.ov[o++] = blk[3 * k + mm];
+          }
+          ++col;
+        }
+      }
+      PetscCheck(d == m.di[row + 1] && o == m.oi[row + 1], PETSC_COMM_SELF, PETSC_ERR_PLIB,
+                 "lattice Galerkin product: the coarse pattern changed");
+      ++row;
+    }
+  }
+  if (fresh) {
+    if (model_.size == 1)
+      PetscCall(MatCreateSeqAIJWithArrays(model_.comm, nrows, nrows, m.di.data(), m.dj.data(), m.dv.data(), &C));
+    else
+      PetscCall(MatCreateMPIAIJWithSplitArrays(model_.comm, nrows, nrows, PETSC_DETERMINE, PETSC_DETERMINE, m.di.data(),
+                                               m.dj.data(), m.dv.data(), m.oi.data(), m.oj.data(), m.ov.data(), &C));
+    PetscCall(MatSetOption(C, MAT_SYMMETRIC, PETSC_TRUE));
+    PetscCall(MatSetOption(C, MAT_SYMMETRY_ETERNAL, PETSC_TRUE));
+  } else {
+    PetscCall(PetscObjectStateIncrease(reinterpret_cast<PetscObject>(C)));  // new values in the same arrays
+  }
+  acc.index = {};
+  next = std::move(acc);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode LatticeGalerkin::update(Mat fine, PC pc) {
+  PetscFunctionBeginUser;
+  PetscCall(PetscLogEventBegin(galerkin_event(), pc, fine, 0, 0));
+  index_molecules();
+  const int L = static_cast<int>(levels_.planes.size());
+  Rows stencil, next;
+  for (int l = 0; l + 1 < L; ++l) {
+    PetscCall(coarsen(l, fine, l == 0 ? nullptr : &stencil, next));
+    std::swap(stencil, next);
+    KSP level;
+    PetscCall(PCMGGetSmoother(pc, L - 2 - l, &level));  // PCMG counts levels from the coarsest
+    PetscCall(KSPSetOperators(level, coarse_[l + 1], coarse_[l + 1]));
+  }
+  ijk_ = {};
+  PetscCall(PetscLogEventEnd(galerkin_event(), pc, fine, 0, 0));
+  PetscFunctionReturn(0);
+}
+
+}  // namespace tissue

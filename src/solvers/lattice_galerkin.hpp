@@ -1,0 +1,53 @@
+// The lattice multigrid's Galerkin coarse operators P^T A P computed from the lattice's structure instead of by a
+// general sparse triple product (hypre's or PETSc's). The interpolation is trilinear in the lattice plane
+// indices with the same weight for the three components (lattice_mg.hpp), and the tangent couples a molecule
+// only to molecules at most one plane away along each axis, so every operator in the hierarchy is a 27-point
+// stencil of 3x3 blocks in its own level's plane indices: each coarse block is a sum of w_iI w_jJ A_ij over the
+// fine blocks, computed a 3x3 block at a time with no index search (a general product works entry by entry,
+// and at 64,000 molecules hypre's took about as many instructions as all the solve's matrix-vector products).
+// Held components are rows and columns of zeros in the blocks (the identity rows of the tangent are dropped),
+// which is exactly the masked interpolation lattice_mg.cpp builds. Applies only when every block of the fine
+// operator joins molecules of one box at most one plane apart (applies()); otherwise PCMG's own product stays.
+#pragma once
+#include <petscpc.h>
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "partition/local_model.hpp"
+#include "src/solvers/lattice_mg.hpp"
+
+namespace tissue {
+
+class LatticeGalerkin {
+public:
+  LatticeGalerkin(const LocalModel& model, const std::vector<std::uint8_t>& held, LatticeLevels levels);
+  ~LatticeGalerkin();
+  LatticeGalerkin(const LatticeGalerkin&) = delete;
+  LatticeGalerkin& operator=(const LatticeGalerkin&) = delete;
+
+  // Collective. Whether fine (the tangent: AIJ, 3 unknowns a molecule in owned order) is a lattice stencil.
+  PetscErrorCode applies(Mat fine, bool* ok) const;
+  // Collective. The coarse operators of every level from fine's current values, set as the operators of pc's
+  // (a PCMG with this hierarchy) coarser levels; the matrices are made on the first call and refilled after.
+  PetscErrorCode update(Mat fine, PC pc);
+
+private:
+  struct Rows;
+  PetscErrorCode coarsen(int l, Mat fine, const Rows* stencil, Rows& next);
+
+  const LocalModel& model_;
+  const std::vector<std::uint8_t>& held_;
+  LatticeLevels levels_;
+  void index_molecules() const;                  // fills ijk_, for the length of one call
+  mutable std::vector<std::array<int, 3>> ijk_;  // lattice indices of every local molecule (ghosts too)
+  struct Csr {
+    std::vector<PetscInt> di, dj, oi, oj;
+    std::vector<PetscScalar> dv, ov;
+  };
+  std::vector<Csr> csr_;     // the storage of coarse_ (PETSc does not copy it): destroyed after the matrices
+  std::vector<Mat> coarse_;  // coarse_[l]: the operator of level l (l >= 1; coarse_[0] unused)
+};
+
+}  // namespace tissue

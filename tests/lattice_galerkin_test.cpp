@@ -1,0 +1,103 @@
+// The lattice multigrid's structured coarse operators (src/solvers/lattice_galerkin.hpp) against PETSc's general
+// triple product MatPtAP with the same interpolations, level by level, on a deformed lattice (geometric tangent
+// terms), with roller and clamped faces (0-3 free components a node) and plane counts that leave a last plane
+// one step from the one before it. Run at 1, 2 and 3 ranks: the rows of coarse nodes owned elsewhere travel.
+#include <gtest/gtest.h>
+
+#include <petscksp.h>
+
+#include <cmath>
+
+#include "src/physics/force_model.hpp"
+#include "src/solvers/lattice_galerkin.hpp"
+#include "src/solvers/lattice_mg.hpp"
+#include "tests/pipeline.hpp"
+
+using namespace tissue;
+using tissue::test_pipeline::RunResult;
+using tissue::test_pipeline::run;
+
+namespace {
+
+const char* scene = R"(
+title = "lattice Galerkin"
+[body]
+molecules = [10, 7, 12]
+spacing = [1.0, 1.0, 1.0]
+topology = "face-diagonals"
+material = "custom"
+youngs_modulus = 2.5
+[calibration]
+method = "manual"
+stiffness = { edge = 1.0, face = 0.7 }
+[[fix]]
+face = "z-"
+mode = "roller"
+[[fix]]
+face = "x+"
+mode = "clamped"
+[solver]
+kind = "static"
+)";
+
+// || A - B ||_F / || B ||_F.
+double relative_difference(Mat A, Mat B) {
+  Mat D;
+  PetscReal diff = 0, ref = 0;
+  PetscCallAbort(PETSC_COMM_WORLD, MatDuplicate(A, MAT_COPY_VALUES, &D));
+  PetscCallAbort(PETSC_COMM_WORLD, MatAXPY(D, -1.0, B, DIFFERENT_NONZERO_PATTERN));
+  PetscCallAbort(PETSC_COMM_WORLD, MatNorm(D, NORM_FROBENIUS, &diff));
+  PetscCallAbort(PETSC_COMM_WORLD, MatNorm(B, NORM_FROBENIUS, &ref));
+  PetscCallAbort(PETSC_COMM_WORLD, MatDestroy(&D));
+  return diff / ref;
+}
+
+// The tangent at the rest positions moved by a smooth displacement (the same on every rank count).
+void assemble_at(const RunResult& r, double amplitude, Mat J) {
+  std::vector<double> x(r.model.rest);
+  for (int i = 0; i < r.model.local; ++i)
+    for (int d = 0; d < 3; ++d) x[3 * i + d] += amplitude * std::sin(0.7 * x[3 * i + (d + 1) % 3] + 0.3 * d + x[3 * i + d]);
+  PetscCallAbort(PETSC_COMM_WORLD, r.forces->assemble_tangent(x.data(), J));
+}
+
+}  // namespace
+
+TEST(LatticeGalerkin, EqualsPetscTripleProductOnEveryLevel) {
+  auto r = run(scene, PETSC_COMM_WORLD, {}, false);
+  Mat J;
+  ASSERT_EQ(r->forces->create_tangent(&J), 0);
+  PC pc;
+  ASSERT_EQ(PCCreate(PETSC_COMM_WORLD, &pc), 0);
+  PetscInt levels = 0;
+  LatticeLevels hierarchy;
+  ASSERT_EQ(setup_lattice_mg(r->model, r->forces->held(), pc, 40, &levels, &hierarchy), 0);
+  ASSERT_GE(levels, 3);  // 840 molecules, at most 40 on the coarsest: 10x7x12 -> 6x4x7 -> 4x3x4 -> 3x2x3
+  LatticeGalerkin galerkin(r->model, r->forces->held(), std::move(hierarchy));
+  bool stencil = false;
+  ASSERT_EQ(galerkin.applies(J, &stencil), 0);
+  EXPECT_TRUE(stencil);
+  for (double amplitude : {0.05, 0.12}) {  // the second call refills the matrices made by the first
+    assemble_at(*r, amplitude, J);
+    ASSERT_EQ(galerkin.update(J, pc), 0);
+    Mat fine = J;
+    PetscObjectReference(reinterpret_cast<PetscObject>(fine));
+    for (PetscInt l = levels - 1; l >= 1; --l) {  // PCMG numbers the finest level levels - 1
+      Mat P, reference, ours;
+      KSP smoother;
+      ASSERT_EQ(PCMGGetInterpolation(pc, l, &P), 0);
+      ASSERT_EQ(MatPtAP(fine, P, MAT_INITIAL_MATRIX, PETSC_DEFAULT, &reference), 0);
+      ASSERT_EQ(PCMGGetSmoother(pc, l - 1, &smoother), 0);
+      ASSERT_EQ(KSPGetOperators(smoother, &ours, nullptr), 0);
+      PetscInt rows_ref, rows_ours;
+      MatGetSize(reference, &rows_ref, nullptr);
+      MatGetSize(ours, &rows_ours, nullptr);
+      ASSERT_EQ(rows_ours, rows_ref) << "level " << l - 1;
+      EXPECT_LT(relative_difference(ours, reference), 1e-13) << "level " << l - 1 << ", amplitude " << amplitude;
+      MatDestroy(&fine);
+      fine = reference;  // the next level from PETSc's own product of this one
+    }
+    MatDestroy(&fine);
+  }
+  PCDestroy(&pc);
+  MatDestroy(&J);
+}

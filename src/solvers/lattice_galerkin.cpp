@@ -25,28 +25,12 @@ constexpr std::array<int, 64> box_to_slot() {
 }
 constexpr std::array<int, 64> kBoxToSlot = box_to_slot();
 
-// Where a plane of level l sits among the planes of level l+1: on one (n = 1, weight 1) or between two (n = 2),
-// the same weights as lattice_mg.cpp's interpolation.
-struct AxisWeights {
-  int n = 0;
-  std::array<int, 2> at{};
-  std::array<double, 2> w{};
-};
+// Each plane of level l among the planes of level l+1: the interpolation's own weights (lattice_mg.hpp).
+using AxisWeights = PlaneWeights;
 
 std::vector<AxisWeights> axis_weights(const std::vector<long>& fine, const std::vector<long>& coarse) {
   std::vector<AxisWeights> out(fine.size());
-  for (std::size_t p = 0; p < fine.size(); ++p) {
-    const long x = fine[p];
-    const auto c = static_cast<int>(std::lower_bound(coarse.begin(), coarse.end(), x) - coarse.begin());
-    if (coarse[c] == x) {
-      out[p].n = 1, out[p].at[0] = c, out[p].w[0] = 1.0;
-    } else {
-      const long lo = coarse[c - 1], hi = coarse[c];
-      out[p].n = 2;
-      out[p].at = {c - 1, c};
-      out[p].w = {double(hi - x) / double(hi - lo), double(x - lo) / double(hi - lo)};
-    }
-  }
+  for (std::size_t p = 0; p < fine.size(); ++p) out[p] = plane_weights(coarse, fine[p]);
   return out;
 }
 

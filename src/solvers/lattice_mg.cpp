@@ -81,6 +81,20 @@ PetscErrorCode lattice_lookup(MPI_Comm comm, std::int64_t total, const std::vect
   PetscFunctionReturn(0);
 }
 
+PlaneWeights plane_weights(const std::vector<long>& coarse, long x) {
+  PlaneWeights pw;
+  const auto c = static_cast<int>(std::lower_bound(coarse.begin(), coarse.end(), x) - coarse.begin());
+  if (coarse[c] == x) {
+    pw.n = 1, pw.at[0] = c, pw.w[0] = 1.0;
+  } else {
+    const long lo = coarse[c - 1], hi = coarse[c];
+    pw.n = 2;
+    pw.at = {c - 1, c};
+    pw.w = {double(hi - x) / double(hi - lo), double(x - lo) / double(hi - lo)};
+  }
+  return pw;
+}
+
 PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::uint8_t>& held, PC pc,
                                 long coarse_nodes, PetscInt* levels, LatticeLevels* hierarchy) {
   PetscFunctionBeginUser;
@@ -167,25 +181,17 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
       const int b = shape.body_of(g);
       const BoxGeometry& box = shape.body(b);
       const auto ijk = box.index(g);
-      std::array<std::array<long, 2>, 3> at{};
-      std::array<std::array<double, 2>, 3> w{};
-      std::array<int, 3> m{};
+      std::array<std::array<long, 2>, 3> at{};  // the enclosing planes, as molecule indices
+      std::array<PlaneWeights, 3> w;
       for (int a = 0; a < 3; ++a) {
         const auto& s = planes[l + 1][b][a];
-        const auto p = std::lower_bound(s.begin(), s.end(), ijk[a]) - s.begin();
-        if (s[p] == ijk[a]) {
-          m[a] = 1, at[a][0] = ijk[a], w[a][0] = 1.0;
-        } else {
-          const long lo = s[p - 1], hi = s[p];
-          m[a] = 2;
-          at[a] = {lo, hi};
-          w[a] = {double(hi - ijk[a]) / double(hi - lo), double(ijk[a] - lo) / double(hi - lo)};
-        }
+        w[a] = plane_weights(s, ijk[a]);
+        for (int k = 0; k < w[a].n; ++k) at[a][k] = s[w[a].at[k]];
       }
-      for (int x = 0; x < m[0]; ++x)
-        for (int y = 0; y < m[1]; ++y)
-          for (int z = 0; z < m[2]; ++z)
-            entries.push_back({box.id(at[0][x], at[1][y], at[2][z]), w[0][x] * w[1][y] * w[2][z]});
+      for (int x = 0; x < w[0].n; ++x)
+        for (int y = 0; y < w[1].n; ++y)
+          for (int z = 0; z < w[2].n; ++z)
+            entries.push_back({box.id(at[0][x], at[1][y], at[2][z]), w[0].w[x] * w[1].w[y] * w[2].w[z]});
       start[r + 1] = static_cast<int>(entries.size());
     }
     // The directory carries each coarse node's first unknown and free-component mask, packed as 8 base + mask.

@@ -26,6 +26,16 @@ struct LatticeLevels {
   std::vector<PetscInt> first, count;         // this rank's first unknown and number of unknowns
 };
 
+// Where lattice plane x sits among a coarser level's planes (sorted, containing the first and last plane): on
+// plane at[0] (n = 1, weight 1) or between planes at[0] and at[1] (n = 2, linear weights); at indexes `coarse`.
+// The interpolation and the structured Galerkin product (lattice_galerkin.cpp) both take their weights here.
+struct PlaneWeights {
+  int n = 0;
+  std::array<int, 2> at{};
+  std::array<double, 2> w{};
+};
+PlaneWeights plane_weights(const std::vector<long>& coarse, long x);
+
 // Collective. Makes pc a PCMG with the lattice hierarchy (coarsest level at most about coarse_nodes molecules,
 // solved by PCMG's default redundant LU), Galerkin coarse operators. levels = number of levels built (1: the
 // lattice is already that small, or a body is a mesh or random cloud, and pc is left untouched). hierarchy, when

@@ -296,4 +296,6 @@ TetMesh read_gmsh(const std::string& path) {
   return mesh;
 }
 
+TetMesh read_mesh(const BodySpec& spec) { return read_gmsh(spec.file); }
+
 }  // namespace tissue

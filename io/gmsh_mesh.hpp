@@ -14,4 +14,7 @@ namespace tissue {
 // (or other than a triangle on a physical surface), an inverted or flat tetrahedron, an unknown node.
 TetMesh read_gmsh(const std::string& path);
 
+// A mesh body's tetrahedra (its `file`): the MeshReader the driver hands to the model (src/model/unstructured.hpp).
+TetMesh read_mesh(const BodySpec& spec);
+
 }  // namespace tissue

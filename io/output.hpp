@@ -8,7 +8,7 @@
 
 #include "io/xdmf.hpp"
 #include "partition/natural_order.hpp"
-#include "src/measure.hpp"
+#include "src/measure/measure.hpp"
 #include "src/solvers/solver.hpp"
 
 namespace tissue {

@@ -23,13 +23,6 @@
 
 namespace tissue {
 
-bool parse_face(const std::string& face, int& axis, int& side) {
-  if (face.size() != 2 || face[0] < 'x' || face[0] > 'z' || (face[1] != '-' && face[1] != '+')) return false;
-  axis = face[0] - 'x';
-  side = face[1] == '+' ? 1 : 0;
-  return true;
-}
-
 namespace {
 
 // std::map tables keep the serialized text (Scene::text) in a fixed, sorted order.

@@ -13,7 +13,7 @@
 #pragma once
 #include <mpi.h>
 
-#include "io/scene.hpp"
+#include "src/model/scene.hpp"
 #include "partition/local_model.hpp"
 
 namespace tissue {

@@ -190,14 +190,14 @@ bool compact_connection_types(LocalModel& m) {
   return true;
 }
 
-LocalModel build_local_model(const Scene& scene, MPI_Comm comm) {
+LocalModel build_local_model(const Scene& scene, MPI_Comm comm, const MeshReader& read_mesh) {
   // Explicit topologies (meshes, random clouds) come as lists: the explicit path. Box lattices from stencils.
   const std::vector<BodySpec>& specs = scene.bodies;
   const bool is_explicit = std::any_of(specs.begin(), specs.end(), [](const BodySpec& b) { return b.unstructured(); }) ||
                            scene.body.unstructured();
   LocalModel m;
   if (is_explicit) {
-    Body body = build_body(scene);
+    Body body = build_body(scene, read_mesh);
     PartitionStats stats;
     std::vector<int> part = partition_molecules(body, comm, stats, scene.partition.method);
     m = distribute(body, part, stats, comm);

@@ -128,7 +128,7 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
 
 // Collective. This rank's LocalModel of the scene, by the cheapest path that describes it: box lattices are
 // generated rank by rank from their stencils (partition/lattice_model.hpp), anything else goes through the
-// explicit path.
-LocalModel build_local_model(const Scene& scene, MPI_Comm comm);
+// explicit path (mesh bodies read by `read_mesh`, io/gmsh_mesh.hpp's read_mesh).
+LocalModel build_local_model(const Scene& scene, MPI_Comm comm, const MeshReader& read_mesh = {});
 
 }  // namespace tissue

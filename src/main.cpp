@@ -27,15 +27,10 @@
 #include <vector>
 
 #include "io/checkpoint.hpp"
+#include "io/gmsh_mesh.hpp"
 #include "io/output.hpp"
 #include "io/scene.hpp"
-#include "partition/local_model.hpp"
-#include "partition/metis_partition.hpp"
-#include "src/calibration/calibration.hpp"
-#include "src/measure.hpp"
-#include "src/model/body.hpp"
-#include "src/physics/force_model.hpp"
-#include "src/solvers/solver.hpp"
+#include "src/driver/simulation.hpp"
 
 using namespace tissue;
 
@@ -87,102 +82,72 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
                    header.title.c_str(), header.step, header.ranks, ranks);
   }
   if (!output.empty()) scene.output.directory = output;
+  Simulation sim(std::move(scene), comm);
 
-  // 2-3. Build this rank's share of the body: METIS partitions the connection graph; each rank keeps its
+  // 2-3. Build this rank's share of the bodies: METIS partitions the connection graph; each rank keeps its
   //      molecules, their ghosts and their connections, with material and mass per molecule. Box lattices are
-  //      generated rank by rank from the topology's stencil: no rank holds the whole body.
-  LocalModel model = build_local_model(scene, comm);
+  //      generated rank by rank from the topology's stencil: no rank holds the whole body. Mesh files are read
+  //      by io's reader (io/gmsh_mesh.hpp).
+  sim.build(read_mesh);
+  const LocalModel& model = sim.model();
   if (root)
     std::printf("tissue: %lld molecules, %lld connections on %d ranks; edge cut %ld, imbalance %.3f, "
                          "ghosts/owned %.3f\n",
                  static_cast<long long>(model.global_molecules), static_cast<long long>(model.global_connections),
                  model.size, model.partition.edge_cut, model.partition.imbalance,
                  model.partition.surface_to_volume);
-  const TensionTest test = tension_test(scene, model.shape);
 
-  // 4. Calibrate: a stiffness per connection from the material (one method per file, chosen by name), each body
-  //    by its own method (Scene::calibrations); `refresh` re-sets the k of the bodies whose method follows the
-  //    deformation (angles-update), installed as the solver's refresh hook in step 6.
-  const CalibrationRefresher refresh = calibrate_scene(scene, model, model.stiffness);
-  // A k that no longer changes is stored by connection type when few distinct (k, l0) pairs exist: 2 bytes a
-  // connection instead of 16, and less memory traffic in the force kernel; what only calibration reads goes.
-  if (stiffness_is_final(scene, refresh)) {
-    compact_connection_types(model);
-    release_calibration_inputs(model);
-  }
+  // 4. Calibrate: a stiffness per connection from the material (one method per file), each body by its own
+  //    method (Scene::calibrations). A k that no longer changes is stored by connection type: 2 bytes a
+  //    connection instead of 16, and less memory traffic in the force kernel; what only calibration reads goes.
+  sim.calibrate();
 
   // 5. The force model: the connection forces plus only the terms the scene lists; loads and holds.
-  ForceModel forces(scene, model);
-  const double dt_critical = critical_time_step(forces);  // collective
+  sim.make_forces();
   if (root) {
-    std::printf("tissue: critical time step %.6e s\n", dt_critical);
+    std::printf("tissue: critical time step %.6e s\n", sim.critical_time_step());
     std::fflush(stdout);
   }
 
-  // 6. Solve, writing snapshots and checkpoints as the scene asks; a restart loads its state first.
-  SolverState state(model);
-  Output out(scene, model);
+  // 6. Solve, writing snapshots and checkpoints as the scene asks; a restart loads its state first. A method
+  //    that follows the deformation (angles-update) refreshes k during the solve; one that wraps the solver
+  //    (iterative) runs it.
+  Output out(sim.scene(), model);
   if (!checkpoint.empty())
-    read_checkpoint_state(checkpoint, model, out.molecules(), out.connections(), state,
-                          /*check_stiffness=*/!refresh);
+    read_checkpoint_state(checkpoint, model, out.molecules(), out.connections(), sim.state(),
+                          /*check_stiffness=*/!sim.refresh());
   SolverHooks hooks;
-  hooks.snapshot = [&](const SolverState& s) { out.snapshot(s, forces); };
+  hooks.snapshot = [&](const SolverState& s) { out.snapshot(s, sim.forces()); };
   std::string last_checkpoint;
   hooks.checkpoint = [&](const SolverState& s) { last_checkpoint = out.checkpoint(s); };
-  if (refresh) hooks.refresh = refresh;
-  SolveReport report;
-  int code = 0;
-  std::string failure;
-  bool state_usable = true;
-  try {
-    if (scene.calibration.method == "iterative")  // wraps the solver: C adjusted until Eq. 3 reads E (one body)
-      solve_iterative(scene, model, forces, state, hooks, test, report);
-    else
-      report = solve(scene, model, forces, state, hooks);
-    if (report.interrupted) {
-      if (root)
-        std::fprintf(stderr, "tissue: stop requested (SIGTERM/SIGINT): checkpoint written at step %ld; continue "
-                             "with: tissue restart %s\n", state.step, last_checkpoint.c_str());
-    } else if (!report.converged) {
-      code = 3;
-      failure = report.kind + ": not converged after " + std::to_string(report.iterations) +
-                " iterations (relative residual " + std::to_string(report.residual) + ")";
-    }
-  } catch (const SolverFailure& e) {
-    code = 3, failure = e.what(), state_usable = e.state_usable();
-    report.kind = scene.solver.kind;
-  }
+  sim.solve(hooks);
+  const SolveReport& report = sim.report();
+  if (report.interrupted && root)
+    std::fprintf(stderr, "tissue: stop requested (SIGTERM/SIGINT): checkpoint written at step %ld; continue "
+                         "with: tissue restart %s\n", sim.state().step, last_checkpoint.c_str());
 
   // 7. Measure: Eq. 3, Poisson ratio, centre of mass, kinetic energy.
-  Measurements measured = measure(scene, model, test, state.x.array(), state.v.data());
-  Measurements initial = measure(scene, model, test, model.rest.data(), nullptr);
-  measure_contact(forces, measured);  // the contact forces of the final state's force evaluation
+  sim.measure();
 
   // 8. Write the final state (unless it is not finite) and summary.json.
-  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  // A solver failure caught by the guards (src/solvers/guards.hpp) has put the last good state back into `state`:
-  // it is written as DIR/last_good.h5, never as final.h5. A non-finite state is not written at all.
-  if (!state_usable) {
-    // nothing to write: the guard had no good state to put back
-  } else if (failure.find("last good state") != std::string::npos)
-    out.snapshot(state, forces, /*final=*/false, "last_good.h5");
-  else if (failure.find("non-finite") == std::string::npos && !report.interrupted)
-    out.snapshot(state, forces, /*final=*/true);
-  out.summary(test, measured, initial, report, state, wall, failure);
+  sim.write(out, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
   if (root) {
+    const Scene& sc = sim.scene();
+    const TensionTest& test = sim.test();
+    const Measurements& measured = sim.measured();
     if (test.valid && measured.youngs_modulus)
       std::printf("%s\n  E target %.6g Pa, measured %.6g Pa, error %+.4f %%; elongation %.6e m; %s %ld iterations, "
                   "residual %.2e\n",
-                  scene.title.c_str(), scene.bodies[test.body].youngs_modulus, *measured.youngs_modulus,
-                  100.0 * (*measured.youngs_modulus - scene.bodies[test.body].youngs_modulus) /
-                      scene.bodies[test.body].youngs_modulus,
+                  sc.title.c_str(), sc.bodies[test.body].youngs_modulus, *measured.youngs_modulus,
+                  100.0 * (*measured.youngs_modulus - sc.bodies[test.body].youngs_modulus) /
+                      sc.bodies[test.body].youngs_modulus,
                   *measured.elongation, report.kind.c_str(), report.iterations, report.residual);
     else
-      std::printf("%s\n  %s: %ld steps, kinetic energy %.6e J\n", scene.title.c_str(), report.kind.c_str(),
+      std::printf("%s\n  %s: %ld steps, kinetic energy %.6e J\n", sc.title.c_str(), report.kind.c_str(),
                   report.iterations, measured.kinetic_energy);
-    if (code) std::fprintf(stderr, "tissue: %s\n", failure.c_str());
+    if (sim.failed()) std::fprintf(stderr, "tissue: %s\n", sim.failure().c_str());
   }
-  return code;
+  return sim.failed() ? 3 : 0;
 }
 
 // PETSc ignores options it does not know: a typo after -- (-ksp_typ gmres) would go unnoticed. After the run,

@@ -10,11 +10,12 @@
 #include <memory>
 #include <string>
 
+#include "io/gmsh_mesh.hpp"
 #include "io/scene.hpp"
 #include "partition/local_model.hpp"
 #include "partition/metis_partition.hpp"
 #include "src/calibration/calibration.hpp"
-#include "src/measure.hpp"
+#include "src/measure/measure.hpp"
 #include "src/model/body.hpp"
 #include "src/physics/force_model.hpp"
 #include "src/solvers/solver.hpp"
@@ -59,7 +60,7 @@ struct Built {
 std::unique_ptr<Built> build(const Scene& scene, MPI_Comm comm) {
   auto b = std::make_unique<Built>();
   b->scene = scene;
-  b->model = build_local_model(b->scene, comm);
+  b->model = build_local_model(b->scene, comm, read_mesh);
   find_calibration(b->scene.calibration.method)->compute(CalibrationContext{b->scene, b->model}, b->model.stiffness);
   return b;
 }
@@ -300,7 +301,7 @@ Result run(Built& b) {
   const TensionTest test = tension_test(b.scene, b.model.shape);
   Result r;
   if (b.scene.calibration.method == "iterative")
-    solve_iterative(b.scene, b.model, forces, state, hooks, test, r.report);
+    find_calibration("iterative")->wrap_solver(b.scene, b.model, forces, state, hooks, test, r.report);
   else
     r.report = solve(b.scene, b.model, forces, state, hooks);
   r.measured = measure(b.scene, b.model, test, state.x.array(), nullptr);

@@ -12,7 +12,7 @@
 #include "partition/local_model.hpp"
 #include "partition/metis_partition.hpp"
 #include "src/calibration/calibration.hpp"
-#include "src/measure.hpp"
+#include "src/measure/measure.hpp"
 #include "src/model/body.hpp"
 #include "src/solvers/solver.hpp"
 

@@ -234,7 +234,7 @@ double tet_volume(const Body& b, const Tetrahedron& t) {
 // density * volume.
 TEST(RandomInMesh, FillsTheSlab) {
   const Scene scene = parse_scene(slab_cloud_scene, "test.toml");
-  const Body b = build_body(scene);
+  const Body b = build_body(scene, read_mesh);
   const TetMesh slab = read_gmsh(scene.body.file);
   std::int64_t on_boundary = 0;
   for (const auto& x : slab.nodes)
@@ -271,7 +271,7 @@ name = "surface"
 youngs_modulus = 3.0e5
 density = 1500.0
 )", "test.toml");
-  const Body b = build_body(scene);
+  const Body b = build_body(scene, read_mesh);
   double below = 0, above = 0, mass = 0, longest = 0;
   for (const auto& t : b.tetrahedra) {
     double z = 0;
@@ -293,7 +293,7 @@ density = 1500.0
 // The L is not convex: no connection crosses the notch (its midpoint outside the L), the volume is the L's
 // 0.3 m^3 (the hull's would be 0.35), and the mass density * volume.
 TEST(RandomInMesh, NoConnectionAcrossTheNotch) {
-  const Body b = build_body(parse_scene(l_cloud_scene, "test.toml"));
+  const Body b = build_body(parse_scene(l_cloud_scene, "test.toml"), read_mesh);
   std::int64_t outside = 0;
   for (const auto& c : b.connections) {
     Vec3 m;
@@ -310,9 +310,9 @@ TEST(RandomInMesh, NoConnectionAcrossTheNotch) {
 
 // The seed fixes the cloud: the same seed gives the same positions bit for bit, another seed other ones.
 TEST(RandomInMesh, Seeded) {
-  const Body a = build_body(parse_scene(l_cloud_scene, "test.toml"));
-  const Body same = build_body(parse_scene(l_cloud_scene, "test.toml"));
-  const Body other = build_body(parse_scene(l_cloud_scene, "test.toml", {"body.seed=4"}));
+  const Body a = build_body(parse_scene(l_cloud_scene, "test.toml"), read_mesh);
+  const Body same = build_body(parse_scene(l_cloud_scene, "test.toml"), read_mesh);
+  const Body other = build_body(parse_scene(l_cloud_scene, "test.toml", {"body.seed=4"}), read_mesh);
   ASSERT_EQ(a.points.size(), same.points.size());
   EXPECT_TRUE(a.points == same.points);
   EXPECT_TRUE(a.connections.size() == same.connections.size());

@@ -1,50 +1,51 @@
-// The pipeline of src/main.cpp (steps 1-7) in process, for tests: scene text -> body -> partition ->
-// calibration -> force model -> solve -> measure, with everything kept for the test to look at.
+// The pipeline of src/main.cpp (stages 1-7 of src/driver/simulation.hpp) in process, for tests: scene text -> body
+// -> partition -> calibration -> force model -> solve -> measure, with everything kept for the test to look at.
 #pragma once
 #include <functional>
 #include <memory>
 #include <string>
 #include <vector>
 
+#include "io/gmsh_mesh.hpp"
 #include "io/scene.hpp"
-#include "partition/local_model.hpp"
-#include "partition/metis_partition.hpp"
-#include "src/calibration/calibration.hpp"
-#include "src/measure.hpp"
-#include "src/model/body.hpp"
-#include "src/solvers/solver.hpp"
+#include "src/driver/simulation.hpp"
 
 namespace tissue::test_pipeline {
 
+// The driver's stages (src/driver/simulation.hpp) with names for what a test looks at.
 struct RunResult {
-  Scene scene;
-  LocalModel model;
-  std::unique_ptr<ForceModel> forces;
-  std::unique_ptr<SolverState> state;
-  TensionTest test;
-  SolveReport report;
-  Measurements measured;
-  CalibrationRefresher refresh;
+  explicit RunResult(std::unique_ptr<Simulation> s)
+      : sim(std::move(s)), scene(sim->scene()), model(sim->model()), forces(&sim->forces()), state(&sim->state()),
+        test(sim->test()), report(sim->report()), measured(sim->measured()), refresh(sim->refresh()) {}
+  std::unique_ptr<Simulation> sim;
+  Scene& scene;
+  LocalModel& model;
+  ForceModel* forces;
+  SolverState* state;
+  TensionTest& test;
+  SolveReport& report;
+  Measurements& measured;
+  CalibrationRefresher& refresh;
 };
 
-// `set`: --set overrides; solve only when `do_solve`; `before_solve` may change the start state.
+// `set`: --set overrides; solve only when `do_solve`; `before_solve` may change the start state. A solver failure
+// is thrown, as the solvers throw it.
 inline std::unique_ptr<RunResult> run(const std::string& text, MPI_Comm comm, const std::vector<std::string>& set = {},
                                       bool do_solve = true, std::function<void(RunResult&)> before_solve = nullptr) {
-  auto r = std::make_unique<RunResult>();
-  r->scene = parse_scene(text, "test.toml", set);
-  r->scene.output.progress = false;
-  r->model = build_local_model(r->scene, comm);
-  r->test = tension_test(r->scene, r->model.shape);
-  r->refresh = calibrate_scene(r->scene, r->model, r->model.stiffness);  // step 4 as main() does it
-  if (stiffness_is_final(r->scene, r->refresh)) compact_connection_types(r->model);
-  r->forces = std::make_unique<ForceModel>(r->scene, r->model);
-  r->state = std::make_unique<SolverState>(r->model);
+  Scene scene = parse_scene(text, "test.toml", set);
+  scene.output.progress = false;
+  auto sim = std::make_unique<Simulation>(std::move(scene), comm, Simulation::Options{/*keep_calibration_inputs=*/true});
+  sim->build(read_mesh);
+  sim->calibrate();
+  sim->make_forces();
+  auto r = std::make_unique<RunResult>(std::move(sim));
   if (before_solve) before_solve(*r);
-  SolverHooks hooks;
-  hooks.refresh = r->refresh;
-  if (do_solve) r->report = solve(r->scene, r->model, *r->forces, *r->state, hooks);
-  r->measured = measure(r->scene, r->model, r->test, r->state->x.array(), r->state->v.data());
-  measure_contact(*r->forces, r->measured);
+  if (do_solve) {
+    r->sim->solve(SolverHooks{});
+    if (r->sim->outcome() == Simulation::Outcome::solver_failure)
+      throw SolverFailure(r->sim->failure(), r->sim->failed_state());
+  }
+  r->sim->measure();
   return r;
 }
 

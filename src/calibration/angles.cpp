@@ -145,4 +145,9 @@ CalibrationRefresher angles_updater(const CalibrationContext& ctx, std::vector<d
   return [workspace, target](const double* x) { workspace->compute(x, *target); };
 }
 
+TISSUE_CALIBRATION(angles, {"angles", calibrate_angles,
+                            "Eq. 6-7: the linear k shared with the connections at angles, rest cosines"});
+TISSUE_CALIBRATION(angles_update, {"angles-update", calibrate_angles,
+                                   "Eq. 6-7 with cosines from the current positions, every iteration", angles_updater});
+
 }  // namespace tissue

@@ -1,12 +1,14 @@
 // Calibration: a stiffness k (N/m) per connection, chosen so the body has the material's Young's modulus.
-// One file per method (the paper's section 3.3 and beyond), each a function plus one registry line in
-// calibration.cpp. A method sees only this rank's connections and their end molecules (ghosts included).
+// One file per method (the paper's section 3.3 and beyond): its function and, in the same file, its registration
+// line TISSUE_CALIBRATION(id, {...}); CMake lists those lines in a generated file that calibration.cpp reads, so a
+// new method is one new file and nothing else (README, "Adding a calibration method"). A method sees only this
+// rank's connections and their end molecules (ghosts included).
 #pragma once
 #include <functional>
 #include <string>
 #include <vector>
 
-#include "io/scene.hpp"
+#include "src/model/scene.hpp"
 
 namespace tissue {
 
@@ -32,12 +34,29 @@ using CalibrationFunction = void (*)(const CalibrationContext&, std::vector<doub
 using CalibrationRefresher = std::function<void(const double* x)>;
 using CalibrationUpdater = CalibrationRefresher (*)(const CalibrationContext&, std::vector<double>& stiffness);
 
+// Methods that wrap the solver (iterative): run the solve themselves, adjusting the stiffness between solves, and
+// fill `report`. The driver calls this instead of solve(). One-body scenes only (the scene reader checks).
+using CalibrationSolver = void (*)(const Scene&, LocalModel&, const ForceModel&, SolverState&, const SolverHooks&,
+                                   const TensionTest&, SolveReport&);
+
+// A calibration method and what it can do; the driver asks these capabilities, never the method's name.
 struct CalibrationStyle {
   const char* name;
   CalibrationFunction compute;
   const char* description;
-  CalibrationUpdater updater = nullptr;  // nullptr: k is fixed once calibrated
+  CalibrationUpdater updater = nullptr;      // not null: k follows the deformation (refreshed during the solve)
+  CalibrationSolver wrap_solver = nullptr;   // not null: the method wraps the solver
+  // The stiffness stays as calibrated for the whole solve: the connections may be stored by type.
+  bool stiffness_final() const { return !updater && !wrap_solver; }
 };
+
+// Registers a method, in its own file: TISSUE_CALIBRATION(angles_update, {"angles-update", ...}). `id` is a C++
+// name (the scene's name may hold '-').
+#define TISSUE_CALIBRATION(id, ...) \
+  const CalibrationStyle& calibration_style_##id() {           \
+    static const CalibrationStyle style __VA_ARGS__;          \
+    return style;                                              \
+  }
 
 // Main's step 4: sets stiffness[c] for every local connection c by the method of the body it lies in
 // (Scene::calibrations). One body: its method runs on the whole model, as it always has. Several: each body's
@@ -45,12 +64,15 @@ struct CalibrationStyle {
 // first body and the body's calibration as the view's scene.calibration, and its k are copied back. Returns the
 // refreshers of the bodies whose method follows the deformation (angles-update), chained in body order (an empty
 // function if none): install it as SolverHooks::refresh. Collective.
-// Whether the stiffness stays as calibrated for the whole solve (no angles-update refresh, no iterative outer
-// updates of C): then the connections can be stored by type (compact_connection_types).
+// Whether the stiffness stays as calibrated for the whole solve (every body's method has stiffness_final()): then
+// the connections can be stored by type (compact_connection_types).
 bool stiffness_is_final(const Scene& scene, const CalibrationRefresher& refresh);
+// The method that wraps the solver for this scene (body 0's, iterative), or nullptr: the driver solves.
+const CalibrationStyle* solver_wrapping_calibration(const Scene& scene);
 
 CalibrationRefresher calibrate_scene(const Scene& scene, const LocalModel& model, std::vector<double>& stiffness);
 
+// Every registered method, in the order of their files' names. find_calibration returns nullptr for an unknown name.
 const std::vector<CalibrationStyle>& calibration_styles();
 const CalibrationStyle* find_calibration(const std::string& name);
 std::vector<std::string> calibration_method_names();
@@ -65,11 +87,5 @@ double linear_stiffness_tetrahedral(const LocalModel& model, int connection);
 // documents the reading of the paper's boundary cases N = 8, 12, 20).
 double statistical_directions(int connections);
 
-// The iterative method (iterative.cpp): wraps the solver. Repeats { k = linear / C; solve as the scene says;
-// measure E (Eq. 3); C *= E_measured / E_target } until |E - target| / target < calibration.tolerance, filling
-// `report` (the last solve's report plus calibration_divisor and calibration_updates). Throws SolverFailure when
-// calibration.max_updates is reached; model.stiffness and state hold the last C's solution.
-void solve_iterative(const Scene& scene, LocalModel& model, const ForceModel& forces, SolverState& state,
-                     const SolverHooks& hooks, const TensionTest& test, SolveReport& report);
 
 }  // namespace tissue

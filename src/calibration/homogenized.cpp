@@ -113,4 +113,7 @@ void calibrate_homogenized(const CalibrationContext& ctx, std::vector<double>& k
   }
 }
 
+TISSUE_CALIBRATION(homogenized, {"homogenized", calibrate_homogenized,
+                                 "per-cell springs exact for an isotropic E, nu = 1/4 (Cauchy-Born)"});
+
 }  // namespace tissue

@@ -1,5 +1,5 @@
 // The iterative solution: the divided method (k = linear k / C) with C adjusted by measurement until the tension
-// test's Eq. 3 reads the target E. It wraps the solver: main() calls solve_iterative() instead of solve().
+// test's Eq. 3 reads the target E. It wraps the solver: the driver calls solve_iterative() instead of solve().
 //
 //   C = calibration.divisor (start value); repeat { k = k_linear / C; solve as the scene says (static or
 //   relaxation, warm-started from the previous equilibrium); E = Eq. 3; stop when |E - target| / target <
@@ -16,7 +16,7 @@
 
 #include "partition/local_model.hpp"
 #include "src/calibration/calibration.hpp"
-#include "src/measure.hpp"
+#include "src/measure/measure.hpp"
 #include "src/solvers/solver.hpp"
 
 namespace tissue {
@@ -33,6 +33,10 @@ void calibrate_iterative(const CalibrationContext& ctx, std::vector<double>& k) 
   for (int c = 0; c < ctx.model.connections(); ++c) k[c] = linear_stiffness(ctx.model, c) / C;
 }
 
+// Wraps the solver. Repeats { k = linear / C; solve as the scene says; measure E (Eq. 3); C *= E_measured /
+// E_target } until |E - target| / target < calibration.tolerance, filling `report` (the last solve's report plus
+// calibration_divisor and calibration_updates). Throws SolverFailure when calibration.max_updates is reached;
+// model.stiffness and state hold the last C's solution.
 void solve_iterative(const Scene& scene, LocalModel& model, const ForceModel& forces, SolverState& state,
                      const SolverHooks& hooks, const TensionTest& test, SolveReport& report) {
   const double target = scene.body.youngs_modulus;
@@ -76,5 +80,9 @@ void solve_iterative(const Scene& scene, LocalModel& model, const ForceModel& fo
     C *= E / target;
   }
 }
+
+TISSUE_CALIBRATION(iterative, {"iterative", calibrate_iterative,
+                               "C adjusted by measurement until Eq. 3 gives E (wraps the solver)", nullptr,
+                               solve_iterative});
 
 }  // namespace tissue

@@ -38,4 +38,6 @@ void calibrate_linear(const CalibrationContext& ctx, std::vector<double>& k) {
   for (int c = 0; c < ctx.model.connections(); ++c) k[c] = linear_stiffness(ctx.model, c);
 }
 
+TISSUE_CALIBRATION(linear, {"linear", calibrate_linear, "Eq. 4, k = E A / l0 with the volume each connection stands for"});
+
 }  // namespace tissue

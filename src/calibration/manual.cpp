@@ -13,4 +13,6 @@ void calibrate_manual(const CalibrationContext& ctx, std::vector<double>& k) {
   }
 }
 
+TISSUE_CALIBRATION(manual, {"manual", calibrate_manual, "k given per connection class (calibration.stiffness)"});
+
 }  // namespace tissue

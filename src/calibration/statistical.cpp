@@ -41,4 +41,7 @@ void calibrate_statistical(const CalibrationContext& ctx, std::vector<double>& k
   }
 }
 
+TISSUE_CALIBRATION(statistical, {"statistical", calibrate_statistical,
+                                 "the paper's statistical method: directions from connection counts"});
+
 }  // namespace tissue

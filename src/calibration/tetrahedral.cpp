@@ -28,4 +28,7 @@ void calibrate_tetrahedral(const CalibrationContext& ctx, std::vector<double>& k
   }
 }
 
+TISSUE_CALIBRATION(tetrahedral, {"tetrahedral", calibrate_tetrahedral,
+                                 "Eq. 5 (Van Gelder): k = E sum vol(T_e) / |c|^2; tetrahedral topology"});
+
 }  // namespace tissue

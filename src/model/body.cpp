@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <initializer_list>
 
-#include "io/gmsh_mesh.hpp"
 #include "src/model/material.hpp"
 #include "src/model/mesh_cloud.hpp"
 #include "src/model/random_cloud.hpp"
@@ -66,11 +65,13 @@ Body build_one(const BodySpec& spec, std::int64_t first) {
 }
 
 // Explicit topologies (a mesh file, a random cloud) go through a tetrahedral mesh; boxes through their stencil.
-Body build_any(const Scene& scene, const BodySpec& spec, std::size_t index, std::size_t count, std::int64_t first) {
+Body build_any(const Scene& scene, const MeshReader& read_mesh, const BodySpec& spec, std::size_t index,
+               std::size_t count, std::int64_t first) {
   const std::string key = count > 1 ? "body[" + std::to_string(index) + "]" : "body";
+  if (spec.shape == "mesh" && !read_mesh) throw std::logic_error("build_body: a mesh body and no mesh reader");
   if (spec.shape == "mesh" && spec.topology == "random")
-    return build_unstructured(spec, random_in_mesh(read_gmsh(spec.file), spec, scene.file, key), first, scene.file, key);
-  if (spec.shape == "mesh") return build_unstructured(spec, read_gmsh(spec.file), first, scene.file, key);
+    return build_unstructured(spec, random_in_mesh(read_mesh(spec), spec, scene.file, key), first, scene.file, key);
+  if (spec.shape == "mesh") return build_unstructured(spec, read_mesh(spec), first, scene.file, key);
   if (spec.topology == "random") return build_unstructured(spec, random_cloud(spec), first, scene.file, key);
   return build_one(spec, first);
 }
@@ -110,13 +111,13 @@ Body scene_shape(const Scene& scene) {
   return all;
 }
 
-Body build_body(const Scene& scene) {
+Body build_body(const Scene& scene, const MeshReader& read_mesh) {
   const std::vector<BodySpec> specs = specs_of(scene);
-  Body all = build_any(scene, specs[0], 0, specs.size(), 0);
+  Body all = build_any(scene, read_mesh, specs[0], 0, specs.size(), 0);
   all.parts.push_back(all);
   all.parts.back().first = 0;
   for (std::size_t i = 1; i < specs.size(); ++i) {
-    Body b = build_any(scene, specs[i], i, specs.size(), all.molecules());
+    Body b = build_any(scene, read_mesh, specs[i], i, specs.size(), all.molecules());
     all.parts.push_back(static_cast<const BoxGeometry&>(b));
     all.connections.insert(all.connections.end(), b.connections.begin(), b.connections.end());
     all.tetrahedra.insert(all.tetrahedra.end(), b.tetrahedra.begin(), b.tetrahedra.end());

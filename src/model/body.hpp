@@ -5,12 +5,16 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
-#include "io/scene.hpp"
+#include "src/model/scene.hpp"
 
 namespace tissue {
+
+struct TetMesh;
+using MeshReader = std::function<TetMesh(const BodySpec&)>;  // src/model/unstructured.hpp
 
 // Connection classes, by the part of a cell a connection spans (manual stiffness is given per class).
 enum class ConnectionClass : std::int8_t { edge = 0, face = 1, body = 2 };
@@ -148,8 +152,9 @@ struct Body : BoxGeometry {
 };
 
 // Builds the whole body a scene describes, on the calling rank: geometry, every connection, per-molecule
-// material and mass. The explicit path (and the reference the lattice stencils are tested against).
-Body build_body(const Scene& scene);
+// material and mass. The explicit path (and the reference the lattice stencils are tested against). Mesh bodies
+// take their tetrahedra from `read_mesh` (a scene with a mesh body and no reader is a programming error).
+Body build_body(const Scene& scene, const MeshReader& read_mesh = {});
 
 // The bodies' geometry only (parts, no per-molecule or per-connection array): what every rank keeps.
 Body scene_shape(const Scene& scene);

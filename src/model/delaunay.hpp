@@ -4,7 +4,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "io/scene.hpp"
+#include "src/model/scene.hpp"
 
 namespace tissue {
 

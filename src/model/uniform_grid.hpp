@@ -8,7 +8,7 @@
 #include <unordered_map>
 #include <vector>
 
-#include "io/scene.hpp"
+#include "src/model/scene.hpp"
 
 namespace tissue {
 

@@ -1,9 +1,10 @@
-// Explicit (unstructured) topologies: a tetrahedral mesh, read from a file (io/gmsh_mesh) or made by Delaunay
+// Explicit (unstructured) topologies: a tetrahedral mesh, handed in by a MeshReader (io/gmsh_mesh) or made by Delaunay
 // from a random cloud (src/model/random_cloud), turned into a Body. Nodes become molecules, tetrahedron edges
 // connections, named surfaces the faces that fixes and loads name, named volumes the regions materials name.
 #pragma once
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -23,6 +24,10 @@ struct TetMesh {
   };
   std::vector<Surface> surfaces;
 };
+
+// Where a mesh body's tetrahedra come from. The model knows no file format: the driver hands in io's reader
+// (read_mesh, io/gmsh_mesh.hpp); a test may hand in a mesh of its own.
+using MeshReader = std::function<TetMesh(const BodySpec&)>;
 
 // Signed volume of a tetrahedron (positive when p3 lies on the side of (p1 - p0) x (p2 - p0)).
 double signed_volume(const Vec3& p0, const Vec3& p1, const Vec3& p2, const Vec3& p3);

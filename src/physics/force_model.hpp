@@ -9,7 +9,7 @@
 #include <memory>
 #include <vector>
 
-#include "io/scene.hpp"
+#include "src/model/scene.hpp"
 #include "partition/local_model.hpp"
 #include "src/physics/spring_kernel.hpp"
 #include "src/physics/term.hpp"

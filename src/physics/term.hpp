@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "io/scene.hpp"
+#include "src/model/scene.hpp"
 #include "partition/local_model.hpp"
 
 namespace tissue {

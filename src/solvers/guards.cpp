@@ -306,7 +306,7 @@ void StepGuard::fail(const std::string& problem, std::int64_t molecule) {
   if (!enabled_)  // the final check of an unguarded run: no earlier state kept, so nothing may be written
     throw SolverFailure(fmt::format("{}: {} at step {}: {}; no earlier state kept (TISSUE_GUARDS=off): nothing "
                                     "written", solver_, problem, step, where),
-                        /*state_usable=*/false);
+                        SolverFailure::State::nothing);
   // Put the last good state back: main() writes it as DIR/last_good.h5.
   std::copy(good_x_.begin(), good_x_.end(), state_.x.array());
   state_.x.update_ghosts();
@@ -314,7 +314,7 @@ void StepGuard::fail(const std::string& problem, std::int64_t molecule) {
   state_.step = good_step_;
   state_.time = good_time_;
   throw SolverFailure(fmt::format("{}: {} at step {}: {}; last good state: step {}", solver_, problem, step, where,
-                                  good_step_));
+                                  good_step_), SolverFailure::State::last_good);
 }
 
 }  // namespace tissue

@@ -58,7 +58,8 @@ void check_finite(const LocalModel& model, const double* x, const double* f, lon
   MPI_Allreduce(&bad, &first, 1, MPI_LONG_LONG, MPI_MIN, model.comm);
   if (first != std::numeric_limits<long long>::max())
     throw SolverFailure(std::string(what) + " diverged at step " + std::to_string(step) + ": " +
-                        describe_molecule(model, x, first) + " has a non-finite position or force");
+                        describe_molecule(model, x, first) + " has a non-finite position or force",
+                        SolverFailure::State::nothing);
 }
 
 volatile std::sig_atomic_t stop_requested = 0;

@@ -13,17 +13,21 @@
 
 namespace tissue {
 
-// The solver failed (diverged, not converged, NaN): main() reports it and exits 3.
+// The solver failed (diverged, not converged, NaN): the driver reports it and exits 3. `state` says what the
+// SolverState holds afterwards, which decides what the driver writes.
 class SolverFailure : public std::runtime_error {
 public:
-  // state_usable: the SolverState holds a state worth writing (the last good one, or the failed solve's finite
-  // state); false when a failure found nothing to put back (TISSUE_GUARDS=off keeps no earlier state).
-  explicit SolverFailure(const std::string& what, bool state_usable = true)
-      : std::runtime_error(what), state_usable_(state_usable) {}
-  bool state_usable() const { return state_usable_; }
+  enum class State {
+    finished,   // the failed solve's own state, finite: written as final.h5
+    last_good,  // the guards (or the last converged load step) put the last good state back: last_good.h5
+    nothing,    // nothing worth writing: a non-finite state, or no earlier state kept (TISSUE_GUARDS=off)
+  };
+  explicit SolverFailure(const std::string& what, State state = State::finished)
+      : std::runtime_error(what), state_(state) {}
+  State state() const { return state_; }
 
 private:
-  bool state_usable_;
+  State state_;
 };
 
 struct SolverState {

@@ -360,7 +360,8 @@ PetscErrorCode run_static(const Scene& scene, const LocalModel& model, const For
       throw SolverFailure("static: Newton failed (" + std::string(SNESConvergedReasons[reason]) +
                           ") at load step " + std::to_string(report.residual_history.size() + 1) +
                           " (load factor " + std::to_string(target) + ") after 8 cut-backs: " + where +
-                          "; last good state: load factor " + std::to_string(done));
+                          "; last good state: load factor " + std::to_string(done),
+                          SolverFailure::State::last_good);
     }
     increment *= 0.5;
     retried = false;

@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "io/checkpoint.hpp"
+#include "io/gmsh_mesh.hpp"
 #include "io/scene.hpp"
 #include "partition/local_model.hpp"
 #include "partition/metis_partition.hpp"
@@ -65,7 +66,7 @@ extern "C" int LLVMFuzzerInitialize(int* argc, char*** argv) {
   if (PetscInitialize(&pargc, &pargv, nullptr, nullptr)) std::abort();
   fx = new Fixture;
   fx->scene = parse_scene(scene_text, "fuzz.toml");
-  fx->model = build_local_model(fx->scene, PETSC_COMM_WORLD);
+  fx->model = build_local_model(fx->scene, PETSC_COMM_WORLD, read_mesh);
   const LocalModel& m = fx->model;
   fx->molecules = std::make_unique<NaturalOrder>(
       m.comm, std::vector<std::int64_t>(m.id.begin(), m.id.begin() + m.owned), m.global_molecules);

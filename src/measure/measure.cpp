@@ -1,4 +1,4 @@
-#include "src/measure.hpp"
+#include "src/measure/measure.hpp"
 
 #include <array>
 #include <cmath>

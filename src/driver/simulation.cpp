@@ -1,0 +1,65 @@
+#include "src/driver/simulation.hpp"
+
+#include <utility>
+
+namespace tissue {
+
+Simulation::Simulation(Scene scene, MPI_Comm comm, Options options)
+    : scene_(std::move(scene)), comm_(comm), options_(options) {}
+
+void Simulation::build(const MeshReader& read_mesh) {
+  model_ = build_local_model(scene_, comm_, read_mesh);
+  test_ = tension_test(scene_, model_.shape);
+}
+
+void Simulation::calibrate() {
+  refresh_ = calibrate_scene(scene_, model_, model_.stiffness);
+  if (stiffness_is_final(scene_, refresh_)) {
+    compact_connection_types(model_);
+    if (!options_.keep_calibration_inputs) release_calibration_inputs(model_);
+  }
+}
+
+void Simulation::make_forces() {
+  forces_ = std::make_unique<ForceModel>(scene_, model_);
+  dt_critical_ = tissue::critical_time_step(*forces_);
+  state_ = std::make_unique<SolverState>(model_);
+}
+
+void Simulation::solve(SolverHooks hooks) {
+  if (refresh_) hooks.refresh = refresh_;
+  try {
+    if (const CalibrationStyle* wrapper = solver_wrapping_calibration(scene_))
+      wrapper->wrap_solver(scene_, model_, *forces_, *state_, hooks, test_, report_);
+    else
+      report_ = tissue::solve(scene_, model_, *forces_, *state_, hooks);
+    if (report_.interrupted) {
+      outcome_ = Outcome::interrupted;
+    } else if (!report_.converged) {
+      outcome_ = Outcome::not_converged;
+      failure_ = report_.kind + ": not converged after " + std::to_string(report_.iterations) +
+                 " iterations (relative residual " + std::to_string(report_.residual) + ")";
+    }
+  } catch (const SolverFailure& e) {
+    outcome_ = Outcome::solver_failure, failure_ = e.what(), failed_state_ = e.state();
+    report_.kind = scene_.solver.kind;
+  }
+}
+
+void Simulation::measure() {
+  measured_ = tissue::measure(scene_, model_, test_, state_->x.array(), state_->v.data());
+  initial_ = tissue::measure(scene_, model_, test_, model_.rest.data(), nullptr);
+  measure_contact(*forces_, measured_);  // the contact forces of the final state's force evaluation
+}
+
+void Simulation::write(Output& out, double wall_seconds) {
+  // A solver failure caught by the guards (src/solvers/guards.hpp) has put the last good state back into the
+  // state: it is written as DIR/last_good.h5, never as final.h5. A non-finite state is not written at all.
+  if (failed() && failed_state_ == SolverFailure::State::last_good)
+    out.snapshot(*state_, *forces_, /*final=*/false, "last_good.h5");
+  else if (outcome_ != Outcome::interrupted && failed_state_ == SolverFailure::State::finished)
+    out.snapshot(*state_, *forces_, /*final=*/true);
+  out.summary(test_, measured_, initial_, report_, *state_, wall_seconds, failure_);
+}
+
+}  // namespace tissue

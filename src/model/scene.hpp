@@ -1,0 +1,138 @@
+// The scene's vocabulary: what a user asks for (../shared/interface.md, docs/scene.md) as plain data, plus the
+// error type of bad input. The bottom layer: every other folder reads these types; io/scene.hpp fills them from a
+// TOML file, validated once on reading, so the rest of the program trusts them.
+#pragma once
+#include <array>
+#include <map>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace tissue {
+
+// Bad input: one line naming the file, the key and what is wrong. main() prints what() and exits 2.
+class InputError : public std::runtime_error {
+public:
+  InputError(const std::string& file, const std::string& key, const std::string& problem)
+      : std::runtime_error(file + ": " + (key.empty() ? std::string() : key + ": ") + problem) {}
+};
+
+using Vec3 = std::array<double, 3>;
+
+// A box region of a body with its own material (heterogeneous bodies). Bounds are in metres, in the body's
+// own frame (before offset); a molecule belongs to the last region whose closed box holds it.
+struct RegionSpec {
+  Vec3 lo{}, hi{};
+  std::string name;  // shape = "mesh": the physical volume (instead of lo, hi)
+  std::string material = "custom";
+  double youngs_modulus = 0.0;  // Pa
+  double density = 0.0;         // kg/m^3
+};
+
+struct BodySpec {
+  std::string shape = "box";
+  std::array<long, 3> molecules{2, 2, 2};
+  Vec3 spacing{1.0, 1.0, 1.0};  // m; from size / (molecules - 1) when the scene gives size
+  std::string topology = "face-diagonals";
+  std::string material = "custom";
+  double youngs_modulus = 0.0;  // Pa (from the preset unless the scene gives it)
+  double density = 1000.0;      // kg/m^3
+  Vec3 offset{0.0, 0.0, 0.0};   // m, where molecule (0,0,0) sits
+  std::vector<RegionSpec> regions;
+  std::optional<double> radius;  // m, a molecule's contact sphere; absent = half the smallest spacing
+  // shape = "mesh": the Gmsh 4.1 file (relative paths from the scene file's directory); topology = "random":
+  // the seed of the cloud. Both are explicit topologies (src/model/unstructured.hpp), whose faces are named.
+  std::string file;
+  long seed = 1;
+  long interior_molecules = 0;  // shape = "mesh", topology = "random": points sampled inside the mesh's volume
+  bool unstructured() const { return shape == "mesh" || topology == "random"; }
+};
+
+struct CalibrationSpec {
+  std::string method = "linear";
+  double divisor = 1.0;                       // C for "divided", start value for "iterative"
+  std::map<std::string, double> stiffness;    // N/m per connection class (edge, face, body, tet), "manual"
+  double tolerance = 1e-6;                    // iterative: relative error in E at which C is accepted
+  long max_updates = 50;                      // iterative: outer updates of C before failing
+  std::string key = "calibration";            // the table it was read from, for messages ("body[1].calibration")
+};
+
+struct FixSpec {
+  std::string face;              // x- x+ y- y+ z- z+
+  int body = 0;                  // which body's face ([[body]] index)
+  std::string mode = "clamped";  // clamped | roller
+};
+
+struct LoadSpec {
+  std::string face;
+  Vec3 force{0.0, 0.0, 0.0};          // N, total over the face
+  std::string distribution = "traction";  // traction | equal
+  int body = 0;                       // which body's face
+  double period = 0.0;                // s; > 0: cyclic, the force scaled by sin(2 pi t / period) (dynamic)
+};
+
+struct PhysicsSpec {  // absent means off
+  std::optional<Vec3> gravity;      // m/s^2
+  std::optional<double> viscosity;  // N s/m per molecule
+  bool contact = false;             // molecule-molecule contact (other bodies, non-neighbours of one body)
+  double contact_stiffness = 0.0;   // N/m penalty; 0 = chosen from the bodies' springs
+  double contact_skin = 0.0;        // m, Verlet-list skin; 0 = half the smallest molecule radius
+};
+
+struct ObstacleSpec {
+  std::string kind = "plane";  // plane | sphere
+  Vec3 point{}, normal{0, 0, 1};
+  Vec3 center{};
+  double radius = 0.0;
+  double stiffness = 0.0;  // N/m penalty; 0 = chosen from the body
+};
+
+struct SolverSpec {
+  std::string kind = "static";         // static | relaxation | dynamic
+  double tolerance = 1e-10;            // relative force residual (static, relaxation)
+  std::optional<double> time_step;     // s (relaxation, dynamic); absent = from the critical time step
+  long steps = 1000;                   // dynamic: total step count of the run
+  long max_iterations = 0;             // relaxation/static cap; 0 = a default that grows with the lattice
+  long load_steps = 1;                 // static: load increments
+  // A time_step above the critical one (explicit integration unstable) is refused unless this is true; then it
+  // is used as given, with a warning (the critical step is a Gershgorin bound: the true limit may be higher).
+  bool allow_unstable_time_step = false;
+};
+
+struct OutputSpec {
+  std::string directory = "out";
+  long snapshot_every = 0;    // 0: final state only
+  long checkpoint_every = 0;  // 0: none
+  std::vector<std::string> fields{"positions", "displacements", "forces"};  // snapshot datasets
+  bool progress = true;       // the progress line on rank 0
+};
+
+struct PartitionSpec {
+  std::string method = "metis";  // metis (rank 0 alone) | ptscotch (every rank, PETSc MatPartitioning)
+};
+
+struct Scene {
+  std::string file;  // the path it was read from (for messages)
+  std::string text;  // the TOML text after --set overrides (kept in checkpoints)
+  std::string title;
+  BodySpec body;                 // the first body (== bodies[0]): single-body code reads this
+  std::vector<BodySpec> bodies;  // [body] gives one, [[body]] several; molecules numbered body after body
+  CalibrationSpec calibration;  // body 0's (== calibrations[0]): single-body code reads this
+  // One per body: the body's own [body.calibration] table if it has one, else the top-level [calibration] (a
+  // body's own table replaces the top-level one whole, no key is merged). Each body's connections are calibrated
+  // by its own method (connections never join two bodies).
+  std::vector<CalibrationSpec> calibrations;
+  std::vector<FixSpec> fixes;
+  std::vector<LoadSpec> loads;
+  PhysicsSpec physics;
+  std::vector<ObstacleSpec> obstacles;
+  SolverSpec solver;
+  OutputSpec output;
+  PartitionSpec partition;
+};
+
+// Faces: "x-" -> axis 0, side 0; "z+" -> axis 2, side 1. Returns false for an unknown name.
+bool parse_face(const std::string& face, int& axis, int& side);
+
+}  // namespace tissue

@@ -22,10 +22,15 @@ export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 OUT=out/table2
 METHODS="linear tetrahedral divided angles angles-update statistical iterative"
 NP=$(nproc)
+TABLE2_SUPPORT=clamped   # the heading's support: the scene's, unless an argument sets fix.0.mode
+for a in "$@"; do case $a in fix.0.mode=*) TABLE2_SUPPORT=${a#fix.0.mode=} ;; esac; done
+export TABLE2_SUPPORT
 rm -rf "$OUT"; mkdir -p "$OUT"
 start=$EPOCHREALTIME
-printf 'main job, %s ranks, s per run:' "$NP"
+printf 'main job on %s ranks, seconds per run:' "$NP"
+i=0
 for m in $METHODS; do
+  i=$((i + 1)); if [ $i = 5 ]; then printf '\n '; fi   # two lines of progress
   args=(run run_scripts/scenes/table2.toml --set "calibration.method=$m" --set calibration.divisor=3.75
         --set output.progress=false "$@" --output "$OUT/$m")
   t0=$EPOCHREALTIME rc=0 solver=static

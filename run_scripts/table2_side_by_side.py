@@ -4,21 +4,24 @@
     python3 run_scripts/table2_side_by_side.py OUT_DIR METHOD...
 
 OUT_DIR holds one directory per method (OUT_DIR/<method>/summary.json, written by the run) and, next to it,
-OUT_DIR/<method>.log (the run's output) and OUT_DIR/<method>.status ("<exit code> <solver>"). The paper's
+OUT_DIR/<method>.log (the run's output) and OUT_DIR/<method>.status ("<exit code> <solver>"); TABLE2_SUPPORT
+(default clamped) names the support in the heading. The paper's
 figures come from run_scripts/paper_values.csv (the one copy, also read by paper_tables.sh); ours only from the
 runs' summary.json. Standard library only.
 """
 import csv
 import json
 import os
+import re
 import sys
+import textwrap
 
 LABEL = {"linear": "Linear case", "tetrahedral": "Tetrahedral (Eq. 5)", "divided": "k / 3.75 (divided)",
          "angles": "Angles", "angles-update": "Angles (update)", "statistical": "Statistical",
          "iterative": "Iterative", "homogenized": "Homogenized (ours)", "lloyd": "Lloyd 2007", "manual": "Manual"}
 # What the paper says where Table 2 has no row for a method.
-NOT_IN_PAPER = {"tetrahedral": "not implemented in the paper",
-                "angles-update": "not in Table 2 (Table 1 only)"}
+NOT_IN_PAPER = {"tetrahedral": "not implemented",
+                "angles-update": "not in Table 2"}
 
 
 def thousands(x):
@@ -55,28 +58,32 @@ def main():
             log = open(os.path.join(out, m + ".log")).read().splitlines()
             said = [l.strip() for l in log if "calibration." in l or "needs" in l or "error" in l.lower()]
             reason = said[0] if said else "exit %d" % rc
+            reason = re.sub(r"^\S+\.toml: ", "", reason)   # the scene's path: the same for every row
             what = "n/a: refused (exit 2)" if rc == 2 else "failed (exit %d)" % rc
-            notes.append("%s: %s" % (m, reason))
-            rows.append((LABEL.get(m, m), pc, NOT_IN_PAPER.get(m, "-"), None, what, "see below"))
+            notes.append("%s (exit %d): %s" % (m, rc, reason))
+            rows.append((LABEL.get(m, m), pc, NOT_IN_PAPER.get(m, "-"), None, what, "reason below"))
 
+    support = os.environ.get("TABLE2_SUPPORT", "clamped")
     if first:
-        fix = "clamped (the paper's test)"
-        print("Table 2 of Maciel, Boulic & Thalmann beside ours: %d molecules, %d connections, %.0f N on %.3g m^2, "
-              "l0 = %.3g m," % (first["molecules"], first["connections"], 1000.0, first["cross_section"],
-                                first["rest_length"]))
-        print("E target %s N/m^2, top face %s, %d ranks. Paper errors are unsigned, ours signed "
-              "(+ = too stiff)." % (thousands(first["youngs_modulus_target"]), fix, first["ranks"]))
-    print()
-    head = "%-20s | %-33s | %-33s | %s" % ("method", "paper: dl (mm)   E (N/m^2)  error %",
-                                          "ours:  dl (mm)   E (N/m^2)  error %", "note")
+        print("The paper's Table 2 beside ours: %d molecules, %d connections, %s N on %g m^2, l0 = %g m, E target %s"
+              % (first["molecules"], first["connections"], thousands(first["applied_force"]), first["cross_section"],
+                 first["rest_length"], thousands(first["youngs_modulus_target"])))
+        print("N/m^2, top face %s, %d ranks. The paper's errors are unsigned, ours signed (+ = too stiff)."
+              % ("clamped (the paper's test)" if support == "clamped" else support, first["ranks"]))
+        print()
+    cell = "%10s %10s %8s"
+    head = "%-19s | %s | %s | %s" % ("method", cell % ("paper: dl", "E", "error"), cell % ("ours: dl", "E", "error"),
+                                    "note")
     print(head)
+    print("%-19s | %s | %s |" % ("", cell % ("(mm)", "(N/m^2)", "(%)"), cell % ("(mm)", "(N/m^2)", "(%)")))
     print("-" * len(head))
+    width = len(cell % ("", "", ""))
     for label, pc, missing, oc, what, note in rows:
-        paper_cell = "%13s %11s %8s" % pc if pc else "%-33s" % missing
-        ours_cell = "%13s %11s %8s" % oc if oc else "%-33s" % what
-        print(("%-20s | %s | %s | %s" % (label, paper_cell, ours_cell, note)).rstrip())
+        paper_cell = cell % pc if pc else "%-*s" % (width, missing)
+        ours_cell = cell % oc if oc else "%-*s" % (width, what)
+        print(("%-19s | %s | %s | %s" % (label, paper_cell, ours_cell, note)).rstrip())
     for n in notes:
-        print("  " + n)
+        print(textwrap.fill(n, 115, initial_indent="  ", subsequent_indent="    "))
 
 
 if __name__ == "__main__":

@@ -61,7 +61,9 @@ def main():
             reason = re.sub(r"^\S+\.toml: ", "", reason)   # the scene's path: the same for every row
             what = "n/a: refused (exit 2)" if rc == 2 else "failed (exit %d)" % rc
             notes.append("%s (exit %d): %s" % (m, rc, reason))
-            rows.append((LABEL.get(m, m), pc, NOT_IN_PAPER.get(m, "-"), None, what, "reason below"))
+            needs = re.search(r'needs topology = "([^"]+)"', reason)
+            rows.append((LABEL.get(m, m), pc, NOT_IN_PAPER.get(m, "-"), None, what,
+                         "needs topology \"%s\" (below)" % needs.group(1) if needs else "reason below"))
 
     support = os.environ.get("TABLE2_SUPPORT", "clamped")
     if first:

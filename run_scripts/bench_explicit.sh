@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 #                       tissue: explicit time-stepping throughput against LAMMPS
 #
-# What it measures: the LAMMPS peer's /work/shared/peers/lammps/in.lattice_throughput problem (N^3 molecules,
+# What it measures: the LAMMPS peer's ../shared/peers/lammps/in.lattice_throughput problem (N^3 molecules,
 # springs on cell edges and face diagonals, 8,850,600 springs for N = 100, velocity Verlet, 200 steps of 0.005)
 # with our dynamic solver (run_scripts/scenes/peer_lattice.toml: solver.kind = "dynamic", solver.steps = 200, no
 # load, nothing held) and with LAMMPS, alternately, on 1 and 2 ranks, for N = 50 and 100. Reported per run:
@@ -39,7 +39,7 @@ TISSUE=${TISSUE:-build-bench/tissue}
 LMP=${LMP:-lmp}
 PYTHON=${PYTHON:-/usr/bin/python3}
 SCENE=run_scripts/scenes/peer_lattice.toml
-PEER_INPUT=${PEER_INPUT:-/work/shared/peers/lammps/in.lattice_throughput}
+PEER_INPUT=${PEER_INPUT:-../shared/peers/lammps/in.lattice_throughput}
 WORK=${WORK:-/tmp/tissue_bench_explicit}
 CSV=${CSV:-docs/bench_explicit.csv}
 if [[ "${QUICK:-0}" == 1 ]]; then NS=${NS:-"50"}; else NS=${NS:-"50 100"}; fi

@@ -8,7 +8,7 @@ set -euo pipefail
 ROOT="$(cd "$(dirname "$0")/.." && pwd)"
 H="${1:-0.000245}"
 cd "$ROOT"
-[ -x build/tissue ] || bash run_scripts/build.sh
+[ -x build/tissue ] || bash run_scripts/build.sh tissue
 command -v gmsh > /dev/null || bash run_scripts/install_deps.sh
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 out="$ROOT/out/bench_mesh"

@@ -11,7 +11,7 @@ NP="${1:-2}"
 H="${2:-0.0008}"
 INTERIOR="${3:-}"
 cd "$ROOT"
-[ -x build/tissue ] || bash run_scripts/build.sh
+[ -x build/tissue ] || bash run_scripts/build.sh tissue
 command -v gmsh > /dev/null || bash run_scripts/install_deps.sh
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 out="$ROOT/out/cartilage"

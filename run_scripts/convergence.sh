@@ -7,7 +7,7 @@
 #   methods linear, homogenized (box lattices only), tetrahedral (tetrahedral topology only), iterative,
 #   statistical,
 # with the z+ face on rollers (the material's modulus) and clamped (the paper's test; the continuum itself reads
-# ~1.0205 E on a clamped cube, /work/shared/reference/calibration.md), on 2 MPI ranks with the static solver.
+# ~1.0205 E on a clamped cube, ../shared/reference/calibration.md), on 2 MPI ranks with the static solver.
 # The paper expects its statistical method to improve "when larger and larger numbers of molecules are
 # involved": this measures it, and whether each method converges to the material (roller) or to the clamped
 # continuum value.

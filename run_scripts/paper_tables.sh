@@ -9,10 +9,11 @@
 #   - the Fig. 8 / Table 2 box (run_scripts/scenes/table2.toml: 10 x 10 x 10 molecules, 7560 connections,
 #     1 m^2 x 0.86 m, 1000 N, E = 100 kPa),
 # each with the top face clamped (the paper's test) and with roller supports (only the load-axis component held:
-# the material's own modulus, see /work/shared/reference/calibration.md), on 2 MPI ranks with the static solver.
+# the material's own modulus, see ../shared/reference/calibration.md), on 2 MPI ranks with the static solver.
 # A method that refuses a topology (exit code 2) gets "n/a" and the program's one-line reason (from the run's log). angles-update
 # with the static solver can fail (exit 3) or stall (timeout, exit 124), see docs/paper_tables.md; it is then
 # re-run with the relaxation solver (the paper's way) and marked so.
+# The paper's figures: run_scripts/paper_values.csv (Tables 1 and 2 as printed).
 # Output: docs/table1.csv, docs/table2.csv (one row per scene x method x support, with E, error %, elongation,
 # Poisson ratio, divisor C, solver iterations, wall seconds) and docs/paper_tables.md (the tables in markdown with
 # the paper's figures beside ours, and the discussion).
@@ -82,14 +83,14 @@ label = {"linear": "Linear case", "divided": "k / 3.75 (divided)", "angles": "An
          "angles-update": "Angles (update)", "statistical": "Statistical", "iterative": "Iterative",
          "homogenized": "Homogenized (ours)", "tetrahedral": "Tetrahedral (Eq. 5)", "lloyd": "Lloyd 2007",
          "manual": "Manual"}
-# The paper's Table 1 (E in N/m^2, error %) and Table 2 (elongation mm, E, error %).
-paper1 = {"linear": [(4994, 0.12), (4996, 0.08), (12465, 149.30), (20678, 313.56)],
-          "statistical": [(10004, 100.08), (6098, 21.96), (3637, 27.26), (4904, 1.92)],
-          "angles": [(4997, 0.06), (5000, 0.00), (4916, 1.68), (5903, 18.06)],
-          "angles-update": [(4999, 0.02), (4996, 0.08), (11550, 131.00), (18621, 272.42)],
-          "iterative": [(5000, 0.0)] * 4}
-paper2 = {"linear": (2.300, 373913, 274), "statistical": (11.384, 75544, 24), "angles": (5.890, 146010, 46),
-          "divided": (8.603, 100000, 0), "iterative": (8.600, 100000, 0)}
+# The paper's Table 1 (E in N/m^2, error %) and Table 2 (elongation mm, E, error %), as printed in the paper:
+# one copy for every script, run_scripts/paper_values.csv (main_job.sh reads it too).
+paper1, paper2 = {}, {}
+for p in csv.DictReader(open("run_scripts/paper_values.csv")):
+    if p["table"] == "1":   # objects a, b, c, d in that order
+        paper1.setdefault(p["method"], []).append((int(p["youngs_modulus"]), float(p["error_percent"])))
+    else:
+        paper2[p["method"]] = (float(p["elongation_mm"]), int(p["youngs_modulus"]), int(p["error_percent"]))
 
 def load(scene, support, method):
     d = os.path.join(W, scene, support, method)

@@ -7,7 +7,7 @@
 # tetrahedral; rectangular on request, see TOPOLOGIES below), on 2 MPI ranks with the static solver and in the small-strain regime (strains
 # ~1e-3):
 #   - tension: an 8 x 8 x 8 molecule cube, 1 m, E = 100 kPa, the z+ face on rollers (the material's reading,
-#     /work/shared/reference/calibration.md), 100 N pulling the z- face (uniform traction): E (Eq. 3) and the
+#     ../shared/reference/calibration.md), 100 N pulling the z- face (uniform traction): E (Eq. 3) and the
 #     Poisson ratio (lateral faces free);
 #   - compression: the same with the force reversed (+100 N on z-): E in compression and nu;
 #   - shear: a short wide block, 13 x 13 x 4 molecules (1 m x 1 m x 0.25 m, cubic cells of 1/12 m), the z+ face

@@ -2,7 +2,7 @@
 #                       tissue: speed and accuracy of the static and relaxation solvers
 #
 # What it measures: the tension test of the LAMMPS peer (run_scripts/scenes/peer_tension.toml, the exact problem of
-# /work/shared/peers/lammps/in.tension_fire: N^3 molecules, spacing 1, k = 1 on edges and face diagonals, z+
+# ../shared/peers/lammps/in.tension_fire: N^3 molecules, spacing 1, k = 1 on edges and face diagonals, z+
 # clamped, 0.001 N^2 pulling the z- layer with the same force on every molecule) for N = 10 .. 100 (1,000 to
 # 1,000,000 molecules), on 2 MPI ranks, solved by
 #   - the static solver (SNES Newton) with four Krylov/preconditioner choices: CG + the lattice's geometric
@@ -53,7 +53,7 @@ TISSUE=${TISSUE:-build-bench/tissue}
 LMP=${LMP:-lmp}
 PYTHON=${PYTHON:-/usr/bin/python3}
 SCENE=run_scripts/scenes/peer_tension.toml
-PEER_INPUT=${PEER_INPUT:-/work/shared/peers/lammps/in.tension_fire}
+PEER_INPUT=${PEER_INPUT:-../shared/peers/lammps/in.tension_fire}
 RANKS=${RANKS:-2}
 WORK=${WORK:-/tmp/tissue_speed_accuracy}
 CSV=${CSV:-docs/speed_accuracy.csv}

@@ -10,7 +10,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD=${BUILD:-build}
-[ -x "$BUILD/tissue" ] || bash run_scripts/build.sh
+[ -x "$BUILD/tissue" ] || bash run_scripts/build.sh tissue
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 csv=docs/stability.csv md=docs/stability-table.md lock=()
 for a in "$@"; do

@@ -10,7 +10,7 @@
 # build takes a few minutes, later ones only what changed. 0 skips the fuzzing.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash run_scripts/build.sh
+bash run_scripts/build.sh   # no targets: the program and every test (TISSUE_TESTS=ON)
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 (cd build && ctest --output-on-failure -j2 "$@")
 FUZZ_SECONDS=${TISSUE_FUZZ_SECONDS:-30}

@@ -13,6 +13,7 @@
 #include "io/hdf5_file.hpp"
 #include "io/snapshot.hpp"
 #include "io/summary.hpp"
+#include "src/calibration/calibration.hpp"
 
 namespace tissue {
 
@@ -143,7 +144,9 @@ void Output::summary(const TensionTest& test, const Measurements& measured, cons
   const double target =  // Eq. 3 reads the body the load is on
       test.body < static_cast<int>(scene_.bodies.size()) ? scene_.bodies[test.body].youngs_modulus
                                                           : scene_.body.youngs_modulus;
-  const bool dynamic = report.kind == "dynamic";
+  // What the solver kind reports (an unknown kind: a failure before any solve, reported as the scene's).
+  const SolverStyle* kind = find_solver(report.kind.empty() ? scene_.solver.kind : report.kind);
+  const bool dynamic = kind->integrates_time;
   json s;
   s["title"] = scene_.title;
   s["scene"] = scene_.file;
@@ -161,10 +164,11 @@ void Output::summary(const TensionTest& test, const Measurements& measured, cons
   s["cross_section"] = test.valid ? json(test.cross_section) : json(nullptr);
   s["applied_force"] = test.valid ? json(test.force) : json(nullptr);
   s["poisson_ratio_measured"] = opt(measured.poisson_ratio);
-  s["calibration"] = {{"method", scene_.calibration.method},
-                      {"divisor", scene_.calibration.method == "divided" ? json(scene_.calibration.divisor)
-                                                                         : json(nullptr)}};
-  if (scene_.calibration.method == "iterative") {  // the final C and the updates it took (iterative.cpp)
+  auto divisor = [](const CalibrationSpec& c) {  // C, where the method reads it as given
+    return find_calibration(c.method)->reads_divisor ? json(c.divisor) : json(nullptr);
+  };
+  s["calibration"] = {{"method", scene_.calibration.method}, {"divisor", divisor(scene_.calibration)}};
+  if (find_calibration(scene_.calibration.method)->wrap_solver) {  // the final C and the updates it took (iterative.cpp)
     s["calibration"]["divisor_initial"] = scene_.calibration.divisor;
     s["calibration"]["divisor"] = opt(report.calibration_divisor);
     s["calibration"]["updates"] = report.calibration_updates;
@@ -173,25 +177,25 @@ void Output::summary(const TensionTest& test, const Measurements& measured, cons
   if (scene_.calibrations.size() > 1) {  // several bodies: each body's own method, in body order
     json bodies = json::array();
     for (const auto& c : scene_.calibrations)
-      bodies.push_back({{"method", c.method}, {"divisor", c.method == "divided" ? json(c.divisor) : json(nullptr)}});
+      bodies.push_back({{"method", c.method}, {"divisor", divisor(c)}});
     s["calibration"]["bodies"] = bodies;
   }
   s["solver"] = {{"kind", report.kind},
                  {"iterations", report.iterations},
-                 {"linear_iterations", report.kind == "static" ? json(report.linear_iterations) : json(nullptr)},
+                 {"linear_iterations", kind->newton ? json(report.linear_iterations) : json(nullptr)},
                  {"residual", dynamic ? json(nullptr) : json(report.residual)},
                  {"residual_history", report.residual_history},
                  {"converged", report.converged},
                  {"tolerance", scene_.solver.tolerance},
                  {"tolerance_used", dynamic ? json(nullptr) : json(report.tolerance_used)},
-                 {"time_step", report.kind == "static" ? json(nullptr) : json(report.time_step)},
+                 {"time_step", kind->explicit_steps ? json(report.time_step) : json(nullptr)},
                  {"critical_time_step", report.critical_time_step > 0 ? json(report.critical_time_step)
                                                                       : json(nullptr)},
                  {"note", report.note},
                  {"seconds", report.seconds},
                  {"cpu_seconds", report.cpu_seconds},
-                 {"guard_checks", report.kind == "static" ? json(nullptr) : json(report.guard_checks)},
-                 {"guard_seconds", report.kind == "static" ? json(nullptr) : json(report.guard_seconds)},
+                 {"guard_checks", kind->explicit_steps ? json(report.guard_checks) : json(nullptr)},
+                 {"guard_seconds", kind->explicit_steps ? json(report.guard_seconds) : json(nullptr)},
                  {"failure", failure.empty() ? json(nullptr) : json(failure)}};
   s["time"] = dynamic ? json(state.time) : json(nullptr);
   s["steps"] = dynamic ? json(state.step) : json(nullptr);

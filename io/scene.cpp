@@ -20,6 +20,7 @@
 #include "src/model/body.hpp"
 #include "src/model/material.hpp"
 #include "src/model/topology.hpp"
+#include "src/solvers/solver.hpp"
 
 namespace tissue {
 
@@ -32,9 +33,9 @@ using Table = Value::table_type;
 const std::size_t max_scene_bytes = 16u << 20;  // a scene is a page of text, not a data file
 const int max_nesting = 64;                     // deep [[[[ would overflow the recursive TOML parser
 
-std::string join(const std::vector<std::string>& names) {
+std::string join(const std::vector<std::string>& names, const char* separator = ", ") {
   std::string s;
-  for (const auto& n : names) s += (s.empty() ? "" : ", ") + n;
+  for (const auto& n : names) s += (s.empty() ? "" : separator) + n;
   return s;
 }
 
@@ -524,10 +525,11 @@ CalibrationSpec read_calibration(const Section& s, const BodySpec* body, int ind
       }
     }
   }
-  if (c.method == "iterative" && nbodies > 1)
-    s.fail("method", fmt::format("iterative fits C by a tension test of the whole scene: not available with several "
+  const CalibrationStyle& style = *find_calibration(c.method);
+  if (style.wrap_solver && nbodies > 1)
+    s.fail("method", fmt::format("{} fits C by a tension test of the whole scene: not available with several "
                                  "bodies ({} here); find C with the body alone in a one-body scene, then give it "
-                                 "calibration = {{ method = \"divided\", divisor = C }}", nbodies));
+                                 "calibration = {{ method = \"divided\", divisor = C }}", c.method, nbodies));
   if (!body) return c;
   if (c.method == "manual") {
     s.require("stiffness", "method = \"manual\" needs stiffness = { edge = ..., ... } in N/m");
@@ -539,20 +541,15 @@ CalibrationSpec read_calibration(const Section& s, const BodySpec* body, int ind
   // The body this table calibrates, for messages when the scene has several.
   const std::string which = nbodies > 1 ? fmt::format(" (body {} has \"{}\")", index, body->topology)
                                         : fmt::format(" (the body has \"{}\")", body->topology);
-  if (c.method == "homogenized" && body->topology != "rectangular" && body->topology != "face-diagonals" &&
-      body->topology != "body-diagonals")
-    s.fail("method", "homogenized needs a box lattice topology (rectangular, face-diagonals or body-diagonals)" +
-                         which);
-  if ((c.method == "tetrahedral" || c.method == "lloyd") && body->topology != "tetrahedral" && !body->unstructured())
-    s.fail("method", c.method + " needs topology = \"tetrahedral\" (it sums over the tetrahedra incident on each "
-                                "connection)" + which);
+  const std::string problem = calibration_topology_problem(style, body->topology);
+  if (!problem.empty()) s.fail("method", problem + which);
   return c;
 }
 
 SolverSpec read_solver(const Section& s) {
   SolverSpec v;
   s.allow({"kind", "tolerance", "time_step", "steps", "max_iterations", "load_steps", "allow_unstable_time_step"});
-  v.kind = s.choice("kind", {"static", "relaxation", "dynamic"}).value_or(v.kind);
+  v.kind = s.choice("kind", solver_names()).value_or(v.kind);
   v.tolerance = s.number("tolerance").value_or(v.tolerance);
   if (!(v.tolerance > 0 && v.tolerance < 1))
     s.fail("tolerance", fmt::format("must be in (0, 1), got {}", v.tolerance));
@@ -709,15 +706,24 @@ Scene build_scene(const Value& root, const std::string& file) {
   if (top.has("solver")) scene.solver = read_solver(top.table("solver"));
   // Equilibrium needs the rigid motion held: by a [[fix]], or (relaxation only, which never inverts the
   // stiffness) by the obstacles the body rests on.
-  const bool held_by_contact = scene.solver.kind == "relaxation" && !scene.obstacles.empty();
-  if (scene.solver.kind != "dynamic" && scene.fixes.empty() && !held_by_contact)
+  const SolverStyle& solver = *find_solver(scene.solver.kind);
+  std::vector<std::string> settling, in_time;  // the kinds that may rest on obstacles, that integrate in time
+  for (const auto& k : solver_styles()) {
+    if (k.settles_on_obstacles) settling.emplace_back(k.name);
+    if (k.integrates_time) in_time.emplace_back(fmt::format("\"{}\"", k.name));
+  }
+  const bool held_by_contact = solver.settles_on_obstacles && !scene.obstacles.empty();
+  if (!solver.integrates_time && scene.fixes.empty() && !held_by_contact)
     throw InputError(file, "solver.kind",
                      fmt::format("a {} solve needs at least one [[fix]] (rigid motion is unbounded){}",
                                  scene.solver.kind,
-                                 scene.obstacles.empty() ? "" : "; relaxation may rest on obstacles instead"));
+                                 scene.obstacles.empty() ? ""
+                                                         : fmt::format("; {} may rest on obstacles instead",
+                                                                       join(settling, " or "))));
   for (std::size_t i = 0; i < scene.loads.size(); ++i)
-    if (scene.loads[i].period > 0 && scene.solver.kind != "dynamic")
-      throw InputError(file, fmt::format("load[{}].period", i), "a cyclic load needs solver.kind = \"dynamic\"");
+    if (scene.loads[i].period > 0 && !solver.integrates_time)
+      throw InputError(file, fmt::format("load[{}].period", i),
+                       "a cyclic load needs solver.kind = " + join(in_time, " or "));
   if (top.has("output")) scene.output = read_output(top.table("output"));
   if (top.has("partition")) {
     Section p = top.table("partition");

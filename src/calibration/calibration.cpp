@@ -3,6 +3,7 @@
 #include <memory>
 
 #include "partition/local_model.hpp"
+#include "src/model/topology.hpp"
 
 namespace tissue {
 
@@ -80,6 +81,28 @@ bool stiffness_is_final(const Scene& scene, const CalibrationRefresher& refresh)
   for (const auto& c : scene.calibrations)
     if (!find_calibration(c.method)->stiffness_final()) return false;
   return true;
+}
+
+std::string calibration_topology_problem(const CalibrationStyle& style, const std::string& topology) {
+  const TopologyStyle* lattice = find_topology(topology);  // nullptr: an explicit topology (mesh, random)
+  switch (style.needs) {
+    case CalibrationNeeds::any_topology: return "";
+    case CalibrationNeeds::tetrahedra:
+      if (!lattice || lattice->tetrahedra) return "";
+      return std::string(style.name) + " needs topology = \"tetrahedral\" (it sums over the tetrahedra incident on each "
+                                       "connection)";
+    case CalibrationNeeds::lattice_cells: {
+      if (lattice && !lattice->tetrahedra) return "";
+      std::vector<std::string> cells;
+      for (const auto& t : topology_styles())
+        if (!t.tetrahedra) cells.emplace_back(t.name);
+      std::string list;
+      for (std::size_t i = 0; i < cells.size(); ++i)
+        list += (i == 0 ? "" : i + 1 == cells.size() ? " or " : ", ") + cells[i];
+      return std::string(style.name) + " needs a box lattice topology (" + list + ")";
+    }
+  }
+  return "";
 }
 
 const CalibrationStyle* solver_wrapping_calibration(const Scene& scene) {

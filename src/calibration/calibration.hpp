@@ -39,13 +39,23 @@ using CalibrationUpdater = CalibrationRefresher (*)(const CalibrationContext&, s
 using CalibrationSolver = void (*)(const Scene&, LocalModel&, const ForceModel&, SolverState&, const SolverHooks&,
                                    const TensionTest&, SolveReport&);
 
-// A calibration method and what it can do; the driver asks these capabilities, never the method's name.
+// What a method needs of a body's topology; the scene reader checks it (the error names calibration.method).
+enum class CalibrationNeeds {
+  any_topology,
+  tetrahedra,    // a tetrahedral topology (TopologyStyle::tetrahedra), a mesh or a random cloud: Eq. 5 sums over them
+  lattice_cells, // a box lattice without tetrahedra: the method solves each cell's springs
+};
+
+// A calibration method and what it can do; the driver and the scene reader ask these capabilities, never the
+// method's name.
 struct CalibrationStyle {
   const char* name;
   CalibrationFunction compute;
   const char* description;
   CalibrationUpdater updater = nullptr;      // not null: k follows the deformation (refreshed during the solve)
-  CalibrationSolver wrap_solver = nullptr;   // not null: the method wraps the solver
+  CalibrationSolver wrap_solver = nullptr;   // not null: the method wraps the solver (one-body scenes)
+  CalibrationNeeds needs = CalibrationNeeds::any_topology;
+  bool reads_divisor = false;                // calibration.divisor is C as given (the summary reports it)
   // The stiffness stays as calibrated for the whole solve: the connections may be stored by type.
   bool stiffness_final() const { return !updater && !wrap_solver; }
 };
@@ -69,6 +79,8 @@ struct CalibrationStyle {
 bool stiffness_is_final(const Scene& scene, const CalibrationRefresher& refresh);
 // The method that wraps the solver for this scene (body 0's, iterative), or nullptr: the driver solves.
 const CalibrationStyle* solver_wrapping_calibration(const Scene& scene);
+// Why `style` cannot calibrate a body of topology `topology` ("" when it can): for the scene reader's message.
+std::string calibration_topology_problem(const CalibrationStyle& style, const std::string& topology);
 
 CalibrationRefresher calibrate_scene(const Scene& scene, const LocalModel& model, std::vector<double>& stiffness);
 

@@ -10,6 +10,7 @@ void calibrate_divided(const CalibrationContext& ctx, std::vector<double>& k) {
   for (int c = 0; c < ctx.model.connections(); ++c) k[c] = linear_stiffness(ctx.model, c) / C;
 }
 
-TISSUE_CALIBRATION(divided, {"divided", calibrate_divided, "the linear k divided by a constant C (calibration.divisor)"});
+TISSUE_CALIBRATION(divided, {"divided", calibrate_divided, "the linear k divided by a constant C (calibration.divisor)",
+                             nullptr, nullptr, CalibrationNeeds::any_topology, /*reads_divisor=*/true});
 
 }  // namespace tissue

@@ -38,6 +38,7 @@
 
 #include "partition/local_model.hpp"
 #include "src/calibration/calibration.hpp"
+#include "src/model/topology.hpp"
 
 namespace tissue {
 
@@ -87,7 +88,8 @@ void calibrate_homogenized(const CalibrationContext& ctx, std::vector<double>& k
   const LocalModel& m = ctx.model;
   const Body& shape = m.shape;
   const std::string& topology = shape.topology;
-  if (topology != "rectangular" && topology != "face-diagonals" && topology != "body-diagonals")
+  const TopologyStyle* lattice = find_topology(topology);
+  if (!lattice || lattice->tetrahedra)
     throw InputError(ctx.scene.file, "calibration.method",
                      "homogenized needs a box lattice topology (rectangular, face-diagonals or body-diagonals), "
                      "not \"" + topology + "\"");
@@ -114,6 +116,7 @@ void calibrate_homogenized(const CalibrationContext& ctx, std::vector<double>& k
 }
 
 TISSUE_CALIBRATION(homogenized, {"homogenized", calibrate_homogenized,
-                                 "per-cell springs exact for an isotropic E, nu = 1/4 (Cauchy-Born)"});
+                                 "per-cell springs exact for an isotropic E, nu = 1/4 (Cauchy-Born)", nullptr,
+                                 nullptr, CalibrationNeeds::lattice_cells});
 
 }  // namespace tissue

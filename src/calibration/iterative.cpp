@@ -25,10 +25,14 @@ void calibrate_iterative(const CalibrationContext& ctx, std::vector<double>& k) 
   if (!tension_test(ctx.scene, ctx.model.shape).valid)
     throw InputError(ctx.scene.file, "calibration.method",
                      "iterative needs a tension test: one [[load]] and a [[fix]] on the opposite face");
-  if (ctx.scene.solver.kind != "static" && ctx.scene.solver.kind != "relaxation")
+  if (!find_solver(ctx.scene.solver.kind)->equilibrium) {
+    std::string kinds;
+    for (const auto& s : solver_styles())
+      if (s.equilibrium) kinds += std::string(kinds.empty() ? "" : " or ") + "\"" + s.name + "\"";
     throw InputError(ctx.scene.file, "calibration.method",
-                     "iterative needs solver.kind = \"static\" or \"relaxation\" (an equilibrium to measure), not \"" +
+                     "iterative needs solver.kind = " + kinds + " (an equilibrium to measure), not \"" +
                          ctx.scene.solver.kind + "\"");
+  }
   const double C = ctx.scene.calibration.divisor;
   for (int c = 0; c < ctx.model.connections(); ++c) k[c] = linear_stiffness(ctx.model, c) / C;
 }

@@ -23,6 +23,7 @@ void calibrate_lloyd(const CalibrationContext& ctx, std::vector<double>& k) {
   }
 }
 
-TISSUE_CALIBRATION(lloyd, {"lloyd", calibrate_lloyd, "Lloyd et al. 2007: k = sum (2 sqrt2 / 25) E l_equiv per tetrahedron"});
+TISSUE_CALIBRATION(lloyd, {"lloyd", calibrate_lloyd, "Lloyd et al. 2007: k = sum (2 sqrt2 / 25) E l_equiv per tetrahedron",
+                           nullptr, nullptr, CalibrationNeeds::tetrahedra});
 
 }  // namespace tissue

@@ -7,11 +7,13 @@
 // (0,0,0) or (1,1,1) corner lies in 2 of the cell's tetrahedra, the others in 1, and the main diagonal in all 6.
 #include "partition/local_model.hpp"
 #include "src/calibration/calibration.hpp"
+#include "src/model/topology.hpp"
 
 namespace tissue {
 
 void require_tetrahedra(const CalibrationContext& ctx, const char* method) {
-  if ((ctx.model.shape.topology != "tetrahedral" && !ctx.model.shape.unstructured()) ||
+  const TopologyStyle* lattice = find_topology(ctx.model.shape.topology);  // nullptr: a mesh or random cloud
+  if ((lattice && !lattice->tetrahedra) ||
       ctx.model.tetra_volume.size() != static_cast<std::size_t>(ctx.model.connections()))
     throw InputError(ctx.scene.file, "calibration.method",
                      std::string(method) + " needs tetrahedra (topology tetrahedral or random, or a mesh; it sums over the tetrahedra incident "
@@ -29,6 +31,7 @@ void calibrate_tetrahedral(const CalibrationContext& ctx, std::vector<double>& k
 }
 
 TISSUE_CALIBRATION(tetrahedral, {"tetrahedral", calibrate_tetrahedral,
-                                 "Eq. 5 (Van Gelder): k = E sum vol(T_e) / |c|^2; tetrahedral topology"});
+                                 "Eq. 5 (Van Gelder): k = E sum vol(T_e) / |c|^2; tetrahedral topology", nullptr,
+                                 nullptr, CalibrationNeeds::tetrahedra});
 
 }  // namespace tissue

@@ -1,5 +1,7 @@
-// Topologies: which molecules of a box a connection joins. A new topology is one stencil (the lattice offsets
-// of a molecule's neighbours) plus one line in the registry (topology.cpp).
+// Topologies: which molecules of a box a connection joins. A new topology is one new file in
+// src/model/topologies/: its stencil (the lattice offsets of a molecule's neighbours), its explicit builder, and
+// its registration line TISSUE_TOPOLOGY(id, {...}) (CMake lists those lines in a generated file; nothing else is
+// edited).
 //
 // Two views of the same topology: the stencil answers "who are molecule g's neighbours" for any g, so each rank
 // generates only the connections of its own molecules (partition/lattice_model.cpp) and no rank ever holds the
@@ -43,6 +45,22 @@ void lattice_neighbours(const TopologyStyle& style, const BoxGeometry& box, std:
 int kuhn_tetrahedra_on(const BoxGeometry& box, std::int64_t a, std::int64_t b);
 double kuhn_tetrahedron_volume(const BoxGeometry& box);
 
+// Registers a topology, in its own file: TISSUE_TOPOLOGY(face_diagonals, {"face-diagonals", ...}).
+#define TISSUE_TOPOLOGY(id, ...)                     \
+  const TopologyStyle& topology_style_##id() {       \
+    static const TopologyStyle style __VA_ARGS__;   \
+    return style;                                    \
+  }
+
+// Building blocks the topologies share (src/model/topologies/): a connection p-q (stored with a < b), the axis
+// stencil and explicit builders that others extend.
+void add_connection(Body& b, std::int64_t p, std::int64_t q, ConnectionClass c);
+std::vector<StencilOffset> axis_offsets();
+std::vector<StencilOffset> with_face_diagonals(std::vector<StencilOffset> s);
+void build_rectangular(Body& b);
+void build_face_diagonals(Body& b);
+
+// Every registered topology, in the order of their files' names; find_topology returns nullptr for an unknown name.
 const std::vector<TopologyStyle>& topology_styles();
 const TopologyStyle* find_topology(const std::string& name);
 std::vector<std::string> topology_names();

@@ -101,7 +101,7 @@ ForceModel::ForceModel(const Scene& scene, const LocalModel& model) : model_(mod
   if (any_cyclic) cyclic.assign(3 * model.owned, 0.0);
   for (const auto& load : scene.loads) add_face_load(load, model, (load.period > 0 ? cyclic : constant).data());
   for (const auto& style : term_styles())
-    if (style.listed(scene)) terms_.push_back(style.make(TermContext{scene, model}));
+    if (style.listed(scene)) terms_.push_back(style.make(TermContext{scene, model})), term_styles_.push_back(&style);
 
   // The reference of the relative residual: loads (cyclic ones at their amplitude) and gravity.
   const Vec3 g = scene.physics.gravity ? *scene.physics.gravity : Vec3{0, 0, 0};
@@ -123,15 +123,21 @@ std::vector<std::string> ForceModel::term_names() const {
   return names;
 }
 
+bool ForceModel::energy_never_grows() const {
+  for (const TermStyle* s : term_styles_)
+    if (!s->energy_never_grows) return false;
+  return true;
+}
+
 ForceModel::Contact ForceModel::contact_totals() const {
   Contact c;
   const int nb = model_.shape.bodies();
   c.totals.bodies.assign(3 * nb, 0.0);
   c.totals.bodies_self.assign(3 * nb, 0.0);
-  for (const auto& t : terms_) {
-    c.obstacles = c.obstacles || std::string(t->name()) == "obstacles";
-    c.molecules = c.molecules || std::string(t->name()) == "contact";
-    t->add_totals(c.totals);
+  for (std::size_t i = 0; i < terms_.size(); ++i) {
+    c.obstacles = c.obstacles || term_styles_[i]->contact == ContactReport::obstacles;
+    c.molecules = c.molecules || term_styles_[i]->contact == ContactReport::molecules;
+    terms_[i]->add_totals(c.totals);
   }
   std::vector<double> local(3 + 6 * nb), global(3 + 6 * nb);
   std::copy(c.totals.obstacles.begin(), c.totals.obstacles.end(), local.begin());

@@ -65,6 +65,8 @@ public:
   void set_time(double t) const { time_ = t; }
   // The terms built for this scene, by name (the connection forces and constant loads are not listed).
   std::vector<std::string> term_names() const;
+  // Every listed term keeps the total energy from growing (TermStyle::energy_never_grows; true with none).
+  bool energy_never_grows() const;
   // Collective: the contact force totals of the last force evaluation, summed over the ranks; nullopt-like
   // (has_obstacles/has_contact false) when the scene has no such term.
   struct Contact {
@@ -80,6 +82,7 @@ private:
   std::vector<int> held_owned_;
   std::vector<AppliedForce> applied_;  // non-zero components only
   std::vector<std::unique_ptr<Term>> terms_;  // only what the scene lists, in the registry's order
+  std::vector<const TermStyle*> term_styles_;  // the style of each (what it can do)
   double applied_norm_ = 0.0;
   mutable double time_ = 0.0;
   // The tangent's block rows (built by create_tangent): row i's columns are the local molecules

@@ -1,6 +1,7 @@
 // A physics term: one part of Eq. 2's total force besides the connection forces (gravity, viscous friction,
-// obstacles, molecule-molecule contact, cyclic loads). Each term is one file in src/physics/ plus one line in the
-// registry (terms.cpp); the ForceModel builds only the terms the scene lists, so an absent term allocates
+// obstacles, molecule-molecule contact, cyclic loads). Each term is one file in src/physics/terms/ holding its
+// class and its registration line TISSUE_TERM(id, {...}) (CMake lists those lines in a generated file that
+// terms.cpp reads; nothing else is edited); the ForceModel builds only the terms the scene lists, so an absent term allocates
 // nothing and costs nothing. Terms run after the connection kernel, one virtual call per term and evaluation
 // (never per connection), and loop over the owned molecules themselves. Each adds to a molecule's force in the
 // same order on every rank, so results stay independent of the partition.
@@ -50,12 +51,30 @@ public:
 };
 
 using TermFactory = std::unique_ptr<Term> (*)(const TermContext&);
+
+// What a term's contact forces are, for the summary (Measurements::contact_force, body_contact_force).
+enum class ContactReport { none, obstacles, molecules };
+
+// A physics term and what it can do: the force model, the guards and the measurements ask these capabilities,
+// never the term's name.
 struct TermStyle {
   const char* name;
   bool (*listed)(const Scene&);  // does the scene ask for this term?
   TermFactory make;
   const char* description;
+  int order;  // terms add their forces in increasing order (a fixed order keeps results bit for bit)
+  // The total energy (kinetic + springs + potential - work of the loads) never grows with the term: it is
+  // conservative (a potential) or dissipative; the dynamic guard's energy-growth check holds only then.
+  bool energy_never_grows = false;
+  ContactReport contact = ContactReport::none;
 };
+
+// Registers a term, in its own file: TISSUE_TERM(gravity, {"gravity", listed, make, "...", 10, true}).
+#define TISSUE_TERM(id, ...)                      \
+  const TermStyle& term_style_##id() {            \
+    static const TermStyle style __VA_ARGS__;    \
+    return style;                                 \
+  }
 
 // The registry (terms.cpp), in the order terms add their forces.
 const std::vector<TermStyle>& term_styles();

@@ -129,4 +129,7 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
   return report;
 }
 
+TISSUE_SOLVER(dynamic, {"dynamic", solve_dynamic, "velocity Verlet in time (explicit)", /*equilibrium=*/false,
+                        /*newton=*/false, /*explicit_steps=*/true, /*integrates_time=*/true});
+
 }  // namespace tissue

@@ -103,4 +103,8 @@ SolveReport solve_relaxation(const Scene& scene, const LocalModel& model, const 
   return report;
 }
 
+TISSUE_SOLVER(relaxation, {"relaxation", solve_relaxation, "FIRE damped dynamics to static equilibrium",
+                           /*equilibrium=*/true, /*newton=*/false, /*explicit_steps=*/true, /*integrates_time=*/false,
+                           /*settles_on_obstacles=*/true});
+
 }  // namespace tissue

@@ -100,10 +100,35 @@ double relative_residual(const LocalModel& model, const ForceModel& forces, cons
 // Throws SolverFailure naming the step and the molecule when a force or position is not finite.
 void check_finite(const LocalModel& model, const double* x, const double* f, long step, const char* what);
 
-SolveReport solve_relaxation(const Scene&, const LocalModel&, const ForceModel&, SolverState&, const SolverHooks&);
-SolveReport solve_dynamic(const Scene&, const LocalModel&, const ForceModel&, SolverState&, const SolverHooks&);
-SolveReport solve_static(const Scene&, const LocalModel&, const ForceModel&, SolverState&, const SolverHooks&);
+using SolveFunction = SolveReport (*)(const Scene&, const LocalModel&, const ForceModel&, SolverState&,
+                                      const SolverHooks&);
 
+// A solver kind (solver.kind) and what it can do; the scene reader, the calibration and the summary ask these
+// capabilities, never the kind's name. Each kind is one file holding its solve function and its registration
+// line TISSUE_SOLVER(id, {...}) (CMake lists those lines in a generated file that solver.cpp reads).
+struct SolverStyle {
+  const char* name;
+  SolveFunction solve;
+  const char* description;
+  bool equilibrium = false;           // finds a static equilibrium (the iterative calibration measures it)
+  bool newton = false;                // Newton-Krylov on the assembled tangent: Krylov iterations are reported
+  bool explicit_steps = false;        // steps with a time step (solver.time_step) under the per-step guards
+  bool integrates_time = false;       // follows the motion in time: cyclic loads; rigid motion need not be held
+  bool settles_on_obstacles = false;  // an equilibrium may be held by obstacles alone (never inverts the stiffness)
+};
+
+#define TISSUE_SOLVER(id, ...)                    \
+  const SolverStyle& solver_style_##id() {        \
+    static const SolverStyle style __VA_ARGS__;  \
+    return style;                                 \
+  }
+
+// Every registered solver kind, in the order of their files' names; find_solver returns nullptr for an unknown name.
+const std::vector<SolverStyle>& solver_styles();
+const SolverStyle* find_solver(const std::string& name);
+std::vector<std::string> solver_names();
+
+// Solves as the scene's solver.kind says (its SolverStyle's solve), timing it.
 SolveReport solve(const Scene&, const LocalModel&, const ForceModel&, SolverState&, const SolverHooks&);
 
 }  // namespace tissue

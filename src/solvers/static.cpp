@@ -401,4 +401,7 @@ SolveReport solve_static(const Scene& scene, const LocalModel& model, const Forc
   return report;
 }
 
+TISSUE_SOLVER(static, {"static", solve_static, "Newton-Krylov to static equilibrium, load steps, lattice multigrid or GAMG",
+                       /*equilibrium=*/true, /*newton=*/true});
+
 }  // namespace tissue

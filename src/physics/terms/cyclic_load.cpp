@@ -36,4 +36,15 @@ private:
 
 std::unique_ptr<Term> make_cyclic_load(const TermContext& c) { return std::make_unique<CyclicLoad>(c.scene, c.model); }
 
+namespace {
+bool has_cyclic(const Scene& s) {
+  for (const auto& l : s.loads)
+    if (l.period > 0) return true;
+  return false;
+}
+}  // namespace
+
+TISSUE_TERM(cyclic_load, {"cyclic-load", has_cyclic, make_cyclic_load,
+                          "[[load]] period = T: the face load scaled by sin(2 pi t / T) (dynamic runs)", 30});
+
 }  // namespace tissue

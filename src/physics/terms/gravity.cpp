@@ -30,4 +30,7 @@ std::unique_ptr<Term> make_gravity(const TermContext& c) {
   return std::make_unique<Gravity>(c.model, *c.scene.physics.gravity);
 }
 
+TISSUE_TERM(gravity, {"gravity", [](const Scene& s) { return s.physics.gravity.has_value(); }, make_gravity,
+                      "[physics] gravity = [gx, gy, gz]: m g on every molecule", 10, /*energy_never_grows=*/true});
+
 }  // namespace tissue

@@ -222,4 +222,8 @@ private:
 
 std::unique_ptr<Term> make_contact(const TermContext& c) { return std::make_unique<Contact>(c.scene, c.model); }
 
+TISSUE_TERM(contact, {"contact", [](const Scene& s) { return s.physics.contact; }, make_contact,
+                      "[physics] contact = true: molecule-molecule contact between bodies and non-neighbours of one "
+                      "body", 50, false, ContactReport::molecules});
+
 }  // namespace tissue

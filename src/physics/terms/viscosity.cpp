@@ -23,4 +23,9 @@ std::unique_ptr<Term> make_viscosity(const TermContext& c) {
   return std::make_unique<Viscosity>(c.model, *c.scene.physics.viscosity);
 }
 
+TISSUE_TERM(viscosity, {"viscosity",
+                        [](const Scene& s) { return s.physics.viscosity.has_value() && *s.physics.viscosity > 0; },
+                        make_viscosity, "[physics] viscosity = c: ambient viscous friction -c v on every molecule", 20,
+                        /*energy_never_grows=*/true});
+
 }  // namespace tissue

@@ -117,4 +117,8 @@ private:
 
 std::unique_ptr<Term> make_obstacles(const TermContext& c) { return std::make_unique<Obstacles>(c.scene, c.model); }
 
+TISSUE_TERM(obstacles, {"obstacles", [](const Scene& s) { return !s.obstacles.empty(); }, make_obstacles,
+                        "[[obstacle]]: rigid planes and spheres pushing molecules (spheres) out by a penalty force", 40,
+                        false, ContactReport::obstacles});
+
 }  // namespace tissue

@@ -10,7 +10,7 @@ must have the same length; an object must have the same keys. Every differing ke
 values (`solver.residual_history[3]: old 1.2e-08 new 1.3e-08 (rel 7.7e-02)`); a key present on one side only is
 reported as missing or extra, also for excluded keys (they must still exist, only their values are not compared).
 The last line is always `max_rel R at PATH` (the largest relative difference over all compared numbers, also
-when within rtol), which run_scripts/compare_binaries.sh prints per scene.
+when within rtol; `max_rel 0.000e+00 (all numbers equal)` when every number is bit for bit the same), which run_scripts/compare_binaries.sh prints per scene.
 Exit code: 0 all agree, 1 any difference or missing / extra key, 2 a file cannot be read or parsed.
 Standard library only.
 """
@@ -70,7 +70,7 @@ class Comparison:
                 delta = abs(fa - fb)
                 rel = delta / scale if math.isfinite(delta) else math.inf
                 same = delta <= self.rtol * scale + 1e-300
-            if rel > self.max_rel or self.max_rel_path == "-":
+            if rel > self.max_rel:
                 self.max_rel, self.max_rel_path = rel, path or "(root)"
             if not same:
                 self.differ(path, "old %s new %s (rel %.3e)" % (_fmt(a), _fmt(b), rel))
@@ -137,7 +137,7 @@ def main(argv):
     if not quiet:
         for path, message in c.differences:
             print("  %s: %s" % (path, message))
-    print("max_rel %.3e at %s" % (c.max_rel, c.max_rel_path))
+    print("max_rel %.3e%s" % (c.max_rel, " at " + c.max_rel_path if c.max_rel > 0 else " (all numbers equal)"))
     return 1 if c.differences else 0
 
 

@@ -37,6 +37,7 @@
 #   run_scripts/compare_binaries.sh /tmp/old/tissue build/tissue    # two binaries you built
 #   OLD=/tmp/old/tissue NEW=build/tissue SCENES='table2_* restart_*' RANKS=2 run_scripts/compare_binaries.sh
 #   SCENES=list run_scripts/compare_binaries.sh                # print the scene names and exit
+#   SCENES=none BASE=main run_scripts/compare_binaries.sh      # only build OLD; print "OLD path", "NEW path" (compare_speed.sh)
 # Knobs (environment): OLD, NEW (binaries; the arguments win; NEW defaults to build/tissue), BASE (a git revision:
 # OLD is built from it with `git worktree add --detach $WORK/base-<sha>` and `cmake --build ... --target tissue`
 # under nice, once: a later run reuses it; remove it with `git worktree remove --force $WORK/base-<sha>`),
@@ -78,18 +79,19 @@ if [[ "$SCENES" != list ]]; then
     tree=$WORK/base-$sha
     OLD=$tree/build/tissue
     if [[ ! -x "$OLD" ]]; then
-      echo "building OLD from $BASE ($sha) in $tree (log: $tree.build.log)"
+      echo "building OLD from $BASE ($sha) in $tree (log: $tree.build.log)" >&2
       [[ -d "$tree" ]] || git worktree add --detach "$tree" "$sha" > "$tree.build.log" 2>&1 \
         || die "git worktree add failed, see $tree.build.log"
       t0=$(date +%s)
       ( cd "$tree" && nice -n 10 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DTISSUE_TESTS=OFF \
           && nice -n 10 cmake --build build -j2 --target tissue ) >> "$tree.build.log" 2>&1 \
         || die "building $BASE failed, see $tree.build.log"
-      echo "built OLD in $(( $(date +%s) - t0 )) s"
+      echo "built OLD in $(( $(date +%s) - t0 )) s" >&2
     fi
   fi
   for b in "$OLD" "$NEW"; do [[ -x "$b" ]] || die "no binary $b (build it: cmake --build build -j2 --target tissue)"; done
   OLD=$(realpath "$OLD"); NEW=$(realpath "$NEW")
+  if [[ "$SCENES" == none ]]; then echo "OLD $OLD"; echo "NEW $NEW"; exit 0; fi   # the binaries only
 fi
 
 # 2. The scene table. add NAME EXPECTED_EXIT SCENE_FILE [--set options...]; add_restart NAME CHECKPOINT_STEP
@@ -123,8 +125,9 @@ add_restart restart_relaxation 100 "$S/table2.toml" --set solver.kind=relaxation
   --set output.checkpoint_every=100 --set 'output.fields=[]'
 
 SELECTED=()
+read -r -a PATTERNS <<< "$SCENES"   # (no pathname expansion: the patterns match scene names, not files)
 for n in "${NAMES[@]}"; do
-  for p in $SCENES; do
+  for p in "${PATTERNS[@]}"; do
     # shellcheck disable=SC2254
     case $n in $p) SELECTED+=("$n"); break ;; esac
   done

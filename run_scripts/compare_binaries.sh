@@ -43,7 +43,9 @@
 # under nice, once: a later run reuses it; remove it with `git worktree remove --force $WORK/base-<sha>`),
 # SCENES (space-separated names or shell patterns, default all), RANKS (default "1 2"), RTOL (default 1e-12),
 # WORK (default out/compare; runs in $WORK/runs/<scene>/np<ranks>/{old,new}, each with its .log),
-# RUN_TIMEOUT (s per run, default 300; exit 124 = timed out), CROSS (default 1), PYTHON (default /usr/bin/python3).
+# RUN_TIMEOUT (s per run, default 300; exit 124 = timed out), CROSS (default 1), PYTHON (default /usr/bin/python3),
+# NEW_ARGS (extra options, split at blanks, given to NEW's `run`s only: a negative control that must FAIL, e.g.
+# NEW_ARGS='--set calibration.divisor=3.7500000001' OLD=build/tissue SCENES=table2_divided ...).
 # Exit code: 0 every scene PASS, 1 any FAIL, 2 a missing prerequisite (binary, build, gmsh, python3).
 #
 # Steps:
@@ -63,6 +65,7 @@ RANKS=${RANKS:-"1 2"}
 RTOL=${RTOL:-1e-12}
 RUN_TIMEOUT=${RUN_TIMEOUT:-300}
 CROSS=${CROSS:-1}
+read -r -a NEW_ARGS <<< "${NEW_ARGS:-}"
 SCENES=${SCENES:-"*"}
 OLD=${1:-${OLD:-}}
 NEW=${2:-${NEW:-build/tissue}}
@@ -146,6 +149,7 @@ fi
 
 echo "OLD $OLD"
 echo "NEW $NEW"
+(( ${#NEW_ARGS[@]} == 0 )) || echo "NEW's runs also get: ${NEW_ARGS[*]} (a negative control)"
 echo "ranks: $RANKS; relative tolerance $RTOL; runs in $WORK/runs; excluded keys: $("$PYTHON" "$COMPARE" --excluded | awk '{printf "%s%s", s, $1; s=", "}')"
 printf '%-28s %5s  %-4s  %-34s %s\n' scene ranks test "largest relative difference" note
 
@@ -194,14 +198,14 @@ for name in "${SELECTED[@]}"; do
     ok=1; rel="-"; notes=()
     if [[ "${KIND[$name]}" == run ]]; then
       orc=$(tissue "$np" "$OLD" "$base/old" run "${args[@]}" --set output.progress=false)
-      nrc=$(tissue "$np" "$NEW" "$base/new" run "${args[@]}" --set output.progress=false)
+      nrc=$(tissue "$np" "$NEW" "$base/new" run "${args[@]}" --set output.progress=false "${NEW_ARGS[@]}")
       compare "$name" "$base/old" "$orc" "$base/new" "$nrc" "${EXPECT[$name]}"
       ok=$CMP_OK; rel=$CMP_REL; [[ -z "$CMP_NOTE" ]] || notes+=("$CMP_NOTE")
     else
       step=${CKSTEP[$name]}
       ck=$(printf 'checkpoint_%010d.h5' "$step")
       orc=$(tissue "$np" "$OLD" "$base/old" run "${args[@]}" --set output.progress=false)
-      nrc=$(tissue "$np" "$NEW" "$base/new" run "${args[@]}" --set output.progress=false)
+      nrc=$(tissue "$np" "$NEW" "$base/new" run "${args[@]}" --set output.progress=false "${NEW_ARGS[@]}")
       compare "$name/checkpointing-run" "$base/old" "$orc" "$base/new" "$nrc" "${EXPECT[$name]}"
       ok=$CMP_OK; rel=$CMP_REL; [[ -z "$CMP_NOTE" ]] || notes+=("$CMP_NOTE")
       if [[ -f "$base/old/$ck" && -f "$base/new/$ck" ]]; then

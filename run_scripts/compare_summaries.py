@@ -3,6 +3,7 @@
 
     python3 run_scripts/compare_summaries.py OLD/summary.json NEW/summary.json [--rtol 1e-12] [--quiet]
     python3 run_scripts/compare_summaries.py --excluded          # the excluded keys and why, then exit 0
+    python3 run_scripts/compare_summaries.py --self-test         # shows that perturbed numbers and keys are caught
 
 Walks both JSON trees recursively. Numbers agree when |a - b| <= rtol * max(|a|, |b|) + 1e-300 (NaN equals NaN;
 the 1e-300 is the absolute floor for numbers at or near zero); strings, booleans and null must be equal; a list
@@ -100,6 +101,42 @@ class Comparison:
             self.differ(path, "old %s new %s" % (_fmt(a), _fmt(b)))
 
 
+def self_test():
+    """Perturbs a summary-like tree in the ways a regression could, and checks each verdict."""
+    base = {"elongation": 0.008599999962545974, "center_of_mass": [0.5, 1e-17, 0.0], "wall_seconds": 1.9,
+            "contact_force": None, "solver": {"converged": True, "iterations": 9, "residual_history": [2.6e-13]},
+            "version": "0.1.0", "calibration": {"method": "iterative", "divisor": 1.3067182818589531}}
+    cases = [  # (what, mutation, should differ)
+        ("unchanged", lambda t: None, False),
+        ("elongation x (1 + 2e-12)", lambda t: t.update(elongation=t["elongation"] * (1 + 2e-12)), True),
+        ("elongation x (1 + 5e-13)", lambda t: t.update(elongation=t["elongation"] * (1 + 5e-13)), False),
+        ("calibration.divisor + 1e-10", lambda t: t["calibration"].update(divisor=1.3067182819589531), True),
+        ("center_of_mass[1] 1e-17 -> 2e-17", lambda t: t["center_of_mass"].__setitem__(1, 2e-17), True),
+        ("center_of_mass[2] 0.0 -> -0.0", lambda t: t["center_of_mass"].__setitem__(2, -0.0), False),
+        ("solver.iterations 9 -> 10", lambda t: t["solver"].update(iterations=10), True),
+        ("solver.converged flipped", lambda t: t["solver"].update(converged=False), True),
+        ("contact_force null -> [0, 0, 0]", lambda t: t.update(contact_force=[0.0, 0.0, 0.0]), True),
+        ("residual_history one more", lambda t: t["solver"]["residual_history"].append(1e-14), True),
+        ("calibration.method changed", lambda t: t["calibration"].update(method="divided"), True),
+        ("wall_seconds changed (excluded)", lambda t: t.update(wall_seconds=99.0), False),
+        ("version changed (excluded)", lambda t: t.update(version="0.2.0"), False),
+        ("wall_seconds missing (excluded, still required)", lambda t: t.pop("wall_seconds"), True),
+        ("extra key", lambda t: t.update(new_key=1), True),
+    ]
+    bad = 0
+    for what, mutate, should in cases:
+        t = json.loads(json.dumps(base))
+        mutate(t)
+        c = Comparison(1e-12)
+        c.walk(base, t, "")
+        ok = bool(c.differences) == should
+        bad += not ok
+        print("%-4s %-48s %s" % ("ok" if ok else "BAD", what, "; ".join("%s: %s" % d for d in c.differences) or
+                                 "no difference (max_rel %.1e)" % c.max_rel))
+    print("self-test: %s" % ("passed" if not bad else "%d case(s) wrong" % bad))
+    return 1 if bad else 0
+
+
 def main(argv):
     args = argv[1:]
     rtol, quiet, files = 1e-12, False, []
@@ -115,6 +152,8 @@ def main(argv):
             for k, why in EXCLUDED.items():
                 print("%-22s %s" % (k, why))
             return 0
+        elif args[i] == "--self-test":
+            return self_test()
         elif args[i] in ("-h", "--help"):
             print(__doc__)
             return 0

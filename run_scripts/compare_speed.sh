@@ -72,7 +72,7 @@ s = json.load(open(d + "/summary.json"))
 wall = s["wall_seconds"]
 wall0 = json.load(open(sys.argv[7] + "/summary.json"))["wall_seconds"] if len(sys.argv) > 7 else ""
 t = wall - wall0 if wall0 != "" else wall
-rate = 200 / t if wall0 != "" else ""
+rate = 200 / t if wall0 != "" and t > 0 else ""
 load = open("/proc/loadavg").read().split()[0]
 print(",".join(str(v) for v in [m, which, rnd, np, n, round(t, 6), wall, wall0, rate, s["peak_memory_bytes"],
       s["solver"]["iterations"], s["solver"].get("linear_iterations") or "", load]))
@@ -124,7 +124,7 @@ for m in ms:
     to = statistics.median(float(r["time_s"]) for r in o.values())
     tn = statistics.median(float(r["time_s"]) for r in n.values())
     pairs = [float(n[k]["time_s"]) / float(o[k]["time_s"]) for k in o if k in n]
-    rate = lambda t: "%.1f" % (200 / t) if m.startswith("explicit") else "-"
+    rate = lambda t: "%.1f" % (200 / t) if m.startswith("explicit") and t > 0 else "-"
     mem = statistics.median(float(r["peak_bytes"]) for r in n.values()) / statistics.median(
         float(r["peak_bytes"]) for r in o.values())
     work = {(r["iterations"], r["linear_iterations"]) for r in list(o.values()) + list(n.values())}

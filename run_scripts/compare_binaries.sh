@@ -9,6 +9,10 @@
 # with the same exit code (a scene may expect 2 or 3: a refused input, a failing solver; a failed run that wrote a
 # summary has it compared too). It prints one line per scene and rank count: name, ranks, PASS/FAIL, the largest
 # relative difference over all compared numbers (and where), a note; then every differing key with both values.
+# The HDF5 files of every run (final.h5, snapshots, checkpoints: every molecule's position, velocity, force, every
+# connection) are compared too when h5diff is installed (H5=1, the default then): the same file names on both
+# sides, and every dataset to the same relative tolerance (`h5diff -p RTOL`), root attributes excluded (they carry
+# the version string; step, time and counts are in summary.json).
 # Both binaries run the scene files of THIS checkout (run_scripts/scenes), so a change of a scene is not a change of
 # a binary.
 #
@@ -43,7 +47,8 @@
 # under nice, once: a later run reuses it; remove it with `git worktree remove --force $WORK/base-<sha>`),
 # SCENES (space-separated names or shell patterns, default all), RANKS (default "1 2"), RTOL (default 1e-12),
 # WORK (default out/compare; runs in $WORK/runs/<scene>/np<ranks>/{old,new}, each with its .log),
-# RUN_TIMEOUT (s per run, default 300; exit 124 = timed out), CROSS (default 1), PYTHON (default /usr/bin/python3),
+# RUN_TIMEOUT (s per run, default 300; exit 124 = timed out), CROSS (default 1), H5 (default 1 if h5diff exists),
+# PYTHON (default /usr/bin/python3),
 # NEW_ARGS (extra options, split at blanks, given to NEW's `run`s only: a negative control that must FAIL, e.g.
 # NEW_ARGS='--set calibration.divisor=3.7500000001' OLD=build/tissue SCENES=table2_divided ...).
 # Exit code: 0 every scene PASS, 1 any FAIL, 2 a missing prerequisite (binary, build, gmsh, python3).
@@ -66,6 +71,7 @@ RTOL=${RTOL:-1e-12}
 RUN_TIMEOUT=${RUN_TIMEOUT:-300}
 CROSS=${CROSS:-1}
 read -r -a NEW_ARGS <<< "${NEW_ARGS:-}"
+H5=${H5:-$(command -v h5diff > /dev/null && echo 1 || echo 0)}
 SCENES=${SCENES:-"*"}
 OLD=${1:-${OLD:-}}
 NEW=${2:-${NEW:-build/tissue}}
@@ -150,6 +156,7 @@ fi
 echo "OLD $OLD"
 echo "NEW $NEW"
 (( ${#NEW_ARGS[@]} == 0 )) || echo "NEW's runs also get: ${NEW_ARGS[*]} (a negative control)"
+echo "HDF5 files compared (h5diff): $( [[ "$H5" == 1 ]] && echo yes || echo no)"
 echo "ranks: $RANKS; relative tolerance $RTOL; runs in $WORK/runs; excluded keys: $("$PYTHON" "$COMPARE" --excluded | awk '{printf "%s%s", s, $1; s=", "}')"
 printf '%-28s %5s  %-4s  %-34s %s\n' scene ranks test "largest relative difference" note
 
@@ -180,6 +187,19 @@ compare() {
     CMP_OK=0
     DETAILS+="$label (old $od, new $nd):"$'\n'"$(sed '$d' <<< "$out")"$'\n'
   fi
+  [[ "$H5" == 1 ]] || return 0
+  local f h5out h5rc
+  for f in $( { ls "$od"; ls "$nd"; } 2> /dev/null | grep '\.h5$' | sort -u); do
+    if [[ ! -f "$od/$f" || ! -f "$nd/$f" ]]; then
+      CMP_OK=0; CMP_NOTE+="${CMP_NOTE:+; }$label: $f in one run only"
+      DETAILS+="$label: $f exists in only one of $od, $nd"$'\n'; continue
+    fi
+    H5_COUNT=$((H5_COUNT + 1)); h5rc=0
+    h5out=$(h5diff -p "$RTOL" --exclude-attribute / "$od/$f" "$nd/$f" 2>&1) || h5rc=$?
+    if (( h5rc != 0 )); then
+      CMP_OK=0; CMP_NOTE+="${CMP_NOTE:+; }$label: $f differs"; DETAILS+="$label: $f differs (h5diff -p $RTOL --exclude-attribute / $od/$f $nd/$f):"$'\n'"$(head -n 20 <<< "$h5out")"$'\n'
+    fi
+  done
 }
 # maxrel A B: the larger of two "R at PATH" strings ("-" counts as nothing).
 maxrel() {
@@ -195,7 +215,7 @@ for name in "${SELECTED[@]}"; do
   for np in $RANKS; do
     base=$WORK/runs/$name/np$np
     t0=$(date +%s)
-    ok=1; rel="-"; notes=()
+    ok=1; rel="-"; notes=(); H5_COUNT=0
     if [[ "${KIND[$name]}" == run ]]; then
       orc=$(tissue "$np" "$OLD" "$base/old" run "${args[@]}" --set output.progress=false)
       nrc=$(tissue "$np" "$NEW" "$base/new" run "${args[@]}" --set output.progress=false "${NEW_ARGS[@]}")
@@ -226,7 +246,7 @@ for name in "${SELECTED[@]}"; do
     (( ok )) || FAILED+=("$name np$np")
     for n in "${notes[@]}"; do [[ "$n" == *expected* ]] && UNEXPECTED+=("$name np$np"); done
     printf '%-28s %5s  %-4s  %-34s %s\n' "$name" "$np" "$( (( ok )) && echo PASS || echo FAIL)" "$rel" \
-      "$(( $(date +%s) - t0 )) s${notes[*]:+; $(IFS=';'; echo "${notes[*]}")}"
+      "$(( $(date +%s) - t0 )) s$( (( H5_COUNT )) && echo ", $H5_COUNT h5 files")${notes[*]:+; $(IFS=';'; echo "${notes[*]}")}"
   done
 done
 

@@ -34,7 +34,16 @@
 #                          the checkpointing run's summary, the restart's, and (CROSS=1) NEW restarting OLD's
 #                          checkpoint against OLD's restart (the checkpoint format unchanged) are all compared
 #   restart_relaxation     table2.toml relaxation to 1e-6, a checkpoint every 100 iterations, restarted from 100
-# About 100 runs of 1-3 s: 3-4 minutes on 2 idle cores, plus the OLD build if BASE is given (5-6 minutes).
+# About 100 runs of 1-3 s: 3 min 12 s and 3 min 47 s for all 44 lines on this 2-core VM at load average 5-7 (others
+# compiling; 2026-12-01), plus the OLD build if BASE is given (5-6 minutes, once).
+# Tested: HEAD against itself (OLD = NEW = build/tissue, and OLD built by BASE in a worktree): every line PASS with
+# every number bit for bit equal (max_rel 0); between two runs of one binary only the excluded keys ever differed
+# (wall_seconds, solver.seconds, solver.cpu_seconds, solver.guard_seconds, peak_memory_bytes in every run; scene in
+# the restarts). Negative controls: NEW_ARGS='--set calibration.divisor=3.7500000001' SCENES=table2_divided gives
+# FAIL with calibration.divisor, elongation, youngs_modulus_measured, error_percent (rel 1e-11 .. 3e-11) and the
+# residual listed; NEW_ARGS='--set physics.viscosity=2.000000001e-4' SCENES='dynamic_drop restart_dynamic' FAILs on
+# the summaries and on final.h5, the snapshot and the checkpoint (h5diff); `python3 run_scripts/compare_summaries.py
+# --self-test` perturbs a summary in 15 ways and checks each verdict.
 #
 # Sample runs (from the repository root):
 #   BASE=main run_scripts/compare_binaries.sh                  # OLD built from `main` (git worktree in out/), NEW = build/tissue

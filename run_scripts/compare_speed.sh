@@ -17,9 +17,12 @@
 # memory (summary.json peak_memory_bytes, the largest rank's), and whether the two binaries did the same work (the
 # same solver iterations). Every run's row is in $WORK/speed.csv. The guards follow TISSUE_GUARDS in the
 # environment as in bench_explicit.sh (default on; TISSUE_GUARDS=off for the LAMMPS-comparable numbers).
-# On a shared machine the ratios of the medians are what to read; run it when the machine is otherwise idle.
+# On a shared machine the ratios of the medians are what to read; run it when the machine is otherwise idle. The
+# same code against itself at load average 7 on 2 cores (2026-12-01, 2 min 51 s with the defaults) gave medians
+# within 0.997-1.074 of each other but single pairs from 0.62 to 1.69: at such a load use REPEAT=5 or more, and
+# read nothing into a ratio within 10 % of 1.
 #
-# Sample runs (from the repository root; about 3 minutes with the defaults on 2 idle cores):
+# Sample runs (from the repository root; about 3 minutes with the defaults):
 #   BASE=main run_scripts/compare_speed.sh                      # OLD built from `main` as compare_binaries.sh does
 #   run_scripts/compare_speed.sh /tmp/old/tissue build/tissue
 #   REPEAT=5 EXPLICIT_N=100 STATIC_N=64 run_scripts/compare_speed.sh OLD NEW      # the docs' sizes (about 15 min)

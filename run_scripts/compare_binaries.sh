@@ -68,6 +68,9 @@
 #   3. Every selected scene x rank count: OLD, then NEW; exit codes and summaries compared, one line each.
 #   4. The tally; exit 1 if anything differed.
 set -euo pipefail
+# Binaries given as arguments or in OLD, NEW are relative to the directory this was started in; the rest to the root.
+abs() { if [[ -z "$1" || "$1" == /* ]]; then echo "$1"; else echo "$PWD/$1"; fi; }
+OLD_GIVEN=$(abs "${1:-${OLD:-}}"); NEW_GIVEN=$(abs "${2:-${NEW:-}}")
 cd "$(dirname "$0")/.."
 ROOT=$PWD
 
@@ -82,8 +85,8 @@ CROSS=${CROSS:-1}
 read -r -a NEW_ARGS <<< "${NEW_ARGS:-}"
 H5=${H5:-$(command -v h5diff > /dev/null && echo 1 || echo 0)}
 SCENES=${SCENES:-"*"}
-OLD=${1:-${OLD:-}}
-NEW=${2:-${NEW:-build/tissue}}
+OLD=$OLD_GIVEN
+NEW=${NEW_GIVEN:-build/tissue}
 COMPARE=$ROOT/run_scripts/compare_summaries.py
 mkdir -p "$WORK"
 WORK=$(cd "$WORK" && pwd)

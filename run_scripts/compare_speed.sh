@@ -38,6 +38,9 @@
 #   2. REPEAT rounds; in each, every measurement with both binaries, the order alternating; a CSV row per run.
 #   3. The table: medians, ratios new / old, memory, same work.
 set -euo pipefail
+# Binaries given as arguments or in OLD, NEW are relative to the directory this was started in; the rest to the root.
+abs() { if [[ -z "$1" || "$1" == /* ]]; then echo "$1"; else echo "$PWD/$1"; fi; }
+OLD_GIVEN=$(abs "${1:-${OLD:-}}"); NEW_GIVEN=$(abs "${2:-${NEW:-}}")
 cd "$(dirname "$0")/.."
 
 # 1. Settings and binaries.
@@ -51,7 +54,7 @@ RELAX_TOL=${RELAX_TOL:-1e-8}
 RANKS=${RANKS:-2}
 MEASUREMENTS=${MEASUREMENTS:-"explicit_np1 explicit_np2 static_np$RANKS relaxation_np$RANKS"}
 STEPS=200
-bins=$(SCENES=none OLD=${1:-${OLD:-}} NEW=${2:-${NEW:-build/tissue}} run_scripts/compare_binaries.sh) || exit 2
+bins=$(SCENES=none OLD=$OLD_GIVEN NEW=${NEW_GIVEN:-build/tissue} run_scripts/compare_binaries.sh) || exit 2
 OLD=$(sed -n 's/^OLD //p' <<< "$bins"); NEW=$(sed -n 's/^NEW //p' <<< "$bins")
 echo "OLD $OLD"
 echo "NEW $NEW"

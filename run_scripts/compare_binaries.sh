@@ -41,7 +41,7 @@
 # Not in the set: partition.method = "ptscotch" at 2 ranks, which is not reproducible from one run to the next of the
 # SAME binary (table2, 5 runs: 3 different outcomes, 47, 49 or 52 CG iterations, the elongation 5e-13 apart, with the
 # same edge cut; SCOTCH_randomReset() before every SCOTCH_dgraphMapCompute did not change that, so it is not the
-# seed: PT-Scotch's parallel matching depends on the order in which messages arrive), so no tolerance fits it.
+# seed; presumably PT-Scotch's threads or the order in which its messages arrive), so no tolerance fits it.
 # About 110 runs of 1-7 s: 3 min 12 s and 3 min 47 s for all 44 lines on this 2-core VM at load average 5-7 (others
 # compiling; 2026-12-01), plus the OLD build if BASE is given (5-6 minutes, once).
 # Tested: HEAD against itself (OLD = NEW = build/tissue, and OLD built by BASE in a worktree): every line PASS with

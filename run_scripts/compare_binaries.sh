@@ -42,8 +42,8 @@
 # SAME binary (table2, 5 runs: 3 different outcomes, 47, 49 or 52 CG iterations, the elongation 5e-13 apart, with the
 # same edge cut; SCOTCH_randomReset() before every SCOTCH_dgraphMapCompute did not change that, so it is not the
 # seed; presumably PT-Scotch's threads or the order in which its messages arrive), so no tolerance fits it.
-# About 110 runs of 1-7 s: 3 min 12 s and 3 min 47 s for all 44 lines on this 2-core VM at load average 5-7 (others
-# compiling; 2026-12-01), plus the OLD build if BASE is given (5-6 minutes, once).
+# About 110 runs of 1-7 s: all 50 lines took 4 min 4 s on this 2-core VM at load average 5-7.5 (others compiling;
+# 2026-12-01), plus the OLD build if BASE is given (5-6 minutes, once).
 # Tested: HEAD against itself (OLD = NEW = build/tissue, and OLD built by BASE in a worktree): every line PASS with
 # every number bit for bit equal (max_rel 0); between two runs of one binary only the excluded keys ever differed
 # (wall_seconds, solver.seconds, solver.cpu_seconds, solver.guard_seconds, peak_memory_bytes in every run; scene in

@@ -73,7 +73,8 @@
 # Steps:
 #   1. Settings, the binaries (building OLD from BASE if asked), checks.
 #   2. The scene table (name, expected exit code, scene file, --set options).
-#   3. Every selected scene x rank count: OLD, then NEW; exit codes and summaries compared, one line each.
+#   3. Every selected scene x rank count: OLD, then NEW (restarts: both checkpointing runs, both restarts, NEW from
+#      OLD's checkpoint); exit codes, summaries and HDF5 files compared, one line each.
 #   4. The tally; exit 1 if anything differed.
 set -euo pipefail
 # Binaries given as arguments or in OLD, NEW are relative to the directory this was started in; the rest to the root.

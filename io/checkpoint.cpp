@@ -224,7 +224,7 @@ std::array<long long, 7> identity(const struct stat& st) {
 
 // The checkpoint whose metadata the last isolated parse of this process passed (rank 0's view). A restart opens
 // its checkpoint twice, for the header before the model exists and for the state after; the second fork would copy
-// the page tables of a process holding the model (0.5 s at 10^6 molecules), for a walk of the same bytes.
+// the page tables of a process holding the model, for a walk of the same bytes (docs/benchmarks.md).
 std::array<long long, 7> walked_identity{};
 std::string walked_path;
 

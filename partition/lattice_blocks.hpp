@@ -1,8 +1,7 @@
 // Box lattices partitioned through a coarse graph: blocks of b x b x b molecules are the vertices (weighted by
 // their molecule count), and two blocks are joined by an edge weighted by the number of connections between them.
 // METIS's edge cut of the coarse graph is then exactly the molecule graph's cut, and no rank ever builds the
-// molecule graph: rank 0 holds about (N / b^3) * 20 edges, a few bytes a molecule against about 460 for the fine
-// graph of the face-diagonal lattice (docs/benchmarks.md, 2026-11-29).
+// molecule graph: rank 0 holds about (N / b^3) * 20 edges instead of the fine graph (docs/benchmarks.md).
 #pragma once
 #include <mpi.h>
 
@@ -16,9 +15,8 @@ namespace tissue {
 
 // The block edge for `parts` parts: the smallest b that leaves at most max(32,768, 128 parts) blocks, so rank 0's
 // graph stays small and every part still gets many blocks to balance with; b = 1 (the molecule graph itself, as
-// the explicit path partitions) for lattices within that count. At 64,000 molecules and 2 parts b = 2 gives
-// METIS 8,000 blocks: the cut 7,840 (the plane) against 8,304 on the molecule graph, in a tenth of the time
-// (docs/benchmarks.md, "Static set-up, 2026-11-29 (afternoon)").
+// the explicit path partitions) for lattices within that count. The block graph's cut is no worse than the
+// molecule graph's, in a tenth of the time (docs/benchmarks.md).
 int lattice_block_size(const Body& shape, int parts);
 
 // Collective over comm. The parts (0 .. parts - 1) of this rank's block of the natural order

@@ -174,7 +174,7 @@ bool compact_connection_types(LocalModel& m) {
   }
   // Then each connection's type, 2 bytes at the front of the stiffness array's own storage (byte 2c lies in
   // entry c / 4, already read), so no third per-connection array exists while both 8-byte ones do: that was
-  // the set-up's peak (docs/benchmarks.md, 2026-11-29).
+  // the set-up's peak (docs/benchmarks.md).
   const int nc = m.connections();
   unsigned char* packed = reinterpret_cast<unsigned char*>(m.stiffness.data());
   for (int c = 0; c < nc; ++c) {

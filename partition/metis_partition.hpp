@@ -17,8 +17,7 @@ struct PartitionStats {
 };
 
 // METIS's allowed imbalance, in thousandths over 1 (its default is 30: 3 %). Every rank computes its molecules'
-// connections and the slowest rank sets the step: at 10^6 molecules on 2 ranks the default left 1.8 % more
-// molecules and 3.8 % more connections on one rank; 1 balances them to 0.02 % for the same edge cut (+1 %).
+// connections and the slowest rank sets the step, so the tightest balance pays (docs/benchmarks.md).
 constexpr int kMetisImbalance = 1;
 
 // part[m] = the rank that owns molecule m. One part is handled without METIS (METIS 5.1 crashes on it).

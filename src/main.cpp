@@ -213,9 +213,8 @@ int main(int argc, char** argv) {
   char** petsc_argv = petsc.data();
   PetscCall(PetscInitialize(&petsc_argc, &petsc_argv, nullptr, nullptr));
   // Large arrays (model set-up temporaries, tens of MB) in their own mappings, so freeing one gives its memory
-  // back at once: in the heap, freed pages stay resident and raise the peak (docs/benchmarks.md, 2026-11-29).
-  // Set after MPI start-up: set before it (as until 2026-11-29) they were lost, and mallinfo2 showed every array
-  // in the heap (at 10^6 molecules on 2 ranks, 25 MB a rank of freed set-up memory stayed resident).
+  // back at once: in the heap, freed pages stay resident and raise the peak. Set after MPI start-up, which
+  // resets them (docs/benchmarks.md).
   mallopt(M_MMAP_MAX, 1 << 16);
   mallopt(M_MMAP_THRESHOLD, 1 << 20);
   const bool root = rank_of(PETSC_COMM_WORLD) == 0;

@@ -231,7 +231,7 @@ PetscErrorCode ForceModel::create_tangent(Mat* J) const {
   }
   row_cols_.shrink_to_fit();
   // The pattern in CSR arrays (diagonal part: local columns; off-diagonal part: global columns, sorted), handed
-  // to PETSc without copying: setting it through MatSetValues cost 12 % of a whole 8,000-molecule run.
+  // to PETSc without copying: MatSetValues costs a visible share of a static run (docs/benchmarks.md).
   // The arrays live in this ForceModel (they are the matrix's storage) and must outlive J.
   tan_di_.assign(3 * n + 1, 0);
   tan_oi_.assign(3 * n + 1, 0);

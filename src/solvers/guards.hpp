@@ -25,8 +25,8 @@ namespace tissue {
 
 // A connection shorter than this fraction of its rest length is a failure (collapsed or inverted).
 constexpr double kCollapsedLengthRatio = 1e-3;
-// Dynamic: steps between the guard's reductions (the global kinetic energy, any rank's non-finite state). One
-// MPI_Allreduce per step cost 26-29 % of a 40^3 2-rank step on a loaded machine (docs/stability.md).
+// Dynamic: steps between the guard's reductions (the global kinetic energy, any rank's non-finite state): one
+// reduction per step costs too much of a step (docs/stability.md, docs/benchmarks.md).
 constexpr long kReduceEvery = 16;
 
 // The time step an explicit solver uses: `requested` (the scene's, or absent) checked against `critical`.

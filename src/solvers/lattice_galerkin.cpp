@@ -86,8 +86,7 @@ struct LatticeGalerkin::Rows {
 LatticeGalerkin::LatticeGalerkin(const LocalModel& model, const std::vector<std::uint8_t>& held, LatticeLevels levels)
     : model_(model), held_(held), levels_(std::move(levels)), csr_(levels_.planes.size()),
       coarse_(levels_.planes.size(), nullptr) {
-  // Level 0's nodes are all owned molecules in order, and its numbering is the tangent's: not kept (4 MB a rank
-  // at 10^6 molecules, where the peak memory is within 0.5 % of its target).
+  // Level 0's nodes are all owned molecules in order, and its numbering is the tangent's: not kept (memory).
   levels_.owned_nodes[0] = {};
   levels_.base[0] = {};
 }

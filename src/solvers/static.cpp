@@ -199,9 +199,7 @@ PetscErrorCode run_static(const Scene& scene, const LocalModel& model, const For
   PetscBool user_lag = PETSC_FALSE;
   PetscCall(PetscOptionsHasName(nullptr, nullptr, "-snes_lag_preconditioner", &user_lag));
   // The coarse operators from the lattice structure (lattice_galerkin.hpp) when the tangent is a lattice stencil
-  // and the preconditioner's rebuilds are ours (Reuse): at 64,000 molecules on 2 ranks hypre's triple product
-  // took 1.2e9 instructions a rank and 0.17 s, this 0.5e9 and 0.13-0.14 s; at 10^6 molecules 6.1 s against
-  // 2.9-3.5 s (docs/benchmarks.md, "Static set-up, 2026-11-29 (afternoon)").
+  // and the preconditioner's rebuilds are ours (Reuse): cheaper than hypre's triple product (docs/benchmarks.md).
   std::unique_ptr<LatticeGalerkin> galerkin;
   if (lattice_mg && !user_lag) {
     galerkin = std::make_unique<LatticeGalerkin>(model, forces.held(), std::move(hierarchy));
@@ -214,8 +212,8 @@ PetscErrorCode run_static(const Scene& scene, const LocalModel& model, const For
       galerkin.reset();
     }
   }
-  // The lattice multigrid's Galerkin products through hypre's triple product: at 64,000 molecules the run
-  // peaked at 5.9 kB per molecule against 8.5 kB with PETSc's default (scalable) algorithm, in no more time.
+  // The lattice multigrid's Galerkin products through hypre's triple product: a lower memory peak than PETSc's
+  // default (scalable) algorithm, in no more time (docs/benchmarks.md).
   // The option is global, so it is set only for this solve and only for the lattice multigrid (GAMG's
   // products with it gave NaN on a contact test); -matptap_via or -mat_product_algorithm override it.
   // On one rank hypre's product of the sequential matrices came out wrong (the first Krylov solve diverged at

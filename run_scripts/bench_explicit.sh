@@ -53,6 +53,9 @@ echo "code,N,molecules,springs,ranks,steps,wall_s,setup_s,loop_s,steps_per_s,spr
 # Our per-step guards (src/solvers/guards.hpp) are on unless TISSUE_GUARDS=off: LAMMPS has none, so the speed
 # comparison is made with them off; with them on, a run also keeps the last good state (48 B a molecule).
 GUARDS=${TISSUE_GUARDS:-on}
+# The binary's switch is PETSc's option -tissue_guards (every rank inherits PETSC_OPTIONS); binaries built before
+# 2026-12-01 read TISSUE_GUARDS itself.
+if [ "$GUARDS" = off ]; then export PETSC_OPTIONS="${PETSC_OPTIONS:-} -tissue_guards false"; fi
 
 # ours N NP STEPS: prints "wall_seconds peak_memory_bytes connections process_seconds"
 ours() {

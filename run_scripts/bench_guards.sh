@@ -5,7 +5,7 @@
 # every step, the full check every 128 steps, the energy check at each kinetic-energy doubling) and the relaxation
 # solver (the full check every 128 iterations; the residual it reads is reduced by the solver anyway) on an
 # N x N x N Table 2 style lattice (face diagonals, 100 kPa, 1000 N on z-), guarded and unguarded
-# (TISSUE_GUARDS=off, the benchmark-only switch: src/solvers/guards.hpp), alternately, REPEAT pairs per solver and
+# (-tissue_guards false, the benchmark-only switch in PETSc's options: src/solvers/guards.hpp), alternately, REPEAT pairs per solver and
 # rank count. Time = summary.json solver.seconds (wall time of the solve alone, no set-up or output; fields = []
 # writes no snapshot) and solver.cpu_seconds (rank 0's CPU time over the same span: far less sensitive to other
 # jobs on the machine than wall time, but it also counts MPI's busy waiting). The guards do not change the
@@ -55,9 +55,8 @@ run() {  # solver ranks pair guards(on|off)
               --set 'output.fields=[]')
   if [ "$solver" = dynamic ]; then sets+=(--set "solver.steps=$STEPS"); else
     sets+=(--set "solver.max_iterations=$RELAX_ITERATIONS" --set solver.tolerance=1e-14); fi
-  TISSUE_GUARDS=$([ "$guards" = on ] && echo on || echo off) \
-    mpirun -x TISSUE_GUARDS -np "$np" "$TISSUE" run run_scripts/scenes/table2.toml "${sets[@]}" \
-    --output "$dir/out" >"$dir/log" 2>&1 || rc=$?
+  mpirun -np "$np" "$TISSUE" run run_scripts/scenes/table2.toml "${sets[@]}" \
+    --output "$dir/out" -- -tissue_guards "$([ "$guards" = on ] && echo true || echo false)" >"$dir/log" 2>&1 || rc=$?
   /usr/bin/python3 - "$dir/out/summary.json" "$solver" "$np" "$pair" "$guards" "$rc" >>"$CSV" <<'PY'
 import json, sys
 path, solver, np_, pair, guards, rc = sys.argv[1:]

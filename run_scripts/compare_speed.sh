@@ -16,7 +16,8 @@
 # medians (< 1: NEW is faster), the smallest and largest ratio of the pairs run back to back, the ratio of the peak
 # memory (summary.json peak_memory_bytes, the largest rank's), and whether the two binaries did the same work (the
 # same solver iterations). Every run's row is in $WORK/speed.csv. The guards follow TISSUE_GUARDS in the
-# environment as in bench_explicit.sh (default on; TISSUE_GUARDS=off for the LAMMPS-comparable numbers).
+# environment as in bench_explicit.sh (default on; TISSUE_GUARDS=off for the LAMMPS-comparable numbers: the script
+# then also sets PETSC_OPTIONS=-tissue_guards false, the switch of binaries from 2026-12-01 on).
 # On a shared machine the ratios of the medians are what to read; run it when the machine is otherwise idle. The
 # same code against itself at load average 7 on 2 cores (2026-12-01, 2 min 51 s with the defaults) gave medians
 # within 0.997-1.074 of each other but single pairs from 0.62 to 1.69: at such a load use REPEAT=5 or more, and
@@ -38,6 +39,8 @@
 #   2. REPEAT rounds; in each, every measurement with both binaries, the order alternating; a CSV row per run.
 #   3. The table: medians, ratios new / old, memory, same work.
 set -euo pipefail
+# Binaries from 2026-12-01 on read the guards' switch from PETSc's options; older ones read TISSUE_GUARDS itself.
+if [ "${TISSUE_GUARDS:-on}" = off ]; then export PETSC_OPTIONS="${PETSC_OPTIONS:-} -tissue_guards false"; fi
 # Binaries given as arguments or in OLD, NEW are relative to the directory this was started in; the rest to the root.
 abs() { if [[ -z "$1" || "$1" == /* ]]; then echo "$1"; else echo "$PWD/$1"; fi; }
 OLD_GIVEN=$(abs "${1:-${OLD:-}}"); NEW_GIVEN=$(abs "${2:-${NEW:-}}")

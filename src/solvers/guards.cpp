@@ -147,10 +147,14 @@ StepGuard::StepGuard(const char* solver, const Scene& scene, const LocalModel& m
                      SolverState& state, long every)
     : solver_(solver), scene_(scene), model_(model), forces_(forces), state_(state), every_(std::max(1L, every)) {
   Timer timer{seconds_};
-  const char* env = std::getenv("TISSUE_GUARDS");
-  enabled_ = !(env && std::strcmp(env, "off") == 0);
+  // The switch is in PETSc's options database (-tissue_guards false after --, or PETSC_OPTIONS), read the same on
+  // every rank; a malformed value is PETSc's error.
+  PetscBool on = PETSC_TRUE;
+  if (PetscOptionsGetBool(nullptr, nullptr, "-tissue_guards", &on, nullptr))
+    throw InputError("PETSc options", "-tissue_guards", "expects true or false");
+  enabled_ = on == PETSC_TRUE;
   if (!enabled_ && rank_of(model.comm) == 0)
-    std::fprintf(stderr, "tissue: warning: TISSUE_GUARDS=off: the %s solver's per-step guards are disabled (for "
+    std::fprintf(stderr, "tissue: warning: -tissue_guards false: the %s solver's per-step guards are disabled (for "
                          "benchmarks only: NaN, Inf and energy growth are not caught)\n", solver);
   double local = 0;
   for (int i = 0; i < 3 * model.owned; ++i) local += 0.5 * model.mass[i / 3] * state.v[i] * state.v[i];
@@ -304,8 +308,8 @@ void StepGuard::fail(const std::string& problem, std::int64_t molecule) {
   std::string where = molecule >= 0 ? describe_molecule(model_, state_.x.array(), molecule) : "no molecule found";
   const long step = state_.step;
   if (!enabled_)  // the final check of an unguarded run: no earlier state kept, so nothing may be written
-    throw SolverFailure(fmt::format("{}: {} at step {}: {}; no earlier state kept (TISSUE_GUARDS=off): nothing "
-                                    "written", solver_, problem, step, where),
+    throw SolverFailure(fmt::format("{}: {} at step {}: {}; no earlier state kept (-tissue_guards false): "
+                                    "nothing written", solver_, problem, step, where),
                         SolverFailure::State::nothing);
   // Put the last good state back: main() writes it as DIR/last_good.h5.
   std::copy(good_x_.begin(), good_x_.end(), state_.x.array());

@@ -9,8 +9,8 @@
 //    energy growth (dynamic, within 16 steps) and divergence (relaxation) caught early, a connection shorter than 1e-3 of its rest length (inverted, collapsed) caught
 //    at every full check; each is a SolverFailure naming the solver, the step, the molecule and the connection
 //    with the largest strain at that molecule;
-//  - TISSUE_GUARDS=off in the environment (benchmarks only: run_scripts/bench_guards.sh measures the guards'
-//    cost with it) makes dynamic_step and relaxation_step return at once: no reduction, no periodic check, no
+//  - -tissue_guards false in PETSc's options database (`tissue run s.toml -- -tissue_guards false`, or
+//    PETSC_OPTIONS; benchmarks only: run_scripts/bench_guards.sh measures the guards' cost with it) makes dynamic_step and relaxation_step return at once: no reduction, no periodic check, no
 //    copy of the last good state. A warning is printed; never use it for results.
 //  - the last good state: the guard keeps a copy of the state at every full check that passed; on a failure it
 //    puts that state back into the SolverState before throwing, and main() writes it as DIR/last_good.h5.
@@ -91,7 +91,7 @@ private:
   long every_;
   double kinetic_ = 0.0, kinetic_checked_ = 0.0, energy0_ = 0.0;
   double residual0_ = -1.0;
-  bool enabled_ = true;       // false with TISSUE_GUARDS=off (benchmarks)
+  bool enabled_ = true;       // false with -tissue_guards false (benchmarks)
   bool energy_check_ = true;  // off when a term the energy does not account for is on (cyclic loads, contact)
   std::vector<double> good_x_, good_v_;
   long good_step_ = 0;

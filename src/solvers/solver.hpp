@@ -20,7 +20,7 @@ public:
   enum class State {
     finished,   // the failed solve's own state, finite: written as final.h5
     last_good,  // the guards (or the last converged load step) put the last good state back: last_good.h5
-    nothing,    // nothing worth writing: a non-finite state, or no earlier state kept (TISSUE_GUARDS=off)
+    nothing,    // nothing worth writing: a non-finite state, or no earlier state kept (-tissue_guards false)
   };
   explicit SolverFailure(const std::string& what, State state = State::finished)
       : std::runtime_error(what), state_(state) {}

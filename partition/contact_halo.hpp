@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "partition/exchange.hpp"
 #include "partition/local_model.hpp"
 
 namespace tissue {
@@ -34,8 +35,7 @@ private:
   const LocalModel& m_;
   double reach_;
   std::vector<int> send_;                        // owned local indices, grouped by destination rank
-  std::vector<int> send_count_, send_offset_;    // per rank, molecules
-  std::vector<int> recv_count_, recv_offset_;    // per rank, molecules
+  ExchangePlan plan_;                            // molecules per rank, both ways
   std::vector<std::int64_t> id_;
   std::vector<int> body_;
   std::vector<double> x_, buffer_;

@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <unordered_map>
 
+#include "partition/exchange.hpp"
 #include "partition/metis_partition.hpp"
 #include "partition/natural_order.hpp"
 #include "src/model/topology.hpp"
@@ -14,26 +15,13 @@
 namespace tissue {
 namespace {
 
-// One MPI_Alltoallv of int64 items, `width` per item, grouped by destination rank. Returns the received items
-// grouped by source rank, and their counts (in items) per source.
-std::vector<std::int64_t> exchange(MPI_Comm comm, const std::vector<std::vector<std::int64_t>>& out, int width,
-                                   std::vector<int>& received) {
-  const int size = static_cast<int>(out.size());
-  std::vector<int> scount(size), sdispl(size + 1, 0), rcount(size), rdispl(size + 1, 0);
-  for (int r = 0; r < size; ++r) {
-    if (out[r].size() > static_cast<std::size_t>(std::numeric_limits<int>::max()))
-      throw std::runtime_error("a rank sends more than 2^31 values to another: use more ranks");
-    scount[r] = static_cast<int>(out[r].size()), sdispl[r + 1] = sdispl[r] + scount[r];
-  }
-  MPI_Alltoall(scount.data(), 1, MPI_INT, rcount.data(), 1, MPI_INT, comm);
-  for (int r = 0; r < size; ++r) rdispl[r + 1] = rdispl[r] + rcount[r];
-  std::vector<std::int64_t> send(sdispl[size]), recv(rdispl[size]);
-  for (int r = 0; r < size; ++r) std::copy(out[r].begin(), out[r].end(), send.begin() + sdispl[r]);
-  MPI_Alltoallv(send.data(), scount.data(), sdispl.data(), MPI_INT64_T, recv.data(), rcount.data(), rdispl.data(),
-                MPI_INT64_T, comm);
-  received.resize(size);
-  for (int r = 0; r < size; ++r) received[r] = rcount[r] / width;
-  return recv;
+// The directory's exchanges: int64 items, `width` values each, grouped by destination rank; returns what arrives
+// grouped by source rank, and the item count per source.
+std::vector<std::int64_t> exchange_items(MPI_Comm comm, const std::vector<std::vector<std::int64_t>>& out, int width,
+                                         std::vector<int>& received) {
+  std::vector<std::int64_t> in = exchange(comm, out, &received);
+  for (int& r : received) r /= width;
+  return in;
 }
 
 // The index of id in the sorted range [begin, begin + n), or -1.
@@ -127,7 +115,7 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm) {
     out[part[g - begin]].push_back(first_connection[g - begin]);
   }
   std::vector<int> from;
-  std::vector<std::int64_t> in = exchange(comm, out, 2, from);
+  std::vector<std::int64_t> in = exchange_items(comm, out, 2, from);
   out = {};  // 16 bytes a molecule, alive until the end otherwise
   m.owned = static_cast<int>(in.size() / 2);
   std::vector<std::int64_t> owned_ids(m.owned), owned_first(m.owned);
@@ -147,7 +135,7 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm) {
     for (int r = 0; r < m.size; ++r)
       for (int k = 0; k < from[r]; ++k, ++i) back[r].push_back(m.first_block + i);
     std::vector<int> got;
-    std::vector<std::int64_t> blocks = exchange(comm, back, 1, got);
+    std::vector<std::int64_t> blocks = exchange_items(comm, back, 1, got);
     std::vector<std::size_t> next(m.size + 1, 0);  // where each owner's answers start
     for (int r = 0; r < m.size; ++r) next[r + 1] = next[r] + got[r];
     for (std::int64_t g = begin; g < end; ++g) directory_block[g - begin] = static_cast<PetscInt>(blocks[next[part[g - begin]]++]);
@@ -170,7 +158,7 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm) {
     std::vector<std::vector<std::int64_t>> ask(m.size);
     for (std::int64_t g : ghosts) ask[NaturalOrder::block_owner(n, m.size, g)].push_back(g);
     std::vector<int> asked;
-    std::vector<std::int64_t> questions = exchange(comm, ask, 1, asked);
+    std::vector<std::int64_t> questions = exchange_items(comm, ask, 1, asked);
     std::vector<std::vector<std::int64_t>> answer(m.size);
     std::size_t q = 0;
     for (int r = 0; r < m.size; ++r)
@@ -180,7 +168,7 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm) {
         answer[r].push_back(first_connection[g - begin]);
       }
     std::vector<int> answered;
-    std::vector<std::int64_t> answers = exchange(comm, answer, 2, answered);
+    std::vector<std::int64_t> answers = exchange_items(comm, answer, 2, answered);
     // Answers come back grouped by directory rank, in the order asked; ghosts are sorted, and so are blocks.
     std::vector<std::size_t> next(m.size + 1, 0);
     for (int r = 0; r < m.size; ++r) next[r + 1] = next[r] + 2 * answered[r];

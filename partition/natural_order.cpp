@@ -18,13 +18,6 @@ void check_mpi(int rc, const char* what) {
   }
 }
 
-template <typename T>
-MPI_Datatype mpi_type() {
-  if constexpr (std::is_same_v<T, double>) return MPI_DOUBLE;
-  else if constexpr (std::is_same_v<T, int64_t>) return MPI_INT64_T;
-  else static_assert(sizeof(T) == 0, "NaturalOrder: unsupported value type");
-}
-
 }  // namespace
 
 int64_t NaturalOrder::block_begin(int64_t n, int ranks, int rank) {
@@ -58,16 +51,15 @@ NaturalOrder::NaturalOrder(MPI_Comm comm, const std::vector<int64_t>& owned_ids,
 
   const size_t n_owned = owned_ids.size();
   std::vector<int> dest(n_owned);
-  send_counts_.assign(size, 0);
+  std::vector<int> send_counts(size, 0);
   for (size_t i = 0; i < n_owned; ++i) {
     dest[i] = block_owner(global_count, size, owned_ids[i]);
-    ++send_counts_[dest[i]];
+    ++send_counts[dest[i]];
   }
-  send_displs_.assign(size, 0);
-  for (int r = 1; r < size; ++r) send_displs_[r] = send_displs_[r - 1] + send_counts_[r - 1];
+  plan_ = ExchangePlan(comm, std::move(send_counts));
   // Counting sort by destination keeps each destination's items in the caller's order.
   send_order_.resize(n_owned);
-  std::vector<int> fill = send_displs_;
+  std::vector<int> fill = plan_.send_displs();
   std::vector<int64_t> send_ids(n_owned);
   for (size_t i = 0; i < n_owned; ++i) {
     const int k = fill[dest[i]]++;
@@ -75,16 +67,8 @@ NaturalOrder::NaturalOrder(MPI_Comm comm, const std::vector<int64_t>& owned_ids,
     send_ids[k] = owned_ids[i];
   }
 
-  recv_counts_.assign(size, 0);
-  check_mpi(MPI_Alltoall(send_counts_.data(), 1, MPI_INT, recv_counts_.data(), 1, MPI_INT, comm), "MPI_Alltoall");
-  recv_displs_.assign(size, 0);
-  for (int r = 1; r < size; ++r) recv_displs_[r] = recv_displs_[r - 1] + recv_counts_[r - 1];
-  const int64_t n_recv = size ? static_cast<int64_t>(recv_displs_[size - 1]) + recv_counts_[size - 1] : 0;
-
-  recv_rows_.resize(n_recv);
-  check_mpi(MPI_Alltoallv(send_ids.data(), send_counts_.data(), send_displs_.data(), MPI_INT64_T, recv_rows_.data(),
-                          recv_counts_.data(), recv_displs_.data(), MPI_INT64_T, comm),
-            "MPI_Alltoallv");
+  const int64_t n_recv = static_cast<int64_t>(plan_.received());
+  recv_rows_ = plan_.forward(send_ids);
 
   // Every row of my block must arrive exactly once; with all ids in range that makes the ids a permutation.
   bad = (n_recv != count_);
@@ -101,28 +85,13 @@ NaturalOrder::NaturalOrder(MPI_Comm comm, const std::vector<int64_t>& owned_ids,
 }
 
 template <typename T>
-void NaturalOrder::exchange(const T* in, T* out, int width, bool forward) const {
-  if (width <= 0) throw std::invalid_argument("NaturalOrder: width must be positive");
-  // One derived type per item keeps the counts in items, so they cannot overflow int for wide rows.
-  MPI_Datatype item;
-  check_mpi(MPI_Type_contiguous(width, mpi_type<T>(), &item), "MPI_Type_contiguous");
-  check_mpi(MPI_Type_commit(&item), "MPI_Type_commit");
-  const int rc = forward ? MPI_Alltoallv(in, send_counts_.data(), send_displs_.data(), item, out, recv_counts_.data(),
-                                         recv_displs_.data(), item, comm_)
-                         : MPI_Alltoallv(in, recv_counts_.data(), recv_displs_.data(), item, out, send_counts_.data(),
-                                         send_displs_.data(), item, comm_);
-  MPI_Type_free(&item);
-  check_mpi(rc, "MPI_Alltoallv");
-}
-
-template <typename T>
 std::vector<T> NaturalOrder::to_natural(const T* values, int width) const {
   const size_t w = static_cast<size_t>(width);
   std::vector<T> send(send_order_.size() * w);
   for (size_t k = 0; k < send_order_.size(); ++k)
     std::copy_n(values + send_order_[k] * w, w, send.data() + k * w);
   std::vector<T> recv(recv_rows_.size() * w);
-  exchange(send.data(), recv.data(), width, true);
+  plan_.forward(send.data(), recv.data(), width);
   std::vector<T> natural(static_cast<size_t>(count_) * w);
   for (size_t k = 0; k < recv_rows_.size(); ++k)
     std::copy_n(recv.data() + k * w, w, natural.data() + recv_rows_[k] * w);
@@ -136,7 +105,7 @@ std::vector<T> NaturalOrder::from_natural(const T* natural, int width) const {
   for (size_t k = 0; k < recv_rows_.size(); ++k)
     std::copy_n(natural + recv_rows_[k] * w, w, send.data() + k * w);
   std::vector<T> recv(send_order_.size() * w);
-  exchange(send.data(), recv.data(), width, false);
+  plan_.backward(send.data(), recv.data(), width);
   std::vector<T> owned(send_order_.size() * w);
   for (size_t k = 0; k < send_order_.size(); ++k)
     std::copy_n(recv.data() + k * w, w, owned.data() + send_order_[k] * w);

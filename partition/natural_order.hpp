@@ -11,6 +11,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "partition/exchange.hpp"
+
 namespace tissue {
 
 class NaturalOrder {
@@ -54,17 +56,13 @@ public:
   static int block_owner(int64_t global_count, int ranks, int64_t id);
 
 private:
-  template <typename T>
-  void exchange(const T* in, T* out, int width, bool forward) const;
-
   MPI_Comm comm_;
   int64_t global_count_ = 0, begin_ = 0, count_ = 0;
   // Items are sent grouped by destination rank: send slot k carries owned item send_order_[k].
   std::vector<int64_t> send_order_;
-  std::vector<int> send_counts_, send_displs_;
   // Receive slot k (grouped by source rank) is natural row recv_rows_[k] of this rank's block.
   std::vector<int64_t> recv_rows_;
-  std::vector<int> recv_counts_, recv_displs_;
+  ExchangePlan plan_;  // items per rank, both ways
 };
 
 // Instantiated in natural_order.cpp for the two types the files hold.

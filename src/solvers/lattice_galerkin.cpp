@@ -8,6 +8,8 @@
 #include <cstdlib>
 #include <unordered_map>
 
+#include "partition/exchange.hpp"
+
 namespace tissue {
 
 namespace {
@@ -408,18 +410,7 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Ro
     o.push_back(static_cast<double>(acc.present[r]));
     o.insert(o.end(), acc.block(static_cast<int>(r), 0), acc.block(static_cast<int>(r), 0) + kSlots * kBlock);
   }
-  std::vector<int> send(size), recv(size), sdisp(size + 1, 0), rdisp(size + 1, 0);
-  for (int r = 0; r < size; ++r) send[r] = static_cast<int>(out[r].size());
-  PetscCallMPI(MPI_Alltoall(send.data(), 1, MPI_INT, recv.data(), 1, MPI_INT, model_.comm));
-  std::vector<double> sendbuf;
-  for (int r = 0; r < size; ++r) {
-    sdisp[r + 1] = sdisp[r] + send[r], rdisp[r + 1] = rdisp[r] + recv[r];
-    sendbuf.insert(sendbuf.end(), out[r].begin(), out[r].end());
-  }
-  out = {};
-  std::vector<double> recvbuf(rdisp[size]);
-  PetscCallMPI(MPI_Alltoallv(sendbuf.data(), send.data(), sdisp.data(), MPI_DOUBLE, recvbuf.data(), recv.data(),
-                             rdisp.data(), MPI_DOUBLE, model_.comm));
+  const std::vector<double> recvbuf = exchange(model_.comm, std::move(out));
   for (std::size_t q = 0; q < recvbuf.size(); q += kRecord) {
     const int r = acc.find_or_add(static_cast<std::int64_t>(recvbuf[q]));
     acc.present[r] |= static_cast<std::uint32_t>(recvbuf[q + 1]);

@@ -6,6 +6,8 @@
 #include <array>
 #include <numeric>
 
+#include "partition/exchange.hpp"
+
 namespace tissue {
 
 namespace {
@@ -19,23 +21,13 @@ std::vector<long> coarser(const std::vector<long>& s) {
   return c;
 }
 
-// Exchange helper: sends the int64 items grouped by destination rank (counts per rank), returns what arrives and
-// the counts received. Collective.
-PetscErrorCode exchange(MPI_Comm comm, const std::vector<std::int64_t>& out, const std::vector<int>& out_counts,
-                        std::vector<std::int64_t>& in, std::vector<int>& in_counts) {
-  PetscFunctionBeginUser;
-  const int size = static_cast<int>(out_counts.size());
-  in_counts.assign(size, 0);
-  PetscCallMPI(MPI_Alltoall(out_counts.data(), 1, MPI_INT, in_counts.data(), 1, MPI_INT, comm));
-  std::vector<int> out_disp(size, 0), in_disp(size, 0);
-  for (int r = 1; r < size; ++r) {
-    out_disp[r] = out_disp[r - 1] + out_counts[r - 1];
-    in_disp[r] = in_disp[r - 1] + in_counts[r - 1];
-  }
-  in.assign(static_cast<std::size_t>(in_disp[size - 1] + in_counts[size - 1]), 0);
-  PetscCallMPI(MPI_Alltoallv(out.data(), out_counts.data(), out_disp.data(), MPI_INT64_T, in.data(),
-                             in_counts.data(), in_disp.data(), MPI_INT64_T, comm));
-  PetscFunctionReturn(0);
+// The directory's exchanges (partition/exchange.hpp): the int64 items grouped by destination rank (counts per
+// rank), what arrives and the counts received. Collective.
+void exchange(MPI_Comm comm, const std::vector<std::int64_t>& out, const std::vector<int>& out_counts,
+              std::vector<std::int64_t>& in, std::vector<int>& in_counts) {
+  const ExchangePlan plan(comm, out_counts);
+  in = plan.forward(out);
+  in_counts = plan.recv_counts();
 }
 
 }  // namespace
@@ -60,7 +52,7 @@ PetscErrorCode lattice_lookup(MPI_Comm comm, std::int64_t total, const std::vect
     out.push_back(mine[p]), out.push_back(nums[p]);
     counts[home(mine[p])] += 2;
   }
-  PetscCall(exchange(comm, out, counts, in, in_counts));
+  exchange(comm, out, counts, in, in_counts);
   std::vector<PetscInt> table(static_cast<std::size_t>(chunk), -1);
   for (std::size_t p = 0; p < in.size(); p += 2) table[in[p] - rank * chunk] = static_cast<PetscInt>(in[p + 1]);
   // 2. Askers ask, the directory answers in the same order.
@@ -70,11 +62,11 @@ PetscErrorCode lattice_lookup(MPI_Comm comm, std::int64_t total, const std::vect
   out.clear();
   std::fill(counts.begin(), counts.end(), 0);
   for (std::size_t p : order) out.push_back(asked[p]), counts[home(asked[p])]++;
-  PetscCall(exchange(comm, out, counts, in, in_counts));
+  exchange(comm, out, counts, in, in_counts);
   for (auto& g : in) g = table[g - rank * chunk];
   std::vector<std::int64_t> back;
   std::vector<int> back_counts;
-  PetscCall(exchange(comm, in, in_counts, back, back_counts));
+  exchange(comm, in, in_counts, back, back_counts);
   answers.assign(asked.size(), -1);
   for (std::size_t p = 0; p < order.size(); ++p) answers[order[p]] = static_cast<PetscInt>(back[p]);
   for (PetscInt a : answers) PetscCheck(a >= 0, comm, PETSC_ERR_PLIB, "lattice multigrid: a coarse node has no owner");

@@ -667,7 +667,7 @@ Scene build_scene(const Value& root, const std::string& file) {
     spec.body = which_body(f);
     f.require("face", "one of " + join(face_names));
     spec.face = face_of(f);
-    spec.mode = f.choice("mode", {"clamped", "roller"}).value_or(spec.mode);
+    if (f.choice("mode", {"clamped", "roller"}).value_or("clamped") == "roller") spec.mode = FixSpec::Mode::roller;
     auto [it, added] = fixed.emplace(std::make_pair(spec.body, spec.face), f.path());
     if (!added) f.fail("face", fmt::format("face {} is already fixed by {}", spec.face, it->second));
     scene.fixes.push_back(spec);

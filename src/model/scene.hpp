@@ -61,7 +61,9 @@ struct CalibrationSpec {
 struct FixSpec {
   std::string face;              // x- x+ y- y+ z- z+
   int body = 0;                  // which body's face ([[body]] index)
-  std::string mode = "clamped";  // clamped | roller
+  // clamped: every component held; roller: the face-normal component (plus the fewest in-plane holds that stop
+  // rigid motion). Read from the scene's "clamped" | "roller".
+  enum class Mode { clamped, roller } mode = Mode::clamped;
 };
 
 struct LoadSpec {

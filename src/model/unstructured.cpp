@@ -172,7 +172,7 @@ void check_face_names(const Scene& scene, const Body& body) {
     const FixSpec& fix = scene.fixes[i];
     check("fix", i, fix.body, fix.face);
     const NamedFace* face = body.named_face(fix.body, fix.face);
-    if (face && fix.mode == "roller" && face->axis < 0)
+    if (face && fix.mode == FixSpec::Mode::roller && face->axis < 0)
       throw InputError(scene.file, fmt::format("fix[{}].mode", i),
                        fmt::format("a roller needs a plane face normal to x, y or z; \"{}\" is not one (use "
                                    "\"clamped\")", fix.face));

@@ -50,7 +50,7 @@ void hold(const Body& all, const FixSpec& fix, std::int64_t g, std::uint8_t* hel
   int axis, side;
   parse_face(fix.face, axis, side);
   if (!s.on_face(g, axis, side)) return;
-  if (fix.mode == "clamped") {
+  if (fix.mode == FixSpec::Mode::clamped) {
     held[0] = held[1] = held[2] = 1;
     return;
   }

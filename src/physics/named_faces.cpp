@@ -38,7 +38,7 @@ void named_tension_test(const Scene& scene, const Body& shape, TensionTest& t) {
 
 void hold_named(const NamedFace& face, const FixSpec& fix, std::int64_t g, std::uint8_t* held) {
   if (!face.contains(g)) return;
-  if (fix.mode == "clamped" || face.axis < 0) {  // the scene check refuses rollers on faces without an axis
+  if (fix.mode == FixSpec::Mode::clamped || face.axis < 0) {  // the scene check refuses rollers on faces without an axis
     held[0] = held[1] = held[2] = 1;
     return;
   }

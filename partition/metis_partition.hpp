@@ -1,5 +1,5 @@
 // Partition: which rank owns each molecule. METIS k-way on the connection graph, run once on rank 0 and
-// broadcast (fine up to tens of millions of molecules; beyond, see README "Scale").
+// broadcast (fine up to tens of millions of molecules; beyond, see docs/design.md, "Data flow and ranks").
 #pragma once
 #include <mpi.h>
 

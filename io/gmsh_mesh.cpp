@@ -1,94 +1,21 @@
 #include "io/gmsh_mesh.hpp"
 
 #include <fmt/format.h>
+#include <gmsh.h>
 
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
-#include <cmath>
-#include <cstdlib>
 #include <cstring>
+#include <exception>
 #include <fstream>
 #include <map>
-#include <sstream>
 #include <unordered_map>
 
 namespace tissue {
 namespace {
 
-// Whitespace-separated tokens with their line numbers; a double-quoted token may hold spaces (physical names).
-class Lexer {
-public:
-  Lexer(const std::string& text, const std::string& file) : s_(text), file_(file) {}
-
-  bool at_end() {
-    skip();
-    return pos_ >= s_.size();
-  }
-  long line() const { return line_; }
-  std::string word(const char* what) {
-    skip();
-    if (pos_ >= s_.size()) fail(fmt::format("unexpected end of file, expected {}", what));
-    token_line_ = line_;
-    std::size_t start = pos_;
-    if (s_[pos_] == '"') {
-      std::size_t end = s_.find('"', pos_ + 1);
-      if (end == std::string::npos || s_.find('\n', pos_) < end) fail("unterminated quoted name");
-      pos_ = end + 1;
-      return s_.substr(start + 1, end - start - 1);
-    }
-    while (pos_ < s_.size() && !std::isspace(static_cast<unsigned char>(s_[pos_]))) ++pos_;
-    return s_.substr(start, pos_ - start);
-  }
-  long long integer(const char* what) {
-    std::string w = word(what);
-    char* end = nullptr;
-    errno = 0;
-    long long v = std::strtoll(w.c_str(), &end, 10);
-    if (w.empty() || *end || errno) fail(fmt::format("expected {} (an integer), got \"{}\"", what, w));
-    return v;
-  }
-  long long count(const char* what) {
-    long long v = integer(what);
-    if (v < 0) fail(fmt::format("{} is negative ({})", what, v));
-    return v;
-  }
-  double number(const char* what) {
-    std::string w = word(what);
-    char* end = nullptr;
-    errno = 0;
-    double v = std::strtod(w.c_str(), &end);
-    if (w.empty() || *end || errno == ERANGE || !std::isfinite(v))
-      fail(fmt::format("expected {} (a finite number), got \"{}\"", what, w));
-    return v;
-  }
-  void expect(const std::string& tag) {
-    std::string w = word(tag.c_str());
-    if (w != tag) fail(fmt::format("expected {}, got \"{}\"", tag, w));
-  }
-  [[noreturn]] void fail(const std::string& problem) const {
-    throw InputError(file_, "", fmt::format("line {}: {}", token_line_, problem));
-  }
-
-private:
-  void skip() {
-    while (pos_ < s_.size() && std::isspace(static_cast<unsigned char>(s_[pos_]))) {
-      if (s_[pos_] == '\n') ++line_;
-      ++pos_;
-    }
-  }
-  const std::string& s_;
-  const std::string& file_;
-  std::size_t pos_ = 0;
-  long line_ = 1, token_line_ = 1;
-};
-
-// Nodes per element type (the specification's table, types 1-31) and names for messages.
-int nodes_of(int type) {
-  static const int n[] = {0, 2, 3, 4, 4, 8, 6, 5, 3, 6, 9, 10, 27, 18, 14, 1, 8, 20, 15, 13,
-                          9, 10, 12, 15, 15, 21, 4, 5, 6, 20, 35, 56};
-  return type >= 1 && type <= 31 ? n[type] : -1;
-}
+// Names for messages (Gmsh's element types 1-31).
 std::string type_name(int type) {
   switch (type) {
     case 1: return "2-node line";
@@ -101,170 +28,230 @@ std::string type_name(int type) {
     case 9: return "6-node triangle";
     case 11: return "10-node tetrahedron";
     case 15: return "point";
-    default: return fmt::format("{}-node element", nodes_of(type));
+    default: {
+      std::string name;
+      int dim = 0, order = 0, nodes = 0, primary = 0;
+      std::vector<double> local;
+      gmsh::model::mesh::getElementProperties(type, name, dim, order, nodes, local, primary);
+      return fmt::format("{}-node element", nodes);
+    }
   }
 }
 
-struct Entity {
-  std::vector<int> physical;  // physical tags
+// Gmsh's state lives from here to the end of the scope, whatever happens. Started without argv (the command line
+// is PETSc's and ours) or configuration files; it installs no signal handler. Verbosity 1 and Terminal 0: errors
+// are recorded but nothing is printed (at verbosity 0 Gmsh drops errors altogether, and then does not throw on
+// them: a file cut short would read as an empty mesh). General.AbortOnError is 2 under the API (throw, not exit).
+// One thread: every rank reads (and meshes) the file itself, and the same way.
+class GmshSession {
+public:
+  GmshSession() {
+    gmsh::initialize(0, nullptr, false);
+    gmsh::option::setNumber("General.Terminal", 0);
+    gmsh::option::setNumber("General.Verbosity", 1);
+    gmsh::option::setNumber("General.NumThreads", 1);
+    gmsh::option::setNumber("General.AbortOnError", 2);
+  }
+  ~GmshSession() {
+    try {
+      gmsh::finalize();  // frees the model; also resets Gmsh's "busy" flag, which an exception mid-read leaves set
+    } catch (...) {
+    }
+  }
+  GmshSession(const GmshSession&) = delete;
+  GmshSession& operator=(const GmshSession&) = delete;
 };
+
+// One line for a message.
+std::string one_line(std::string s) {
+  std::replace(s.begin(), s.end(), '\n', ' ');
+  std::replace(s.begin(), s.end(), '\r', ' ');
+  while (!s.empty() && s.back() == ' ') s.pop_back();
+  return s.empty() ? std::string("an error without a message") : s;
+}
+
+// Node tag -> index into Gmsh's node arrays: dense when the tags are (Gmsh numbers nodes 1..n), hashed otherwise.
+class NodeIndex {
+public:
+  explicit NodeIndex(const std::vector<std::size_t>& tags) {
+    std::size_t max = 0;
+    for (auto t : tags) max = std::max(max, t);
+    dense_ = max <= 4 * tags.size() + 1024;
+    if (dense_) {
+      slot_.assign(max + 1, -1);
+      for (std::size_t i = 0; i < tags.size(); ++i) slot_[tags[i]] = static_cast<std::int64_t>(i);
+    } else {
+      for (std::size_t i = 0; i < tags.size(); ++i) map_[tags[i]] = static_cast<std::int64_t>(i);
+    }
+  }
+  std::int64_t operator()(std::size_t tag) const {
+    if (dense_) return tag < slot_.size() ? slot_[tag] : -1;
+    auto it = map_.find(tag);
+    return it == map_.end() ? -1 : it->second;
+  }
+
+private:
+  bool dense_;
+  std::vector<std::int64_t> slot_;
+  std::unordered_map<std::size_t, std::int64_t> map_;
+};
+
+// The last line of a .msh file (ASCII or binary, every version) is the $End of its last section; a file that ends
+// elsewhere was cut short (Gmsh itself would silently read some such files as a smaller mesh).
+void check_complete(std::ifstream& in, const std::string& path) {
+  in.clear();
+  in.seekg(0, std::ios::end);
+  const std::streamoff size = in.tellg();
+  const std::streamoff n = std::min<std::streamoff>(size, 4096);
+  std::string tail(static_cast<std::size_t>(n), '\0');
+  in.seekg(size - n);
+  in.read(tail.data(), n);
+  if (!in) throw InputError(path, "", std::string("cannot read the mesh: ") + std::strerror(errno));
+  while (!tail.empty() && std::isspace(static_cast<unsigned char>(tail.back()))) tail.pop_back();
+  const std::size_t nl = tail.find_last_of('\n');
+  const std::string last = nl == std::string::npos ? tail : tail.substr(nl + 1);
+  if (last.rfind("$End", 0) != 0)
+    throw InputError(path, "", "cut short: its last line is not the $End line of a section");
+}
 
 }  // namespace
 
-TetMesh read_gmsh(const std::string& path) {
+TetMesh read_gmsh(const std::string& path, double mesh_size) {
+  // What the file is: a mesh begins with $MeshFormat in every version, ASCII or binary; otherwise a .geo.
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, "", std::string("cannot open the mesh: ") + std::strerror(errno));
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  const std::string text = buffer.str();
+  std::string head(64, '\0');
+  in.read(head.data(), static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<std::size_t>(in.gcount()));
   if (in.bad()) throw InputError(path, "", std::string("cannot read the mesh: ") + std::strerror(errno));
-  Lexer lex(text, path);
+  const std::size_t start = head.find_first_not_of(" \t\r\n");
+  if (start == std::string::npos && head.size() < 64) throw InputError(path, "", "empty file, not a Gmsh mesh");
+  std::string ext = path.size() >= 4 ? path.substr(path.size() - 4) : "";
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  const bool is_mesh = start != std::string::npos && head.compare(start, 11, "$MeshFormat") == 0;
+  const bool geometry = !is_mesh && ext == ".geo";
+  if (!is_mesh && !geometry)
+    throw InputError(path, "", "not a Gmsh mesh: it must begin with $MeshFormat (or be a .geo geometry, which is "
+                               "meshed at run time)");
+  if (is_mesh) check_complete(in, path);
+  in.close();
 
+  std::vector<std::size_t> node_tag;
+  std::vector<double> coord;
   std::map<std::pair<int, int>, std::string> physical_name;  // (dim, tag) -> name
-  std::map<std::pair<int, int>, Entity> entities;            // (dim, tag)
-  std::unordered_map<long long, Vec3> node;                  // tag -> position
   struct Tet {
-    std::array<long long, 4> tags;
+    std::array<std::size_t, 4> tags;
     int physical;  // -1: none
   };
   std::vector<Tet> tets;
-  std::map<int, std::vector<std::array<long long, 3>>> surface;  // physical tag -> triangles (node tags)
-  bool format = false, have_entities = false, have_nodes = false, have_elements = false;
+  std::map<int, std::vector<std::array<std::size_t, 3>>> surface;  // physical tag -> triangles (node tags)
 
-  while (!lex.at_end()) {
-    const std::string section = lex.word("a section");
-    if (!format && section != "$MeshFormat") lex.fail("not a Gmsh mesh: it must begin with $MeshFormat");
-    if (section.empty() || section[0] != '$') lex.fail(fmt::format("expected a $Section, got \"{}\"", section));
-    const std::string name = section.substr(1);
-    if (name == "MeshFormat") {
-      const std::string version = lex.word("the version");
-      const long long type = lex.integer("the file type");
-      lex.integer("the data size");
-      if (version.rfind("4.1", 0) != 0)
-        lex.fail(fmt::format("format version {}; only 4.1 is read (gmsh -format msh41)", version));
-      if (type != 0) lex.fail("binary .msh; only ASCII is read (Gmsh option Mesh.Binary = 0)");
-      format = true;
-    } else if (name == "PhysicalNames") {
-      const long long n = lex.count("the number of physical names");
-      for (long long i = 0; i < n; ++i) {
-        const int dim = static_cast<int>(lex.integer("a dimension"));
-        const int tag = static_cast<int>(lex.integer("a physical tag"));
-        physical_name[{dim, tag}] = lex.word("a physical name");
-      }
-    } else if (name == "Entities") {
-      long long count[4];
-      for (auto& c : count) c = lex.count("an entity count");
-      for (int dim = 0; dim < 4; ++dim)
-        for (long long i = 0; i < count[dim]; ++i) {
-          const int tag = static_cast<int>(lex.integer("an entity tag"));
-          for (int k = 0; k < (dim == 0 ? 3 : 6); ++k) lex.number("a coordinate of the bounding box");
-          Entity e;
-          const long long np = lex.count("the number of physical tags");
-          for (long long k = 0; k < np; ++k) e.physical.push_back(static_cast<int>(lex.integer("a physical tag")));
-          if (dim > 0) {
-            const long long nb = lex.count("the number of bounding entities");
-            for (long long k = 0; k < nb; ++k) lex.integer("a bounding entity tag");
-          }
-          entities[{dim, tag}] = e;
-        }
-      have_entities = true;
-    } else if (name == "PartitionedEntities") {
-      lex.fail("a partitioned mesh; save it unpartitioned (tissue partitions it itself)");
-    } else if (name == "Nodes") {
-      const long long blocks = lex.count("the number of node blocks");
-      lex.count("the number of nodes");
-      lex.integer("the smallest node tag");
-      lex.integer("the largest node tag");
-      for (long long b = 0; b < blocks; ++b) {
-        const int dim = static_cast<int>(lex.integer("an entity dimension"));
-        lex.integer("an entity tag");
-        const long long parametric = lex.integer("the parametric flag");
-        const long long n = lex.count("the number of nodes in the block");
-        std::vector<long long> tags(n);
-        for (auto& t : tags) t = lex.integer("a node tag");
-        for (long long i = 0; i < n; ++i) {
-          Vec3 x;
-          for (auto& c : x) c = lex.number("a node coordinate");
-          for (int k = 0; k < (parametric ? dim : 0); ++k) lex.number("a parametric coordinate");
-          if (!node.emplace(tags[i], x).second) lex.fail(fmt::format("node {} is defined twice", tags[i]));
-        }
-      }
-      have_nodes = true;
-    } else if (name == "Elements") {
-      if (!have_nodes) lex.fail("$Elements before $Nodes");
-      const long long blocks = lex.count("the number of element blocks");
-      lex.count("the number of elements");
-      lex.integer("the smallest element tag");
-      lex.integer("the largest element tag");
-      for (long long b = 0; b < blocks; ++b) {
-        const int dim = static_cast<int>(lex.integer("an entity dimension"));
-        const int entity = static_cast<int>(lex.integer("an entity tag"));
-        const int type = static_cast<int>(lex.integer("an element type"));
-        const long long n = lex.count("the number of elements in the block");
-        const int nn = nodes_of(type);
-        if (nn < 0) lex.fail(fmt::format("unknown element type {}", type));
-        auto e = entities.find({dim, entity});
-        const std::vector<int> none;
-        const std::vector<int>& physical = e == entities.end() ? none : e->second.physical;
-        std::vector<long long> v(nn);
-        for (long long i = 0; i < n; ++i) {
-          const long long tag = lex.integer("an element tag");
-          for (auto& t : v) {
-            t = lex.integer("a node tag");
-            if (!node.count(t)) lex.fail(fmt::format("element {} names node {}, which $Nodes does not define", tag, t));
-          }
-          if (dim == 3) {
-            if (type != 4)
-              lex.fail(fmt::format("element {} is of type {} ({}); only 4-node tetrahedra (type 4) are supported",
-                                   tag, type, type_name(type)));
-            const Vec3 &p0 = node[v[0]], &p1 = node[v[1]], &p2 = node[v[2]], &p3 = node[v[3]];
-            const double vol = signed_volume(p0, p1, p2, p3);
-            if (!(vol > 0))
-              lex.fail(fmt::format("tetrahedron {} is {} (volume {:.3e}; Gmsh orders a tetrahedron's nodes so that "
-                                   "its volume is positive)", tag, vol < 0 ? "inverted" : "flat", vol));
-            tets.push_back({{v[0], v[1], v[2], v[3]}, physical.empty() ? -1 : physical.front()});
-          } else if (dim == 2 && !physical.empty()) {
-            if (type != 2)
-              lex.fail(fmt::format("element {} on a physical surface is of type {} ({}); only 3-node triangles "
-                                   "(type 2) bound a tetrahedral mesh", tag, type, type_name(type)));
-            for (int p : physical) surface[p].push_back({v[0], v[1], v[2]});
-          }
-        }
-      }
-      have_elements = true;
-    } else {  // other sections ($NodeData, $Periodic, comments, ...) carry nothing the model uses
-      const std::string end = "$End" + name;
-      for (;;) {
-        if (lex.at_end()) lex.fail(fmt::format("{} has no {}", section, end));
-        if (lex.word(end.c_str()) == end) break;
-      }
-      continue;
+  const char* stage = "Gmsh cannot read it";
+  try {
+    GmshSession session;
+    gmsh::open(path);
+    std::vector<std::pair<int, int>> groups;
+    gmsh::model::getPhysicalGroups(groups);
+    if (geometry) {
+      stage = "Gmsh cannot mesh it";
+      if (mesh_size > 0) gmsh::option::setNumber("Mesh.MeshSizeMax", mesh_size);  // over the .geo's own
+      gmsh::model::mesh::generate(3);
     }
-    lex.expect("$End" + name);
+    stage = "Gmsh cannot read it";
+    for (const auto& [dim, tag] : groups) gmsh::model::getPhysicalName(dim, tag, physical_name[{dim, tag}]);
+    std::vector<double> parametric;
+    gmsh::model::mesh::getNodes(node_tag, coord, parametric, -1, -1, false, false);
+    const NodeIndex index(node_tag);
+    auto position = [&](std::size_t tag, std::size_t element) -> Vec3 {
+      const std::int64_t i = index(tag);
+      if (i < 0) throw InputError(path, "", fmt::format("element {} names node {}, which the mesh does not define",
+                                                        element, tag));
+      return {coord[3 * i], coord[3 * i + 1], coord[3 * i + 2]};
+    };
+
+    std::vector<int> types;
+    std::vector<std::vector<std::size_t>> element_tags, element_nodes;
+    std::vector<int> physical;
+    for (int dim : {3, 2}) {
+      std::vector<std::pair<int, int>> entities;
+      gmsh::model::getEntities(entities, dim);
+      for (const auto& entity : entities) {
+        gmsh::model::getPhysicalGroupsForEntity(dim, entity.second, physical);
+        // A surface counts if it is physical. A volume of a .msh always (the file holds what was saved); of a
+        // .geo as Gmsh saves it: only physical ones once the model has a physical group (Mesh.SaveAll = 0).
+        if (physical.empty() && (dim == 2 || (geometry && !groups.empty()))) continue;
+        gmsh::model::mesh::getElements(types, element_tags, element_nodes, dim, entity.second);
+        for (std::size_t k = 0; k < types.size(); ++k) {
+          const auto& tags = element_tags[k];
+          const auto& v = element_nodes[k];
+          if (tags.empty()) continue;
+          if (dim == 3 && types[k] != 4)
+            throw InputError(path, "", fmt::format("element {} is of type {} ({}); only 4-node tetrahedra (type 4) "
+                                                   "are supported", tags[0], types[k], type_name(types[k])));
+          if (dim == 2 && types[k] != 2)
+            throw InputError(path, "", fmt::format("element {} on a physical surface is of type {} ({}); only "
+                                                   "3-node triangles (type 2) bound a tetrahedral mesh",
+                                                   tags[0], types[k], type_name(types[k])));
+          const std::size_t nn = dim == 3 ? 4 : 3;
+          for (std::size_t e = 0; e < tags.size(); ++e) {
+            const std::size_t* t = &v[nn * e];
+            if (dim == 3) {
+              const Vec3 p0 = position(t[0], tags[e]), p1 = position(t[1], tags[e]), p2 = position(t[2], tags[e]),
+                         p3 = position(t[3], tags[e]);
+              const double vol = signed_volume(p0, p1, p2, p3);
+              if (!(vol > 0))
+                throw InputError(path, "", fmt::format("tetrahedron {} is {} (volume {:.3e}; Gmsh orders a "
+                                                       "tetrahedron's nodes so that its volume is positive)",
+                                                       tags[e], vol < 0 ? "inverted" : "flat", vol));
+              tets.push_back({{t[0], t[1], t[2], t[3]}, physical.empty() ? -1 : physical.front()});
+            } else {
+              for (int k3 = 0; k3 < 3; ++k3) position(t[k3], tags[e]);
+              for (int p : physical) surface[p].push_back({t[0], t[1], t[2]});
+            }
+          }
+        }
+      }
+    }
+  } catch (const InputError&) {
+    throw;
+  } catch (const std::string& e) {  // Gmsh 4.7-4.8 throws its last error message
+    throw InputError(path, "", fmt::format("{}: {}", stage, one_line(e)));
+  } catch (const char* e) {
+    throw InputError(path, "", fmt::format("{}: {}", stage, one_line(e ? e : "")));
+  } catch (const std::exception& e) {  // later versions throw std::runtime_error
+    throw InputError(path, "", fmt::format("{}: {}", stage, one_line(e.what())));
+  } catch (int e) {  // before 4.7: an error code
+    throw InputError(path, "", fmt::format("{}: error code {}", stage, e));
+  } catch (...) {
+    throw InputError(path, "", fmt::format("{}: an unknown error", stage));
   }
-  if (!format) throw InputError(path, "", "empty file, not a Gmsh mesh");
-  if (!have_entities || !have_nodes || !have_elements)
-    throw InputError(path, "", std::string("no $") + (!have_entities ? "Entities" : !have_nodes ? "Nodes" : "Elements") +
-                                   " section");
   if (tets.empty())
     throw InputError(path, "", "no tetrahedra (mesh the volume, gmsh -3, and put it in a physical volume)");
 
   // Molecules: the nodes the tetrahedra use, in tag order.
-  std::vector<long long> used;
+  std::vector<std::size_t> used;
   used.reserve(4 * tets.size());
   for (const auto& t : tets) used.insert(used.end(), t.tags.begin(), t.tags.end());
   std::sort(used.begin(), used.end());
   used.erase(std::unique(used.begin(), used.end()), used.end());
-  std::unordered_map<long long, std::int64_t> index;
+  const NodeIndex gmsh_index(node_tag);
+  std::unordered_map<std::size_t, std::int64_t> index;  // node tag -> molecule
+  index.reserve(used.size());
   TetMesh mesh;
   mesh.file = path;
   mesh.nodes.reserve(used.size());
-  for (auto t : used) index[t] = static_cast<std::int64_t>(mesh.nodes.size()), mesh.nodes.push_back(node[t]);
+  for (auto t : used) {
+    const std::int64_t i = gmsh_index(t);
+    index[t] = static_cast<std::int64_t>(mesh.nodes.size());
+    mesh.nodes.push_back({coord[3 * i], coord[3 * i + 1], coord[3 * i + 2]});
+  }
   auto label = [&](int dim, int tag) {
     auto it = physical_name.find({dim, tag});
-    return it != physical_name.end() ? it->second : std::to_string(tag);
+    return it != physical_name.end() && !it->second.empty() ? it->second : std::to_string(tag);
   };
   std::map<int, int> region_index;  // physical tag -> index in region_names
+  mesh.tets.reserve(tets.size());
+  mesh.tet_region.reserve(tets.size());
   for (const auto& t : tets) {
     std::array<std::int64_t, 4> v;
     for (int k = 0; k < 4; ++k) v[k] = index[t.tags[k]];
@@ -294,6 +281,17 @@ TetMesh read_gmsh(const std::string& path) {
     mesh.surfaces.push_back(std::move(s));
   }
   return mesh;
+}
+
+std::string gmsh_library_version() {
+  try {
+    GmshSession session;
+    std::string version;
+    gmsh::option::getString("General.Version", version);
+    return version;
+  } catch (...) {
+    return GMSH_API_VERSION " (API)";
+  }
 }
 
 }  // namespace tissue

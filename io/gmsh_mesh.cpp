@@ -171,11 +171,14 @@ TetMesh read_gmsh(const std::string& path, double mesh_size) {
 
     std::vector<int> types;
     std::vector<std::vector<std::size_t>> element_tags, element_nodes;
-    std::vector<int> physical;
+    std::vector<int> physical, partitions;
     for (int dim : {3, 2}) {
       std::vector<std::pair<int, int>> entities;
       gmsh::model::getEntities(entities, dim);
       for (const auto& entity : entities) {
+        gmsh::model::getPartitions(dim, entity.second, partitions);
+        if (!partitions.empty())  // its entities and their order are the partitioning's, not the model's
+          throw InputError(path, "", "a partitioned mesh; save it unpartitioned (tissue partitions it itself)");
         gmsh::model::getPhysicalGroupsForEntity(dim, entity.second, physical);
         // A surface counts if it is physical. A volume of a .msh always (the file holds what was saved); of a
         // .geo as Gmsh saves it: only physical ones once the model has a physical group (Mesh.SaveAll = 0).

@@ -1,9 +1,9 @@
 #!/usr/bin/env python3
 """Bad meshes fail cleanly: `tissue run` on a mesh scene whose mesh is missing, holds a non-tetrahedral
-element, an inverted or flat tetrahedron, a version header its body does not follow, is cut short, or lacks the
-physical group a fix, load or region names, or that asks for a random cloud in it with a count missing, below 1
-or more than fits, whose .geo Gmsh cannot read or holds no volume, or that gives a mesh_size to a .msh or one
-not above 0, exits with code 2 and exactly one line on stderr naming the file
+element, an inverted or flat tetrahedron, a version header its body does not follow, is cut short, is
+partitioned, or lacks the physical group a fix, load or region names, or that asks for a random cloud in it with
+a count missing, below 1 or more than fits, whose .geo Gmsh cannot read or holds no volume, or that gives a
+mesh_size to a .msh or one not above 0, exits with code 2 and exactly one line on stderr naming the file
 and the problem, and writes nothing. A hand-made one-tetrahedron mesh is the valid reference (it must run); the
 same tetrahedron as ASCII MSH 2.2 and (with the gmsh program) binary MSH 4.1 and 2.2 must run and write its
 summary.json numbers (tests/mesh_formats_test.py's comparison: 1e-12 relative, times and memory aside)."""
@@ -142,6 +142,10 @@ def main():
             ("zero mesh_size", "cube.geo", 'SetFactory("OpenCASCADE");\nBox(1) = {0, 0, 0, 1, 1, 1};\n',
              {"body": "mesh_size = 0.0\n"}, ["body.mesh_size", "0"]),
         ]
+        if gmsh:  # a partitioned mesh (tissue partitions the model itself)
+            subprocess.run([gmsh, str(Path(args.source) / "tests" / "meshes" / "two_layers.msh"), "-part", "2",
+                            "-save", "-format", "msh41", "-o", str(tmp / "part.msh")], check=True, capture_output=True)
+            cases.append(("partitioned", "part.msh", "", {}, ["part.msh", "partitioned"]))
         for label, name, text, kw, expects in cases:
             if text:
                 (tmp / name).write_text(text)

@@ -1,22 +1,25 @@
 #include "io/gmsh_mesh.hpp"
 
+#include <dlfcn.h>
 #include <fmt/format.h>
-#include <gmsh.h>
 
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
-#include <exception>
 #include <fstream>
 #include <map>
+#include <mutex>
 #include <unordered_map>
+
+#include "io/gmsh_library.hpp"
 
 namespace tissue {
 namespace {
 
 // Names for messages (Gmsh's element types 1-31).
-std::string type_name(int type) {
+std::string type_name(int type, int nodes) {
   switch (type) {
     case 1: return "2-node line";
     case 2: return "3-node triangle";
@@ -28,46 +31,35 @@ std::string type_name(int type) {
     case 9: return "6-node triangle";
     case 11: return "10-node tetrahedron";
     case 15: return "point";
-    default: {
-      std::string name;
-      int dim = 0, order = 0, nodes = 0, primary = 0;
-      std::vector<double> local;
-      gmsh::model::mesh::getElementProperties(type, name, dim, order, nodes, local, primary);
-      return fmt::format("{}-node element", nodes);
-    }
+    default: return fmt::format("{}-node element", nodes);
   }
 }
 
-// Gmsh's state lives from here to the end of the scope, whatever happens. Started without argv (the command line
-// is PETSc's and ours) or configuration files; it installs no signal handler. Verbosity 1 and Terminal 0: errors
-// are recorded but nothing is printed (at verbosity 0 Gmsh drops errors altogether, and then does not throw on
-// them: a file cut short would read as an empty mesh). General.AbortOnError is 2 under the API (throw, not exit).
-// One thread: every rank reads (and meshes) the file itself, and the same way.
-class GmshSession {
-public:
-  GmshSession() {
-    gmsh::initialize(0, nullptr, false);
-    gmsh::option::setNumber("General.Terminal", 0);
-    gmsh::option::setNumber("General.Verbosity", 1);
-    gmsh::option::setNumber("General.NumThreads", 1);
-    gmsh::option::setNumber("General.AbortOnError", 2);
-  }
-  ~GmshSession() {
-    try {
-      gmsh::finalize();  // frees the model; also resets Gmsh's "busy" flag, which an exception mid-read leaves set
-    } catch (...) {
-    }
-  }
-  GmshSession(const GmshSession&) = delete;
-  GmshSession& operator=(const GmshSession&) = delete;
+// The module (io/gmsh_library.hpp), loaded once: from $TISSUE_GMSH_MODULE, else where the build put it.
+struct Module {
+  gmsh_module::ReadFunction read = nullptr;
+  gmsh_module::VersionFunction version = nullptr;
+  std::string error;  // why it could not be loaded
 };
 
-// One line for a message.
-std::string one_line(std::string s) {
-  std::replace(s.begin(), s.end(), '\n', ' ');
-  std::replace(s.begin(), s.end(), '\r', ' ');
-  while (!s.empty() && s.back() == ' ') s.pop_back();
-  return s.empty() ? std::string("an error without a message") : s;
+const Module& module() {
+  static Module m;
+  static std::once_flag once;
+  std::call_once(once, [] {
+    const char* env = std::getenv("TISSUE_GMSH_MODULE");
+    const std::string file = env && *env ? env : TISSUE_GMSH_MODULE;
+    void* handle = dlopen(file.c_str(), RTLD_NOW | RTLD_LOCAL);  // never closed: Gmsh stays loaded
+    if (!handle) {
+      const char* e = dlerror();
+      m.error = fmt::format("cannot load tissue's Gmsh module ({}; set TISSUE_GMSH_MODULE to libtissue_gmsh.so)",
+                            e ? e : file);
+      return;
+    }
+    m.read = reinterpret_cast<gmsh_module::ReadFunction>(dlsym(handle, "tissue_gmsh_read"));
+    m.version = reinterpret_cast<gmsh_module::VersionFunction>(dlsym(handle, "tissue_gmsh_version"));
+    if (!m.read || !m.version) m.error = fmt::format("{} is not tissue's Gmsh module", file);
+  });
+  return m;
 }
 
 // Node tag -> index into Gmsh's node arrays: dense when the tags are (Gmsh numbers nodes 1..n), hashed otherwise.
@@ -136,97 +128,61 @@ TetMesh read_gmsh(const std::string& path, double mesh_size) {
   if (is_mesh) check_complete(in, path);
   in.close();
 
-  std::vector<std::size_t> node_tag;
-  std::vector<double> coord;
-  std::map<std::pair<int, int>, std::string> physical_name;  // (dim, tag) -> name
+  const Module& gmsh = module();
+  if (!gmsh.read) throw InputError(path, "", gmsh.error);
+  gmsh_module::Model model;
+  std::string error;
+  gmsh.read(path, mesh_size, geometry, model, error);
+  if (!error.empty()) throw InputError(path, "", error);
+  if (model.partitioned)  // its entities and their order are the partitioning's, not the model's
+    throw InputError(path, "", "a partitioned mesh; save it unpartitioned (tissue partitions it itself)");
+
+  const std::vector<std::size_t>& node_tag = model.node_tags;
+  const std::vector<double>& coord = model.coords;
+  const NodeIndex gmsh_index(node_tag);
+  auto position = [&](std::size_t tag, std::size_t element) -> Vec3 {
+    const std::int64_t i = gmsh_index(tag);
+    if (i < 0)
+      throw InputError(path, "", fmt::format("element {} names node {}, which the mesh does not define", element, tag));
+    return {coord[3 * i], coord[3 * i + 1], coord[3 * i + 2]};
+  };
   struct Tet {
     std::array<std::size_t, 4> tags;
     int physical;  // -1: none
   };
   std::vector<Tet> tets;
   std::map<int, std::vector<std::array<std::size_t, 3>>> surface;  // physical tag -> triangles (node tags)
-
-  const char* stage = "Gmsh cannot read it";
-  try {
-    GmshSession session;
-    gmsh::open(path);
-    std::vector<std::pair<int, int>> groups;
-    gmsh::model::getPhysicalGroups(groups);
-    if (geometry) {
-      stage = "Gmsh cannot mesh it";
-      if (mesh_size > 0) gmsh::option::setNumber("Mesh.MeshSizeMax", mesh_size);  // over the .geo's own
-      gmsh::model::mesh::generate(3);
-    }
-    stage = "Gmsh cannot read it";
-    for (const auto& [dim, tag] : groups) gmsh::model::getPhysicalName(dim, tag, physical_name[{dim, tag}]);
-    std::vector<double> parametric;
-    gmsh::model::mesh::getNodes(node_tag, coord, parametric, -1, -1, false, false);
-    const NodeIndex index(node_tag);
-    auto position = [&](std::size_t tag, std::size_t element) -> Vec3 {
-      const std::int64_t i = index(tag);
-      if (i < 0) throw InputError(path, "", fmt::format("element {} names node {}, which the mesh does not define",
-                                                        element, tag));
-      return {coord[3 * i], coord[3 * i + 1], coord[3 * i + 2]};
-    };
-
-    std::vector<int> types;
-    std::vector<std::vector<std::size_t>> element_tags, element_nodes;
-    std::vector<int> physical, partitions;
-    for (int dim : {3, 2}) {
-      std::vector<std::pair<int, int>> entities;
-      gmsh::model::getEntities(entities, dim);
-      for (const auto& entity : entities) {
-        gmsh::model::getPartitions(dim, entity.second, partitions);
-        if (!partitions.empty())  // its entities and their order are the partitioning's, not the model's
-          throw InputError(path, "", "a partitioned mesh; save it unpartitioned (tissue partitions it itself)");
-        gmsh::model::getPhysicalGroupsForEntity(dim, entity.second, physical);
-        // A surface counts if it is physical. A volume of a .msh always (the file holds what was saved); of a
-        // .geo as Gmsh saves it: only physical ones once the model has a physical group (Mesh.SaveAll = 0).
-        if (physical.empty() && (dim == 2 || (geometry && !groups.empty()))) continue;
-        gmsh::model::mesh::getElements(types, element_tags, element_nodes, dim, entity.second);
-        for (std::size_t k = 0; k < types.size(); ++k) {
-          const auto& tags = element_tags[k];
-          const auto& v = element_nodes[k];
-          if (tags.empty()) continue;
-          if (dim == 3 && types[k] != 4)
-            throw InputError(path, "", fmt::format("element {} is of type {} ({}); only 4-node tetrahedra (type 4) "
-                                                   "are supported", tags[0], types[k], type_name(types[k])));
-          if (dim == 2 && types[k] != 2)
-            throw InputError(path, "", fmt::format("element {} on a physical surface is of type {} ({}); only "
-                                                   "3-node triangles (type 2) bound a tetrahedral mesh",
-                                                   tags[0], types[k], type_name(types[k])));
-          const std::size_t nn = dim == 3 ? 4 : 3;
-          for (std::size_t e = 0; e < tags.size(); ++e) {
-            const std::size_t* t = &v[nn * e];
-            if (dim == 3) {
-              const Vec3 p0 = position(t[0], tags[e]), p1 = position(t[1], tags[e]), p2 = position(t[2], tags[e]),
-                         p3 = position(t[3], tags[e]);
-              const double vol = signed_volume(p0, p1, p2, p3);
-              if (!(vol > 0))
-                throw InputError(path, "", fmt::format("tetrahedron {} is {} (volume {:.3e}; Gmsh orders a "
-                                                       "tetrahedron's nodes so that its volume is positive)",
-                                                       tags[e], vol < 0 ? "inverted" : "flat", vol));
-              tets.push_back({{t[0], t[1], t[2], t[3]}, physical.empty() ? -1 : physical.front()});
-            } else {
-              for (int k3 = 0; k3 < 3; ++k3) position(t[k3], tags[e]);
-              for (int p : physical) surface[p].push_back({t[0], t[1], t[2]});
-            }
-          }
-        }
+  for (const auto& b : model.blocks) {
+    // A volume of a .msh counts always (the file holds what was saved); of a .geo as Gmsh saves it: only
+    // physical ones once the model has a physical group (Mesh.SaveAll = 0). Surfaces come physical only.
+    if (b.dim == 3 && b.physical.empty() && geometry && !model.physical_names.empty()) continue;
+    if (b.dim == 3 && b.type != 4)
+      throw InputError(path, "", fmt::format("element {} is of type {} ({}); only 4-node tetrahedra (type 4) are "
+                                             "supported", b.tags[0], b.type, type_name(b.type, b.nodes_per_element)));
+    if (b.dim == 2 && b.type != 2)
+      throw InputError(path, "", fmt::format("element {} on a physical surface is of type {} ({}); only 3-node "
+                                             "triangles (type 2) bound a tetrahedral mesh", b.tags[0], b.type,
+                                             type_name(b.type, b.nodes_per_element)));
+    const std::size_t nn = b.dim == 3 ? 4 : 3;
+    if (b.nodes.size() != nn * b.tags.size())
+      throw InputError(path, "", fmt::format("Gmsh gave {} node tags for {} elements of type {}", b.nodes.size(),
+                                             b.tags.size(), b.type));
+    for (std::size_t e = 0; e < b.tags.size(); ++e) {
+      const std::size_t* t = &b.nodes[nn * e];
+      if (b.dim == 3) {
+        const Vec3 p0 = position(t[0], b.tags[e]), p1 = position(t[1], b.tags[e]), p2 = position(t[2], b.tags[e]),
+                   p3 = position(t[3], b.tags[e]);
+        const double vol = signed_volume(p0, p1, p2, p3);
+        if (!(vol > 0))
+          throw InputError(path, "", fmt::format("tetrahedron {} is {} (volume {:.3e}; Gmsh orders a tetrahedron's "
+                                                 "nodes so that its volume is positive)",
+                                                 b.tags[e], vol < 0 ? "inverted" : "flat", vol));
+        tets.push_back({{t[0], t[1], t[2], t[3]}, b.physical.empty() ? -1 : b.physical.front()});
+      } else {
+        for (int k = 0; k < 3; ++k) position(t[k], b.tags[e]);
+        for (int p : b.physical) surface[p].push_back({t[0], t[1], t[2]});
       }
     }
-  } catch (const InputError&) {
-    throw;
-  } catch (const std::string& e) {  // Gmsh 4.7-4.8 throws its last error message
-    throw InputError(path, "", fmt::format("{}: {}", stage, one_line(e)));
-  } catch (const char* e) {
-    throw InputError(path, "", fmt::format("{}: {}", stage, one_line(e ? e : "")));
-  } catch (const std::exception& e) {  // later versions throw std::runtime_error
-    throw InputError(path, "", fmt::format("{}: {}", stage, one_line(e.what())));
-  } catch (int e) {  // before 4.7: an error code
-    throw InputError(path, "", fmt::format("{}: error code {}", stage, e));
-  } catch (...) {
-    throw InputError(path, "", fmt::format("{}: an unknown error", stage));
   }
   if (tets.empty())
     throw InputError(path, "", "no tetrahedra (mesh the volume, gmsh -3, and put it in a physical volume)");
@@ -237,7 +193,6 @@ TetMesh read_gmsh(const std::string& path, double mesh_size) {
   for (const auto& t : tets) used.insert(used.end(), t.tags.begin(), t.tags.end());
   std::sort(used.begin(), used.end());
   used.erase(std::unique(used.begin(), used.end()), used.end());
-  const NodeIndex gmsh_index(node_tag);
   std::unordered_map<std::size_t, std::int64_t> index;  // node tag -> molecule
   index.reserve(used.size());
   TetMesh mesh;
@@ -249,8 +204,8 @@ TetMesh read_gmsh(const std::string& path, double mesh_size) {
     mesh.nodes.push_back({coord[3 * i], coord[3 * i + 1], coord[3 * i + 2]});
   }
   auto label = [&](int dim, int tag) {
-    auto it = physical_name.find({dim, tag});
-    return it != physical_name.end() && !it->second.empty() ? it->second : std::to_string(tag);
+    auto it = model.physical_names.find({dim, tag});
+    return it != model.physical_names.end() && !it->second.empty() ? it->second : std::to_string(tag);
   };
   std::map<int, int> region_index;  // physical tag -> index in region_names
   mesh.tets.reserve(tets.size());
@@ -287,14 +242,11 @@ TetMesh read_gmsh(const std::string& path, double mesh_size) {
 }
 
 std::string gmsh_library_version() {
-  try {
-    GmshSession session;
-    std::string version;
-    gmsh::option::getString("General.Version", version);
-    return version;
-  } catch (...) {
-    return GMSH_API_VERSION " (API)";
-  }
+  const Module& gmsh = module();
+  if (!gmsh.version) return "(" + gmsh.error + ")";
+  std::string version;
+  gmsh.version(version);
+  return version;
 }
 
 }  // namespace tissue

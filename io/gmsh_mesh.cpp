@@ -1,11 +1,19 @@
 #include "io/gmsh_mesh.hpp"
 
 #include <dlfcn.h>
+#include <fcntl.h>
 #include <fmt/format.h>
+#include <poll.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
@@ -60,6 +68,209 @@ const Module& module() {
     if (!m.read || !m.version) m.error = fmt::format("{} is not tissue's Gmsh module", file);
   });
   return m;
+}
+
+// Gmsh runs in a child process (forked by every rank that reads), which sends its model back through a pipe:
+// Gmsh trusts the counts and tags of a binary file, and on a corrupt one it may crash, call exit or run away;
+// then the child dies and the run ends with one line (exit 2), as for any bad mesh. The libraries are also loaded
+// in the child only, so that the run's memory holds none of Gmsh (44 MB of libraries, and its model of the file).
+// The child makes no MPI call and leaves through _exit (as io/isolated_parse.cpp's do).
+constexpr double kMeshSeconds = 600;  // reading a .msh; meshing a .geo takes what it takes
+constexpr char kModel = 'M', kError = 'E';
+
+class PipeWriter {
+public:
+  explicit PipeWriter(int fd) : fd_(fd) { buffer_.reserve(1 << 20); }
+  void bytes(const void* p, std::size_t n) {
+    const char* c = static_cast<const char*>(p);
+    if (buffer_.size() + n > (1u << 20)) flush();
+    if (n > (1u << 20)) return all(c, n);
+    buffer_.insert(buffer_.end(), c, c + n);
+  }
+  template <class T> void value(T v) { bytes(&v, sizeof v); }
+  template <class T> void array(const std::vector<T>& v) {
+    value<std::uint64_t>(v.size());
+    bytes(v.data(), v.size() * sizeof(T));
+  }
+  void string(const std::string& s) {
+    value<std::uint64_t>(s.size());
+    bytes(s.data(), s.size());
+  }
+  void flush() {
+    all(buffer_.data(), buffer_.size());
+    buffer_.clear();
+  }
+
+private:
+  void all(const char* c, std::size_t n) {
+    while (n > 0) {
+      const ssize_t w = ::write(fd_, c, n);
+      if (w < 0 && errno == EINTR) continue;
+      if (w <= 0) ::_exit(3);  // the parent is gone
+      c += w, n -= static_cast<std::size_t>(w);
+    }
+  }
+  int fd_;
+  std::vector<char> buffer_;
+};
+
+[[noreturn]] void child(int fd, const std::string& path, double mesh_size, bool geometry) {
+  ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+  // PETSc's handlers would print a stack and call MPI_Abort (no MPI in the child): a fault kills the child.
+  for (int s : {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT, SIGTRAP, SIGSYS, SIGALRM, SIGTERM, SIGINT, SIGPIPE})
+    std::signal(s, SIG_DFL);
+  PipeWriter out(fd);
+  std::string error;
+  gmsh_module::Model model;
+  try {
+    const Module& gmsh = module();
+    if (gmsh.read)
+      gmsh.read(path, mesh_size, geometry, model, error);
+    else
+      error = gmsh.error;
+  } catch (const std::exception& e) {
+    error = e.what();
+  } catch (...) {
+    error = "an unknown error";
+  }
+  if (!error.empty()) {
+    out.value(kError);
+    out.string(error);
+  } else {
+    out.value(kModel);
+    out.array(model.node_tags);
+    out.array(model.coords);
+    out.value<std::uint8_t>(model.partitioned);
+    out.value<std::uint64_t>(model.physical_names.size());
+    for (const auto& [key, name] : model.physical_names) {
+      out.value<std::int32_t>(key.first), out.value<std::int32_t>(key.second);
+      out.string(name);
+    }
+    out.value<std::uint64_t>(model.blocks.size());
+    for (const auto& b : model.blocks) {
+      for (int v : {b.dim, b.entity, b.type, b.nodes_per_element}) out.value<std::int32_t>(v);
+      out.array(b.physical);
+      out.array(b.tags);
+      out.array(b.nodes);
+    }
+  }
+  out.flush();
+  ::_exit(0);
+}
+
+// Reads what the child sends, to a deadline; false at the end of the pipe, on an error or past the deadline.
+class PipeReader {
+public:
+  PipeReader(int fd, std::chrono::steady_clock::time_point deadline) : fd_(fd), deadline_(deadline) {}
+  bool bytes(void* p, std::size_t n) {
+    char* c = static_cast<char*>(p);
+    while (n > 0) {
+      const double left = std::chrono::duration<double>(deadline_ - std::chrono::steady_clock::now()).count();
+      if (left <= 0) return timed_out_ = true, false;
+      pollfd q{fd_, POLLIN, 0};
+      const int ready = ::poll(&q, 1, static_cast<int>(std::min(left, 3600.0) * 1000) + 1);
+      if (ready < 0 && errno == EINTR) continue;
+      if (ready < 0) return false;
+      if (ready == 0) continue;
+      const ssize_t r = ::read(fd_, c, n);
+      if (r < 0 && errno == EINTR) continue;
+      if (r <= 0) return false;
+      c += r, n -= static_cast<std::size_t>(r);
+    }
+    return true;
+  }
+  template <class T> bool value(T& v) { return bytes(&v, sizeof v); }
+  template <class T> bool array(std::vector<T>& v) {
+    std::uint64_t n = 0;
+    if (!value(n) || n > (std::uint64_t(1) << 40) / sizeof(T)) return false;
+    v.resize(n);
+    return bytes(v.data(), n * sizeof(T));
+  }
+  bool string(std::string& s) {
+    std::uint64_t n = 0;
+    if (!value(n) || n > (1u << 20)) return false;
+    s.resize(n);
+    return bytes(s.data(), n);
+  }
+  bool timed_out() const { return timed_out_; }
+
+private:
+  int fd_;
+  std::chrono::steady_clock::time_point deadline_;
+  bool timed_out_ = false;
+};
+
+bool receive(PipeReader& in, gmsh_module::Model& model, std::string& error) {
+  char kind = 0;
+  if (!in.value(kind)) return false;
+  if (kind == kError) return in.string(error) && !error.empty();
+  if (kind != kModel) return false;
+  std::uint8_t partitioned = 0;
+  std::uint64_t names = 0, blocks = 0;
+  if (!in.array(model.node_tags) || !in.array(model.coords) || !in.value(partitioned) || !in.value(names))
+    return false;
+  model.partitioned = partitioned != 0;
+  for (std::uint64_t i = 0; i < names; ++i) {
+    std::int32_t dim = 0, tag = 0;
+    std::string name;
+    if (!in.value(dim) || !in.value(tag) || !in.string(name)) return false;
+    model.physical_names[{dim, tag}] = name;
+  }
+  if (!in.value(blocks)) return false;
+  for (std::uint64_t i = 0; i < blocks; ++i) {
+    gmsh_module::Block b;
+    std::int32_t v[4];
+    for (auto& x : v)
+      if (!in.value(x)) return false;
+    b.dim = v[0], b.entity = v[1], b.type = v[2], b.nodes_per_element = v[3];
+    if (!in.array(b.physical) || !in.array(b.tags) || !in.array(b.nodes)) return false;
+    model.blocks.push_back(std::move(b));
+  }
+  char end = 0;
+  return !in.value(end);  // nothing after the model
+}
+
+void read_in_child(const std::string& path, double mesh_size, bool geometry, gmsh_module::Model& model) {
+  int fds[2];
+  if (::pipe2(fds, O_CLOEXEC) != 0)
+    throw InputError(path, "", std::string("cannot create a pipe to read the mesh in a child process: ") +
+                                   std::strerror(errno));
+  std::fflush(nullptr);  // else the child's copies of unflushed stdio buffers could be written twice
+  const pid_t pid = ::fork();
+  if (pid < 0) {
+    const int err = errno;
+    ::close(fds[0]), ::close(fds[1]);
+    throw InputError(path, "", std::string("cannot fork to read the mesh in a child process: ") + std::strerror(err));
+  }
+  if (pid == 0) {
+    ::close(fds[0]);
+    child(fds[1], path, mesh_size, geometry);
+  }
+  ::close(fds[1]);
+  const auto deadline = geometry ? std::chrono::steady_clock::time_point::max()
+                                 : std::chrono::steady_clock::now() + std::chrono::duration_cast<
+                                       std::chrono::steady_clock::duration>(std::chrono::duration<double>(kMeshSeconds));
+  PipeReader in(fds[0], deadline);
+  std::string error;
+  const bool complete = receive(in, model, error);
+  ::close(fds[0]);
+  if (in.timed_out()) ::kill(pid, SIGKILL);
+  int status = 0;
+  pid_t reaped;
+  while ((reaped = ::waitpid(pid, &status, 0)) < 0 && errno == EINTR) {
+  }
+  const std::string tail = " (in the child process that reads it): a corrupt or crafted file?";
+  if (in.timed_out())
+    throw InputError(path, "", fmt::format("Gmsh did not finish reading it in {} s{}", kMeshSeconds, tail));
+  if (reaped == pid && WIFSIGNALED(status))
+    throw InputError(path, "", fmt::format("Gmsh died with signal {} ({}){}", WTERMSIG(status),
+                                           strsignal(WTERMSIG(status)), tail));
+  if (!complete) {  // Gmsh called exit (a .geo's Exit does), or the pipe broke
+    const std::string how =
+        reaped == pid && WIFEXITED(status) ? fmt::format("exited with status {}", WEXITSTATUS(status)) : "ended";
+    throw InputError(path, "", fmt::format("Gmsh {} without a result{}", how, tail));
+  }
+  if (!error.empty()) throw InputError(path, "", error);
 }
 
 // Node tag -> index into Gmsh's node arrays: dense when the tags are (Gmsh numbers nodes 1..n), hashed otherwise.
@@ -128,12 +339,8 @@ TetMesh read_gmsh(const std::string& path, double mesh_size) {
   if (is_mesh) check_complete(in, path);
   in.close();
 
-  const Module& gmsh = module();
-  if (!gmsh.read) throw InputError(path, "", gmsh.error);
   gmsh_module::Model model;
-  std::string error;
-  gmsh.read(path, mesh_size, geometry, model, error);
-  if (!error.empty()) throw InputError(path, "", error);
+  read_in_child(path, mesh_size, geometry, model);
   if (model.partitioned)  // its entities and their order are the partitioning's, not the model's
     throw InputError(path, "", "a partitioned mesh; save it unpartitioned (tissue partitions it itself)");
 

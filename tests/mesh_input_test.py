@@ -2,9 +2,9 @@
 """Bad meshes fail cleanly: `tissue run` on a mesh scene whose mesh is missing, holds a non-tetrahedral
 element, an inverted or flat tetrahedron, a version header its body does not follow, is cut short, is
 partitioned, or lacks the physical group a fix, load or region names, or that asks for a random cloud in it with
-a count missing, below 1 or more than fits, whose .geo Gmsh cannot read or holds no volume, or that gives a
-mesh_size to a .msh or one not above 0, exits with code 2 and exactly one line on stderr naming the file
-and the problem, and writes nothing. A hand-made one-tetrahedron mesh is the valid reference (it must run); the
+a count missing, below 1 or more than fits, whose .geo Gmsh cannot read, holds no volume or makes Gmsh exit or
+crash (Gmsh runs in a child process), or that gives a mesh_size to a .msh or one not above 0, exits with code 2
+and exactly one line on stderr naming the file and the problem, and writes nothing. A hand-made one-tetrahedron mesh is the valid reference (it must run); the
 same tetrahedron as ASCII MSH 2.2 and (with the gmsh program) binary MSH 4.1 and 2.2 must run and write its
 summary.json numbers (tests/mesh_formats_test.py's comparison: 1e-12 relative, times and memory aside)."""
 import argparse
@@ -138,6 +138,12 @@ def main():
              ["bad.geo", "Gmsh cannot read it", "line 2"]),
             ("geometry without a volume", "square.geo", 'SetFactory("OpenCASCADE");\nRectangle(1) = {0, 0, 0, 1, 1};\n',
              {}, ["square.geo", "no tetrahedra"]),
+            # Gmsh runs in a child process (io/gmsh_mesh.cpp): when it exits or crashes, the run still ends in one line
+            ("Gmsh exits", "exit.geo", 'SetFactory("OpenCASCADE");\nBox(1) = {0, 0, 0, 1, 1, 1};\nExit;\n', {},
+             ["exit.geo", "Gmsh exited with status 0 without a result"]),
+            ("Gmsh crashes", "segv.geo",
+             'SetFactory("OpenCASCADE");\nBox(1) = {0, 0, 0, 1, 1, 1};\nSystemCall "kill -SEGV $PPID";\n', {},
+             ["segv.geo", "Gmsh died with signal 11"]),
             ("mesh_size on a mesh file", "good.msh", "", {"body": "mesh_size = 0.1\n"}, ["body.mesh_size", ".geo"]),
             ("zero mesh_size", "cube.geo", 'SetFactory("OpenCASCADE");\nBox(1) = {0, 0, 0, 1, 1, 1};\n',
              {"body": "mesh_size = 0.0\n"}, ["body.mesh_size", "0"]),

@@ -4,9 +4,10 @@ element, an inverted or flat tetrahedron, a version header its body does not fol
 partitioned, or lacks the physical group a fix, load or region names, or that asks for a random cloud in it with
 a count missing, below 1 or more than fits, whose .geo Gmsh cannot read, holds no volume or makes Gmsh exit or
 crash (Gmsh runs in a child process), or that gives a mesh_size to a .msh or one not above 0, exits with code 2
-and exactly one line on stderr naming the file and the problem, and writes nothing. A hand-made one-tetrahedron mesh is the valid reference (it must run); the
-same tetrahedron as ASCII MSH 2.2 and (with the gmsh program) binary MSH 4.1 and 2.2 must run and write its
-summary.json numbers (tests/mesh_formats_test.py's comparison: 1e-12 relative, times and memory aside)."""
+and exactly one line on stderr naming the file and the problem, and writes nothing. A hand-made
+one-tetrahedron mesh is the valid reference (it must run); the same tetrahedron as ASCII MSH 2.2 and (with the
+gmsh program) binary MSH 4.1 and 2.2 must run and write its summary.json numbers (tests/mesh_formats_test.py's
+comparison: 1e-12 relative, times and memory aside)."""
 import argparse
 import json
 import os

@@ -16,6 +16,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <mutex>
@@ -75,7 +76,20 @@ const Module& module() {
 // then the child dies and the run ends with one line (exit 2), as for any bad mesh. The libraries are also loaded
 // in the child only, so that the run's memory holds none of Gmsh (44 MB of libraries, and its model of the file).
 // The child makes no MPI call and leaves through _exit (as io/isolated_parse.cpp's do).
-constexpr double kMeshSeconds = 600;  // reading a .msh; meshing a .geo takes what it takes
+// How long the child may take: for a .msh 60 s and 1 s per MB (Gmsh reads tens of MB a second; a corrupt binary
+// count can send it into a loop), for a .geo (meshing takes what it takes) no limit; $TISSUE_GMSH_SECONDS for both.
+double time_limit(const std::string& path, bool geometry) {
+  const char* env = std::getenv("TISSUE_GMSH_SECONDS");
+  if (env && *env) {
+    char* end = nullptr;
+    const double s = std::strtod(env, &end);
+    if (*end == '\0' && s > 0) return s;
+  }
+  if (geometry) return 0;  // none
+  std::error_code ec;
+  const auto bytes = std::filesystem::file_size(path, ec);
+  return 60.0 + (ec ? 0.0 : static_cast<double>(bytes) / 1e6);
+}
 constexpr char kModel = 'M', kError = 'E';
 
 class PipeWriter {
@@ -247,9 +261,10 @@ void read_in_child(const std::string& path, double mesh_size, bool geometry, gms
     child(fds[1], path, mesh_size, geometry);
   }
   ::close(fds[1]);
-  const auto deadline = geometry ? std::chrono::steady_clock::time_point::max()
-                                 : std::chrono::steady_clock::now() + std::chrono::duration_cast<
-                                       std::chrono::steady_clock::duration>(std::chrono::duration<double>(kMeshSeconds));
+  const double seconds = time_limit(path, geometry);
+  const auto deadline = seconds <= 0 ? std::chrono::steady_clock::time_point::max()
+                                     : std::chrono::steady_clock::now() + std::chrono::duration_cast<
+                                           std::chrono::steady_clock::duration>(std::chrono::duration<double>(seconds));
   PipeReader in(fds[0], deadline);
   std::string error;
   const bool complete = receive(in, model, error);
@@ -261,7 +276,7 @@ void read_in_child(const std::string& path, double mesh_size, bool geometry, gms
   }
   const std::string tail = " (in the child process that reads it): a corrupt or crafted file?";
   if (in.timed_out())
-    throw InputError(path, "", fmt::format("Gmsh did not finish reading it in {} s{}", kMeshSeconds, tail));
+    throw InputError(path, "", fmt::format("Gmsh did not finish reading it in {:g} s{}", seconds, tail));
   if (reaped == pid && WIFSIGNALED(status))
     throw InputError(path, "", fmt::format("Gmsh died with signal {} ({}){}", WTERMSIG(status),
                                            strsignal(WTERMSIG(status)), tail));

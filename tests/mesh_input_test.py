@@ -2,8 +2,8 @@
 """Bad meshes fail cleanly: `tissue run` on a mesh scene whose mesh is missing, holds a non-tetrahedral
 element, an inverted or flat tetrahedron, a version header its body does not follow, is cut short, is
 partitioned, or lacks the physical group a fix, load or region names, or that asks for a random cloud in it with
-a count missing, below 1 or more than fits, whose .geo Gmsh cannot read, holds no volume or makes Gmsh exit or
-crash (Gmsh runs in a child process), or that gives a mesh_size to a .msh or one not above 0, exits with code 2
+a count missing, below 1 or more than fits, whose .geo Gmsh cannot read, holds no volume or makes Gmsh exit,
+crash or run past its time limit (Gmsh runs in a child process), or that gives a mesh_size to a .msh or one not above 0, exits with code 2
 and exactly one line on stderr naming the file and the problem, and writes nothing. A hand-made
 one-tetrahedron mesh is the valid reference (it must run); the same tetrahedron as ASCII MSH 2.2 and (with the
 gmsh program) binary MSH 4.1 and 2.2 must run and write its summary.json numbers (tests/mesh_formats_test.py's
@@ -145,6 +145,8 @@ def main():
             ("Gmsh crashes", "segv.geo",
              'SetFactory("OpenCASCADE");\nBox(1) = {0, 0, 0, 1, 1, 1};\nSystemCall "kill -SEGV $PPID";\n', {},
              ["segv.geo", "Gmsh died with signal 11"]),
+            ("Gmsh runs away", "loop.geo", "For i In {1:1e15}\n  x = i;\nEndFor\n", {},  # TISSUE_GMSH_SECONDS=2
+             ["loop.geo", "Gmsh did not finish reading it in 2 s"]),
             ("mesh_size on a mesh file", "good.msh", "", {"body": "mesh_size = 0.1\n"}, ["body.mesh_size", ".geo"]),
             ("zero mesh_size", "cube.geo", 'SetFactory("OpenCASCADE");\nBox(1) = {0, 0, 0, 1, 1, 1};\n',
              {"body": "mesh_size = 0.0\n"}, ["body.mesh_size", "0"]),
@@ -158,8 +160,11 @@ def main():
                 (tmp / name).write_text(text)
             s = tmp / f"{label.replace(' ', '_')}.toml"
             s.write_text(scene(name, **kw))
+            if label == "Gmsh runs away":  # the child's time limit, cut from none (a .geo) to 2 s
+                os.environ["TISSUE_GMSH_SECONDS"] = "2"
             with tempfile.TemporaryDirectory() as work:
                 runner.check(label, s, expects, workdir=work)
+            os.environ.pop("TISSUE_GMSH_SECONDS", None)
     for f in runner.failed:
         print(f"FAIL {f}")
     print(f"{runner.passed} passed, {len(runner.failed)} failed")

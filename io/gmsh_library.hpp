@@ -1,7 +1,7 @@
 // The Gmsh library behind io/gmsh_mesh.cpp, in a shared module of its own (libtissue_gmsh.so, built from
-// io/gmsh_library.cpp) that read_gmsh loads with dlopen at the first mesh: libgmsh brings OpenCASCADE, FLTK and
-// OpenGL with it (about 90 libraries, 0.25 s and 44 MB resident per process to load), which runs without a mesh
-// should not pay. This is what crosses between the two: Gmsh's model, as read (and meshed), unjudged.
+// io/gmsh_library.cpp) that read_gmsh's child process loads with dlopen: libgmsh brings OpenCASCADE, FLTK and
+// OpenGL with it (about 70 more libraries, 0.25 s and 44 MB resident per process to load), which tissue itself
+// should not carry. This is what crosses between the two: Gmsh's model, as read (and meshed), unjudged.
 #pragma once
 #include <cstddef>
 #include <map>

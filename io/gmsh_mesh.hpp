@@ -11,11 +11,13 @@ namespace tissue {
 
 // `path`: a Gmsh mesh (its first line is $MeshFormat, whatever the extension) or a .geo file, which is meshed
 // here (gmsh -3); `mesh_size` > 0 (m) then caps the element size (Gmsh's Mesh.MeshSizeMax, over the .geo's own).
-// Gmsh's state lives in this call only: it is started without the command line or configuration files, prints
-// nothing, and is finalized before returning, whatever happens.
+// Gmsh runs in a child process (forked here; no MPI in it), started without the command line or configuration
+// files, printing nothing; the model comes back through a pipe. So Gmsh's state, memory and libraries stay out
+// of this process, and a crash, an exit or a runaway of Gmsh (a corrupt binary file) is one more InputError.
 // Throws InputError naming the file for anything it cannot use: a missing or unreadable file, a file Gmsh
-// cannot read (its message), one cut short, an element other than a 4-node tetrahedron in 3D (or other than a
-// triangle on a physical surface), an inverted or flat tetrahedron, an unknown node, no tetrahedra.
+// cannot read (its message) or that makes Gmsh crash, exit or run past its time limit, one cut short, a
+// partitioned mesh, an element other than a 4-node tetrahedron in 3D (or other than a triangle on a physical
+// surface), an inverted or flat tetrahedron, an unknown node, no tetrahedra.
 TetMesh read_gmsh(const std::string& path, double mesh_size = 0.0);
 
 // The Gmsh library's version ("4.8.4"), for tissue --version.

@@ -1,95 +1,34 @@
 #include "io/gmsh_mesh.hpp"
 
+#include <dlfcn.h>
+#include <fcntl.h>
 #include <fmt/format.h>
+#include <poll.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
-#include <cmath>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <map>
-#include <sstream>
+#include <mutex>
 #include <unordered_map>
+
+#include "io/gmsh_library.hpp"
 
 namespace tissue {
 namespace {
 
-// Whitespace-separated tokens with their line numbers; a double-quoted token may hold spaces (physical names).
-class Lexer {
-public:
-  Lexer(const std::string& text, const std::string& file) : s_(text), file_(file) {}
-
-  bool at_end() {
-    skip();
-    return pos_ >= s_.size();
-  }
-  long line() const { return line_; }
-  std::string word(const char* what) {
-    skip();
-    if (pos_ >= s_.size()) fail(fmt::format("unexpected end of file, expected {}", what));
-    token_line_ = line_;
-    std::size_t start = pos_;
-    if (s_[pos_] == '"') {
-      std::size_t end = s_.find('"', pos_ + 1);
-      if (end == std::string::npos || s_.find('\n', pos_) < end) fail("unterminated quoted name");
-      pos_ = end + 1;
-      return s_.substr(start + 1, end - start - 1);
-    }
-    while (pos_ < s_.size() && !std::isspace(static_cast<unsigned char>(s_[pos_]))) ++pos_;
-    return s_.substr(start, pos_ - start);
-  }
-  long long integer(const char* what) {
-    std::string w = word(what);
-    char* end = nullptr;
-    errno = 0;
-    long long v = std::strtoll(w.c_str(), &end, 10);
-    if (w.empty() || *end || errno) fail(fmt::format("expected {} (an integer), got \"{}\"", what, w));
-    return v;
-  }
-  long long count(const char* what) {
-    long long v = integer(what);
-    if (v < 0) fail(fmt::format("{} is negative ({})", what, v));
-    return v;
-  }
-  double number(const char* what) {
-    std::string w = word(what);
-    char* end = nullptr;
-    errno = 0;
-    double v = std::strtod(w.c_str(), &end);
-    if (w.empty() || *end || errno == ERANGE || !std::isfinite(v))
-      fail(fmt::format("expected {} (a finite number), got \"{}\"", what, w));
-    return v;
-  }
-  void expect(const std::string& tag) {
-    std::string w = word(tag.c_str());
-    if (w != tag) fail(fmt::format("expected {}, got \"{}\"", tag, w));
-  }
-  [[noreturn]] void fail(const std::string& problem) const {
-    throw InputError(file_, "", fmt::format("line {}: {}", token_line_, problem));
-  }
-
-private:
-  void skip() {
-    while (pos_ < s_.size() && std::isspace(static_cast<unsigned char>(s_[pos_]))) {
-      if (s_[pos_] == '\n') ++line_;
-      ++pos_;
-    }
-  }
-  const std::string& s_;
-  const std::string& file_;
-  std::size_t pos_ = 0;
-  long line_ = 1, token_line_ = 1;
-};
-
-// Nodes per element type (the specification's table, types 1-31) and names for messages.
-int nodes_of(int type) {
-  static const int n[] = {0, 2, 3, 4, 4, 8, 6, 5, 3, 6, 9, 10, 27, 18, 14, 1, 8, 20, 15, 13,
-                          9, 10, 12, 15, 15, 21, 4, 5, 6, 20, 35, 56};
-  return type >= 1 && type <= 31 ? n[type] : -1;
-}
-std::string type_name(int type) {
+// Names for messages (Gmsh's element types 1-31).
+std::string type_name(int type, int nodes) {
   switch (type) {
     case 1: return "2-node line";
     case 2: return "3-node triangle";
@@ -101,170 +40,398 @@ std::string type_name(int type) {
     case 9: return "6-node triangle";
     case 11: return "10-node tetrahedron";
     case 15: return "point";
-    default: return fmt::format("{}-node element", nodes_of(type));
+    default: return fmt::format("{}-node element", nodes);
   }
 }
 
-struct Entity {
-  std::vector<int> physical;  // physical tags
+// The module (io/gmsh_library.hpp), loaded once: from $TISSUE_GMSH_MODULE, else where the build put it.
+struct Module {
+  gmsh_module::ReadFunction read = nullptr;
+  gmsh_module::VersionFunction version = nullptr;
+  std::string error;  // why it could not be loaded
 };
+
+const Module& module() {
+  static Module m;
+  static std::once_flag once;
+  std::call_once(once, [] {
+    const char* env = std::getenv("TISSUE_GMSH_MODULE");
+    const std::string file = env && *env ? env : TISSUE_GMSH_MODULE;
+    void* handle = dlopen(file.c_str(), RTLD_NOW | RTLD_LOCAL);  // never closed: Gmsh stays loaded
+    if (!handle) {
+      const char* e = dlerror();
+      m.error = fmt::format("cannot load tissue's Gmsh module ({}; set TISSUE_GMSH_MODULE to libtissue_gmsh.so)",
+                            e ? e : file);
+      return;
+    }
+    m.read = reinterpret_cast<gmsh_module::ReadFunction>(dlsym(handle, "tissue_gmsh_read"));
+    m.version = reinterpret_cast<gmsh_module::VersionFunction>(dlsym(handle, "tissue_gmsh_version"));
+    if (!m.read || !m.version) m.error = fmt::format("{} is not tissue's Gmsh module", file);
+  });
+  return m;
+}
+
+// Gmsh runs in a child process (forked by every rank that reads), which sends its model back through a pipe:
+// Gmsh trusts the counts and tags of a binary file, and on a corrupt one it may crash, call exit or run away;
+// then the child dies and the run ends with one line (exit 2), as for any bad mesh. The libraries are also loaded
+// in the child only, so that the run's memory holds none of Gmsh (44 MB of libraries, and its model of the file).
+// The child makes no MPI call and leaves through _exit (as io/isolated_parse.cpp's do).
+// How long the child may take: for a .msh 60 s and 1 s per MB (Gmsh reads tens of MB a second; a corrupt binary
+// count can send it into a loop), for a .geo (meshing takes what it takes) no limit; $TISSUE_GMSH_SECONDS for both.
+double time_limit(const std::string& path, bool geometry) {
+  const char* env = std::getenv("TISSUE_GMSH_SECONDS");
+  if (env && *env) {
+    char* end = nullptr;
+    const double s = std::strtod(env, &end);
+    if (*end == '\0' && s > 0) return s;
+  }
+  if (geometry) return 0;  // none
+  std::error_code ec;
+  const auto bytes = std::filesystem::file_size(path, ec);
+  return 60.0 + (ec ? 0.0 : static_cast<double>(bytes) / 1e6);
+}
+constexpr char kModel = 'M', kError = 'E';
+
+class PipeWriter {
+public:
+  explicit PipeWriter(int fd) : fd_(fd) { buffer_.reserve(1 << 20); }
+  void bytes(const void* p, std::size_t n) {
+    const char* c = static_cast<const char*>(p);
+    if (buffer_.size() + n > (1u << 20)) flush();
+    if (n > (1u << 20)) return all(c, n);
+    buffer_.insert(buffer_.end(), c, c + n);
+  }
+  template <class T> void value(T v) { bytes(&v, sizeof v); }
+  template <class T> void array(const std::vector<T>& v) {
+    value<std::uint64_t>(v.size());
+    bytes(v.data(), v.size() * sizeof(T));
+  }
+  void string(const std::string& s) {
+    value<std::uint64_t>(s.size());
+    bytes(s.data(), s.size());
+  }
+  void flush() {
+    all(buffer_.data(), buffer_.size());
+    buffer_.clear();
+  }
+
+private:
+  void all(const char* c, std::size_t n) {
+    while (n > 0) {
+      const ssize_t w = ::write(fd_, c, n);
+      if (w < 0 && errno == EINTR) continue;
+      if (w <= 0) ::_exit(3);  // the parent is gone
+      c += w, n -= static_cast<std::size_t>(w);
+    }
+  }
+  int fd_;
+  std::vector<char> buffer_;
+};
+
+[[noreturn]] void child(int fd, const std::string& path, double mesh_size, bool geometry) {
+  ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+  // PETSc's handlers would print a stack and call MPI_Abort (no MPI in the child): a fault kills the child.
+  for (int s : {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT, SIGTRAP, SIGSYS, SIGALRM, SIGTERM, SIGINT, SIGPIPE})
+    std::signal(s, SIG_DFL);
+  PipeWriter out(fd);
+  std::string error;
+  gmsh_module::Model model;
+  try {
+    const Module& gmsh = module();
+    if (gmsh.read)
+      gmsh.read(path, mesh_size, geometry, model, error);
+    else
+      error = gmsh.error;
+  } catch (const std::exception& e) {
+    error = e.what();
+  } catch (...) {
+    error = "an unknown error";
+  }
+  if (!error.empty()) {
+    out.value(kError);
+    out.string(error);
+  } else {
+    out.value(kModel);
+    out.array(model.node_tags);
+    out.array(model.coords);
+    out.value<std::uint8_t>(model.partitioned);
+    out.value<std::uint64_t>(model.physical_names.size());
+    for (const auto& [key, name] : model.physical_names) {
+      out.value<std::int32_t>(key.first), out.value<std::int32_t>(key.second);
+      out.string(name);
+    }
+    out.value<std::uint64_t>(model.blocks.size());
+    for (const auto& b : model.blocks) {
+      for (int v : {b.dim, b.entity, b.type, b.nodes_per_element}) out.value<std::int32_t>(v);
+      out.array(b.physical);
+      out.array(b.tags);
+      out.array(b.nodes);
+    }
+  }
+  out.flush();
+  ::_exit(0);
+}
+
+// Reads what the child sends, to a deadline; false at the end of the pipe, on an error or past the deadline.
+class PipeReader {
+public:
+  PipeReader(int fd, std::chrono::steady_clock::time_point deadline) : fd_(fd), deadline_(deadline) {}
+  bool bytes(void* p, std::size_t n) {
+    char* c = static_cast<char*>(p);
+    while (n > 0) {
+      const double left = std::chrono::duration<double>(deadline_ - std::chrono::steady_clock::now()).count();
+      if (left <= 0) return timed_out_ = true, false;
+      pollfd q{fd_, POLLIN, 0};
+      const int ready = ::poll(&q, 1, static_cast<int>(std::min(left, 3600.0) * 1000) + 1);
+      if (ready < 0 && errno == EINTR) continue;
+      if (ready < 0) return false;
+      if (ready == 0) continue;
+      const ssize_t r = ::read(fd_, c, n);
+      if (r < 0 && errno == EINTR) continue;
+      if (r <= 0) return false;
+      c += r, n -= static_cast<std::size_t>(r);
+    }
+    return true;
+  }
+  template <class T> bool value(T& v) { return bytes(&v, sizeof v); }
+  template <class T> bool array(std::vector<T>& v) {
+    std::uint64_t n = 0;
+    if (!value(n) || n > (std::uint64_t(1) << 40) / sizeof(T)) return false;
+    v.resize(n);
+    return bytes(v.data(), n * sizeof(T));
+  }
+  bool string(std::string& s) {
+    std::uint64_t n = 0;
+    if (!value(n) || n > (1u << 20)) return false;
+    s.resize(n);
+    return bytes(s.data(), n);
+  }
+  bool timed_out() const { return timed_out_; }
+
+private:
+  int fd_;
+  std::chrono::steady_clock::time_point deadline_;
+  bool timed_out_ = false;
+};
+
+bool receive(PipeReader& in, gmsh_module::Model& model, std::string& error) {
+  char kind = 0;
+  if (!in.value(kind)) return false;
+  if (kind == kError) return in.string(error) && !error.empty();
+  if (kind != kModel) return false;
+  std::uint8_t partitioned = 0;
+  std::uint64_t names = 0, blocks = 0;
+  if (!in.array(model.node_tags) || !in.array(model.coords) || !in.value(partitioned) || !in.value(names))
+    return false;
+  model.partitioned = partitioned != 0;
+  for (std::uint64_t i = 0; i < names; ++i) {
+    std::int32_t dim = 0, tag = 0;
+    std::string name;
+    if (!in.value(dim) || !in.value(tag) || !in.string(name)) return false;
+    model.physical_names[{dim, tag}] = name;
+  }
+  if (!in.value(blocks)) return false;
+  for (std::uint64_t i = 0; i < blocks; ++i) {
+    gmsh_module::Block b;
+    std::int32_t v[4];
+    for (auto& x : v)
+      if (!in.value(x)) return false;
+    b.dim = v[0], b.entity = v[1], b.type = v[2], b.nodes_per_element = v[3];
+    if (!in.array(b.physical) || !in.array(b.tags) || !in.array(b.nodes)) return false;
+    model.blocks.push_back(std::move(b));
+  }
+  char end = 0;
+  return !in.value(end);  // nothing after the model
+}
+
+void read_in_child(const std::string& path, double mesh_size, bool geometry, gmsh_module::Model& model) {
+  int fds[2];
+  if (::pipe2(fds, O_CLOEXEC) != 0)
+    throw InputError(path, "", std::string("cannot create a pipe to read the mesh in a child process: ") +
+                                   std::strerror(errno));
+  std::fflush(nullptr);  // else the child's copies of unflushed stdio buffers could be written twice
+  const pid_t pid = ::fork();
+  if (pid < 0) {
+    const int err = errno;
+    ::close(fds[0]), ::close(fds[1]);
+    throw InputError(path, "", std::string("cannot fork to read the mesh in a child process: ") + std::strerror(err));
+  }
+  if (pid == 0) {
+    ::close(fds[0]);
+    child(fds[1], path, mesh_size, geometry);
+  }
+  ::close(fds[1]);
+  const double seconds = time_limit(path, geometry);
+  const auto deadline = seconds <= 0 ? std::chrono::steady_clock::time_point::max()
+                                     : std::chrono::steady_clock::now() + std::chrono::duration_cast<
+                                           std::chrono::steady_clock::duration>(std::chrono::duration<double>(seconds));
+  PipeReader in(fds[0], deadline);
+  std::string error;
+  const bool complete = receive(in, model, error);
+  ::close(fds[0]);
+  if (in.timed_out()) ::kill(pid, SIGKILL);
+  int status = 0;
+  pid_t reaped;
+  while ((reaped = ::waitpid(pid, &status, 0)) < 0 && errno == EINTR) {
+  }
+  const std::string tail = " (in the child process that reads it): a corrupt or crafted file?";
+  if (in.timed_out())
+    throw InputError(path, "", fmt::format("Gmsh did not finish reading it in {:g} s{}", seconds, tail));
+  if (reaped == pid && WIFSIGNALED(status))
+    throw InputError(path, "", fmt::format("Gmsh died with signal {} ({}){}", WTERMSIG(status),
+                                           strsignal(WTERMSIG(status)), tail));
+  if (!complete) {  // Gmsh called exit (a .geo's Exit does), or the pipe broke
+    const std::string how =
+        reaped == pid && WIFEXITED(status) ? fmt::format("exited with status {}", WEXITSTATUS(status)) : "ended";
+    throw InputError(path, "", fmt::format("Gmsh {} without a result{}", how, tail));
+  }
+  if (!error.empty()) throw InputError(path, "", error);
+}
+
+// Node tag -> index into Gmsh's node arrays: dense when the tags are (Gmsh numbers nodes 1..n), hashed otherwise.
+class NodeIndex {
+public:
+  explicit NodeIndex(const std::vector<std::size_t>& tags) {
+    std::size_t max = 0;
+    for (auto t : tags) max = std::max(max, t);
+    dense_ = max <= 4 * tags.size() + 1024;
+    if (dense_) {
+      slot_.assign(max + 1, -1);
+      for (std::size_t i = 0; i < tags.size(); ++i) slot_[tags[i]] = static_cast<std::int64_t>(i);
+    } else {
+      for (std::size_t i = 0; i < tags.size(); ++i) map_[tags[i]] = static_cast<std::int64_t>(i);
+    }
+  }
+  std::int64_t operator()(std::size_t tag) const {
+    if (dense_) return tag < slot_.size() ? slot_[tag] : -1;
+    auto it = map_.find(tag);
+    return it == map_.end() ? -1 : it->second;
+  }
+
+private:
+  bool dense_;
+  std::vector<std::int64_t> slot_;
+  std::unordered_map<std::size_t, std::int64_t> map_;
+};
+
+// The last line of a .msh file (ASCII or binary, every version) is the $End of its last section; a file that ends
+// elsewhere was cut short (Gmsh itself would silently read some such files as a smaller mesh).
+void check_complete(std::ifstream& in, const std::string& path) {
+  in.clear();
+  in.seekg(0, std::ios::end);
+  const std::streamoff size = in.tellg();
+  const std::streamoff n = std::min<std::streamoff>(size, 4096);
+  std::string tail(static_cast<std::size_t>(n), '\0');
+  in.seekg(size - n);
+  in.read(tail.data(), n);
+  if (!in) throw InputError(path, "", std::string("cannot read the mesh: ") + std::strerror(errno));
+  while (!tail.empty() && std::isspace(static_cast<unsigned char>(tail.back()))) tail.pop_back();
+  const std::size_t nl = tail.find_last_of('\n');
+  const std::string last = nl == std::string::npos ? tail : tail.substr(nl + 1);
+  if (last.rfind("$End", 0) != 0)
+    throw InputError(path, "", "cut short: its last line is not the $End line of a section");
+}
 
 }  // namespace
 
-TetMesh read_gmsh(const std::string& path) {
+TetMesh read_gmsh(const std::string& path, double mesh_size) {
+  // What the file is: a mesh begins with $MeshFormat in every version, ASCII or binary; otherwise a .geo.
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, "", std::string("cannot open the mesh: ") + std::strerror(errno));
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  const std::string text = buffer.str();
+  std::string head(64, '\0');
+  in.read(head.data(), static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<std::size_t>(in.gcount()));
   if (in.bad()) throw InputError(path, "", std::string("cannot read the mesh: ") + std::strerror(errno));
-  Lexer lex(text, path);
+  const std::size_t start = head.find_first_not_of(" \t\r\n");
+  if (start == std::string::npos && head.size() < 64) throw InputError(path, "", "empty file, not a Gmsh mesh");
+  std::string ext = path.size() >= 4 ? path.substr(path.size() - 4) : "";
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  const bool is_mesh = start != std::string::npos && head.compare(start, 11, "$MeshFormat") == 0;
+  const bool geometry = !is_mesh && ext == ".geo";
+  if (!is_mesh && !geometry)
+    throw InputError(path, "", "not a Gmsh mesh: it must begin with $MeshFormat (or be a .geo geometry, which is "
+                               "meshed at run time)");
+  if (is_mesh) check_complete(in, path);
+  in.close();
 
-  std::map<std::pair<int, int>, std::string> physical_name;  // (dim, tag) -> name
-  std::map<std::pair<int, int>, Entity> entities;            // (dim, tag)
-  std::unordered_map<long long, Vec3> node;                  // tag -> position
+  gmsh_module::Model model;
+  read_in_child(path, mesh_size, geometry, model);
+  if (model.partitioned)  // its entities and their order are the partitioning's, not the model's
+    throw InputError(path, "", "a partitioned mesh; save it unpartitioned (tissue partitions it itself)");
+
+  const std::vector<std::size_t>& node_tag = model.node_tags;
+  const std::vector<double>& coord = model.coords;
+  const NodeIndex gmsh_index(node_tag);
+  auto position = [&](std::size_t tag, std::size_t element) -> Vec3 {
+    const std::int64_t i = gmsh_index(tag);
+    if (i < 0)
+      throw InputError(path, "", fmt::format("element {} names node {}, which the mesh does not define", element, tag));
+    return {coord[3 * i], coord[3 * i + 1], coord[3 * i + 2]};
+  };
   struct Tet {
-    std::array<long long, 4> tags;
+    std::array<std::size_t, 4> tags;
     int physical;  // -1: none
   };
   std::vector<Tet> tets;
-  std::map<int, std::vector<std::array<long long, 3>>> surface;  // physical tag -> triangles (node tags)
-  bool format = false, have_entities = false, have_nodes = false, have_elements = false;
-
-  while (!lex.at_end()) {
-    const std::string section = lex.word("a section");
-    if (!format && section != "$MeshFormat") lex.fail("not a Gmsh mesh: it must begin with $MeshFormat");
-    if (section.empty() || section[0] != '$') lex.fail(fmt::format("expected a $Section, got \"{}\"", section));
-    const std::string name = section.substr(1);
-    if (name == "MeshFormat") {
-      const std::string version = lex.word("the version");
-      const long long type = lex.integer("the file type");
-      lex.integer("the data size");
-      if (version.rfind("4.1", 0) != 0)
-        lex.fail(fmt::format("format version {}; only 4.1 is read (gmsh -format msh41)", version));
-      if (type != 0) lex.fail("binary .msh; only ASCII is read (Gmsh option Mesh.Binary = 0)");
-      format = true;
-    } else if (name == "PhysicalNames") {
-      const long long n = lex.count("the number of physical names");
-      for (long long i = 0; i < n; ++i) {
-        const int dim = static_cast<int>(lex.integer("a dimension"));
-        const int tag = static_cast<int>(lex.integer("a physical tag"));
-        physical_name[{dim, tag}] = lex.word("a physical name");
+  std::map<int, std::vector<std::array<std::size_t, 3>>> surface;  // physical tag -> triangles (node tags)
+  for (const auto& b : model.blocks) {
+    // A volume of a .msh counts always (the file holds what was saved); of a .geo as Gmsh saves it: only
+    // physical ones once the model has a physical group (Mesh.SaveAll = 0). Surfaces come physical only.
+    if (b.dim == 3 && b.physical.empty() && geometry && !model.physical_names.empty()) continue;
+    if (b.dim == 3 && b.type != 4)
+      throw InputError(path, "", fmt::format("element {} is of type {} ({}); only 4-node tetrahedra (type 4) are "
+                                             "supported", b.tags[0], b.type, type_name(b.type, b.nodes_per_element)));
+    if (b.dim == 2 && b.type != 2)
+      throw InputError(path, "", fmt::format("element {} on a physical surface is of type {} ({}); only 3-node "
+                                             "triangles (type 2) bound a tetrahedral mesh", b.tags[0], b.type,
+                                             type_name(b.type, b.nodes_per_element)));
+    const std::size_t nn = b.dim == 3 ? 4 : 3;
+    if (b.nodes.size() != nn * b.tags.size())
+      throw InputError(path, "", fmt::format("Gmsh gave {} node tags for {} elements of type {}", b.nodes.size(),
+                                             b.tags.size(), b.type));
+    for (std::size_t e = 0; e < b.tags.size(); ++e) {
+      const std::size_t* t = &b.nodes[nn * e];
+      if (b.dim == 3) {
+        const Vec3 p0 = position(t[0], b.tags[e]), p1 = position(t[1], b.tags[e]), p2 = position(t[2], b.tags[e]),
+                   p3 = position(t[3], b.tags[e]);
+        const double vol = signed_volume(p0, p1, p2, p3);
+        if (!(vol > 0))
+          throw InputError(path, "", fmt::format("tetrahedron {} is {} (volume {:.3e}; Gmsh orders a tetrahedron's "
+                                                 "nodes so that its volume is positive)",
+                                                 b.tags[e], vol < 0 ? "inverted" : "flat", vol));
+        tets.push_back({{t[0], t[1], t[2], t[3]}, b.physical.empty() ? -1 : b.physical.front()});
+      } else {
+        for (int k = 0; k < 3; ++k) position(t[k], b.tags[e]);
+        for (int p : b.physical) surface[p].push_back({t[0], t[1], t[2]});
       }
-    } else if (name == "Entities") {
-      long long count[4];
-      for (auto& c : count) c = lex.count("an entity count");
-      for (int dim = 0; dim < 4; ++dim)
-        for (long long i = 0; i < count[dim]; ++i) {
-          const int tag = static_cast<int>(lex.integer("an entity tag"));
-          for (int k = 0; k < (dim == 0 ? 3 : 6); ++k) lex.number("a coordinate of the bounding box");
-          Entity e;
-          const long long np = lex.count("the number of physical tags");
-          for (long long k = 0; k < np; ++k) e.physical.push_back(static_cast<int>(lex.integer("a physical tag")));
-          if (dim > 0) {
-            const long long nb = lex.count("the number of bounding entities");
-            for (long long k = 0; k < nb; ++k) lex.integer("a bounding entity tag");
-          }
-          entities[{dim, tag}] = e;
-        }
-      have_entities = true;
-    } else if (name == "PartitionedEntities") {
-      lex.fail("a partitioned mesh; save it unpartitioned (tissue partitions it itself)");
-    } else if (name == "Nodes") {
-      const long long blocks = lex.count("the number of node blocks");
-      lex.count("the number of nodes");
-      lex.integer("the smallest node tag");
-      lex.integer("the largest node tag");
-      for (long long b = 0; b < blocks; ++b) {
-        const int dim = static_cast<int>(lex.integer("an entity dimension"));
-        lex.integer("an entity tag");
-        const long long parametric = lex.integer("the parametric flag");
-        const long long n = lex.count("the number of nodes in the block");
-        std::vector<long long> tags(n);
-        for (auto& t : tags) t = lex.integer("a node tag");
-        for (long long i = 0; i < n; ++i) {
-          Vec3 x;
-          for (auto& c : x) c = lex.number("a node coordinate");
-          for (int k = 0; k < (parametric ? dim : 0); ++k) lex.number("a parametric coordinate");
-          if (!node.emplace(tags[i], x).second) lex.fail(fmt::format("node {} is defined twice", tags[i]));
-        }
-      }
-      have_nodes = true;
-    } else if (name == "Elements") {
-      if (!have_nodes) lex.fail("$Elements before $Nodes");
-      const long long blocks = lex.count("the number of element blocks");
-      lex.count("the number of elements");
-      lex.integer("the smallest element tag");
-      lex.integer("the largest element tag");
-      for (long long b = 0; b < blocks; ++b) {
-        const int dim = static_cast<int>(lex.integer("an entity dimension"));
-        const int entity = static_cast<int>(lex.integer("an entity tag"));
-        const int type = static_cast<int>(lex.integer("an element type"));
-        const long long n = lex.count("the number of elements in the block");
-        const int nn = nodes_of(type);
-        if (nn < 0) lex.fail(fmt::format("unknown element type {}", type));
-        auto e = entities.find({dim, entity});
-        const std::vector<int> none;
-        const std::vector<int>& physical = e == entities.end() ? none : e->second.physical;
-        std::vector<long long> v(nn);
-        for (long long i = 0; i < n; ++i) {
-          const long long tag = lex.integer("an element tag");
-          for (auto& t : v) {
-            t = lex.integer("a node tag");
-            if (!node.count(t)) lex.fail(fmt::format("element {} names node {}, which $Nodes does not define", tag, t));
-          }
-          if (dim == 3) {
-            if (type != 4)
-              lex.fail(fmt::format("element {} is of type {} ({}); only 4-node tetrahedra (type 4) are supported",
-                                   tag, type, type_name(type)));
-            const Vec3 &p0 = node[v[0]], &p1 = node[v[1]], &p2 = node[v[2]], &p3 = node[v[3]];
-            const double vol = signed_volume(p0, p1, p2, p3);
-            if (!(vol > 0))
-              lex.fail(fmt::format("tetrahedron {} is {} (volume {:.3e}; Gmsh orders a tetrahedron's nodes so that "
-                                   "its volume is positive)", tag, vol < 0 ? "inverted" : "flat", vol));
-            tets.push_back({{v[0], v[1], v[2], v[3]}, physical.empty() ? -1 : physical.front()});
-          } else if (dim == 2 && !physical.empty()) {
-            if (type != 2)
-              lex.fail(fmt::format("element {} on a physical surface is of type {} ({}); only 3-node triangles "
-                                   "(type 2) bound a tetrahedral mesh", tag, type, type_name(type)));
-            for (int p : physical) surface[p].push_back({v[0], v[1], v[2]});
-          }
-        }
-      }
-      have_elements = true;
-    } else {  // other sections ($NodeData, $Periodic, comments, ...) carry nothing the model uses
-      const std::string end = "$End" + name;
-      for (;;) {
-        if (lex.at_end()) lex.fail(fmt::format("{} has no {}", section, end));
-        if (lex.word(end.c_str()) == end) break;
-      }
-      continue;
     }
-    lex.expect("$End" + name);
   }
-  if (!format) throw InputError(path, "", "empty file, not a Gmsh mesh");
-  if (!have_entities || !have_nodes || !have_elements)
-    throw InputError(path, "", std::string("no $") + (!have_entities ? "Entities" : !have_nodes ? "Nodes" : "Elements") +
-                                   " section");
   if (tets.empty())
     throw InputError(path, "", "no tetrahedra (mesh the volume, gmsh -3, and put it in a physical volume)");
 
   // Molecules: the nodes the tetrahedra use, in tag order.
-  std::vector<long long> used;
+  std::vector<std::size_t> used;
   used.reserve(4 * tets.size());
   for (const auto& t : tets) used.insert(used.end(), t.tags.begin(), t.tags.end());
   std::sort(used.begin(), used.end());
   used.erase(std::unique(used.begin(), used.end()), used.end());
-  std::unordered_map<long long, std::int64_t> index;
+  std::unordered_map<std::size_t, std::int64_t> index;  // node tag -> molecule
+  index.reserve(used.size());
   TetMesh mesh;
   mesh.file = path;
   mesh.nodes.reserve(used.size());
-  for (auto t : used) index[t] = static_cast<std::int64_t>(mesh.nodes.size()), mesh.nodes.push_back(node[t]);
+  for (auto t : used) {
+    const std::int64_t i = gmsh_index(t);
+    index[t] = static_cast<std::int64_t>(mesh.nodes.size());
+    mesh.nodes.push_back({coord[3 * i], coord[3 * i + 1], coord[3 * i + 2]});
+  }
   auto label = [&](int dim, int tag) {
-    auto it = physical_name.find({dim, tag});
-    return it != physical_name.end() ? it->second : std::to_string(tag);
+    auto it = model.physical_names.find({dim, tag});
+    return it != model.physical_names.end() && !it->second.empty() ? it->second : std::to_string(tag);
   };
   std::map<int, int> region_index;  // physical tag -> index in region_names
+  mesh.tets.reserve(tets.size());
+  mesh.tet_region.reserve(tets.size());
   for (const auto& t : tets) {
     std::array<std::int64_t, 4> v;
     for (int k = 0; k < 4; ++k) v[k] = index[t.tags[k]];
@@ -296,6 +463,14 @@ TetMesh read_gmsh(const std::string& path) {
   return mesh;
 }
 
-TetMesh read_mesh(const BodySpec& spec) { return read_gmsh(spec.file); }
+TetMesh read_mesh(const BodySpec& spec) { return read_gmsh(spec.file, spec.mesh_size); }
+
+std::string gmsh_library_version() {
+  const Module& gmsh = module();
+  if (!gmsh.version) return "(" + gmsh.error + ")";
+  std::string version;
+  gmsh.version(version);
+  return version;
+}
 
 }  // namespace tissue

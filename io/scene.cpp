@@ -390,14 +390,19 @@ void read_material(const Section& s, std::string& material, double& E, double& d
 // shape = "mesh": a Gmsh file, its physical volumes as regions (by name). The file is read with the body.
 BodySpec read_mesh_body(const Section& s, BodySpec b) {
   s.allow({"shape", "file", "topology", "material", "youngs_modulus", "density", "offset", "region", "radius",
-           "calibration", "seed", "interior_molecules"});
-  s.require("file", "the Gmsh 4.1 mesh (.msh) of the body");
+           "calibration", "seed", "interior_molecules", "mesh_size"});
+  s.require("file", "the Gmsh mesh (.msh) or geometry (.geo) of the body");
   b.file = *s.string("file");
   if (b.file.empty()) s.fail("file", "empty path");
   namespace fs = std::filesystem;
   if (fs::path(b.file).is_relative()) b.file = (fs::path(s.file()).parent_path() / b.file).lexically_normal().string();
   std::error_code ec;
   if (!fs::is_regular_file(b.file, ec)) s.fail("file", fmt::format("cannot open \"{}\": no such file", b.file));
+  // A .geo is meshed at run time (io/gmsh_mesh.hpp); mesh_size (m) caps its elements' size, over the .geo's own.
+  if (s.has("mesh_size") && fs::path(b.file).extension() != ".geo")
+    s.fail("mesh_size", "only a .geo geometry is meshed at run time; a mesh file is used as it is");
+  b.mesh_size = s.number("mesh_size").value_or(0.0);
+  if (s.has("mesh_size")) s.positive("mesh_size", b.mesh_size);
   // topology = "random": the mesh's boundary nodes and interior_molecules points at random inside it, Delaunay
   // (src/model/mesh_cloud.hpp); "mesh": the mesh's own tetrahedra.
   b.topology = s.choice("topology", {"mesh", "random"}).value_or("mesh");

@@ -9,7 +9,7 @@ pkgs=(build-essential cmake pkg-config git
       libpetsc-real-dev libmetis-dev libhdf5-openmpi-dev hdf5-tools
       libeigen3-dev libgtest-dev
       libtoml11-dev libcli11-dev nlohmann-json3-dev libfmt-dev
-      libcgal-dev gmsh
+      libcgal-dev gmsh libgmsh-dev   # libgmsh-dev: meshes through the Gmsh library (io/gmsh_mesh.cpp)
       python3 python3-h5py python3-meshio python3-numpy python3-matplotlib
       clang-14 libclang-rt-14-dev)   # the libFuzzer targets that test.sh runs (run_scripts/fuzz.sh)
 if [ "${TISSUE_EXTRAS:-0}" = 1 ]; then pkgs+=(paraview python3-paraview xvfb); fi

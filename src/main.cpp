@@ -19,6 +19,8 @@
 #include <petscsys.h>
 
 #include <CLI/CLI.hpp>
+#include <fmt/format.h>
+#include <hdf5.h>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
@@ -185,6 +187,11 @@ int main(int argc, char** argv) {
   CLI::App app{"tissue: molecular model of biological soft tissue, calibrated to a Young's modulus.\n"
                "PETSc options follow --, e.g. tissue run s.toml -- -ksp_type gmres -log_view"};
   app.require_subcommand(1);
+  app.set_version_flag("--version", [] {
+    return fmt::format("tissue {} (PETSc {}.{}.{}, HDF5 {}.{}.{}, Gmsh {})", TISSUE_VERSION, PETSC_VERSION_MAJOR,
+                       PETSC_VERSION_MINOR, PETSC_VERSION_SUBMINOR, H5_VERS_MAJOR, H5_VERS_MINOR, H5_VERS_RELEASE,
+                       gmsh_library_version());
+  });
   std::string scene_path, checkpoint_path, info_path, output;
   std::vector<std::string> overrides;
   auto* run_cmd = app.add_subcommand("run", "run a scene");

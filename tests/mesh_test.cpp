@@ -5,6 +5,8 @@
 #include <petscsys.h>
 
 #include <cmath>
+#include <cstdio>
+#include <fstream>
 
 #include "io/gmsh_mesh.hpp"
 #include "src/model/mesh_cloud.hpp"
@@ -147,6 +149,67 @@ TEST(Lattice, PtscotchSameAnswerOnAnyRankCount) {
 }
 
 TEST(Random, SameAnswerOnAnyRankCount) { same_on_any_rank_count(random_scene, "static"); }
+
+// Meshes through the Gmsh library (io/gmsh_mesh.cpp): the slab as binary MSH 4.1 and binary MSH 2.2 (made from
+// two_layers.msh by the gmsh program, docs/mesh.md) gives the very TetMesh of the ASCII file: the same node order,
+// positions, tetrahedra, regions and faces. Its .geo, meshed here, gives the same tetrahedra, regions and faces and
+// the positions to 1e-15 m (the ASCII file rounds them to 16 digits).
+bool same_topology(const TetMesh& a, const TetMesh& b) {
+  if (a.tets != b.tets || a.tet_region != b.tet_region || a.region_names != b.region_names ||
+      a.surfaces.size() != b.surfaces.size() || a.nodes.size() != b.nodes.size())
+    return false;
+  for (std::size_t i = 0; i < a.surfaces.size(); ++i)
+    if (a.surfaces[i].name != b.surfaces[i].name || a.surfaces[i].triangles != b.surfaces[i].triangles) return false;
+  return true;
+}
+
+TEST(Mesh, EveryGmshFormatGivesTheSameMesh) {
+  const std::string dir = std::string(TISSUE_SOURCE_DIR) + "/tests/meshes/";
+  const TetMesh ascii = read_gmsh(dir + "two_layers.msh");
+  ASSERT_EQ(ascii.nodes.size(), 320u);
+  ASSERT_EQ(ascii.tets.size(), 1081u);
+  ASSERT_EQ(ascii.region_names, (std::vector<std::string>{"deep", "surface"}));
+  ASSERT_EQ(ascii.surfaces.size(), 3u);  // bottom, top, west
+  for (const char* binary : {"two_layers_bin41.msh", "two_layers_bin22.msh"}) {
+    const TetMesh b = read_gmsh(dir + binary);
+    EXPECT_TRUE(same_topology(ascii, b)) << binary;
+    EXPECT_TRUE(ascii.nodes == b.nodes) << binary;  // bit for bit
+  }
+  const TetMesh geo = read_gmsh(dir + "two_layers.geo");  // meshed at run time, Mesh.MeshSizeMax from the .geo
+  EXPECT_TRUE(same_topology(ascii, geo));
+  double worst = 0;
+  for (std::size_t i = 0; i < std::min(ascii.nodes.size(), geo.nodes.size()); ++i)
+    for (int d = 0; d < 3; ++d) worst = std::max(worst, std::fabs(ascii.nodes[i][d] - geo.nodes[i][d]));
+  EXPECT_LT(worst, 1e-15);
+  // mesh_size caps the element size over the .geo's own (0.2 m): a finer mesh of the same slab.
+  const TetMesh fine = read_gmsh(dir + "two_layers.geo", 0.1);
+  EXPECT_GT(fine.tets.size(), 2 * ascii.tets.size());
+  double volume = 0;
+  for (const auto& t : fine.tets)
+    volume += signed_volume(fine.nodes[t[0]], fine.nodes[t[1]], fine.nodes[t[2]], fine.nodes[t[3]]);
+  EXPECT_NEAR(volume, 0.5, 1e-12);
+}
+
+// Gmsh's errors become one InputError naming the file, and leave nothing behind: the next read works.
+TEST(Mesh, GmshErrorsBecomeInputErrors) {
+  int rank = 0;
+  MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+  const std::string bad = "gmsh_errors_test_" + std::to_string(rank) + ".geo";
+  {
+    std::ofstream out(bad);
+    out << "Box(1) = {0, 0, 0, 1, 1;\n";  // a syntax error
+  }
+  try {
+    read_gmsh(bad);
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_EQ(what.rfind(bad + ": Gmsh cannot read it: ", 0), 0u) << what;
+    EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+  }
+  std::remove(bad.c_str());
+  EXPECT_EQ(read_gmsh(std::string(TISSUE_SOURCE_DIR) + "/tests/meshes/two_layers_bin41.msh").tets.size(), 1081u);
+}
 
 // The slab's closed forms: volume 0.5 m^3, mass 0.25 (1000 + 1500) kg, Eq. 3's l0 = 0.5 m and A = 1 m^2, the
 // top's area 1 m^2 (a quarter of each tetrahedron per molecule and a third of each triangle cover them exactly).

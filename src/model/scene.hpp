@@ -46,6 +46,7 @@ struct BodySpec {
   std::string file;
   long seed = 1;
   long interior_molecules = 0;  // shape = "mesh", topology = "random": points sampled inside the mesh's volume
+  double mesh_size = 0.0;       // m; shape = "mesh" from a .geo: the largest element Gmsh makes (0: the .geo's own)
   bool unstructured() const { return shape == "mesh" || topology == "random"; }
 };
 

@@ -217,9 +217,9 @@ TEST(Scene, FullSceneEveryField) {
 
   ASSERT_EQ(s.fixes.size(), 2u);
   EXPECT_EQ(s.fixes[0].face, "z+");
-  EXPECT_EQ(s.fixes[0].mode, "clamped");
+  EXPECT_EQ(s.fixes[0].mode, FixSpec::Mode::clamped);
   EXPECT_EQ(s.fixes[1].face, "x-");
-  EXPECT_EQ(s.fixes[1].mode, "roller");
+  EXPECT_EQ(s.fixes[1].mode, FixSpec::Mode::roller);
   ASSERT_EQ(s.loads.size(), 2u);
   EXPECT_EQ(s.loads[0].face, "z-");
   expect_vec(s.loads[0].force, {0, 0, -1000});
@@ -270,7 +270,7 @@ TEST(Scene, Defaults) {
   EXPECT_TRUE(s.body.regions.empty());
   EXPECT_EQ(s.calibration.method, "linear");
   EXPECT_TRUE(s.calibration.stiffness.empty());
-  EXPECT_EQ(s.fixes[0].mode, "clamped");
+  EXPECT_EQ(s.fixes[0].mode, FixSpec::Mode::clamped);
   EXPECT_TRUE(s.loads.empty());
   EXPECT_FALSE(s.physics.gravity);
   EXPECT_FALSE(s.physics.viscosity);
@@ -338,7 +338,7 @@ TEST(Scene, SetOverrides) {
   expect_vec(*s.physics.gravity, {0, 0, -9.81});
   EXPECT_DOUBLE_EQ(s.calibration.stiffness.at("edge"), 2.0);
   expect_vec(s.loads[0].force, {0, 0, -5});
-  EXPECT_EQ(s.fixes[0].mode, "roller");
+  EXPECT_EQ(s.fixes[0].mode, FixSpec::Mode::roller);
   EXPECT_EQ(s.title, "with = sign");
   // Later overrides win; the text keeps the overridden values.
   Scene t = parse_scene(scene, "base.toml", {"solver.steps=5", "solver.steps=7"});

@@ -1,5 +1,6 @@
-// Reading a scene: TOML text -> --set overrides -> validation -> Scene. Every problem becomes one InputError
-// naming the file and the dotted key; nothing past this file re-checks the scene.
+// Reading a scene: TOML text (io/toml_text.hpp) -> --set overrides (io/scene_overrides.hpp) -> the schema, read
+// through Section (io/scene_section.hpp) -> Scene. Every problem becomes one InputError naming the file and the
+// dotted key; nothing past this file re-checks the scene. This file is the schema.
 #include "io/scene.hpp"
 
 #include <limits>
@@ -7,15 +8,16 @@
 
 #include <algorithm>
 #include <cerrno>
-#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <initializer_list>
+#include <map>
 #include <set>
 #include <sstream>
-#include <toml.hpp>
 
+#include "io/scene_overrides.hpp"
+#include "io/scene_section.hpp"
+#include "io/toml_text.hpp"
 #include "src/calibration/calibration.hpp"
 #include "src/model/body.hpp"
 #include "src/model/material.hpp"
@@ -26,343 +28,13 @@ namespace tissue {
 
 namespace {
 
-// std::map tables keep the serialized text (Scene::text) in a fixed, sorted order.
-using Value = toml::basic_value<toml::discard_comments, std::map, std::vector>;
-using Table = Value::table_type;
-
-const std::size_t max_scene_bytes = 16u << 20;  // a scene is a page of text, not a data file
-const int max_nesting = 64;                     // deep [[[[ would overflow the recursive TOML parser
-
-std::string join(const std::vector<std::string>& names, const char* separator = ", ") {
-  std::string s;
-  for (const auto& n : names) s += (s.empty() ? "" : separator) + n;
-  return s;
-}
-
-const char* type_name(const Value& v) {
-  switch (v.type()) {
-    case toml::value_t::boolean:
-      return "a boolean";
-    case toml::value_t::integer:
-      return "an integer";
-    case toml::value_t::floating:
-      return "a float";
-    case toml::value_t::string:
-      return "a string";
-    case toml::value_t::offset_datetime:
-    case toml::value_t::local_datetime:
-    case toml::value_t::local_date:
-    case toml::value_t::local_time:
-      return "a date/time";
-    case toml::value_t::array:
-      return "an array";
-    case toml::value_t::table:
-      return "a table";
-    default:
-      return "nothing";
-  }
-}
-
-// Rejects what the TOML parser should never see: binary bytes, bad UTF-8, absurd size or nesting. TOML allows
-// no control characters but tab, so these are errors in any TOML file anyway; catching them here keeps the
-// message to one clear line.
-void check_text(const std::string& text, const std::string& file) {
-  if (text.size() > max_scene_bytes)
-    throw InputError(file, "",
-                     fmt::format("not a scene: {} bytes (a scene is at most {})", text.size(), max_scene_bytes));
-  long line = 1;
-  for (std::size_t i = 0; i < text.size(); ++i) {
-    auto c = static_cast<unsigned char>(text[i]);
-    if (c == '\n') ++line;
-    if ((c < 0x20 && c != '\t' && c != '\n' && c != '\r') || c == 0x7f)
-      throw InputError(file, "", fmt::format("not a TOML file: control byte 0x{:02x} on line {}", c, line));
-    if (c < 0x80) continue;
-    // UTF-8 as RFC 3629 has it: a lead byte and 1-3 continuation bytes, no overlongs (C0, C1, E0 80-9F,
-    // F0 80-8F), no surrogates (ED A0-BF), nothing above U+10FFFF (F4 90-BF, F5-FF). toml11 reads past its buffer
-    // on any of these inside a literal string (found by tests/fuzz/fuzz_scene;
-    // tests/fuzz_regressions/scene/crash-toml11-literal-string-invalid-utf8.toml).
-    int extra = (c >= 0xc2 && c <= 0xdf) ? 1 : (c >> 4) == 0xe ? 2 : (c >= 0xf0 && c <= 0xf4) ? 3 : -1;
-    bool ok = extra > 0 && i + extra < text.size();
-    for (int k = 1; ok && k <= extra; ++k) ok = (static_cast<unsigned char>(text[i + k]) >> 6) == 0x2;
-    if (ok) {
-      auto c1 = static_cast<unsigned char>(text[i + 1]);
-      ok = !((c == 0xe0 && c1 < 0xa0) || (c == 0xed && c1 > 0x9f) || (c == 0xf0 && c1 < 0x90) ||
-             (c == 0xf4 && c1 > 0x8f));
-    }
-    if (!ok) throw InputError(file, "", fmt::format("not a TOML file: invalid UTF-8 on line {}", line));
-    i += extra;
-  }
-  // Bracket depth outside strings and comments (the line is counted only for the message).
-  int depth = 0;
-  for (std::size_t i = 0; i < text.size(); ++i) {
-    char c = text[i];
-    if (c == '#') {
-      while (i + 1 < text.size() && text[i + 1] != '\n') ++i;
-    } else if (c == '"' || c == '\'') {
-      bool triple = text.compare(i, 3, std::string(3, c)) == 0;
-      std::size_t j = i + (triple ? 3 : 1);
-      for (; j < text.size(); ++j) {
-        if (c == '"' && text[j] == '\\')
-          ++j;  // an escaped character
-        else if (text[j] == '\n' && !triple)
-          break;
-        else if (text[j] == c && (!triple || text.compare(j, 3, std::string(3, c)) == 0)) {
-          j += triple ? 2 : 0;
-          break;
-        }
-      }
-      i = std::min(j, text.size());
-    } else if (c == '[' || c == '{') {
-      if (++depth > max_nesting)
-        throw InputError(file, "",
-                         fmt::format("not a scene: brackets nested deeper than {} on line {}", max_nesting,
-                                     1 + std::count(text.begin(), text.begin() + i, '\n')));
-    } else if (c == ']' || c == '}') {
-      depth = std::max(0, depth - 1);
-    }
-  }
-}
-
-// toml11's messages are several lines with a source excerpt; keep the first line and the line number.
-std::string condense(const toml::exception& e) {
-  std::string msg = e.what();
-  msg = msg.substr(0, msg.find('\n'));
-  for (const char* prefix : {"[error] ", "toml::"}) {
-    if (msg.compare(0, std::strlen(prefix), prefix) == 0) msg.erase(0, std::strlen(prefix));
-  }
-  // Drop the parser's function name ("parse_table: ...").
-  auto colon = msg.find(": ");
-  if (colon != std::string::npos && msg.find(' ') > colon) msg.erase(0, colon + 2);
-  auto line = e.location().line();
-  return line > 0 ? fmt::format("line {}: {}", line, msg) : msg;
-}
-
-Value parse_toml(const std::string& text, const std::string& file) {
-  check_text(text, file);
-  std::istringstream in(text);
-  try {
-    return toml::parse<toml::discard_comments, std::map, std::vector>(in, file);
-  } catch (const toml::exception& e) {
-    throw InputError(file, "", "not valid TOML, " + condense(e));
-  } catch (const std::exception& e) {
-    std::string msg = e.what();
-    throw InputError(file, "", "not valid TOML: " + msg.substr(0, msg.find('\n')));
-  }
-}
-
-// ---- --set overrides ----
-
-bool is_index(const std::string& s) {
-  return !s.empty() && s.size() < 10 && s.find_first_not_of("0123456789") == std::string::npos;
-}
-
-// VALUE as TOML ("[1,2,3]", "1e5", "true", "\"x\""); anything that is not is taken as a bare string.
-Value override_value(const std::string& text) {
-  // The same byte checks as a scene file: toml11 reads past the end of an unterminated string that holds bad
-  // UTF-8 (found by tests/fuzz/fuzz_scene_set; tests/fuzz_regressions/scene_set).
-  check_text(text, "--set");
-  std::istringstream in("v = " + text);
-  try {
-    Value t = toml::parse<toml::discard_comments, std::map, std::vector>(in, "--set");
-    if (t.is_table() && t.as_table().size() == 1 && t.as_table().count("v")) return t.as_table().at("v");
-  } catch (const std::exception&) {
-  }
-  return Value(text);
-}
-
-void apply_override(Value& root, const std::string& item) {
-  auto eq = item.find('=');
-  if (eq == std::string::npos) throw InputError("--set", item, "expected KEY=VALUE");
-  std::string key = item.substr(0, eq);
-  key.erase(0, key.find_first_not_of(" \t"));
-  key.erase(key.find_last_not_of(" \t") + 1);
-  if (key.empty()) throw InputError("--set", item, "empty key, expected KEY=VALUE");
-  std::vector<std::string> parts;
-  for (std::size_t b = 0;;) {
-    auto e = key.find('.', b);
-    parts.push_back(key.substr(b, e - b));
-    if (parts.back().empty()) throw InputError("--set", key, "empty part in the dotted key");
-    if (e == std::string::npos) break;
-    b = e + 1;
-  }
-  Value value = override_value(item.substr(eq + 1));
-
-  Value* node = &root;
-  std::string walked;  // the dotted path so far, for messages
-  for (std::size_t i = 0; i < parts.size(); ++i) {
-    const std::string& p = parts[i];
-    if (node->is_array()) {
-      auto& a = node->as_array();
-      if (!is_index(p))
-        throw InputError("--set", key, fmt::format("{} is an array: expected an index, got \"{}\"", walked, p));
-      std::size_t k = std::stoul(p);
-      if (k >= a.size())
-        throw InputError("--set", key, fmt::format("{} has {} element(s), no index {}", walked, a.size(), k));
-      node = &a[k];
-    } else if (node->is_table()) {
-      auto& t = node->as_table();
-      auto it = t.find(p);
-      if (it == t.end()) {
-        if (i + 1 == parts.size()) {
-          t.emplace(p, value);
-          return;
-        }
-        // A missing intermediate is a new table; an index into a missing array is a mistake.
-        if (is_index(parts[i + 1]))
-          throw InputError("--set", key, fmt::format("{} does not exist", walked.empty() ? p : walked + "." + p));
-        it = t.emplace(p, Value(Table{})).first;
-      }
-      node = &it->second;
-    } else {
-      throw InputError("--set", key, fmt::format("{} is {}, not a table", walked, type_name(*node)));
-    }
-    walked += (walked.empty() ? "" : ".") + p;
-  }
-  *node = value;
-}
-
-// ---- validation ----
-
-// One TOML table of the scene and its dotted path: typed getters that name the key in every error.
-class Section {
-public:
-  Section(const std::string& file, const Value& v, std::string path) : file_(file), path_(std::move(path)) {
-    if (!v.is_table()) throw InputError(file_, path_, std::string("expected a table, got ") + type_name(v));
-    table_ = &v.as_table();
-  }
-
-  std::string key(const std::string& k) const { return path_.empty() ? k : path_ + "." + k; }
-  const std::string& path() const { return path_; }
-  const std::string& file() const { return file_; }
-  [[noreturn]] void fail(const std::string& k, const std::string& problem) const {
-    throw InputError(file_, key(k), problem);
-  }
-  bool has(const std::string& k) const { return table_->count(k) != 0; }
-  const Value& get(const std::string& k) const { return table_->at(k); }
-
-  // Unknown keys are errors (a typo must not silently fall back to a default).
-  void allow(std::initializer_list<const char*> keys) const {
-    for (const auto& kv : *table_) {
-      bool known = false;
-      for (const char* k : keys) known = known || kv.first == k;
-      if (!known) {
-        std::vector<std::string> names(keys.begin(), keys.end());
-        fail(kv.first, "unknown key (known here: " + join(names) + ")");
-      }
-    }
-  }
-  void require(const std::string& k, const std::string& why = "") const {
-    if (!has(k)) fail(k, "missing" + (why.empty() ? std::string() : " (" + why + ")"));
-  }
-
-  std::optional<double> number(const std::string& k) const {
-    if (!has(k)) return std::nullopt;
-    return to_number(get(k), k, "expected a number");
-  }
-  std::optional<long> integer(const std::string& k) const {
-    if (!has(k)) return std::nullopt;
-    const Value& v = get(k);
-    if (!v.is_integer()) fail(k, std::string("expected an integer, got ") + type_name(v));
-    return static_cast<long>(v.as_integer());
-  }
-  std::optional<bool> boolean(const std::string& k) const {
-    if (!has(k)) return std::nullopt;
-    const Value& v = get(k);
-    if (!v.is_boolean()) fail(k, std::string("expected true or false, got ") + type_name(v));
-    return v.as_boolean();
-  }
-  std::optional<std::string> string(const std::string& k) const {
-    if (!has(k)) return std::nullopt;
-    const Value& v = get(k);
-    if (!v.is_string()) fail(k, std::string("expected a string, got ") + type_name(v));
-    return v.as_string().str;
-  }
-  // A string from a fixed list of names.
-  std::optional<std::string> choice(const std::string& k, const std::vector<std::string>& names) const {
-    auto s = string(k);
-    if (s && std::find(names.begin(), names.end(), *s) == names.end())
-      fail(k, fmt::format("unknown value \"{}\" (one of: {})", *s, join(names)));
-    return s;
-  }
-  std::optional<Vec3> vec3(const std::string& k) const {
-    if (!has(k)) return std::nullopt;
-    const Value& v = get(k);
-    const char* want = "expected an array of 3 numbers";
-    if (!v.is_array() || v.as_array().size() != 3) fail(k, std::string(want) + ", got " + describe(v));
-    Vec3 x;
-    for (int a = 0; a < 3; ++a) x[a] = to_number(v.as_array()[a], k, want);
-    return x;
-  }
-  std::optional<std::array<long, 3>> int3(const std::string& k) const {
-    if (!has(k)) return std::nullopt;
-    const Value& v = get(k);
-    const char* want = "expected an array of 3 integers";
-    if (!v.is_array() || v.as_array().size() != 3) fail(k, std::string(want) + ", got " + describe(v));
-    std::array<long, 3> x;
-    for (int a = 0; a < 3; ++a) {
-      const Value& e = v.as_array()[a];
-      if (!e.is_integer()) fail(k, std::string(want) + ", element " + std::to_string(a) + " is " + type_name(e));
-      x[a] = static_cast<long>(e.as_integer());
-    }
-    return x;
-  }
-  std::optional<std::vector<std::string>> strings(const std::string& k) const {
-    if (!has(k)) return std::nullopt;
-    const Value& v = get(k);
-    if (!v.is_array()) fail(k, std::string("expected an array of strings, got ") + type_name(v));
-    std::vector<std::string> out;
-    for (const auto& e : v.as_array()) {
-      if (!e.is_string()) fail(k, std::string("expected an array of strings, an element is ") + type_name(e));
-      out.push_back(e.as_string().str);
-    }
-    return out;
-  }
-  Section table(const std::string& k) const { return Section(file_, get(k), key(k)); }
-  // [[k]]: an array of tables, each named k[i] in messages.
-  std::vector<Section> tables(const std::string& k) const {
-    std::vector<Section> out;
-    if (!has(k)) return out;
-    const Value& v = get(k);
-    if (!v.is_array()) fail(k, fmt::format("expected an array of tables ([[{}]]), got {}", k, type_name(v)));
-    const auto& a = v.as_array();
-    for (std::size_t i = 0; i < a.size(); ++i) out.emplace_back(file_, a[i], fmt::format("{}[{}]", key(k), i));
-    return out;
-  }
-
-  // Range checks, each naming the key and the value.
-  void positive(const std::string& k, double x) const {
-    if (!(x > 0)) fail(k, fmt::format("must be > 0, got {}", x));
-  }
-  void non_negative(const std::string& k, double x) const {
-    if (!(x >= 0)) fail(k, fmt::format("must be >= 0, got {}", x));
-  }
-  void at_least(const std::string& k, long x, long min) const {
-    if (x < min) fail(k, fmt::format("must be >= {}, got {}", min, x));
-  }
-  void positive3(const std::string& k, const Vec3& x) const {
-    for (double c : x)
-      if (!(c > 0)) fail(k, fmt::format("every component must be > 0, got [{}, {}, {}]", x[0], x[1], x[2]));
-  }
-
-private:
-  double to_number(const Value& v, const std::string& k, const char* want) const {
-    double x;
-    if (v.is_floating())
-      x = v.as_floating();
-    else if (v.is_integer())
-      x = static_cast<double>(v.as_integer());
-    else
-      fail(k, std::string(want) + ", got " + type_name(v));
-    if (!std::isfinite(x)) fail(k, fmt::format("must be finite, got {}", x));
-    return x;
-  }
-  static std::string describe(const Value& v) {
-    return v.is_array() ? fmt::format("{} elements", v.as_array().size()) : type_name(v);
-  }
-
-  std::string file_, path_;
-  const Table* table_ = nullptr;
-};
+using scene_reader::apply_override;
+using scene_reader::join;
+using scene_reader::max_scene_bytes;
+using scene_reader::parse_toml;
+using scene_reader::Section;
+using scene_reader::Table;
+using scene_reader::Value;
 
 const std::vector<std::string> face_names = {"x-", "x+", "y-", "y+", "z-", "z+"};
 const std::vector<std::string> field_names = {"positions", "displacements",     "velocities",

@@ -17,6 +17,7 @@
 #include "partition/local_model.hpp"
 #include "src/calibration/calibration.hpp"
 #include "src/measure/measure.hpp"
+#include "src/physics/tension_test.hpp"
 #include "src/solvers/solver.hpp"
 
 namespace tissue {

@@ -21,6 +21,7 @@
 #include "src/measure/measure.hpp"
 #include "src/model/unstructured.hpp"
 #include "src/physics/force_model.hpp"
+#include "src/physics/tension_test.hpp"
 #include "src/solvers/solver.hpp"
 
 namespace tissue {

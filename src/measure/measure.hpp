@@ -6,6 +6,7 @@
 
 #include "partition/local_model.hpp"
 #include "src/physics/force_model.hpp"
+#include "src/physics/tension_test.hpp"
 
 namespace tissue {
 

@@ -10,33 +10,6 @@
 
 namespace tissue {
 
-TensionTest tension_test(const Scene& scene, const Body& shape) {
-  TensionTest t;
-  if (scene.loads.size() != 1) return t;
-  if (scene.loads[0].period > 0) return t;  // a cyclic load measures no modulus
-  if (shape.body(scene.loads[0].body).unstructured()) {  // named faces: src/physics/named_faces.cpp
-    named_tension_test(scene, shape, t);
-    return t;
-  }
-  int axis, side;
-  parse_face(scene.loads[0].face, axis, side);
-  t.body = scene.loads[0].body;
-  for (const auto& fix : scene.fixes) {
-    int fa, fs;
-    parse_face(fix.face, fa, fs);
-    if (fix.body == t.body && fa == axis && fs != side) t.valid = true;
-  }
-  if (!t.valid) return t;
-  const BoxGeometry& g = shape.body(t.body);
-  const Vec3& F = scene.loads[0].force;
-  t.force = std::sqrt(F[0] * F[0] + F[1] * F[1] + F[2] * F[2]);
-  for (int d = 0; d < 3; ++d) t.direction[d] = F[d] / t.force;
-  t.axis = axis, t.load_side = side, t.fixed_side = 1 - side;
-  t.rest_length = g.length(axis);
-  t.cross_section = g.length((axis + 1) % 3) * g.length((axis + 2) % 3);
-  return t;
-}
-
 namespace {
 
 // The components a fixed face holds, for one molecule (global id) of the body.
@@ -187,147 +160,12 @@ double ForceModel::largest_stiffness_rate() const {
   return global;
 }
 
-PetscErrorCode ForceModel::create_tangent(Mat* J) const {
-  PetscFunctionBeginUser;
-  const int n = model_.owned, nc = model_.connections();
-  // Each owned molecule's connections (counting sort by end), then its distinct neighbours sorted by block id.
-  conn_start_.assign(n + 1, 0);
-  for (int c = 0; c < nc; ++c) {
-    if (model_.end_a[c] < n) conn_start_[model_.end_a[c] + 1]++;
-    if (model_.end_b[c] < n) conn_start_[model_.end_b[c] + 1]++;
-  }
-  for (int i = 0; i < n; ++i) conn_start_[i + 1] += conn_start_[i];
-  row_conns_.assign(conn_start_[n], 0);
-  {
-    std::vector<int> fill(conn_start_.begin(), conn_start_.end() - 1);
-    for (int c = 0; c < nc; ++c) {
-      if (model_.end_a[c] < n) row_conns_[fill[model_.end_a[c]]++] = c;
-      if (model_.end_b[c] < n) row_conns_[fill[model_.end_b[c]]++] = c;
-    }
-  }
-  row_start_.assign(n + 1, 0);
-  row_cols_.clear();
-  row_cols_.reserve(conn_start_[n] + n);
-  std::vector<PetscInt> dnnz(n), onnz(n);
-  const PetscInt first = model_.first_block, last = model_.first_block + n;
-  auto by_block = [&](int p, int q) { return model_.block[p] < model_.block[q]; };
-  for (int i = 0; i < n; ++i) {
-    const std::size_t begin = row_cols_.size();
-    row_cols_.push_back(i);
-    for (int p = conn_start_[i]; p < conn_start_[i + 1]; ++p) {
-      const int c = row_conns_[p];
-      row_cols_.push_back(model_.end_a[c] == i ? model_.end_b[c] : model_.end_a[c]);
-    }
-    std::sort(row_cols_.begin() + begin, row_cols_.end(), by_block);
-    row_cols_.erase(std::unique(row_cols_.begin() + begin, row_cols_.end(),
-                                [&](int p, int q) { return model_.block[p] == model_.block[q]; }),
-                    row_cols_.end());
-    row_start_[i + 1] = static_cast<int>(row_cols_.size());
-    dnnz[i] = onnz[i] = 0;
-    for (std::size_t p = begin; p < row_cols_.size(); ++p) {
-      const PetscInt bj = model_.block[row_cols_[p]];
-      (bj >= first && bj < last ? dnnz[i] : onnz[i])++;
-    }
-  }
-  row_cols_.shrink_to_fit();
-  // The pattern in CSR arrays (diagonal part: local columns; off-diagonal part: global columns, sorted), handed
-  // to PETSc without copying: MatSetValues costs a visible share of a static run (docs/benchmarks.md).
-  // The arrays live in this ForceModel (they are the matrix's storage) and must outlive J.
-  tan_di_.assign(3 * n + 1, 0);
-  tan_oi_.assign(3 * n + 1, 0);
-  for (int i = 0; i < n; ++i)
-    for (int r = 0; r < 3; ++r) {
-      tan_di_[3 * i + r + 1] = tan_di_[3 * i + r] + 3 * dnnz[i];
-      tan_oi_[3 * i + r + 1] = tan_oi_[3 * i + r] + 3 * onnz[i];
-    }
-  tan_dj_.assign(std::max<PetscInt>(1, tan_di_[3 * n]), 0);
-  tan_oj_.assign(std::max<PetscInt>(1, tan_oi_[3 * n]), 0);
-  tan_dv_.assign(tan_dj_.size(), 0.0);
-  tan_ov_.assign(tan_oj_.size(), 0.0);
-  for (int i = 0; i < n; ++i)
-    for (int r = 0; r < 3; ++r) {
-      PetscInt d = tan_di_[3 * i + r], o = tan_oi_[3 * i + r];
-      for (int p = row_start_[i]; p < row_start_[i + 1]; ++p) {
-        const PetscInt bj = model_.block[row_cols_[p]];
-        for (int s = 0; s < 3; ++s) {
-          if (bj >= first && bj < last)
-            tan_dj_[d++] = 3 * (bj - first) + s;
-          else
-            tan_oj_[o++] = 3 * bj + s;
-        }
-      }
-    }
-  if (model_.size > 1) {
-    PetscCall(MatCreateMPIAIJWithSplitArrays(model_.comm, 3 * n, 3 * n, PETSC_DETERMINE, PETSC_DETERMINE,
-                                             tan_di_.data(), tan_dj_.data(), tan_dv_.data(), tan_oi_.data(),
-                                             tan_oj_.data(), tan_ov_.data(), J));
-  } else {
-    PetscCall(MatCreateSeqAIJWithArrays(model_.comm, 3 * n, 3 * n, tan_di_.data(), tan_dj_.data(), tan_dv_.data(), J));
-  }
-  {
-    // The arrays are freed when J is (a container composed with J), not kept for the ForceModel's lifetime.
-    PetscContainer owner;
-    PetscCall(PetscContainerCreate(PETSC_COMM_SELF, &owner));
-    PetscCall(PetscContainerSetPointer(owner, const_cast<ForceModel*>(this)));
-    PetscCall(PetscContainerSetUserDestroy(owner, [](void* p) -> PetscErrorCode {
-      static_cast<const ForceModel*>(p)->release_tangent_arrays();
-      return 0;
-    }));
-    PetscCall(PetscObjectCompose(reinterpret_cast<PetscObject>(*J), "tissue_tangent_arrays",
-                                 reinterpret_cast<PetscObject>(owner)));
-    PetscCall(PetscContainerDestroy(&owner));
-  }
-  PetscCall(MatSetBlockSize(*J, 3));  // AIJ with block size 3: what GAMG wants (not BAIJ)
-  PetscCall(MatSetOption(*J, MAT_SYMMETRIC, PETSC_TRUE));
-  PetscCall(MatSetOption(*J, MAT_SYMMETRY_ETERNAL, PETSC_TRUE));
-  PetscCall(MatSetOption(*J, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
-  PetscCall(MatSetOption(*J, MAT_NO_OFF_PROC_ENTRIES, PETSC_TRUE));  // owned rows only: assembly sends nothing
-  PetscCall(MatAssemblyBegin(*J, MAT_FINAL_ASSEMBLY));
-  PetscCall(MatAssemblyEnd(*J, MAT_FINAL_ASSEMBLY));
-  // The direct writes rely on each scalar row holding, in the diagonal part, 3 columns per on-rank block
-  // column in block order, and in the off-diagonal part the same for the off-rank ones (PETSc keeps those
-  // sorted by global column): checked here once.
-  Mat Ad, Ao;
-  PetscCall(aij_parts(*J, &Ad, &Ao));
-  for (Mat part : {Ad, Ao}) {
-    if (!part) continue;
-    const PetscInt *ia, *ja;
-    PetscInt rows;
-    PetscBool done;
-    PetscCall(MatGetRowIJ(part, 0, PETSC_FALSE, PETSC_FALSE, &rows, &ia, &ja, &done));
-    PetscCheck(done && rows == 3 * n, model_.comm, PETSC_ERR_PLIB, "tangent: no row structure");
-    for (int i = 0; i < n; ++i)
-      for (int r = 0; r < 3; ++r)
-        PetscCheck(ia[3 * i + r + 1] - ia[3 * i + r] == 3 * (part == Ad ? dnnz[i] : onnz[i]), model_.comm,
-                   PETSC_ERR_PLIB, "tangent: the assembled pattern is not the preallocated one");
-    PetscCall(MatRestoreRowIJ(part, 0, PETSC_FALSE, PETSC_FALSE, &rows, &ia, &ja, &done));
-  }
-  PetscFunctionReturn(0);
-}
-
-void ForceModel::release_tangent_arrays() const {
-  for (auto* v : {&tan_di_, &tan_dj_, &tan_oi_, &tan_oj_}) std::vector<PetscInt>().swap(*v);
-  for (auto* v : {&tan_dv_, &tan_ov_}) std::vector<PetscScalar>().swap(*v);
-}
-
-// The diagonal and off-diagonal SeqAIJ parts of an AIJ matrix (one rank: the matrix itself, no off-diagonal part).
-PetscErrorCode ForceModel::aij_parts(Mat J, Mat* Ad, Mat* Ao) const {
-  PetscFunctionBeginUser;
-  PetscBool mpi = PETSC_FALSE;
-  PetscCall(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(J), MATMPIAIJ, &mpi));
-  *Ao = nullptr;
-  if (mpi) {
-    PetscCall(MatMPIAIJGetSeqAIJ(J, Ad, Ao, nullptr));
-  } else {
-    *Ad = J;
-  }
-  PetscFunctionReturn(0);
-}
+PetscErrorCode ForceModel::create_tangent(Mat* J) const { return tangent_.create(model_, J); }
 
 PetscErrorCode ForceModel::assemble_tangent(const double* x, Mat J) const {
   PetscFunctionBeginUser;
   const int n = model_.owned;
-  PetscCheck(static_cast<int>(row_start_.size()) == n + 1, model_.comm, PETSC_ERR_ORDER,
+  PetscCheck(static_cast<int>(tangent_.row_start.size()) == n + 1, model_.comm, PETSC_ERR_ORDER,
              "assemble_tangent needs a matrix from create_tangent");
   // Each block row is computed whole (row-major 3 x 3 ncols, columns in block order) and copied straight into
   // the AIJ arrays (the pattern is fixed by create_tangent): every value is written exactly once, so no zeroing
@@ -346,8 +184,8 @@ PetscErrorCode ForceModel::assemble_tangent(const double* x, Mat J) const {
   std::vector<double> vals;
   std::vector<PetscInt> cols;
   for (int i = 0; i < n; ++i) {
-    const int begin = row_start_[i], ncols = row_start_[i + 1] - begin;
-    const int* rc = row_cols_.data() + begin;
+    const int begin = tangent_.row_start[i], ncols = tangent_.row_start[i + 1] - begin;
+    const int* rc = tangent_.row_cols.data() + begin;
     const int width = 3 * ncols;
     vals.assign(3 * width, 0.0);
     cols.resize(ncols);
@@ -357,8 +195,8 @@ PetscErrorCode ForceModel::assemble_tangent(const double* x, Mat J) const {
     };
     const int self = slot(i);
     const double* xi = x + 3 * i;
-    for (int p = conn_start_[i]; p < conn_start_[i + 1]; ++p) {
-      const int c = row_conns_[p];
+    for (int p = tangent_.conn_start[i]; p < tangent_.conn_start[i + 1]; ++p) {
+      const int c = tangent_.row_conns[p];
       const int j = model_.end_a[c] == i ? model_.end_b[c] : model_.end_a[c];
       const double* xj = x + 3 * j;
       double d[3] = {xj[0] - xi[0], xj[1] - xi[1], xj[2] - xi[2]};

@@ -12,22 +12,10 @@
 #include "src/model/scene.hpp"
 #include "partition/local_model.hpp"
 #include "src/physics/spring_kernel.hpp"
+#include "src/physics/tangent.hpp"
 #include "src/physics/term.hpp"
 
 namespace tissue {
-
-// The tension test of Eq. 3 that the scene describes, when it describes one: one loaded face with a fixed face
-// opposite. l0 = distance between the two planes of molecules, A = the cross-section normal to the load axis.
-struct TensionTest {
-  bool valid = false;
-  int body = 0;  // the body the load is on
-  int axis = 2, load_side = 0, fixed_side = 1;
-  Vec3 direction{0, 0, -1};  // unit vector of the load
-  double force = 0.0;        // N, total
-  double rest_length = 0.0, cross_section = 0.0;
-  std::string load_face, fixed_face;  // explicit topologies (named faces): the two faces Eq. 3 reads
-};
-TensionTest tension_test(const Scene& scene, const Body& shape);
 
 class ForceModel {
 public:
@@ -85,16 +73,8 @@ private:
   std::vector<const TermStyle*> term_styles_;  // the style of each (what it can do)
   double applied_norm_ = 0.0;
   mutable double time_ = 0.0;
-  // The tangent's block rows (built by create_tangent): row i's columns are the local molecules
-  // row_cols_[row_start_[i] .. row_start_[i+1]) sorted by PETSc block id, itself included; its connections are
-  // row_conns_[conn_start_[i] .. conn_start_[i+1]). Row-wise assembly then sets each row once, in order.
-  mutable std::vector<int> row_start_, row_cols_, conn_start_, row_conns_;
-  // The tangent's CSR arrays, diagonal (d) and off-diagonal (o) parts: the storage of the matrix create_tangent
-  // makes (PETSc does not copy them); released when that matrix is destroyed.
-  mutable std::vector<PetscInt> tan_di_, tan_dj_, tan_oi_, tan_oj_;
-  mutable std::vector<PetscScalar> tan_dv_, tan_ov_;
-  void release_tangent_arrays() const;
-  PetscErrorCode aij_parts(Mat J, Mat* Ad, Mat* Ao) const;
+  // The tangent's block-row pattern and CSR storage (src/physics/tangent.hpp), built by create_tangent.
+  mutable TangentStorage tangent_;
 };
 
 }  // namespace tissue

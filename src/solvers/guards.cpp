@@ -10,6 +10,7 @@
 #include <limits>
 
 #include "src/physics/force_model.hpp"
+#include "src/solvers/molecule_report.hpp"
 
 namespace tissue {
 
@@ -22,126 +23,7 @@ struct Timer {
   ~Timer() { total += MPI_Wtime() - start; }
 };
 
-int rank_of(MPI_Comm comm) {
-  int r;
-  MPI_Comm_rank(comm, &r);
-  return r;
-}
-
-// The same string on every rank, from `root`.
-std::string broadcast(const std::string& s, int root, MPI_Comm comm) {
-  long n = static_cast<long>(s.size());
-  MPI_Bcast(&n, 1, MPI_LONG, root, comm);
-  std::string out = s;
-  out.resize(n);
-  MPI_Bcast(out.data(), static_cast<int>(n), MPI_CHAR, root, comm);
-  return out;
-}
-
-// Collective: the original id of the owned molecule with the largest `value` (NaN counts as largest; ties: the
-// smallest id), or -1 when no rank has any molecule.
-std::int64_t argmax_molecule(const LocalModel& model, const std::vector<double>& value) {
-  const double inf = std::numeric_limits<double>::infinity();
-  double best = -inf;
-  long long id = std::numeric_limits<long long>::max();
-  for (int i = 0; i < model.owned; ++i) {
-    double v = std::isnan(value[i]) ? inf : value[i];
-    if (v > best || (v == best && model.id[i] < id)) best = v, id = model.id[i];
-  }
-  double global = -inf;
-  MPI_Allreduce(&best, &global, 1, MPI_DOUBLE, MPI_MAX, model.comm);
-  long long mine = best == global ? id : std::numeric_limits<long long>::max(), first = 0;
-  MPI_Allreduce(&mine, &first, 1, MPI_LONG_LONG, MPI_MIN, model.comm);
-  return first == std::numeric_limits<long long>::max() ? -1 : static_cast<std::int64_t>(first);
-}
-
-double length_of(const double* x, int a, int b) {
-  const double d0 = x[3 * b] - x[3 * a], d1 = x[3 * b + 1] - x[3 * a + 1], d2 = x[3 * b + 2] - x[3 * a + 2];
-  return std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
-}
-
 }  // namespace
-
-double checked_time_step(const Scene& scene, const LocalModel& model, double requested, double critical,
-                         const char* solver) {
-  if (!(requested > critical)) return requested;
-  if (!scene.solver.allow_unstable_time_step)
-    throw InputError(scene.file, "solver.time_step",
-                     fmt::format("{:.6g} s is {:.3g} times the critical time step {:.6g} s of this body ({} "
-                                 "integration would blow up): lower it, omit it, or set "
-                                 "solver.allow_unstable_time_step = true",
-                                 requested, requested / critical, critical, solver));
-  if (rank_of(model.comm) == 0)
-    std::fprintf(stderr,
-                 "tissue: warning: solver.time_step = %.6g s is %.3g times the critical time step %.6g s "
-                 "(allowed by solver.allow_unstable_time_step; the critical step is a bound, the run may still "
-                 "blow up)\n",
-                 requested, requested / critical, critical);
-  return requested;
-}
-
-void check_connections(const Scene& scene, const LocalModel& model) {
-  // The first bad connection (smallest global id) over all ranks.
-  long long bad = std::numeric_limits<long long>::max();
-  const bool calibrated = model.typed() || !model.stiffness.empty();
-  for (int c = 0; c < model.connections(); ++c) {
-    const double l0 = model.l0(c), k = calibrated ? model.k(c) : 0.0;
-    if (!(l0 > 0) || !std::isfinite(l0) || !(k >= 0) || !std::isfinite(k))
-      bad = std::min<long long>(bad, model.connection_id(c));
-  }
-  long long first = 0;
-  MPI_Allreduce(&bad, &first, 1, MPI_LONG_LONG, MPI_MIN, model.comm);
-  if (first == std::numeric_limits<long long>::max()) return;
-  std::string text;
-  int holder = -1, root = 0;
-  for (int c = 0; c < model.connections(); ++c)
-    if (model.connection_id(c) == first) {
-      holder = model.rank;
-      text = fmt::format("connection {} (molecules {}-{}) has rest length {:.6g} m and stiffness {:.6g} N/m: "
-                         "coincident molecules or a degenerate calibration",
-                         first, model.id[model.end_a[c]], model.id[model.end_b[c]], model.l0(c),
-                         calibrated ? model.k(c) : 0.0);
-      break;
-    }
-  MPI_Allreduce(&holder, &root, 1, MPI_INT, MPI_MAX, model.comm);
-  throw InputError(scene.file, "body", broadcast(text, root, model.comm));
-}
-
-std::string describe_molecule(const LocalModel& model, const double* x, std::int64_t molecule) {
-  int holder = -1, root = 0;
-  std::string text;
-  for (int i = 0; i < model.owned; ++i) {
-    if (model.id[i] != molecule) continue;
-    holder = model.rank;
-    text = fmt::format("molecule {} at ({:.6g}, {:.6g}, {:.6g})", molecule, x[3 * i], x[3 * i + 1], x[3 * i + 2]);
-    int best = -1;
-    double worst = -1;
-    for (int c = 0; c < model.connections(); ++c) {
-      if (model.end_a[c] != i && model.end_b[c] != i) continue;
-      const double s = (length_of(x, model.end_a[c], model.end_b[c]) - model.l0(c)) / model.l0(c);
-      const double size = std::isfinite(s) ? std::fabs(s) : std::numeric_limits<double>::infinity();
-      if (size > worst) worst = size, best = c;
-    }
-    if (best >= 0) {
-      const double l = length_of(x, model.end_a[best], model.end_b[best]);
-      text += fmt::format("; its most strained connection {} (molecules {}-{}) has strain {:.6g} (length {:.6g} m, "
-                          "rest {:.6g} m)",
-                          model.connection_id(best), model.id[model.end_a[best]], model.id[model.end_b[best]],
-                          (l - model.l0(best)) / model.l0(best), l, model.l0(best));
-    }
-    break;
-  }
-  MPI_Allreduce(&holder, &root, 1, MPI_INT, MPI_MAX, model.comm);
-  if (root < 0) return fmt::format("molecule {}", molecule);
-  return broadcast(text, root, model.comm);
-}
-
-std::int64_t largest_force_molecule(const LocalModel& model, const double* f) {
-  std::vector<double> size(model.owned);
-  for (int i = 0; i < model.owned; ++i)
-    size[i] = f[3 * i] * f[3 * i] + f[3 * i + 1] * f[3 * i + 1] + f[3 * i + 2] * f[3 * i + 2];
-  return argmax_molecule(model, size);
-}
 
 StepGuard::StepGuard(const char* solver, const Scene& scene, const LocalModel& model, const ForceModel& forces,
                      SolverState& state, long every)

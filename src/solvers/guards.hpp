@@ -1,8 +1,7 @@
-// Guards: the solvers' cheap checks that a run never fails silently (see docs/stability.md).
+// Guards: the solvers' cheap per-step checks that a run never fails silently (see docs/stability.md); the checks
+// made once at set-up (the time step, the connections) are src/solvers/setup_checks.hpp, the reports naming a
+// molecule src/solvers/molecule_report.hpp.
 //
-//  - the time step: one above the critical time step is refused (InputError naming solver.time_step, exit 2)
-//    unless the scene sets solver.allow_unstable_time_step = true (then used as given, with a warning);
-//  - at set-up: a connection of zero (or non-finite) rest length is refused (InputError naming body);
 //  - during the solve (StepGuard): NaN or Inf caught within kReduceEvery (16) steps and the step where it first
 //    appeared named (dynamic: each rank notes the first step its kinetic energy is non-finite, at no cost; the
 //    ranks compare notes every 16 steps, the cadence of the signal check; relaxation: every iteration),
@@ -28,24 +27,6 @@ constexpr double kCollapsedLengthRatio = 1e-3;
 // Dynamic: steps between the guard's reductions (the global kinetic energy, any rank's non-finite state): one
 // reduction per step costs too much of a step (docs/stability.md, docs/benchmarks.md).
 constexpr long kReduceEvery = 16;
-
-// The time step an explicit solver uses: `requested` (the scene's, or absent) checked against `critical`.
-// Throws InputError naming solver.time_step when it is above critical and the scene does not allow it; prints
-// a warning on rank 0 when it does.
-double checked_time_step(const Scene& scene, const LocalModel& model, double requested, double critical,
-                         const char* solver);
-
-// Collective. Throws InputError (file: the scene, key: body) when a connection has a zero, negative or
-// non-finite rest length, or a non-finite or negative stiffness.
-void check_connections(const Scene& scene, const LocalModel& model);
-
-// Collective. "molecule M at (x, y, z); connection C (molecules A-B) strain S": the connection with the largest
-// |strain| (non-finite counts as largest) among those of molecule M (original id), from local positions x (ghosts
-// up to date). Every rank returns the same text.
-std::string describe_molecule(const LocalModel& model, const double* x, std::int64_t molecule);
-
-// Collective. The original id of the owned molecule with the largest |f| (free components), over all ranks.
-std::int64_t largest_force_molecule(const LocalModel& model, const double* f);
 
 class StepGuard {
 public:

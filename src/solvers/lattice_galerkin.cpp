@@ -83,7 +83,36 @@ struct LatticeGalerkin::Rows {
     return it->second;
   }
   double* block(int r, int s) { return a.data() + (static_cast<std::size_t>(r) * kSlots + s) * kBlock; }
+  const double* block(int r, int s) const {
+    return a.data() + (static_cast<std::size_t>(r) * kSlots + s) * kBlock;
+  }
 };
+
+// Level l+1's numbers (coarsen, step 2): 8 * first unknown + free mask, of this rank's coarse nodes (from its
+// own list, ascending ids) and of every other node the rank needs (through the directory).
+struct LatticeGalerkin::Numbers {
+  std::vector<std::int64_t> mine, asked;
+  std::vector<PetscInt> packed, answers;
+  std::vector<std::array<int, 3>> cplane;  // each of this rank's coarse nodes: its plane along each axis
+  bool ascending = false;
+
+  std::ptrdiff_t own(std::int64_t g) const {
+    const auto it = std::lower_bound(mine.begin(), mine.end(), g);
+    return ascending && it != mine.end() && *it == g ? static_cast<std::ptrdiff_t>(it - mine.begin()) : -1;
+  }
+  PetscInt number(std::int64_t g) const {
+    const std::ptrdiff_t c = own(g);
+    return c >= 0 ? packed[c] : answers[std::lower_bound(asked.begin(), asked.end(), g) - asked.begin()];
+  }
+};
+
+// A coarse node's present stencil slots (coarsen, step 4): each slot's column number, and the slots by column.
+struct LatticeGalerkin::Neighbours {
+  std::array<PetscInt, kSlots> jnum{};
+  std::array<int, kSlots> order{};  // the present slots by column
+  int norder = 0;
+};
+
 
 LatticeGalerkin::LatticeGalerkin(const LocalModel& model, const std::vector<std::uint8_t>& held, LatticeLevels levels)
     : model_(model), held_(held), levels_(std::move(levels)), csr_(levels_.planes.size()),
@@ -167,15 +196,27 @@ PetscErrorCode LatticeGalerkin::applies(Mat fine, bool* ok) const {
 // level l+1's rows (this rank's nodes, owned order, held components zeroed), and coarse_[l + 1] its matrix.
 PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Rows& next) {
   PetscFunctionBeginUser;
+  Rows acc;
+  PetscCall(accumulate_rows(l, fine, stencil, acc));
+  Numbers num;
+  PetscCall(number_coarse_nodes(l, acc, num));
+  PetscCall(send_rows_to_owners(l, num, acc));
+  std::vector<PetscInt> dnnz(levels_.count[l + 1], 0), onnz(levels_.count[l + 1], 0);
+  PetscCall(mask_held(l, num, acc, dnnz, onnz));
+  PetscCall(fill_coarse_matrix(l, num, acc, dnnz, onnz));
+  acc.index = {};
+  next = std::move(acc);
+  PetscFunctionReturn(0);
+}
+
+// 1. Every fine node's row, a block at a time: T = sum_j A_ij w_jJ over a 4x4x4 box of coarse nodes J, then
+//    row I += w_iI T for the coarse nodes I that i interpolates from. Rows of coarse nodes owned elsewhere are
+//    collected too and sent in step 3.
+PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Rows* stencil, Rows& acc) const {
+  PetscFunctionBeginUser;
   const Body& shape = model_.shape;
   const auto& planes = levels_.planes;
   const int nb = shape.bodies();
-  auto free_mask = [&](int i) {
-    int m = 0;
-    for (int k = 0; k < 3; ++k)
-      if (!held_[3 * i + k]) m |= 1 << k;
-    return m;
-  };
   // weights[b][a][p]: where plane p of level l sits among level l+1's planes.
   std::vector<std::array<std::vector<AxisWeights>, 3>> weights(nb);
   for (int b = 0; b < nb; ++b)
@@ -208,11 +249,6 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Ro
       }
     }
   }
-
-  // 1. Every fine node's row, a block at a time: T = sum_j A_ij w_jJ over a 4x4x4 box of coarse nodes J, then
-  //    row I += w_iI T for the coarse nodes I that i interpolates from. Rows of coarse nodes owned elsewhere are
-  //    collected too and sent in step 3.
-  Rows acc;
   const auto& nodes = levels_.owned_nodes[l];  // level 0: all owned molecules, 0 .. owned - 1
   const std::size_t nnodes = l == 0 ? static_cast<std::size_t>(model_.owned) : nodes.size();
   {
@@ -343,26 +379,37 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Ro
       PetscCall(MatRestoreRowIJ(parts.Ao, 0, PETSC_FALSE, PETSC_FALSE, &rows, &oia, &oja, &done));
     }
   }
+  PetscFunctionReturn(0);
+}
 
-  // 2. The level l+1 numbers (8 first unknown + free mask) of every row collected and of every stencil
-  //    neighbour of this rank's coarse nodes: this rank's own from its list (ascending ids), the others through
-  //    the directory (asking for every neighbour was, at 10^6 molecules, the run's peak memory).
+// 2. The level l+1 numbers (8 first unknown + free mask) of every row collected and of every stencil
+//    neighbour of this rank's coarse nodes: this rank's own from its list (ascending ids), the others through
+//    the directory (asking for every neighbour was, at 10^6 molecules, the run's peak memory).
+PetscErrorCode LatticeGalerkin::number_coarse_nodes(int l, const Rows& acc, Numbers& num) const {
+  PetscFunctionBeginUser;
+  const Body& shape = model_.shape;
+  const auto& planes = levels_.planes;
+  auto free_mask = [&](int i) {
+    int m = 0;
+    for (int k = 0; k < 3; ++k)
+      if (!held_[3 * i + k]) m |= 1 << k;
+    return m;
+  };
   const auto& cnodes = levels_.owned_nodes[l + 1];
   const auto& cbase = levels_.base[l + 1];
-  std::vector<std::int64_t> mine(cnodes.size()), asked;
-  std::vector<PetscInt> packed(cnodes.size()), answers;
-  std::vector<std::array<int, 3>> cplane(cnodes.size());
+  auto& mine = num.mine;
+  auto& asked = num.asked;
+  auto& packed = num.packed;
+  auto& cplane = num.cplane;
+  mine.resize(cnodes.size()), packed.resize(cnodes.size()), cplane.resize(cnodes.size());
   for (std::size_t c = 0; c < cnodes.size(); ++c) {
     const int i = cnodes[c];
     mine[c] = model_.id[i], packed[c] = 8 * cbase[c] + free_mask(i);
     const int b = model_.body[i];
     for (int a = 0; a < 3; ++a) cplane[c][a] = position(planes[l + 1][b][a], ijk_[i][a]);
   }
-  const bool ascending = std::is_sorted(mine.begin(), mine.end());
-  auto own = [&](std::int64_t g) {
-    const auto it = std::lower_bound(mine.begin(), mine.end(), g);
-    return ascending && it != mine.end() && *it == g ? static_cast<std::ptrdiff_t>(it - mine.begin()) : -1;
-  };
+  num.ascending = std::is_sorted(mine.begin(), mine.end());
+  auto own = [&](std::int64_t g) { return num.own(g); };
   for (std::int64_t g : acc.id)
     if (own(g) < 0) asked.push_back(g);
   for (std::size_t c = 0; c < cnodes.size(); ++c) {
@@ -379,14 +426,15 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Ro
   }
   std::sort(asked.begin(), asked.end());
   asked.erase(std::unique(asked.begin(), asked.end()), asked.end());
-  PetscCall(lattice_lookup(model_.comm, shape.molecules(), mine, packed, asked, answers));
-  auto number = [&](std::int64_t g) {
-    const std::ptrdiff_t c = own(g);
-    return c >= 0 ? packed[c] : answers[std::lower_bound(asked.begin(), asked.end(), g) - asked.begin()];
-  };
+  PetscCall(lattice_lookup(model_.comm, shape.molecules(), mine, packed, asked, num.answers));
+  PetscFunctionReturn(0);
+}
 
-  // 3. Rows of coarse nodes owned elsewhere go to their owners (the rank whose unknowns hold the node's first);
-  //    a node with every component held has no row at all.
+// 3. Rows of coarse nodes owned elsewhere go to their owners (the rank whose unknowns hold the node's first);
+//    a node with every component held has no row at all.
+PetscErrorCode LatticeGalerkin::send_rows_to_owners(int l, const Numbers& numbers, Rows& acc) const {
+  PetscFunctionBeginUser;
+  auto number = [&](std::int64_t g) { return numbers.number(g); };
   const int size = model_.size;
   std::vector<PetscInt> firsts(size), counts(size);
   PetscCallMPI(MPI_Allgather(&levels_.first[l + 1], 1, MPIU_INT, firsts.data(), 1, MPIU_INT, model_.comm));
@@ -417,36 +465,52 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Ro
     double* to = acc.block(r, 0);
     for (int e = 0; e < kSlots * kBlock; ++e) to[e] += recvbuf[q + 2 + e];
   }
+  PetscFunctionReturn(0);
+}
 
-  // 4. This rank's coarse rows, held components (row's and column's) zeroed in place (row[c]: where node c's
-  //    row is; a copy in owned order would double the largest temporary), and the matrix.
+// The present slots of coarse node c's row (acc.row[c] set) with their column numbers, by column.
+void LatticeGalerkin::neighbours(int l, const Numbers& num, const Rows& acc, std::size_t c, Neighbours& nb) const {
+  const Body& shape = model_.shape;
+  const auto& planes = levels_.planes;
+  const auto& cnodes = levels_.owned_nodes[l + 1];
+  const auto& cplane = num.cplane;
+  auto& jnum = nb.jnum;
+  auto& order = nb.order;
+  int& norder = nb.norder;
+  const int b = model_.body[cnodes[c]];
+  const BoxGeometry& box = shape.body(b);
+  norder = 0;
+  const std::uint32_t bits = acc.present[acc.row[c]];
+  for (int s = 0; s < kSlots; ++s) {
+    if (!(bits >> s & 1)) continue;
+    const int q[3] = {cplane[c][0] + s % 3 - 1, cplane[c][1] + s / 3 % 3 - 1, cplane[c][2] + s / 9 - 1};
+    jnum[s] = num.number(box.id(planes[l + 1][b][0][q[0]], planes[l + 1][b][1][q[1]], planes[l + 1][b][2][q[2]]));
+    order[norder++] = s;
+  }
+  // Columns in increasing order, as AIJ keeps them.
+  std::sort(order.begin(), order.begin() + norder, [&](int x, int y) { return jnum[x] < jnum[y]; });
+}
+
+// 4. This rank's coarse rows, held components (row's and column's) zeroed in place (row[c]: where node c's
+//    row is; a copy in owned order would double the largest temporary), and their counts of nonzeros.
+PetscErrorCode LatticeGalerkin::mask_held(int l, const Numbers& num, Rows& acc, std::vector<PetscInt>& dnnz,
+                                          std::vector<PetscInt>& onnz) const {
+  PetscFunctionBeginUser;
+  const auto& cnodes = levels_.owned_nodes[l + 1];
+  const auto& cbase = levels_.base[l + 1];
+  const auto& mine = num.mine;
+  const auto& packed = num.packed;
   acc.row.assign(cnodes.size(), -1);
   const PetscInt cfirst = levels_.first[l + 1], clast = cfirst + levels_.count[l + 1];
-  std::vector<PetscInt> dnnz(levels_.count[l + 1], 0), onnz(levels_.count[l + 1], 0);
-  std::array<PetscInt, kSlots> jnum{};
-  std::array<int, kSlots> order{};  // the present slots by column, once `neighbours` ran
-  int norder = 0;
-  auto neighbours = [&](std::size_t c) {
-    const int b = model_.body[cnodes[c]];
-    const BoxGeometry& box = shape.body(b);
-    norder = 0;
-    const std::uint32_t bits = acc.present[acc.row[c]];
-    for (int s = 0; s < kSlots; ++s) {
-      if (!(bits >> s & 1)) continue;
-      const int q[3] = {cplane[c][0] + s % 3 - 1, cplane[c][1] + s / 3 % 3 - 1, cplane[c][2] + s / 9 - 1};
-      jnum[s] = number(box.id(planes[l + 1][b][0][q[0]], planes[l + 1][b][1][q[1]], planes[l + 1][b][2][q[2]]));
-      order[norder++] = s;
-    }
-    // Columns in increasing order, as AIJ keeps them.
-    std::sort(order.begin(), order.begin() + norder, [&](int x, int y) { return jnum[x] < jnum[y]; });
-  };
+  Neighbours nb;
+  const auto& jnum = nb.jnum;
   for (std::size_t c = 0; c < cnodes.size(); ++c) {
     const int mask = packed[c] % 8;
     if (!mask) continue;
     const auto it = acc.index.find(mine[c]);
     PetscCheck(it != acc.index.end(), PETSC_COMM_SELF, PETSC_ERR_PLIB, "lattice Galerkin product: an empty coarse row");
     const int r = acc.row[c] = it->second;
-    neighbours(c);
+    neighbours(l, num, acc, c, nb);
     for (int s = 0; s < kSlots; ++s) {
       if (!(acc.present[r] >> s & 1)) continue;
       const int jmask = static_cast<int>(jnum[s] % 8);
@@ -464,9 +528,24 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Ro
         if (mask >> k & 1) (local ? dnnz : onnz)[row++] += __builtin_popcount(jmask);
     }
   }
-  // The matrix's CSR arrays, diagonal and off-diagonal parts (off-diagonal columns global), written here and
-  // handed to PETSc without a copy: the pattern is the lattice's, the same on every call, so a refill writes
-  // the values in the same places.
+  PetscFunctionReturn(0);
+}
+
+// The coarse matrix from the masked rows: its CSR arrays, diagonal and off-diagonal parts (off-diagonal columns
+// global), written here and handed to PETSc without a copy: the pattern is the lattice's, the same on every
+// call, so a refill writes the values in the same places.
+PetscErrorCode LatticeGalerkin::fill_coarse_matrix(int l, const Numbers& num, const Rows& acc,
+                                                   const std::vector<PetscInt>& dnnz,
+                                                   const std::vector<PetscInt>& onnz) {
+  PetscFunctionBeginUser;
+  const auto& cnodes = levels_.owned_nodes[l + 1];
+  const auto& cbase = levels_.base[l + 1];
+  const auto& packed = num.packed;
+  const PetscInt cfirst = levels_.first[l + 1], clast = cfirst + levels_.count[l + 1];
+  Neighbours nb;
+  const auto& jnum = nb.jnum;
+  const auto& order = nb.order;
+  const int& norder = nb.norder;
   Csr& m = csr_[l + 1];
   Mat& C = coarse_[l + 1];
   const PetscInt nrows = levels_.count[l + 1];
@@ -480,7 +559,7 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Ro
   for (std::size_t c = 0; c < cnodes.size(); ++c) {
     const int mask = packed[c] % 8;
     if (!mask) continue;
-    neighbours(c);
+    neighbours(l, num, acc, c, nb);
     for (int k = 0, row = static_cast<int>(cbase[c] - cfirst); k < 3; ++k) {
       if (!(mask >> k & 1)) continue;
       PetscInt d = m.di[row], o = m.oi[row];
@@ -518,10 +597,9 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Ro
   } else {
     PetscCall(PetscObjectStateIncrease(reinterpret_cast<PetscObject>(C)));  // new values in the same arrays
   }
-  acc.index = {};
-  next = std::move(acc);
   PetscFunctionReturn(0);
 }
+
 
 PetscErrorCode LatticeGalerkin::update(Mat fine, PC pc) {
   PetscFunctionBeginUser;

@@ -35,7 +35,18 @@ public:
 
 private:
   struct Rows;
+  struct Numbers;
+  struct Neighbours;
   PetscErrorCode coarsen(int l, Mat fine, const Rows* stencil, Rows& next);
+  // coarsen's steps, in order (lattice_galerkin.cpp narrates each).
+  PetscErrorCode accumulate_rows(int l, Mat fine, const Rows* stencil, Rows& acc) const;
+  PetscErrorCode number_coarse_nodes(int l, const Rows& acc, Numbers& num) const;
+  PetscErrorCode send_rows_to_owners(int l, const Numbers& numbers, Rows& acc) const;
+  PetscErrorCode mask_held(int l, const Numbers& num, Rows& acc, std::vector<PetscInt>& dnnz,
+                           std::vector<PetscInt>& onnz) const;
+  PetscErrorCode fill_coarse_matrix(int l, const Numbers& num, const Rows& acc, const std::vector<PetscInt>& dnnz,
+                                    const std::vector<PetscInt>& onnz);
+  void neighbours(int l, const Numbers& num, const Rows& acc, std::size_t c, Neighbours& nb) const;
 
   const LocalModel& model_;
   const std::vector<std::uint8_t>& held_;

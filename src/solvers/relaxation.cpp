@@ -7,6 +7,7 @@
 
 #include "src/solvers/guards.hpp"
 #include "src/solvers/progress.hpp"
+#include "src/solvers/setup_checks.hpp"
 #include "src/solvers/solver.hpp"
 
 namespace tissue {

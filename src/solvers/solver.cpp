@@ -1,6 +1,7 @@
 #include "src/solvers/solver.hpp"
 
-#include "src/solvers/guards.hpp"
+#include "src/solvers/molecule_report.hpp"
+#include "src/solvers/setup_checks.hpp"
 
 #include <cmath>
 #include <cstdio>

@@ -16,6 +16,7 @@
 #include "src/solvers/guards.hpp"
 #include "src/solvers/lattice_galerkin.hpp"
 #include "src/solvers/lattice_mg.hpp"
+#include "src/solvers/molecule_report.hpp"
 #include "src/solvers/solver.hpp"
 
 namespace tissue {

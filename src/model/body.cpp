@@ -69,7 +69,8 @@ Body build_one(const BodySpec& spec, std::int64_t first) {
 Body build_any(const Scene& scene, const BodySpec& spec, std::size_t index, std::size_t count, std::int64_t first) {
   const std::string key = count > 1 ? "body[" + std::to_string(index) + "]" : "body";
   if (spec.shape == "mesh" && spec.topology == "random")
-    return build_unstructured(spec, random_in_mesh(read_gmsh(spec.file, spec.mesh_size), spec, scene.file, key), first, scene.file, key);
+    return build_unstructured(spec, random_in_mesh(read_gmsh(spec.file, spec.mesh_size), spec, scene.file, key),
+                              first, scene.file, key);
   if (spec.shape == "mesh") return build_unstructured(spec, read_gmsh(spec.file, spec.mesh_size), first, scene.file, key);
   if (spec.topology == "random") return build_unstructured(spec, random_cloud(spec), first, scene.file, key);
   return build_one(spec, first);

@@ -359,6 +359,9 @@ TetMesh read_gmsh(const std::string& path, double mesh_size) {
   if (model.partitioned)  // its entities and their order are the partitioning's, not the model's
     throw InputError(path, "", "a partitioned mesh; save it unpartitioned (tissue partitions it itself)");
 
+  if (model.coords.size() != 3 * model.node_tags.size())
+    throw InputError(path, "", fmt::format("Gmsh gave {} coordinates for {} nodes", model.coords.size(),
+                                           model.node_tags.size()));
   const std::vector<std::size_t>& node_tag = model.node_tags;
   const std::vector<double>& coord = model.coords;
   const NodeIndex gmsh_index(node_tag);

@@ -21,6 +21,11 @@
 
 namespace tissue {
 
+// Whether a written file was abandoned after a failed write (a full disk, a quota, an I/O error): HDF5 still holds
+// it open, and finalizing HDF5 (MPI_Finalize) would try to close it in collectives that cannot complete. The
+// program then ends without finalizing (src/main.cpp). Not collective.
+bool hdf5_files_abandoned();
+
 class Hdf5File {
 public:
   // Collective. Create (truncating) <path>.tmp for writing; close() moves it to <path>.
@@ -104,7 +109,12 @@ private:
   hid_t open_checked_attribute(const std::string& object, const std::string& name, int expected, size_t max_size,
                                size_t* size) const;
   [[noreturn]] void fail(const std::string& object, const std::string& what) const;
+  // As fail(), for a failed write: an OutputError naming the file and the system error `err` (errno) if it says why.
+  [[noreturn]] void fail_io(const std::string& object, const std::string& what, int err) const;
   void release() noexcept;  // close without publishing; removes an unpublished tmp file
+  // After an agreed write failure: forget the file without closing it (HDF5's close is a collective that the
+  // ranks can no longer complete together); rank 0 removes the tmp file.
+  void abandon() noexcept;
 
   std::string path_;
   MPI_Comm comm_ = MPI_COMM_NULL;

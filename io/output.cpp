@@ -13,6 +13,7 @@
 #include "io/hdf5_file.hpp"
 #include "io/snapshot.hpp"
 #include "io/summary.hpp"
+#include "partition/agreement.hpp"
 
 namespace tissue {
 
@@ -34,7 +35,7 @@ void make_directories(const std::string& path) {
   for (std::size_t i = 0; i <= path.size(); ++i) {
     if (i == path.size() || path[i] == '/') {
       if (!partial.empty() && mkdir(partial.c_str(), 0755) != 0 && errno != EEXIST)
-        throw std::runtime_error(partial + ": cannot create directory: " + std::strerror(errno));
+        throw OutputError(partial + ": cannot create directory: " + std::strerror(errno));
     }
     if (i < path.size()) partial += path[i];
   }
@@ -62,13 +63,22 @@ const NaturalOrder& Output::connections() {
 
 void Output::make_directory() {
   if (directory_made_) return;
-  if (model_.rank == 0) make_directories(scene_.output.directory);
-  MPI_Barrier(model_.comm);
+  // Agreed: rank 0 alone creates it, and a failure stops every rank with its line (never a hang).
+  agree(model_.comm, [&] {
+    if (model_.rank == 0) make_directories(scene_.output.directory);
+  });
   directory_made_ = true;
 }
 
 void Output::snapshot(const SolverState& state, const ForceModel& forces, bool final, const char* file_name) {
   if (scene_.output.fields.empty()) return;  // `fields = []`: the scene asks for no snapshot, and pays for none
+  // One agreed stage: a failure on any rank (a full disk, a quota, an I/O error) is the same OutputError on
+  // every rank, and the run stops with exit 3 (a snapshot the user asked for is never silently missing).
+  agree(model_.comm, [&] { write_snapshot_stage(state, forces, final, file_name); });
+}
+
+void Output::write_snapshot_stage(const SolverState& state, const ForceModel& forces, bool final,
+                                  const char* file_name) {
   make_directory();
   const double* x = state.x.array();
   SnapshotFrame frame;
@@ -123,12 +133,16 @@ void Output::snapshot(const SolverState& state, const ForceModel& forces, bool f
   const std::string dir = scene_.output.directory + "/";
   XdmfEntry entry = write_snapshot(dir + name, model_.comm, frame);
   frames_.push_back(entry);
-  if (model_.rank == 0) write_xdmf(dir + "tissue.xdmf", frames_);
+  agree(model_.comm, [&] {
+    if (model_.rank == 0) write_xdmf(dir + "tissue.xdmf", frames_);
+  });
 }
 
 std::string Output::checkpoint(const SolverState& state) {
-  make_directory();
-  return write_checkpoint(scene_.output.directory, 2, scene_, model_, molecules(), connections(), state);
+  return agree(model_.comm, [&] {
+    make_directory();
+    return write_checkpoint(scene_.output.directory, 2, scene_, model_, molecules(), connections(), state);
+  });
 }
 
 void Output::summary(const TensionTest& test, const Measurements& measured, const Measurements& initial,
@@ -136,8 +150,16 @@ void Output::summary(const TensionTest& test, const Measurements& measured, cons
                      const std::string& failure) {
   long peak = peak_memory_bytes(), peak_max = 0;
   MPI_Allreduce(&peak, &peak_max, 1, MPI_LONG, MPI_MAX, model_.comm);
-  make_directory();  // collective (a barrier): before rank 0 goes on alone
-  if (model_.rank != 0) return;
+  make_directory();  // collective (agreed): before rank 0 goes on alone
+  // Rank 0 writes; every rank learns whether it could (one agreed stage).
+  agree(model_.comm, [&] {
+    if (model_.rank == 0) write_summary(test, measured, initial, report, state, wall_seconds, failure, peak_max);
+  });
+}
+
+void Output::write_summary(const TensionTest& test, const Measurements& measured, const Measurements& initial,
+                           const SolveReport& report, const SolverState& state, double wall_seconds,
+                           const std::string& failure, long peak_max) {
   using nlohmann::json;
   auto opt = [](const std::optional<double>& v) { return v ? json(*v) : json(nullptr); };
   const double target =  // Eq. 3 reads the body the load is on

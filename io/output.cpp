@@ -74,7 +74,21 @@ void Output::snapshot(const SolverState& state, const ForceModel& forces, bool f
   if (scene_.output.fields.empty()) return;  // `fields = []`: the scene asks for no snapshot, and pays for none
   // One agreed stage: a failure on any rank (a full disk, a quota, an I/O error) is the same OutputError on
   // every rank, and the run stops with exit 3 (a snapshot the user asked for is never silently missing).
+  const std::string name = file_name ? file_name : final ? "final.h5" : snapshot_name(state.step);
+  const std::string path = scene_.output.directory + "/" + name;
+  StageDeadline deadline(model_.comm, path, stage_seconds(stage_bytes()), path + ".tmp");
   agree(model_.comm, [&] { write_snapshot_stage(state, forces, final, file_name); });
+}
+
+std::string Output::snapshot_name(long step) {
+  char name[64];
+  std::snprintf(name, sizeof name, "snapshot_%08ld.h5", step);
+  return name;
+}
+
+double Output::stage_bytes() const {
+  // At most: 4 vectors of 3 doubles per molecule, the endpoints and 3 doubles per connection.
+  return 96.0 * static_cast<double>(model_.global_molecules) + 40.0 * static_cast<double>(model_.global_connections);
 }
 
 void Output::write_snapshot_stage(const SolverState& state, const ForceModel& forces, bool final,
@@ -139,6 +153,10 @@ void Output::write_snapshot_stage(const SolverState& state, const ForceModel& fo
 }
 
 std::string Output::checkpoint(const SolverState& state) {
+  char name[64];
+  std::snprintf(name, sizeof name, "checkpoint_%010ld.h5", state.step);
+  const std::string path = scene_.output.directory + "/" + name;
+  StageDeadline deadline(model_.comm, path, stage_seconds(stage_bytes()), path + ".tmp");
   return agree(model_.comm, [&] {
     make_directory();
     return write_checkpoint(scene_.output.directory, 2, scene_, model_, molecules(), connections(), state);
@@ -148,6 +166,8 @@ std::string Output::checkpoint(const SolverState& state) {
 void Output::summary(const TensionTest& test, const Measurements& measured, const Measurements& initial,
                      const SolveReport& report, const SolverState& state, double wall_seconds,
                      const std::string& failure) {
+  const std::string path = scene_.output.directory + "/summary.json";
+  StageDeadline deadline(model_.comm, path, stage_seconds(0), path + ".tmp");
   long peak = peak_memory_bytes(), peak_max = 0;
   MPI_Allreduce(&peak, &peak_max, 1, MPI_LONG, MPI_MAX, model_.comm);
   make_directory();  // collective (agreed): before rank 0 goes on alone

@@ -32,6 +32,8 @@ public:
 
 private:
   void make_directory();
+  static std::string snapshot_name(long step);
+  double stage_bytes() const;  // a bound on one file's size, for its StageDeadline
   void write_snapshot_stage(const SolverState& state, const ForceModel& forces, bool final, const char* name);
   void write_summary(const TensionTest& test, const Measurements& measured, const Measurements& initial,
                      const SolveReport& report, const SolverState& state, double wall_seconds,

@@ -2,8 +2,13 @@
 
 #include <unistd.h>
 
+#include <algorithm>
+#include <chrono>
+#include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
+#include <mutex>
+#include <thread>
 #include <vector>
 
 namespace tissue {
@@ -131,6 +136,85 @@ void agree_on(MPI_Comm comm, std::exception_ptr error) {
   text.resize(static_cast<std::size_t>(header[1]));
   if (header[1] > 0) MPI_Bcast(text.data(), header[1], MPI_CHAR, first, dup);
   throw_kind(header[0], std::string(text.begin(), text.end()));
+}
+
+namespace {
+
+// The watchdog of StageDeadline: one thread, started at the first deadline, never joined (it sleeps while no
+// deadline is armed).
+struct Watchdog {
+  std::mutex mutex;
+  std::condition_variable changed;
+  int depth = 0;
+  std::chrono::steady_clock::time_point deadline;
+  std::string message, leftover;
+  int rank = 0;
+  bool started = false;
+};
+
+Watchdog& watchdog() {
+  static Watchdog* w = new Watchdog;  // never destroyed: the thread may outlive static destruction
+  return *w;
+}
+
+void watch() {
+  Watchdog& w = watchdog();
+  std::unique_lock<std::mutex> lock(w.mutex);
+  for (;;) {
+    if (w.depth == 0) {
+      w.changed.wait(lock);
+      continue;
+    }
+    if (std::chrono::steady_clock::now() >= w.deadline) {
+      if (w.rank == 0) {
+        if (!w.leftover.empty()) std::remove(w.leftover.c_str());
+        std::fprintf(stderr, "tissue: %s\n", w.message.c_str());
+        std::fflush(stderr);
+      }
+      std::_Exit(3);
+    }
+    w.changed.wait_until(lock, w.deadline);
+  }
+}
+
+}  // namespace
+
+double stage_seconds(double bytes) {
+  static const double base = [] {
+    const char* s = std::getenv("TISSUE_STAGE_SECONDS");
+    const double v = s ? std::atof(s) : 0.0;
+    return v > 0 ? v : 120.0;
+  }();
+  return base + bytes / 1e7;
+}
+
+StageDeadline::StageDeadline(MPI_Comm comm, const std::string& what, double seconds, const std::string& leftover) {
+  int rank = 0;
+  MPI_Comm_rank(comm, &rank);
+  Watchdog& w = watchdog();
+  std::lock_guard<std::mutex> lock(w.mutex);
+  armed_ = true;
+  if (w.depth++ > 0) return;
+  w.deadline = std::chrono::steady_clock::now() +
+               std::chrono::milliseconds(static_cast<long long>(1000 * (seconds + std::min(rank, 8))));
+  w.rank = rank;
+  w.leftover = leftover;
+  w.message = what + ": the write did not finish within " + std::to_string(static_cast<long long>(seconds)) +
+              " s (a rank is stuck in a collective: an I/O error on one rank can leave parallel HDF5 waiting " +
+              "forever): job ended";
+  if (!w.started) {
+    w.started = true;
+    std::thread(watch).detach();
+  }
+  w.changed.notify_all();
+}
+
+StageDeadline::~StageDeadline() {
+  if (!armed_) return;
+  Watchdog& w = watchdog();
+  std::lock_guard<std::mutex> lock(w.mutex);
+  --w.depth;
+  w.changed.notify_all();
 }
 
 }  // namespace tissue

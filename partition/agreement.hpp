@@ -81,6 +81,27 @@ auto agree(MPI_Comm comm, Work&& work) -> decltype(work()) {
 // Seconds a failed rank waits for the others at an agreement before it calls MPI_Abort.
 double agreement_seconds();
 
+// The bound on a stage whose ranks may be stuck where no agreement can reach them: inside a library's collective
+// (parallel HDF5 waits forever in H5Fclose or MPI_File_open when one rank's write or open failed). While a
+// StageDeadline lives, a watchdog thread watches the clock; past the deadline the rank prints one line ("tissue:
+// WHAT did not finish within N s ...") and exits with code 3, which ends the job (the launcher stops the other
+// ranks). Rank 0 alone prints and removes `leftover` (the stage's half-written file, if any); rank r > 0 waits r
+// extra seconds (up to 8) and exits silently, in case rank 0 is not stuck. Nested deadlines: the outermost
+// counts. The last resort, never a hang.
+class StageDeadline {
+public:
+  StageDeadline(MPI_Comm comm, const std::string& what, double seconds, const std::string& leftover = "");
+  ~StageDeadline();
+  StageDeadline(const StageDeadline&) = delete;
+  StageDeadline& operator=(const StageDeadline&) = delete;
+
+private:
+  bool armed_ = false;
+};
+
+// The bound for a stage that writes about `bytes`: TISSUE_STAGE_SECONDS (default 120) plus 1 s per 10 MB.
+double stage_seconds(double bytes);
+
 // Last resort, never returns: prints "tissue: MESSAGE" on stderr (this rank) and ends every rank with MPI_Abort
 // (exit code `code`).
 [[noreturn]] void abort_job(MPI_Comm comm, const std::string& message, int code);

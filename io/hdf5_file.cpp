@@ -54,10 +54,11 @@ std::string hdf5_reason() {
 
 // The system error behind a failed HDF5 or MPI-IO call, when the call left one that says what went wrong on the
 // disk (the MPI-IO layer reports "MPI_ERR_OTHER" or similar for a full disk; errno still holds the cause).
+// Only the errors a write itself can meet are believed: the MPI-IO layer makes other calls after the failed one
+// (ENOENT was seen after an EIO), and a wrong reason is worse than none.
 std::string system_error(int err) {
   switch (err) {
-    case ENOSPC: case EDQUOT: case EIO: case EROFS: case EACCES: case EPERM: case EFBIG: case ENOENT: case ENOTDIR:
-    case EISDIR: case ENAMETOOLONG: case ELOOP: case EMFILE: case ENFILE:
+    case ENOSPC: case EDQUOT: case EIO: case EROFS: case EFBIG:
       return std::strerror(err);
     default:
       return "";

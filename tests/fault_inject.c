@@ -3,7 +3,8 @@
  *
  *   TISSUE_FAULT_CALL   open | write | pwrite | fsync | rename   (write: write, writev; pwrite: pwrite, pwrite64,
  *                       pwritev, pwritev2; open: open/openat/creat for writing; fsync: fsync, fdatasync)
- *   TISSUE_FAULT_ERRNO  ENOSPC | EDQUOT | EIO                   (default ENOSPC)
+ *   TISSUE_FAULT_ERRNO  ENOSPC | EDQUOT | EIO | SIGKILL         (default ENOSPC; SIGKILL: the process kills itself
+ *                       with kill -9 in that call: a rank dying in the middle of a write)
  *   TISSUE_FAULT_RANK   0 | 1 | ... | all                        (OMPI_COMM_WORLD_RANK, or PMI_RANK; none: rank 0)
  *   TISSUE_FAULT_AFTER  write, pwrite: bytes let through first; open, fsync, rename: calls let through first
  *   TISSUE_FAULT_FILE   only calls on files whose path holds this text count and fail (default: every file)
@@ -16,6 +17,7 @@
 #include <dlfcn.h>
 #include <errno.h>
 #include <fcntl.h>
+#include <signal.h>
 #include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -43,6 +45,7 @@ static void configure(void) {
   const char* e = getenv("TISSUE_FAULT_ERRNO");
   if (e && strcmp(e, "EDQUOT") == 0) fault_errno = EDQUOT;
   else if (e && strcmp(e, "EIO") == 0) fault_errno = EIO;
+  else if (e && strcmp(e, "SIGKILL") == 0) fault_errno = -SIGKILL;
   const char* a = getenv("TISSUE_FAULT_AFTER");
   after = a ? atoll(a) : 0;
   const char* f = getenv("TISSUE_FAULT_FILE");
@@ -80,8 +83,10 @@ static int inject(const char* name, int matches, long long amount, const char* w
   used = after + 1;  /* sticky */
   if (!logged && getenv("TISSUE_FAULT_LOG")) {
     logged = 1;
-    fprintf(stderr, "fault: %s %s %s\n", name, what ? what : "", strerror(fault_errno));
+    fprintf(stderr, "fault: %s %s %s\n", name, what ? what : "",
+            fault_errno == -SIGKILL ? "kill -9" : strerror(fault_errno));
   }
+  if (fault_errno == -SIGKILL) kill(getpid(), SIGKILL);
   errno = fault_errno;
   return 1;
 }

@@ -79,7 +79,10 @@ std::string write_checkpoint(const std::string& directory, int keep, const Scene
   std::snprintf(name, sizeof name, "checkpoint_%010ld.h5", state.step);
   const std::string path = directory + "/" + name;
   {
-    Hdf5File f = Hdf5File::create(path, model.comm);
+    // The space the file needs, reserved first: a full disk fails here, cleanly (Hdf5File::create).
+    const std::int64_t bytes = 48 * model.global_molecules + 32 * model.global_connections +
+                               static_cast<std::int64_t>(scene.text.size()) + (1 << 20);
+    Hdf5File f = Hdf5File::create(path, model.comm, bytes);
     f.set_attribute("/", "kind", "checkpoint");
     f.set_attribute("/", "program", "tissue");
     f.set_attribute("/", "version", TISSUE_VERSION);

@@ -175,7 +175,7 @@ void verify_seal(const std::string& path, MPI_Comm comm) {
 Hdf5File::Hdf5File(std::string path, MPI_Comm comm, bool writable)
     : path_(std::move(path)), comm_(comm), writable_(writable) {}
 
-Hdf5File Hdf5File::create(const std::string& path, MPI_Comm comm) {
+Hdf5File Hdf5File::create(const std::string& path, MPI_Comm comm, int64_t reserve) {
   quiet_hdf5();
   Hdf5File f(path, comm, true);
   Handle fapl(file_access(comm), H5Pclose);
@@ -189,6 +189,21 @@ Hdf5File Hdf5File::create(const std::string& path, MPI_Comm comm) {
       f.file_ = H5Fcreate((path + ".tmp").c_str(), H5F_ACC_TRUNC, fcpl.get(), fapl.get());
       if (f.file_ < 0) f.fail_io("", "cannot create " + path + ".tmp", errno);
     });
+    if (reserve > 0)
+      agree(comm, [&] {
+        int rank = 0;
+        MPI_Comm_rank(comm, &rank);
+        if (rank != 0) return;
+        const std::string tmp = path + ".tmp";
+        const int fd = ::open(tmp.c_str(), O_WRONLY | O_CLOEXEC);
+        if (fd < 0) throw OutputError(path + ": cannot open " + tmp + ": " + std::strerror(errno));
+        const int rc = ::fallocate(fd, FALLOC_FL_KEEP_SIZE, 0, static_cast<off_t>(reserve));
+        const int err = errno;
+        ::close(fd);
+        if (rc != 0 && err != EOPNOTSUPP && err != ENOSYS && err != EINVAL)  // not supported: the writes will tell
+          throw OutputError(path + ": cannot reserve " + std::to_string((reserve + 999999) / 1000000) + " MB for " +
+                            tmp + ": " + std::strerror(err));
+      });
   } catch (...) {
     f.abandon();  // a rank may hold the file and another not: no collective close (rank 0 removes the .tmp)
     throw;
@@ -296,7 +311,9 @@ void Hdf5File::close() {
       const int fd = ::open(tmp.c_str(), O_WRONLY);
       if (fd < 0) throw OutputError(path_ + ": cannot open " + tmp + " to seal it: " + std::strerror(errno));
       const char* step = "write the seal of";
+      // Truncating to its own size gives back the space reserved beyond the end (create()).
       bool ok = ::pwrite(fd, header, kUserBlock, 0) == static_cast<ssize_t>(kUserBlock);
+      if (ok) step = "truncate", ok = ::ftruncate(fd, static_cast<off_t>(size)) == 0;
       if (ok) step = "fsync", ok = ::fsync(fd) == 0;
       const int err = errno;
       ::close(fd);

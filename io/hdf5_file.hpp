@@ -28,8 +28,11 @@ bool hdf5_files_abandoned();
 
 class Hdf5File {
 public:
-  // Collective. Create (truncating) <path>.tmp for writing; close() moves it to <path>.
-  static Hdf5File create(const std::string& path, MPI_Comm comm);
+  // Collective. Create (truncating) <path>.tmp for writing; close() moves it to <path>. `reserve` > 0: the disk
+  // space for a file of about that many bytes is reserved first (fallocate, beyond the end of the file; the rest
+  // is given back at close), so that a full disk or an exhausted quota fails here, agreed on every rank, with
+  // its system error, and not in the middle of HDF5's collective writes (which cannot fail cleanly on one rank).
+  static Hdf5File create(const std::string& path, MPI_Comm comm, int64_t reserve = 0);
   // Collective. Open an existing file read-only: check its seal, then let `walk` read, on a serially opened copy
   // (open_serial) in a child process of rank 0, the metadata that the caller will read (io/isolated_parse.hpp), and
   // only then parse the file here. A file that crashes HDF5 in the child is refused with one InputError line

@@ -424,30 +424,30 @@ void Hdf5File::write_block(const std::string& dataset, int64_t global_rows, int 
   // after a failed write HDF5's ranks no longer agree on what closing it takes (one flushes its metadata in a
   // collective, another has given up and truncates in another: a hang, seen with the fault tests).
   try {
-  agree(comm_, [&] {
-  errno = 0;
-  Handle dset(H5Dcreate2(file_, dataset.c_str(), file_type, file_space.get(), lcpl.get(), dcpl.get(), H5P_DEFAULT),
-              H5Dclose);
-  if (!dset.ok()) fail_io(dataset, "cannot create dataset", errno);
+    agree(comm_, [&] {
+      errno = 0;
+      Handle dset(H5Dcreate2(file_, dataset.c_str(), file_type, file_space.get(), lcpl.get(), dcpl.get(), H5P_DEFAULT),
+                  H5Dclose);
+      if (!dset.ok()) fail_io(dataset, "cannot create dataset", errno);
 
-  const hsize_t start[2] = {static_cast<hsize_t>(offset), 0};
-  const hsize_t count[2] = {static_cast<hsize_t>(rows), static_cast<hsize_t>(width)};
-  // A rank with no rows still takes part in the collective write, with empty selections.
-  const hsize_t mem_dims[2] = {rows > 0 ? count[0] : 1, count[1]};
-  Handle mem_space(H5Screate_simple(2, mem_dims, nullptr), H5Sclose);
-  if (!mem_space.ok()) fail(dataset, "cannot create dataspace");
-  herr_t sel = rows > 0 ? H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr)
-                        : H5Sselect_none(file_space.get());
-  if (sel < 0 || (rows == 0 && H5Sselect_none(mem_space.get()) < 0)) fail(dataset, "cannot select rows");
+      const hsize_t start[2] = {static_cast<hsize_t>(offset), 0};
+      const hsize_t count[2] = {static_cast<hsize_t>(rows), static_cast<hsize_t>(width)};
+      // A rank with no rows still takes part in the collective write, with empty selections.
+      const hsize_t mem_dims[2] = {rows > 0 ? count[0] : 1, count[1]};
+      Handle mem_space(H5Screate_simple(2, mem_dims, nullptr), H5Sclose);
+      if (!mem_space.ok()) fail(dataset, "cannot create dataspace");
+      herr_t sel = rows > 0 ? H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr)
+                            : H5Sselect_none(file_space.get());
+      if (sel < 0 || (rows == 0 && H5Sselect_none(mem_space.get()) < 0)) fail(dataset, "cannot select rows");
 
-  Handle dxpl(H5Pcreate(H5P_DATASET_XFER), H5Pclose);
-  if (!dxpl.ok() || H5Pset_dxpl_mpio(dxpl.get(), H5FD_MPIO_COLLECTIVE) < 0) fail(dataset, "cannot set up transfer");
-  const double dummy = 0.0;
-  errno = 0;
-  if (H5Dwrite(dset.get(), mem_type, mem_space.get(), file_space.get(), dxpl.get(), rows > 0 ? data : &dummy) < 0)
-    fail_io(dataset, "cannot write rows [" + std::to_string(offset) + ", " + std::to_string(offset + rows) + ")",
-            errno);
-  });
+      Handle dxpl(H5Pcreate(H5P_DATASET_XFER), H5Pclose);
+      if (!dxpl.ok() || H5Pset_dxpl_mpio(dxpl.get(), H5FD_MPIO_COLLECTIVE) < 0) fail(dataset, "cannot set up transfer");
+      const double dummy = 0.0;
+      errno = 0;
+      if (H5Dwrite(dset.get(), mem_type, mem_space.get(), file_space.get(), dxpl.get(), rows > 0 ? data : &dummy) < 0)
+        fail_io(dataset, "cannot write rows [" + std::to_string(offset) + ", " + std::to_string(offset + rows) + ")",
+                errno);
+    });
   } catch (...) {
     abandon();
     throw;

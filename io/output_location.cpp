@@ -129,9 +129,9 @@ void check_output_location(const Scene& scene, MPI_Comm comm) {
       if (::statvfs(dir.c_str(), &fs) != 0) return;  // unknown: the writes will tell
       const double free_bytes = static_cast<double>(fs.f_bavail) * static_cast<double>(fs.f_frsize);
       const OutputEstimate e = estimate_output(scene);
+      const bool checkpoint_first = e.checkpoint_bytes > e.snapshot_bytes && scene.output.checkpoint_every > 0;
       if (free_bytes < static_cast<double>(e.first_bytes))
-        refuse("has " + megabytes(free_bytes) + " free; the first " +
-               (e.checkpoint_bytes > e.snapshot_bytes && scene.output.checkpoint_every > 0 ? "checkpoint" : "snapshot") +
+        refuse("has " + megabytes(free_bytes) + " free; the first " + (checkpoint_first ? "checkpoint" : "snapshot") +
                " needs about " + megabytes(static_cast<double>(e.first_bytes)) + " (" +
                std::to_string(e.molecules) + " molecules, about " + std::to_string(e.connections) + " connections)");
       if (free_bytes < static_cast<double>(e.run_bytes))

@@ -283,6 +283,20 @@ def main():
         """File names in the table: checkpoint_0000000005.h5 -> ckpt 5, snapshot_00000010.h5 -> snap 10."""
         return re.sub(r"snapshot_0*(\d+)\.h5", r"snap \1", re.sub(r"checkpoint_0*(\d+)\.h5", r"ckpt \1", text))
 
+    # The agreement's last resort: rank 1 fails while rank 0 waits in a collective rank 1 left
+    # (tests/agreement_stuck.cpp).
+    if not args.only or args.only in "agreement":
+        stuck = os.path.join(args.build, "tests", "agreement_stuck")
+        cmd, env = launch(2)
+        env["TISSUE_AGREEMENT_SECONDS"] = "3"
+        rc, _, err, seconds = run(cmd + ["-x", "TISSUE_AGREEMENT_SECONDS", stuck], env, timeout=LIMIT + 30)
+        lines = [l for l in err.splitlines() if l.strip()]
+        ok = rc == 3 and seconds < LIMIT and len(lines) == 1 and "job aborted" in lines[0]
+        check(ok, "a failed rank whose peers are stuck in the stage ends the job at 2 ranks",
+              "exit %s in %.1f s: %s" % (rc, seconds, " | ".join(lines)))
+        rows.append(("failed rank, peers stuck in the stage", "1", 2, "-", rc, seconds,
+                     "MPI_Abort after TISSUE_AGREEMENT_SECONDS (3 s here)", "-"))
+
     if args.table:
         rows[:] = [r[:7] + (short(r[7]),) for r in rows]
         with open(args.table, "w") as f:

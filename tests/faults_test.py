@@ -38,10 +38,10 @@ except ImportError:  # CMake may have found a python without Debian's h5py
 
 LIMIT = 30.0  # seconds a faulted run may take, at most
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-           OMPI_MCA_rmaps_base_oversubscribe="1",
-           # the bounds of the last resorts (partition/agreement.hpp), short for the test: a stuck write ends
-           # after 5 s, a failed rank waits 5 s for the others
-           TISSUE_STAGE_SECONDS="5", TISSUE_AGREEMENT_SECONDS="5")
+           OMPI_MCA_rmaps_base_oversubscribe="1")
+# The bounds of the last resorts (partition/agreement.hpp), short for the faulted runs only: a stuck write ends
+# after 5 s, a failed rank waits 5 s for the others. Fault-free runs and restarts keep the defaults.
+BOUNDS = {"TISSUE_STAGE_SECONDS": "5", "TISSUE_AGREEMENT_SECONDS": "5"}
 SETS = ["body.molecules=[4,4,4]", "solver.kind=dynamic", "solver.steps=20", "output.snapshot_every=5",
         "output.checkpoint_every=5", "output.progress=false", 'output.fields=["positions","velocities"]']
 
@@ -87,7 +87,8 @@ def launch(np_, shim=None, fault=None):
     env = dict(ENV)
     if fault:
         env.update(fault)
-        cmd += ["-x", "LD_PRELOAD=" + shim] + sum((["-x", k] for k in fault), [])
+        env.update(BOUNDS)
+        cmd += ["-x", "LD_PRELOAD=" + shim] + sum((["-x", k] for k in list(fault) + list(BOUNDS)), [])
     return cmd, env
 
 

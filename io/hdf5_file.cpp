@@ -311,9 +311,12 @@ void Hdf5File::close() {
       const int fd = ::open(tmp.c_str(), O_WRONLY);
       if (fd < 0) throw OutputError(path_ + ": cannot open " + tmp + " to seal it: " + std::strerror(errno));
       const char* step = "write the seal of";
-      // Truncating to its own size gives back the space reserved beyond the end (create()).
+      // Growing by a byte and shrinking back to its size gives back the space reserved beyond the end (create()):
+      // only a shrinking truncate frees preallocated blocks on every file system (XFS keeps them otherwise).
       bool ok = ::pwrite(fd, header, kUserBlock, 0) == static_cast<ssize_t>(kUserBlock);
-      if (ok) step = "truncate", ok = ::ftruncate(fd, static_cast<off_t>(size)) == 0;
+      if (ok)
+        step = "truncate", ok = ::ftruncate(fd, static_cast<off_t>(size) + 1) == 0 &&
+                                ::ftruncate(fd, static_cast<off_t>(size)) == 0;
       if (ok) step = "fsync", ok = ::fsync(fd) == 0;
       const int err = errno;
       ::close(fd);

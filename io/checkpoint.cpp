@@ -14,6 +14,7 @@
 #include <type_traits>
 
 #include "io/hdf5_file.hpp"
+#include "partition/agreement.hpp"
 
 namespace tissue {
 
@@ -78,7 +79,10 @@ std::string write_checkpoint(const std::string& directory, int keep, const Scene
   std::snprintf(name, sizeof name, "checkpoint_%010ld.h5", state.step);
   const std::string path = directory + "/" + name;
   {
-    Hdf5File f = Hdf5File::create(path, model.comm);
+    // The space the file needs, reserved first: a full disk fails here, cleanly (Hdf5File::create).
+    const std::int64_t bytes = 48 * model.global_molecules + 32 * model.global_connections +
+                               static_cast<std::int64_t>(scene.text.size()) + (1 << 20);
+    Hdf5File f = Hdf5File::create(path, model.comm, bytes);
     f.set_attribute("/", "kind", "checkpoint");
     f.set_attribute("/", "program", "tissue");
     f.set_attribute("/", "version", TISSUE_VERSION);
@@ -114,17 +118,20 @@ std::string write_checkpoint(const std::string& directory, int keep, const Scene
     f.close();  // flushed and renamed: a checkpoint on disk under its name is always complete
   }
   // The new checkpoint (and its name in the directory) reach the disk before any older one is removed, so that
-  // a power loss cannot leave fewer complete checkpoints than before. (Best effort: an fsync that fails leaves
-  // the file as the page cache has it, which a killed process does not lose.)
-  if (model.rank == 0) {
+  // a power loss cannot leave fewer complete checkpoints than before. A failed fsync stops the run (exit 3) and
+  // removes nothing. Agreed: rank 0 works alone, every rank learns the outcome.
+  agree(model.comm, [&] {
+    if (model.rank != 0) return;
     for (const std::string& p : {path, directory}) {
       const int fd = ::open(p.c_str(), O_RDONLY);
-      if (fd >= 0) ::fsync(fd), ::close(fd);
+      if (fd < 0) throw OutputError(p + ": cannot open to fsync: " + std::strerror(errno));
+      const int rc = ::fsync(fd), err = errno;
+      ::close(fd);
+      if (rc != 0) throw OutputError(p + ": cannot fsync: " + std::strerror(err));
     }
-  }
-  // Keep the newest `keep` checkpoints (names sort by step), and remove the .tmp files that a killed run left
-  // (ours was renamed: any .tmp still here is a dead writer's).
-  if (model.rank == 0 && keep > 0) {
+    if (keep <= 0) return;
+    // Keep the newest `keep` checkpoints (names sort by step), and remove the .tmp files that a killed run left
+    // (ours was renamed: any .tmp still here is a dead writer's).
     std::vector<std::string> names;
     auto ends_with = [](const std::string& n, const std::string& tail) {
       return n.size() >= tail.size() && n.compare(n.size() - tail.size(), tail.size(), tail) == 0;
@@ -140,8 +147,7 @@ std::string write_checkpoint(const std::string& directory, int keep, const Scene
     }
     std::sort(names.begin(), names.end());
     for (std::size_t i = 0; i + keep < names.size(); ++i) std::remove((directory + "/" + names[i]).c_str());
-  }
-  MPI_Barrier(model.comm);
+  });
   return path;
 }
 

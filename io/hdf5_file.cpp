@@ -15,6 +15,7 @@
 #include <utility>
 
 #include "io/isolated_parse.hpp"
+#include "partition/agreement.hpp"
 
 namespace tissue {
 
@@ -51,6 +52,19 @@ std::string hdf5_reason() {
   return reason;
 }
 
+// The system error behind a failed HDF5 or MPI-IO call, when the call left one that says what went wrong on the
+// disk (the MPI-IO layer reports "MPI_ERR_OTHER" or similar for a full disk; errno still holds the cause).
+// Only the errors a write itself can meet are believed: the MPI-IO layer makes other calls after the failed one
+// (ENOENT was seen after an EIO), and a wrong reason is worse than none.
+std::string system_error(int err) {
+  switch (err) {
+    case ENOSPC: case EDQUOT: case EIO: case EROFS: case EFBIG:
+      return std::strerror(err);
+    default:
+      return "";
+  }
+}
+
 void quiet_hdf5() {
   // One-line exceptions instead of HDF5's multi-line stack dump on stderr.
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
@@ -80,6 +94,9 @@ hid_t file_access(MPI_Comm comm) {
 // Readers check it before HDF5 parses anything, so a truncated, damaged or foreign file is refused with one line
 // instead of reaching HDF5's parser (which can crash on corrupt metadata).
 constexpr std::size_t kUserBlock = 512;
+
+// Set when a file was abandoned after a failed write (Hdf5File::abandon): see hdf5_files_abandoned().
+bool abandoned_files = false;
 const char kSealTag[] = "TISSUE-HDF5-SEAL 1 ";
 
 // Sum (mod 2^64) over 1 MiB blocks of FNV-1a(block offset, block bytes): order-independent, so every rank hashes
@@ -158,15 +175,39 @@ void verify_seal(const std::string& path, MPI_Comm comm) {
 Hdf5File::Hdf5File(std::string path, MPI_Comm comm, bool writable)
     : path_(std::move(path)), comm_(comm), writable_(writable) {}
 
-Hdf5File Hdf5File::create(const std::string& path, MPI_Comm comm) {
+Hdf5File Hdf5File::create(const std::string& path, MPI_Comm comm, int64_t reserve) {
   quiet_hdf5();
   Hdf5File f(path, comm, true);
   Handle fapl(file_access(comm), H5Pclose);
   if (!fapl.ok()) f.fail("", "cannot set up MPI-IO file access");
   Handle fcpl(H5Pcreate(H5P_FILE_CREATE), H5Pclose);
   if (!fcpl.ok() || H5Pset_userblock(fcpl.get(), kUserBlock) < 0) f.fail("", "cannot reserve the seal's user block");
-  f.file_ = H5Fcreate((path + ".tmp").c_str(), H5F_ACC_TRUNC, fcpl.get(), fapl.get());
-  if (f.file_ < 0) f.fail("", "cannot create " + path + ".tmp");
+  // Agreed: a rank that could not create the file must not leave the others writing into it alone.
+  try {
+    agree(comm, [&] {
+      errno = 0;
+      f.file_ = H5Fcreate((path + ".tmp").c_str(), H5F_ACC_TRUNC, fcpl.get(), fapl.get());
+      if (f.file_ < 0) f.fail_io("", "cannot create " + path + ".tmp", errno);
+    });
+    if (reserve > 0)
+      agree(comm, [&] {
+        int rank = 0;
+        MPI_Comm_rank(comm, &rank);
+        if (rank != 0) return;
+        const std::string tmp = path + ".tmp";
+        const int fd = ::open(tmp.c_str(), O_WRONLY | O_CLOEXEC);
+        if (fd < 0) throw OutputError(path + ": cannot open " + tmp + ": " + std::strerror(errno));
+        const int rc = ::fallocate(fd, FALLOC_FL_KEEP_SIZE, 0, static_cast<off_t>(reserve));
+        const int err = errno;
+        ::close(fd);
+        if (rc != 0 && err != EOPNOTSUPP && err != ENOSYS && err != EINVAL)  // not supported: the writes will tell
+          throw OutputError(path + ": cannot reserve " + std::to_string((reserve + 999999) / 1000000) + " MB for " +
+                            tmp + ": " + std::strerror(err));
+      });
+  } catch (...) {
+    f.abandon();  // a rank may hold the file and another not: no collective close (rank 0 removes the .tmp)
+    throw;
+  }
   return f;
 }
 
@@ -231,41 +272,87 @@ void Hdf5File::release() noexcept {
 
 void Hdf5File::close() {
   if (file_ < 0) return;
-  const herr_t rc = H5Fclose(file_);
-  file_ = -1;
-  if (rc < 0) {
-    const std::string reason = hdf5_reason();
+  int rank = 0;
+  MPI_Comm_rank(comm_, &rank);
+  const std::string tmp = path_ + ".tmp";
+  if (!writable_) {
+    const herr_t rc = H5Fclose(file_);
+    file_ = -1;
+    if (rc < 0) {
+      const std::string reason = hdf5_reason();
+      throw std::runtime_error(path_ + ": cannot close" + (reason.empty() ? "" : ": " + reason));
+    }
+    return;
+  }
+  // Written files: every step is agreed (io/agreement), so that a rank whose flush, seal or rename fails stops
+  // every rank with the same line, and no .tmp stays behind.
+  try {
+    agree(comm_, [&] {
+      errno = 0;
+      const herr_t rc = H5Fclose(file_);
+      const int err = errno;
+      file_ = -1;
+      if (rc < 0) {
+        const std::string reason = hdf5_reason(), system = system_error(err);
+        throw OutputError(path_ + ": cannot write " + tmp + ": " +
+                          (system.empty() ? "the file could not be flushed and closed" : system) +
+                          (reason.empty() ? "" : " (" + reason + ")"));
+      }
+    });
+    // Every rank's data is on disk before the file appears under its real name.
+    agree(comm_, [&] {
+      const std::uint64_t size = file_size(tmp);
+      const std::uint64_t hash = seal_hash(tmp, size, comm_);  // collective; throws on every rank
+      if (rank != 0) return;
+      // Seal, then flush to the disk before the name appears: after a power loss a published name holds it all.
+      char header[kUserBlock] = {0};
+      std::snprintf(header, sizeof header, "%s%llu %016llx\n", kSealTag, static_cast<unsigned long long>(size),
+                    static_cast<unsigned long long>(hash));
+      const int fd = ::open(tmp.c_str(), O_WRONLY);
+      if (fd < 0) throw OutputError(path_ + ": cannot open " + tmp + " to seal it: " + std::strerror(errno));
+      const char* step = "write the seal of";
+      // Growing by a byte and shrinking back to its size gives back the space reserved beyond the end (create()):
+      // only a shrinking truncate frees preallocated blocks on every file system (XFS keeps them otherwise).
+      bool ok = ::pwrite(fd, header, kUserBlock, 0) == static_cast<ssize_t>(kUserBlock);
+      if (ok)
+        step = "truncate", ok = ::ftruncate(fd, static_cast<off_t>(size) + 1) == 0 &&
+                                ::ftruncate(fd, static_cast<off_t>(size)) == 0;
+      if (ok) step = "fsync", ok = ::fsync(fd) == 0;
+      const int err = errno;
+      ::close(fd);
+      if (!ok) throw OutputError(path_ + ": cannot " + step + " " + tmp + ": " + std::strerror(err ? err : EIO));
+      if (std::rename(tmp.c_str(), path_.c_str()) != 0)
+        throw OutputError(path_ + ": cannot rename " + tmp + " into place: " + std::strerror(errno));
+    });
+  } catch (...) {
+    abandoned_files = true;  // a failed H5Fclose may leave HDF5 state behind: the process must not finalize HDF5
+    if (rank == 0) std::remove(tmp.c_str());
+    throw;
+  }
+}
+
+void Hdf5File::abandon() noexcept {
+  if (file_ >= 0) {
+    file_ = -1;  // the identifier is leaked on purpose: closing it is a collective that cannot complete
+    abandoned_files = true;
+  }
+  if (writable_ && comm_ != MPI_COMM_NULL) {
     int rank = 0;
     MPI_Comm_rank(comm_, &rank);
-    if (writable_ && rank == 0) std::remove((path_ + ".tmp").c_str());
-    throw std::runtime_error(path_ + ": cannot close" + (reason.empty() ? "" : ": " + reason));
+    if (rank == 0) std::remove((path_ + ".tmp").c_str());
   }
-  if (!writable_) return;
-  // Every rank's data must be on disk before the file appears under its real name.
-  check_mpi(MPI_Barrier(comm_), path_, "MPI_Barrier");
-  int rank = 0;
-  check_mpi(MPI_Comm_rank(comm_, &rank), path_, "MPI_Comm_rank");
-  int err = 0;
-  const std::string tmp = path_ + ".tmp";
-  const std::uint64_t size = file_size(tmp);
-  const std::uint64_t hash = seal_hash(tmp, size, comm_);  // collective
-  if (rank == 0) {
-    // Seal, then flush to the disk before the name appears: after a power loss a published name holds it all.
-    char header[kUserBlock] = {0};
-    std::snprintf(header, sizeof header, "%s%llu %016llx\n", kSealTag, static_cast<unsigned long long>(size),
-                  static_cast<unsigned long long>(hash));
-    int fd = ::open(tmp.c_str(), O_WRONLY);
-    if (fd < 0 || ::pwrite(fd, header, kUserBlock, 0) != static_cast<ssize_t>(kUserBlock) || ::fsync(fd) != 0)
-      err = errno ? errno : -1;
-    if (fd >= 0) ::close(fd);
-  }
-  if (rank == 0 && !err && std::rename((path_ + ".tmp").c_str(), path_.c_str()) != 0) {
-    err = errno ? errno : -1;
-    std::remove((path_ + ".tmp").c_str());
-  }
-  // The broadcast is the second barrier: nobody returns before the rename, and all ranks learn its outcome.
-  check_mpi(MPI_Bcast(&err, 1, MPI_INT, 0, comm_), path_, "MPI_Bcast");
-  if (err) throw std::runtime_error(path_ + ": cannot rename " + path_ + ".tmp into place: " + std::strerror(err));
+}
+
+bool hdf5_files_abandoned() { return abandoned_files; }
+
+void Hdf5File::fail_io(const std::string& object, const std::string& what, int err) const {
+  const std::string reason = hdf5_reason(), system = system_error(err);
+  std::string msg = path_ + ": ";
+  if (!object.empty()) msg += object + ": ";
+  msg += what;
+  if (!system.empty()) msg += ": " + system;
+  if (!reason.empty()) msg += " (" + reason + ")";
+  throw OutputError(msg);
 }
 
 void Hdf5File::fail(const std::string& object, const std::string& what) const {
@@ -335,25 +422,39 @@ void Hdf5File::write_block(const std::string& dataset, int64_t global_rows, int 
   // Every row is written: skip the fill pass that would otherwise write the whole dataset twice.
   Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
   if (!dcpl.ok() || H5Pset_fill_time(dcpl.get(), H5D_FILL_TIME_NEVER) < 0) fail(dataset, "cannot set up creation");
-  Handle dset(H5Dcreate2(file_, dataset.c_str(), file_type, file_space.get(), lcpl.get(), dcpl.get(), H5P_DEFAULT),
-              H5Dclose);
-  if (!dset.ok()) fail(dataset, "cannot create dataset");
+  // From here the work is agreed: a rank whose write fails (a full disk, a quota, an I/O error) stops every rank
+  // with its line instead of leaving them in the file's next collective. The file is then abandoned, not closed:
+  // after a failed write HDF5's ranks no longer agree on what closing it takes (one flushes its metadata in a
+  // collective, another has given up and truncates in another: a hang, seen with the fault tests).
+  try {
+    agree(comm_, [&] {
+      errno = 0;
+      Handle dset(H5Dcreate2(file_, dataset.c_str(), file_type, file_space.get(), lcpl.get(), dcpl.get(), H5P_DEFAULT),
+                  H5Dclose);
+      if (!dset.ok()) fail_io(dataset, "cannot create dataset", errno);
 
-  const hsize_t start[2] = {static_cast<hsize_t>(offset), 0};
-  const hsize_t count[2] = {static_cast<hsize_t>(rows), static_cast<hsize_t>(width)};
-  // A rank with no rows still takes part in the collective write, with empty selections.
-  const hsize_t mem_dims[2] = {rows > 0 ? count[0] : 1, count[1]};
-  Handle mem_space(H5Screate_simple(2, mem_dims, nullptr), H5Sclose);
-  if (!mem_space.ok()) fail(dataset, "cannot create dataspace");
-  herr_t sel = rows > 0 ? H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr)
-                        : H5Sselect_none(file_space.get());
-  if (sel < 0 || (rows == 0 && H5Sselect_none(mem_space.get()) < 0)) fail(dataset, "cannot select rows");
+      const hsize_t start[2] = {static_cast<hsize_t>(offset), 0};
+      const hsize_t count[2] = {static_cast<hsize_t>(rows), static_cast<hsize_t>(width)};
+      // A rank with no rows still takes part in the collective write, with empty selections.
+      const hsize_t mem_dims[2] = {rows > 0 ? count[0] : 1, count[1]};
+      Handle mem_space(H5Screate_simple(2, mem_dims, nullptr), H5Sclose);
+      if (!mem_space.ok()) fail(dataset, "cannot create dataspace");
+      herr_t sel = rows > 0 ? H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr)
+                            : H5Sselect_none(file_space.get());
+      if (sel < 0 || (rows == 0 && H5Sselect_none(mem_space.get()) < 0)) fail(dataset, "cannot select rows");
 
-  Handle dxpl(H5Pcreate(H5P_DATASET_XFER), H5Pclose);
-  if (!dxpl.ok() || H5Pset_dxpl_mpio(dxpl.get(), H5FD_MPIO_COLLECTIVE) < 0) fail(dataset, "cannot set up transfer");
-  const double dummy = 0.0;
-  if (H5Dwrite(dset.get(), mem_type, mem_space.get(), file_space.get(), dxpl.get(), rows > 0 ? data : &dummy) < 0)
-    fail(dataset, "cannot write rows [" + std::to_string(offset) + ", " + std::to_string(offset + rows) + ")");
+      Handle dxpl(H5Pcreate(H5P_DATASET_XFER), H5Pclose);
+      if (!dxpl.ok() || H5Pset_dxpl_mpio(dxpl.get(), H5FD_MPIO_COLLECTIVE) < 0) fail(dataset, "cannot set up transfer");
+      const double dummy = 0.0;
+      errno = 0;
+      if (H5Dwrite(dset.get(), mem_type, mem_space.get(), file_space.get(), dxpl.get(), rows > 0 ? data : &dummy) < 0)
+        fail_io(dataset, "cannot write rows [" + std::to_string(offset) + ", " + std::to_string(offset + rows) + ")",
+                errno);
+    });
+  } catch (...) {
+    abandon();
+    throw;
+  }
 }
 
 std::vector<int64_t> Hdf5File::shape(const std::string& dataset) const {

@@ -21,10 +21,18 @@
 
 namespace tissue {
 
+// Whether a written file was abandoned after a failed write (a full disk, a quota, an I/O error): HDF5 still holds
+// it open, and finalizing HDF5 (MPI_Finalize) would try to close it in collectives that cannot complete. The
+// program then ends without finalizing (src/main.cpp). Not collective.
+bool hdf5_files_abandoned();
+
 class Hdf5File {
 public:
-  // Collective. Create (truncating) <path>.tmp for writing; close() moves it to <path>.
-  static Hdf5File create(const std::string& path, MPI_Comm comm);
+  // Collective. Create (truncating) <path>.tmp for writing; close() moves it to <path>. `reserve` > 0: the disk
+  // space for a file of about that many bytes is reserved first (fallocate, beyond the end of the file; the rest
+  // is given back at close), so that a full disk or an exhausted quota fails here, agreed on every rank, with
+  // its system error, and not in the middle of HDF5's collective writes (which cannot fail cleanly on one rank).
+  static Hdf5File create(const std::string& path, MPI_Comm comm, int64_t reserve = 0);
   // Collective. Open an existing file read-only: check its seal, then let `walk` read, on a serially opened copy
   // (open_serial) in a child process of rank 0, the metadata that the caller will read (io/isolated_parse.hpp), and
   // only then parse the file here. A file that crashes HDF5 in the child is refused with one InputError line
@@ -104,7 +112,12 @@ private:
   hid_t open_checked_attribute(const std::string& object, const std::string& name, int expected, size_t max_size,
                                size_t* size) const;
   [[noreturn]] void fail(const std::string& object, const std::string& what) const;
+  // As fail(), for a failed write: an OutputError naming the file and the system error `err` (errno) if it says why.
+  [[noreturn]] void fail_io(const std::string& object, const std::string& what, int err) const;
   void release() noexcept;  // close without publishing; removes an unpublished tmp file
+  // After an agreed write failure: forget the file without closing it (HDF5's close is a collective that the
+  // ranks can no longer complete together); rank 0 removes the tmp file.
+  void abandon() noexcept;
 
   std::string path_;
   MPI_Comm comm_ = MPI_COMM_NULL;

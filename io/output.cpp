@@ -13,6 +13,7 @@
 #include "io/hdf5_file.hpp"
 #include "io/snapshot.hpp"
 #include "io/summary.hpp"
+#include "partition/agreement.hpp"
 #include "src/calibration/calibration.hpp"
 
 namespace tissue {
@@ -35,7 +36,7 @@ void make_directories(const std::string& path) {
   for (std::size_t i = 0; i <= path.size(); ++i) {
     if (i == path.size() || path[i] == '/') {
       if (!partial.empty() && mkdir(partial.c_str(), 0755) != 0 && errno != EEXIST)
-        throw std::runtime_error(partial + ": cannot create directory: " + std::strerror(errno));
+        throw OutputError(partial + ": cannot create directory: " + std::strerror(errno));
     }
     if (i < path.size()) partial += path[i];
   }
@@ -63,13 +64,36 @@ const NaturalOrder& Output::connections() {
 
 void Output::make_directory() {
   if (directory_made_) return;
-  if (model_.rank == 0) make_directories(scene_.output.directory);
-  MPI_Barrier(model_.comm);
+  // Agreed: rank 0 alone creates it, and a failure stops every rank with its line (never a hang).
+  agree(model_.comm, [&] {
+    if (model_.rank == 0) make_directories(scene_.output.directory);
+  });
   directory_made_ = true;
 }
 
 void Output::snapshot(const SolverState& state, const ForceModel& forces, bool final, const char* file_name) {
   if (scene_.output.fields.empty()) return;  // `fields = []`: the scene asks for no snapshot, and pays for none
+  // One agreed stage: a failure on any rank (a full disk, a quota, an I/O error) is the same OutputError on
+  // every rank, and the run stops with exit 3 (a snapshot the user asked for is never silently missing).
+  const std::string name = file_name ? file_name : final ? "final.h5" : snapshot_name(state.step);
+  const std::string path = scene_.output.directory + "/" + name;
+  StageDeadline deadline(model_.comm, path, stage_seconds(stage_bytes()), path + ".tmp");
+  agree(model_.comm, [&] { write_snapshot_stage(state, forces, final, file_name); });
+}
+
+std::string Output::snapshot_name(long step) {
+  char name[64];
+  std::snprintf(name, sizeof name, "snapshot_%08ld.h5", step);
+  return name;
+}
+
+double Output::stage_bytes() const {
+  // At most: 4 vectors of 3 doubles per molecule, the endpoints and 3 doubles per connection.
+  return 96.0 * static_cast<double>(model_.global_molecules) + 40.0 * static_cast<double>(model_.global_connections);
+}
+
+void Output::write_snapshot_stage(const SolverState& state, const ForceModel& forces, bool final,
+                                  const char* file_name) {
   make_directory();
   const double* x = state.x.array();
   SnapshotFrame frame;
@@ -124,21 +148,39 @@ void Output::snapshot(const SolverState& state, const ForceModel& forces, bool f
   const std::string dir = scene_.output.directory + "/";
   XdmfEntry entry = write_snapshot(dir + name, model_.comm, frame);
   frames_.push_back(entry);
-  if (model_.rank == 0) write_xdmf(dir + "tissue.xdmf", frames_);
+  agree(model_.comm, [&] {
+    if (model_.rank == 0) write_xdmf(dir + "tissue.xdmf", frames_);
+  });
 }
 
 std::string Output::checkpoint(const SolverState& state) {
-  make_directory();
-  return write_checkpoint(scene_.output.directory, 2, scene_, model_, molecules(), connections(), state);
+  char name[64];
+  std::snprintf(name, sizeof name, "checkpoint_%010ld.h5", state.step);
+  const std::string path = scene_.output.directory + "/" + name;
+  StageDeadline deadline(model_.comm, path, stage_seconds(stage_bytes()), path + ".tmp");
+  return agree(model_.comm, [&] {
+    make_directory();
+    return write_checkpoint(scene_.output.directory, 2, scene_, model_, molecules(), connections(), state);
+  });
 }
 
 void Output::summary(const TensionTest& test, const Measurements& measured, const Measurements& initial,
                      const SolveReport& report, const SolverState& state, double wall_seconds,
                      const std::string& failure) {
+  const std::string path = scene_.output.directory + "/summary.json";
+  StageDeadline deadline(model_.comm, path, stage_seconds(0), path + ".tmp");
   long peak = peak_memory_bytes(), peak_max = 0;
   MPI_Allreduce(&peak, &peak_max, 1, MPI_LONG, MPI_MAX, model_.comm);
-  make_directory();  // collective (a barrier): before rank 0 goes on alone
-  if (model_.rank != 0) return;
+  make_directory();  // collective (agreed): before rank 0 goes on alone
+  // Rank 0 writes; every rank learns whether it could (one agreed stage).
+  agree(model_.comm, [&] {
+    if (model_.rank == 0) write_summary(test, measured, initial, report, state, wall_seconds, failure, peak_max);
+  });
+}
+
+void Output::write_summary(const TensionTest& test, const Measurements& measured, const Measurements& initial,
+                           const SolveReport& report, const SolverState& state, double wall_seconds,
+                           const std::string& failure, long peak_max) {
   using nlohmann::json;
   auto opt = [](const std::optional<double>& v) { return v ? json(*v) : json(nullptr); };
   const double target =  // Eq. 3 reads the body the load is on

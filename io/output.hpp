@@ -1,6 +1,7 @@
 // What a run writes to its output directory: HDF5 snapshots (in original molecule order, whatever the
 // partition) with an XDMF index that ParaView plays as a series, and summary.json. The directory is created only
-// when the first file is written, so a run stopped by bad input leaves nothing behind.
+// when the first file is written, so a run stopped by bad input leaves nothing behind. Every write is one agreed
+// stage (partition/agreement.hpp): a failure on any rank throws the same OutputError on every rank (exit 3).
 #pragma once
 #include <memory>
 #include <string>
@@ -31,6 +32,12 @@ public:
 
 private:
   void make_directory();
+  static std::string snapshot_name(long step);
+  double stage_bytes() const;  // a bound on one file's size, for its StageDeadline
+  void write_snapshot_stage(const SolverState& state, const ForceModel& forces, bool final, const char* name);
+  void write_summary(const TensionTest& test, const Measurements& measured, const Measurements& initial,
+                     const SolveReport& report, const SolverState& state, double wall_seconds,
+                     const std::string& failure, long peak_max);
   const Scene& scene_;
   const LocalModel& model_;
   std::unique_ptr<NaturalOrder> molecules_, connections_;

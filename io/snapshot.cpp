@@ -67,7 +67,11 @@ XdmfEntry write_snapshot(const std::string& path, MPI_Comm comm, const SnapshotF
   if (any_bad)
     throw std::invalid_argument(path + ": bad snapshot frame: " + (bad ? why : "see another rank's error"));
 
-  Hdf5File file = Hdf5File::create(path, comm);
+  // The space the file needs, reserved first: a full disk fails here, cleanly (Hdf5File::create).
+  int64_t bytes = (1 << 20) + static_cast<int64_t>(f.title.size());
+  for (int i = 0; i < n_fields; ++i)
+    if (any[i]) bytes += 8 * fields[i].width * (fields[i].molecule ? f.molecules : f.connections);
+  Hdf5File file = Hdf5File::create(path, comm, bytes);
   file.set_attribute("/", "kind", "snapshot");
   file.set_attribute("/", "program", "tissue");
   file.set_attribute("/", "version", TISSUE_VERSION);

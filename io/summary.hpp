@@ -6,7 +6,7 @@
 
 namespace tissue {
 
-// Writes `summary` to path through path + ".tmp" and a rename. Throws std::runtime_error on failure.
+// Writes `summary` to path through path + ".tmp" and a rename. Throws OutputError on failure (io/atomic_file.hpp).
 void write_json_atomically(const std::string& path, const nlohmann::json& summary);
 
 // Peak resident memory of this process in bytes (getrusage).

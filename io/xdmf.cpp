@@ -1,5 +1,7 @@
 #include "io/xdmf.hpp"
 
+#include "io/atomic_file.hpp"
+
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -78,22 +80,7 @@ void write_xdmf(const std::string& path, const std::vector<XdmfEntry>& frames) {
      << "  </Domain>\n"
      << "</Xdmf>\n";
 
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw std::runtime_error(path + ": cannot create " + tmp + ": " + std::strerror(errno));
-    out << os.str();
-    out.close();
-    if (!out) {
-      std::remove(tmp.c_str());
-      throw std::runtime_error(path + ": cannot write " + tmp);
-    }
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    const int err = errno;
-    std::remove(tmp.c_str());
-    throw std::runtime_error(path + ": cannot rename " + tmp + " into place: " + std::strerror(err));
-  }
+  write_file_atomically(path, os.str());
 }
 
 }  // namespace tissue

@@ -13,7 +13,8 @@
 //   build/tissue run run_scripts/scenes/table2.toml -- -ksp_type gmres -pc_type hypre -snes_monitor -log_view
 //   build/tissue info out/table2/final.h5
 //
-// Exit codes: 0 success, 2 bad input (one line naming file and key), 3 the solver failed.
+// Exit codes: 0 success, 2 bad input (one line naming file and key; a bad output location too), 3 the solver
+// failed or a file could not be written (one line naming the file and the system error).
 
 #include <malloc.h>
 #include <petscsys.h>
@@ -30,8 +31,11 @@
 
 #include "io/checkpoint.hpp"
 #include "io/gmsh_mesh.hpp"
+#include "io/hdf5_file.hpp"
 #include "io/output.hpp"
+#include "io/output_location.hpp"
 #include "io/scene.hpp"
+#include "partition/agreement.hpp"
 #include "src/driver/simulation.hpp"
 
 using namespace tissue;
@@ -75,7 +79,8 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
     scene = read_scene(scene_path, overrides);
   } else {
     check_restart_overrides(overrides);
-    CheckpointHeader header = read_checkpoint_header(checkpoint, comm);
+    // Agreed (partition/agreement.hpp): a file one rank cannot read stops every rank with the same line.
+    CheckpointHeader header = agree(comm, [&] { return read_checkpoint_header(checkpoint, comm); });
     scene = parse_scene(header.scene_text, checkpoint, overrides);
     int ranks;
     MPI_Comm_size(comm, &ranks);
@@ -84,6 +89,9 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
                    header.title.c_str(), header.step, header.ranks, ranks);
   }
   if (!output.empty()) scene.output.directory = output;
+  // The output location is input: checked before any work (exists or can be created, a directory, writable by
+  // every rank, room for the first file), so that a bad one is exit 2 in a second, not after the solve.
+  check_output_location(scene, comm);
   Simulation sim(std::move(scene), comm);
 
   // 2-3. Build this rank's share of the bodies: METIS partitions the connection graph; each rank keeps its
@@ -116,8 +124,10 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
   //    (iterative) runs it.
   Output out(sim.scene(), model);
   if (!checkpoint.empty())
-    read_checkpoint_state(checkpoint, model, out.molecules(), out.connections(), sim.state(),
-                          /*check_stiffness=*/!sim.refresh());
+    agree(comm, [&] {
+      read_checkpoint_state(checkpoint, model, out.molecules(), out.connections(), sim.state(),
+                            /*check_stiffness=*/!sim.refresh());
+    });
   SolverHooks hooks;
   hooks.snapshot = [&](const SolverState& s) { out.snapshot(s, sim.forces()); };
   std::string last_checkpoint;
@@ -227,15 +237,28 @@ int main(int argc, char** argv) {
   const bool root = rank_of(PETSC_COMM_WORLD) == 0;
   int code = 0;
   try {
-    if (*run_cmd) code = run(scene_path, "", overrides, output);
-    if (*restart_cmd) code = run("", checkpoint_path, overrides, output);
-    if (*info_cmd) code = info(info_path, PETSC_COMM_WORLD);
+    // The whole command is one agreed stage (partition/agreement.hpp): its own stages agree as they go, and a
+    // failure anywhere else on one rank still reaches every rank, or ends the job (MPI_Abort), never a hang.
+    code = agree(PETSC_COMM_WORLD, [&] {
+      if (*run_cmd) return run(scene_path, "", overrides, output);
+      if (*restart_cmd) return run("", checkpoint_path, overrides, output);
+      if (*info_cmd) return info(info_path, PETSC_COMM_WORLD);
+      return 0;
+    });
   } catch (const InputError& e) {
     if (root) std::fprintf(stderr, "%s\n", e.what());
     code = 2;
   } catch (const std::exception& e) {
     if (root) std::fprintf(stderr, "tissue: %s\n", e.what());
     code = 3;
+  }
+  if (hdf5_files_abandoned()) {
+    // A write failed and left HDF5 holding a file it cannot close (io/hdf5_file.hpp): finalizing would hang in
+    // its collectives. Every rank is here (the failure was agreed): the one line is out, end without finalizing.
+    std::fflush(stdout);
+    std::fflush(stderr);
+    MPI_Barrier(PETSC_COMM_WORLD);
+    std::_Exit(code);
   }
   warn_unused_petsc_options(code);
   PetscCall(PetscFinalize());

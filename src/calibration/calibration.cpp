@@ -3,6 +3,7 @@
 #include <memory>
 
 #include "partition/local_model.hpp"
+#include "src/model/registry.hpp"
 #include "src/model/topology.hpp"
 
 namespace tissue {
@@ -22,17 +23,9 @@ const std::vector<CalibrationStyle>& calibration_styles() {
   return styles;
 }
 
-const CalibrationStyle* find_calibration(const std::string& name) {
-  for (const auto& s : calibration_styles())
-    if (name == s.name) return &s;
-  return nullptr;
-}
+const CalibrationStyle* find_calibration(const std::string& name) { return find_style(calibration_styles(), name); }
 
-std::vector<std::string> calibration_method_names() {
-  std::vector<std::string> names;
-  for (const auto& s : calibration_styles()) names.emplace_back(s.name);
-  return names;
-}
+std::vector<std::string> calibration_method_names() { return style_names(calibration_styles()); }
 
 namespace {
 

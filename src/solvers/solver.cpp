@@ -1,5 +1,6 @@
 #include "src/solvers/solver.hpp"
 
+#include "src/model/registry.hpp"
 #include "src/solvers/molecule_report.hpp"
 #include "src/solvers/setup_checks.hpp"
 
@@ -78,17 +79,9 @@ const std::vector<SolverStyle>& solver_styles() {
   return styles;
 }
 
-const SolverStyle* find_solver(const std::string& name) {
-  for (const auto& s : solver_styles())
-    if (name == s.name) return &s;
-  return nullptr;
-}
+const SolverStyle* find_solver(const std::string& name) { return find_style(solver_styles(), name); }
 
-std::vector<std::string> solver_names() {
-  std::vector<std::string> names;
-  for (const auto& s : solver_styles()) names.emplace_back(s.name);
-  return names;
-}
+std::vector<std::string> solver_names() { return style_names(solver_styles()); }
 
 volatile std::sig_atomic_t stop_requested = 0;
 

@@ -92,7 +92,7 @@ ForceModel::ForceModel(const Scene& scene, const LocalModel& model) : model_(mod
 
 std::vector<std::string> ForceModel::term_names() const {
   std::vector<std::string> names;
-  for (const auto& t : terms_) names.push_back(t->name());
+  for (const TermStyle* s : term_styles_) names.emplace_back(s->name);  // the style names the term
   return names;
 }
 

@@ -33,7 +33,6 @@ struct ContactTotals {
 class Term {
 public:
   virtual ~Term() = default;
-  virtual const char* name() const = 0;
   // Adds the term's forces on the owned molecules to f[0 .. 3 owned). x: local positions (ghosts up to date);
   // v: owned velocities; time: s (dynamic runs). Collective when the term communicates (contact).
   virtual void add_forces(const double* x, const double* v, double time, double* f) = 0;

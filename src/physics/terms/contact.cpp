@@ -66,7 +66,6 @@ public:
     }
     for (int i = 0; i < m.owned; ++i) std::sort(joined_.begin() + first_[i], joined_.begin() + first_[i + 1]);
   }
-  const char* name() const override { return "contact"; }
 
   void add_forces(const double* x, const double*, double, double* f) override {
     refresh(x);

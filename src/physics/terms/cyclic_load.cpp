@@ -18,7 +18,6 @@ public:
       add_face_load(load, m, shares_.back().data());
     }
   }
-  const char* name() const override { return "cyclic-load"; }
   void add_forces(const double*, const double*, double time, double* f) override {
     for (std::size_t l = 0; l < omega_.size(); ++l) {
       const double s = std::sin(omega_[l] * time);

@@ -7,7 +7,6 @@ namespace {
 class Gravity final : public Term {
 public:
   Gravity(const LocalModel& m, const Vec3& g) : m_(m), g_(g) {}
-  const char* name() const override { return "gravity"; }
   void add_forces(const double*, const double*, double, double* f) override {
     const double* mass = m_.mass.data();
     for (int i = 0; i < m_.owned; ++i)

@@ -37,7 +37,6 @@ public:
     radius_.resize(m.shape.bodies());
     for (int b = 0; b < m.shape.bodies(); ++b) radius_[b] = m.shape.body(b).radius;
   }
-  const char* name() const override { return "obstacles"; }
 
   void add_forces(const double* x, const double*, double, double* f) override {
     total_ = Vec3{0, 0, 0};

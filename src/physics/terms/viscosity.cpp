@@ -8,7 +8,6 @@ namespace {
 class Viscosity final : public Term {
 public:
   Viscosity(const LocalModel& m, double c) : m_(m), c_(c) {}
-  const char* name() const override { return "viscosity"; }
   void add_forces(const double*, const double* v, double, double* f) override {
     for (int i = 0; i < 3 * m_.owned; ++i) f[i] -= c_ * v[i];
   }

@@ -11,11 +11,29 @@
 
 namespace tissue {
 
-// Bad input: one line naming the file, the key and what is wrong. main() prints what() and exits 2.
+// Bad input: one line naming the file, the key and what is wrong. main() prints what() and exits 2. A line
+// break or other control byte in any part (a quoted value, a file name) is written as an escape, so the message
+// stays one line whatever the input held.
 class InputError : public std::runtime_error {
 public:
   InputError(const std::string& file, const std::string& key, const std::string& problem)
-      : std::runtime_error(file + ": " + (key.empty() ? std::string() : key + ": ") + problem) {}
+      : std::runtime_error(one_line(file + ": " + (key.empty() ? std::string() : key + ": ") + problem)) {}
+
+private:
+  static std::string one_line(const std::string& text) {
+    static const char hex[] = "0123456789abcdef";
+    std::string out;
+    out.reserve(text.size());
+    for (const char c : text) {
+      const auto u = static_cast<unsigned char>(c);
+      if (c == '\n') out += "\\n";
+      else if (c == '\r') out += "\\r";
+      else if (c == '\t') out += "\\t";
+      else if (u < 0x20 || u == 0x7f) out += std::string("\\x") + hex[u >> 4] + hex[u & 15];
+      else out += c;
+    }
+    return out;
+  }
 };
 
 using Vec3 = std::array<double, 3>;

@@ -1,7 +1,6 @@
 #include "partition/local_model.hpp"
 
 #include <algorithm>
-#include <cstring>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -12,8 +11,10 @@
 
 namespace tissue {
 
-LocalModel distribute(const Body& body, const std::vector<int>& part, const PartitionStats& stats, MPI_Comm comm) {
+LocalModel distribute(const Body& body, const std::vector<int>& part, const PartitionStats& stats, MPI_Comm comm,
+                      CalibrationInputs& in) {
   LocalModel m;
+  in = CalibrationInputs();
   m.comm = comm;
   MPI_Comm_rank(comm, &m.rank);
   MPI_Comm_size(comm, &m.size);
@@ -70,7 +71,7 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
   m.local = static_cast<int>(m.id.size());
 
   m.block.resize(m.local), m.rest.resize(3 * m.local), m.mass.resize(m.local);
-  m.youngs_modulus.resize(m.local), m.degree.resize(m.local), m.body.resize(m.local);
+  in.youngs_modulus.resize(m.local), in.degree.resize(m.local), m.body.resize(m.local);
   m.first_connection.resize(m.local);
   for (int i = 0; i < m.local; ++i) {
     std::int64_t g = m.id[i];
@@ -79,8 +80,8 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
     Vec3 x = body.rest_position(g);
     for (int d = 0; d < 3; ++d) m.rest[3 * i + d] = x[d];
     m.mass[i] = body.mass[g];
-    m.youngs_modulus[i] = body.youngs_modulus[g];
-    m.degree[i] = degree[g];
+    in.youngs_modulus[i] = body.youngs_modulus[g];
+    in.degree[i] = degree[g];
     m.body[i] = body.body_of(g);
   }
 
@@ -88,19 +89,20 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
   std::unordered_map<std::int64_t, int> local_connection;  // key a * n + b
   const std::size_t nc = mine.size();
   m.end_a.resize(nc), m.end_b.resize(nc), m.forward_rank.resize(nc), m.connection_class.resize(nc);
-  m.rest_length.resize(nc), m.stiffness.assign(nc, 0.0);
+  std::vector<double> rest_length(nc);
   for (std::size_t l = 0; l < nc; ++l) {
     const auto& con = body.connections[mine[l]];
     m.end_a[l] = local_of[con.a], m.end_b[l] = local_of[con.b];
     m.forward_rank[l] = static_cast<std::uint16_t>(mine[l] - first_forward[con.a]);
     m.connection_class[l] = con.cls;
-    m.rest_length[l] = body.rest_distance(con.a, con.b);
+    rest_length[l] = body.rest_distance(con.a, con.b);
     if (part[con.a] == m.rank) ++m.written_count;
     if (!body.tetrahedra.empty()) local_connection[con.a * n + con.b] = static_cast<int>(l);
   }
+  m.table.set_rest_lengths(std::move(rest_length));
   if (!body.tetrahedra.empty()) {
-    m.tetra_volume.assign(nc, 0.0);
-    m.tetra_lloyd_sum.assign(nc, 0.0);  // Lloyd, Szekely & Harders 2007 (calibration/lloyd.cpp)
+    in.tetra_volume.assign(nc, 0.0);
+    in.tetra_lloyd_sum.assign(nc, 0.0);  // Lloyd, Szekely & Harders 2007 (calibration/lloyd.cpp)
     for (const auto& t : body.tetrahedra) {
       Vec3 p[4];
       for (int v = 0; v < 4; ++v) p[v] = body.rest_position(t[v]);
@@ -115,8 +117,8 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
         for (int y = x + 1; y < 4; ++y) {
           auto it = local_connection.find(std::min(t[x], t[y]) * n + std::max(t[x], t[y]));
           if (it == local_connection.end()) continue;
-          m.tetra_volume[it->second] += vol;
-          m.tetra_lloyd_sum[it->second] += l_equiv;
+          in.tetra_volume[it->second] += vol;
+          in.tetra_lloyd_sum[it->second] += l_equiv;
         }
     }
   }
@@ -128,7 +130,7 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
   return m;
 }
 
-int LocalModel::lattice_forward_rank(int c) const {
+int MoleculeLayout::lattice_forward_rank(int c) const {
   // An owned end a has all its connections here, consecutive and in order: the position in its run.
   if (end_a[c] < owned) {
     int r = 0;
@@ -145,52 +147,7 @@ int LocalModel::lattice_forward_rank(int c) const {
   return rank;
 }
 
-void release_calibration_inputs(LocalModel& m) {
-  m.youngs_modulus = std::vector<double>();
-  m.degree = std::vector<int>();
-}
-
-bool compact_connection_types(LocalModel& m) {
-  if (m.typed() || m.connections() == 0) return m.typed();
-  struct PairHash {
-    std::size_t operator()(const std::pair<std::uint64_t, std::uint64_t>& p) const {
-      return std::hash<std::uint64_t>()(p.first * 0x9E3779B97F4A7C15ULL ^ p.second);
-    }
-  };
-  std::unordered_map<std::pair<std::uint64_t, std::uint64_t>, std::uint16_t, PairHash> types;
-  std::vector<double> tk, tl;
-  auto type_of = [&](int c) {  // by bits: two different doubles are two types, -0.0 and 0.0 included
-    std::uint64_t kb, lb;
-    const double l0 = m.l0(c);
-    std::memcpy(&kb, &m.stiffness[c], 8), std::memcpy(&lb, &l0, 8);
-    auto [it, added] = types.try_emplace({kb, lb}, static_cast<std::uint16_t>(std::min<std::size_t>(tk.size(), 65535)));
-    if (added) tk.push_back(m.stiffness[c]), tl.push_back(l0);
-    return it->second;
-  };
-  // First the table alone: past 65,536 types nothing changes.
-  for (int c = 0; c < m.connections(); ++c) {
-    type_of(c);
-    if (tk.size() > 65536) return false;
-  }
-  // Then each connection's type, 2 bytes at the front of the stiffness array's own storage (byte 2c lies in
-  // entry c / 4, already read), so no third per-connection array exists while both 8-byte ones do: that was
-  // the set-up's peak (docs/benchmarks.md).
-  const int nc = m.connections();
-  unsigned char* packed = reinterpret_cast<unsigned char*>(m.stiffness.data());
-  for (int c = 0; c < nc; ++c) {
-    const std::uint16_t t = type_of(c);
-    std::memcpy(packed + 2 * static_cast<std::size_t>(c), &t, 2);
-  }
-  m.rest_length = std::vector<double>();
-  m.length_type = std::vector<std::uint16_t>(), m.length_table = std::vector<double>();
-  m.connection_type.resize(nc);
-  std::memcpy(m.connection_type.data(), packed, 2 * static_cast<std::size_t>(nc));
-  m.stiffness = std::vector<double>();
-  m.type_stiffness = std::move(tk), m.type_rest_length = std::move(tl);
-  return true;
-}
-
-LocalModel build_local_model(const Scene& scene, MPI_Comm comm, const MeshReader& read_mesh) {
+LocalModel build_local_model(const Scene& scene, MPI_Comm comm, CalibrationInputs& inputs, const MeshReader& read_mesh) {
   // Explicit topologies (meshes, random clouds) come as lists: the explicit path. Box lattices from stencils.
   const std::vector<BodySpec>& specs = scene.bodies;
   const bool is_explicit = std::any_of(specs.begin(), specs.end(), [](const BodySpec& b) { return b.unstructured(); }) ||
@@ -200,9 +157,9 @@ LocalModel build_local_model(const Scene& scene, MPI_Comm comm, const MeshReader
     Body body = build_body(scene, read_mesh);
     PartitionStats stats;
     std::vector<int> part = partition_molecules(body, comm, stats, scene.partition.method);
-    m = distribute(body, part, stats, comm);
+    m = distribute(body, part, stats, comm, inputs);
   } else {
-    m = build_lattice_model(scene, comm);
+    m = build_lattice_model(scene, comm, inputs);
   }
   if (scene.partition.method == "ptscotch" && !is_explicit) {
     // PT-Scotch's blocks cannot see their neighbours' parts: count the cut connections here, each once (by the

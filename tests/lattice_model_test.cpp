@@ -208,7 +208,7 @@ method = "linear"
 )", "kernel.toml");
   CalibrationInputs inputs;
   LocalModel model = build_local_model(scene, PETSC_COMM_WORLD, inputs);
-  ASSERT_FALSE(calibrate_scene(scene, model, inputs, model.table.stiffness()));
+  ASSERT_FALSE(calibrate_scene(scene, model, inputs));
   ASSERT_TRUE(stiffness_is_final(scene, {}));
   std::vector<double> l0(model.connections());
   for (int c = 0; c < model.connections(); ++c) l0[c] = model.l0(c);
@@ -277,7 +277,7 @@ TEST(SpringKernel, StencilSegmentsEqualGenericKernelBitForBit) {
   const Scene scene = parse_scene(std::string(solver) + kTwoMaterials, "stencil.toml");
   CalibrationInputs inputs;
   LocalModel generic = build_local_model(scene, PETSC_COMM_WORLD, inputs);
-  ASSERT_FALSE(calibrate_scene(scene, generic, inputs, generic.table.stiffness()));
+  ASSERT_FALSE(calibrate_scene(scene, generic, inputs));
   LocalModel typed = generic;
   ASSERT_TRUE(typed.table.compact());
   const SpringKernel stencil_kernel(typed), generic_kernel(generic);

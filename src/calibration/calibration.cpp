@@ -94,8 +94,8 @@ const CalibrationStyle* solver_wrapping_calibration(const Scene& scene) {
   return style && style->wrap_solver ? style : nullptr;
 }
 
-CalibrationRefresher calibrate_scene(const Scene& scene, const LocalModel& model, const CalibrationInputs& inputs,
-                                     std::vector<double>& stiffness) {
+CalibrationRefresher calibrate_scene(const Scene& scene, LocalModel& model, const CalibrationInputs& inputs) {
+  std::vector<double>& stiffness = model.table.stiffness();
   const int nbodies = model.shape.bodies();
   if (nbodies <= 1 || scene.calibrations.size() <= 1) {  // one body: the method sees the whole model
     const CalibrationStyle* method = find_calibration(scene.calibration.method);

@@ -70,7 +70,7 @@ struct CalibrationStyle {
     return style;                                              \
   }
 
-// Main's step 4: sets stiffness[c] for every local connection c by the method of the body it lies in
+// Main's step 4: sets the model's stiffness k(c) for every local connection c by the method of the body it lies in
 // (Scene::calibrations). One body: its method runs on the whole model, as it always has. Several: each body's
 // method runs on a view of the model holding only that body's connections, with the body's geometry as the view's
 // first body and the body's calibration as the view's scene.calibration, and its k are copied back. Returns the
@@ -84,8 +84,7 @@ const CalibrationStyle* solver_wrapping_calibration(const Scene& scene);
 // Why `style` cannot calibrate a body of topology `topology` ("" when it can): for the scene reader's message.
 std::string calibration_topology_problem(const CalibrationStyle& style, const std::string& topology);
 
-CalibrationRefresher calibrate_scene(const Scene& scene, const LocalModel& model, const CalibrationInputs& inputs,
-                                     std::vector<double>& stiffness);
+CalibrationRefresher calibrate_scene(const Scene& scene, LocalModel& model, const CalibrationInputs& inputs);
 
 // Every registered method, in the order of their files' names. find_calibration returns nullptr for an unknown name.
 const std::vector<CalibrationStyle>& calibration_styles();

@@ -13,7 +13,7 @@ void Simulation::build(const MeshReader& read_mesh) {
 }
 
 void Simulation::calibrate() {
-  refresh_ = calibrate_scene(scene_, model_, inputs_, model_.table.stiffness());
+  refresh_ = calibrate_scene(scene_, model_, inputs_);
   if (stiffness_is_final(scene_, refresh_)) model_.table.compact();
   // A refresher (angles-update) took what it reads when it was made; a solver-wrapping method reads the inputs
   // at every update.

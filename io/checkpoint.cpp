@@ -64,6 +64,9 @@ std::vector<double> connection_values(const LocalModel& m, Value value) {
   return v;
 }
 
+// Dynamic runs whose forces read velocities only (SolverState::v_half): optional, checked when present.
+constexpr const char* kHalfStepVelocities = "/molecules/half_step_velocities";
+
 // Hdf5File's messages start with the file's path; the InputError names it already.
 std::string without_path(const std::string& message, const std::string& path) {
   const std::string prefix = path + ": ";
@@ -80,7 +83,7 @@ std::string write_checkpoint(const std::string& directory, int keep, const Scene
   const std::string path = directory + "/" + name;
   {
     // The space the file needs, reserved first: a full disk fails here, cleanly (Hdf5File::create).
-    const std::int64_t bytes = 48 * model.global_molecules + 32 * model.global_connections +
+    const std::int64_t bytes = (state.v_half.empty() ? 48 : 72) * model.global_molecules + 32 * model.global_connections +
                                static_cast<std::int64_t>(scene.text.size()) + (1 << 20);
     Hdf5File f = Hdf5File::create(path, model.comm, bytes);
     f.set_attribute("/", "kind", "checkpoint");
@@ -105,6 +108,9 @@ std::string write_checkpoint(const std::string& directory, int keep, const Scene
                   molecules.to_natural(state.x.array(), 3), comm);
     write_checked(f, "/molecules/velocities", model.global_molecules, 3, molecules.begin(),
                   molecules.to_natural(state.v.data(), 3), comm);
+    if (!state.v_half.empty())  // forces that read velocities (dynamic.cpp): what the last evaluation read
+      write_checked(f, kHalfStepVelocities, model.global_molecules, 3, molecules.begin(),
+                    molecules.to_natural(state.v_half.data(), 3), comm);
     std::vector<std::int64_t> ends;
     for (int c : model.written_here()) ends.push_back(model.id[model.end_a[c]]), ends.push_back(model.id[model.end_b[c]]);
     write_checked(f, "/connections/endpoints", model.global_connections, 2, connections.begin(),
@@ -206,7 +212,7 @@ CheckpointHeader header_metadata(const Hdf5File& f, const std::string& path, std
     throw InputError(path, "molecules",
                      std::to_string(h.molecules) + " molecules and " + std::to_string(h.connections) +
                          " connections do not fit in the file's " + std::to_string(bytes) + " bytes");
-  for (const DatasetSpec& d : kDatasets) {
+  auto check = [&](const DatasetSpec& d) {
     const std::int64_t rows = d.per_molecule ? h.molecules : h.connections;
     if (!f.exists(d.name)) throw InputError(path, d.name, "dataset missing");
     auto shape = f.shape(d.name);
@@ -217,7 +223,9 @@ CheckpointHeader header_metadata(const Hdf5File& f, const std::string& path, std
     f.check_plain(d.name, d.integer);
     if (!f.has_attribute(d.name, "checksum")) throw InputError(path, d.name, "checksum attribute missing");
     f.int64_attribute(d.name, "checksum");
-  }
+  };
+  for (const DatasetSpec& d : kDatasets) check(d);
+  if (f.exists(kHalfStepVelocities)) check({kHalfStepVelocities, false, 3, true});
   return h;
 }
 
@@ -285,6 +293,7 @@ CheckpointHeader read_checkpoint_header(const std::string& path, MPI_Comm comm) 
     verify("/connections/endpoints", h.connections, 2, std::int64_t());
     verify("/connections/stiffness", h.connections, 1, double());
     verify("/connections/rest_length", h.connections, 1, double());
+    if (f.exists(kHalfStepVelocities)) verify(kHalfStepVelocities, h.molecules, 3, double());
     f.close();
   } catch (const InputError&) {
     throw;
@@ -347,6 +356,10 @@ void read_checkpoint_state(const std::string& path, const LocalModel& model, con
     auto mine_v = molecules.from_natural(v.data(), 3);
     std::copy(mine_x.begin(), mine_x.end(), state.x.array());
     std::copy(mine_v.begin(), mine_v.end(), state.v.begin());
+    if (f.exists(kHalfStepVelocities)) {
+      auto half = load(kHalfStepVelocities, model.global_molecules, 3, molecules, double());
+      state.v_half = molecules.from_natural(half.data(), 3);
+    }
     state.x.update_ghosts();
     state.step = f.int64_attribute("/", "step");
     state.time = f.double_attribute("/", "time");

@@ -102,6 +102,12 @@ bool ForceModel::energy_never_grows() const {
   return true;
 }
 
+bool ForceModel::reads_velocity() const {
+  for (const TermStyle* s : term_styles_)
+    if (s->reads_velocity) return true;
+  return false;
+}
+
 ForceModel::Contact ForceModel::contact_totals() const {
   Contact c;
   const int nb = model_.shape.bodies();

@@ -55,6 +55,8 @@ public:
   std::vector<std::string> term_names() const;
   // Every listed term keeps the total energy from growing (TermStyle::energy_never_grows; true with none).
   bool energy_never_grows() const;
+  // Some listed term reads the velocities (TermStyle::reads_velocity).
+  bool reads_velocity() const;
   // Collective: the contact force totals of the last force evaluation, summed over the ranks; nullopt-like
   // (has_obstacles/has_contact false) when the scene has no such term.
   struct Contact {

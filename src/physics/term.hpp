@@ -66,6 +66,9 @@ struct TermStyle {
   // conservative (a potential) or dissipative; the dynamic guard's energy-growth check holds only then.
   bool energy_never_grows = false;
   ContactReport contact = ContactReport::none;
+  // The term reads the velocities (viscous friction): a checkpoint of a dynamic run then keeps the half-step
+  // velocity its last evaluation read, so that a restart evaluates the same forces.
+  bool reads_velocity = false;
 };
 
 // Registers a term, in its own file: TISSUE_TERM(gravity, {"gravity", listed, make, "...", 10, true}).

@@ -29,6 +29,7 @@ double leapfrog_energy(const LocalModel& model, const ForceModel& forces, const 
   MPI_Allreduce(&e, &total, 1, MPI_DOUBLE, MPI_SUM, model.comm);
   return total;
 }
+std::size_t v_size(const LocalModel& model) { return 3 * static_cast<std::size_t>(model.owned); }
 }  // namespace
 
 SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const ForceModel& forces, SolverState& state,
@@ -49,7 +50,12 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
   Progress progress("dynamic", scene.output.progress, model.comm);
   state.x.update_ghosts();
   forces.set_time(state.time);  // time-dependent terms (cyclic loads) read the time of the evaluation
-  forces.forces(x, v, f);
+  // The forces at the start: a restart evaluates them with the half-step velocities the straight run used.
+  const bool keep_half = forces.reads_velocity();
+  const bool restart_half = keep_half && state.restarted && state.v_half.size() == v_size(model);
+  forces.forces(x, restart_half ? state.v_half.data() : v, f);
+  if (keep_half) state.v_half.assign(v_size(model), 0.0);
+  double* v_half = keep_half ? state.v_half.data() : nullptr;
   report.energy_initial = leapfrog_energy(model, forces, state, dt);
   // NaN, Inf and energy growth caught within 16 steps (one reduction per 16 steps, the first non-finite step
   // named), connection lengths every 128 steps; the last good state is kept (guards.hpp).
@@ -98,7 +104,9 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
         }
         kinetic += m[i] * vv;
       }
-    else
+    else {
+      // A step whose state may be read (a checkpoint among them): keep the half-step velocities the forces read.
+      if (v_half) std::copy(v, v + 3 * n, v_half);
       for (int i = 0; i < n; ++i) {
         const double kick = half_kick[i];
         double vv = 0;
@@ -109,6 +117,7 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
         }
         kinetic += m[i] * vv;
       }
+    }
     ++state.step;
     state.time += dt;
     guard.dynamic_step(0.5 * kinetic);

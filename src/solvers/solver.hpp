@@ -47,6 +47,10 @@ struct SolverState {
   double fire_dt = 0.0, fire_alpha = 0.0;  // relaxation: FIRE's adaptive step and mixing
   long fire_positive = 0;                  // relaxation: steps since the power was last negative
   bool restarted = false;                  // loaded from a checkpoint
+  // Dynamic runs whose forces read velocities (viscosity): the half-step velocities (owned) that the last force
+  // evaluation read; empty otherwise. A checkpoint keeps them: velocity Verlet's forces at step n read
+  // v(n - 1/2), not the whole-step v(n) that the checkpoint's velocities hold.
+  std::vector<double> v_half;
 };
 
 struct SolveReport {

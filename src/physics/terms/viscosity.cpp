@@ -25,6 +25,6 @@ std::unique_ptr<Term> make_viscosity(const TermContext& c) {
 TISSUE_TERM(viscosity, {"viscosity",
                         [](const Scene& s) { return s.physics.viscosity.has_value() && *s.physics.viscosity > 0; },
                         make_viscosity, "[physics] viscosity = c: ambient viscous friction -c v on every molecule", 20,
-                        /*energy_never_grows=*/true});
+                        /*energy_never_grows=*/true, ContactReport::none, /*reads_velocity=*/true});
 
 }  // namespace tissue

@@ -12,6 +12,7 @@
 //   mpirun -np 2 build/tissue run run_scripts/scenes/table2.toml --set solver.kind=relaxation
 //   build/tissue run run_scripts/scenes/table2.toml -- -ksp_type gmres -pc_type hypre -snes_monitor -log_view
 //   build/tissue info out/table2/final.h5
+//   mpirun -np 2 build/tissue fit run_scripts/scenes/fit_creep.toml --output out/fit   (src/driver/fit.hpp)
 //
 // Exit codes: 0 success, 2 bad input (one line naming file and key; a bad output location too), 3 the solver
 // failed or a file could not be written (one line naming the file and the system error).
@@ -26,16 +27,21 @@
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
+#include "io/atomic_file.hpp"
 #include "io/checkpoint.hpp"
+#include "io/fit_input.hpp"
 #include "io/gmsh_mesh.hpp"
 #include "io/hdf5_file.hpp"
 #include "io/output.hpp"
 #include "io/output_location.hpp"
 #include "io/scene.hpp"
 #include "partition/agreement.hpp"
+#include "src/driver/fit.hpp"
 #include "src/driver/simulation.hpp"
 
 using namespace tissue;
@@ -61,9 +67,10 @@ void check_restart_overrides(const std::vector<std::string>& overrides) {
 
 void on_signal(int) { stop_requested = 1; }
 
-// Runs one scene end to end, from its start or from a checkpoint. Returns the exit code.
+// Runs one scene end to end, from its start or from a checkpoint. Returns the exit code. A fit's forward runs
+// give the scene as text (`scene_text`, named scene_path in messages) and run `quiet` (no lines but failures).
 int run(const std::string& scene_path, const std::string& checkpoint, const std::vector<std::string>& overrides,
-        const std::string& output) {
+        const std::string& output, const std::string& scene_text = "", bool quiet = false) {
   const MPI_Comm comm = PETSC_COMM_WORLD;
   const bool root = rank_of(comm) == 0;
   const auto start = std::chrono::steady_clock::now();
@@ -75,7 +82,9 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
   // 1. Read the scene (every rank reads the same file; a bad one stops every rank with the same line). A
   //    restart reads the scene text the checkpoint carries.
   Scene scene;
-  if (checkpoint.empty()) {
+  if (!scene_text.empty()) {
+    scene = parse_scene(scene_text, scene_path, overrides);
+  } else if (checkpoint.empty()) {
     scene = read_scene(scene_path, overrides);
   } else {
     check_restart_overrides(overrides);
@@ -89,6 +98,7 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
                    header.title.c_str(), header.step, header.ranks, ranks);
   }
   if (!output.empty()) scene.output.directory = output;
+  if (quiet) scene.output.progress = false;
   // The output location is input: checked before any work (exists or can be created, a directory, writable by
   // every rank, room for the first file), so that a bad one is exit 2 in a second, not after the solve.
   check_output_location(scene, comm);
@@ -100,7 +110,7 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
   //      by io's reader (io/gmsh_mesh.hpp).
   sim.build(read_mesh);
   const LocalModel& model = sim.model();
-  if (root)
+  if (root && !quiet)
     std::printf("tissue: %lld molecules, %lld connections on %d ranks; edge cut %ld, imbalance %.3f, "
                          "ghosts/owned %.3f\n",
                  static_cast<long long>(model.global_molecules), static_cast<long long>(model.global_connections),
@@ -114,7 +124,7 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
 
   // 5. The force model: the connection forces plus only the terms the scene lists; loads and holds.
   sim.make_forces();
-  if (root) {
+  if (root && !quiet) {
     std::printf("tissue: critical time step %.6e s\n", sim.critical_time_step());
     std::fflush(stdout);
   }
@@ -143,7 +153,7 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
 
   // 8. Write the final state (unless it is not finite) and summary.json.
   sim.write(out, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
-  if (root) {
+  if (root && !quiet) {
     const Scene& sc = sim.scene();
     const TensionTest& test = sim.test();
     const Measurements& measured = sim.measured();
@@ -160,6 +170,87 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
     if (sim.failed()) std::fprintf(stderr, "tissue: %s\n", sim.failure().c_str());
   }
   return sim.failed() ? 3 : 0;
+}
+
+// `tissue fit`: the scene of the experiment plus [fit] (io/fit_input.hpp), fitted by src/driver/fit.hpp. Writes
+// DIR/fit.json, DIR/fitted.toml and, in DIR itself, the run of the fitted scene (history.csv, summary.json).
+int fit(const std::string& fit_path, const std::vector<std::string>& overrides, const std::string& output) {
+  const MPI_Comm comm = PETSC_COMM_WORLD;
+  const bool root = rank_of(comm) == 0;
+  const auto start = std::chrono::steady_clock::now();
+  // 1. The [fit] table, the measured curve and the scene, checked before any forward run (bad input: exit 2).
+  FitInput input = agree(comm, [&] { return read_fit_input(fit_path, overrides); });
+  Scene scene = parse_scene(input.scene_text, fit_path);
+  if (!output.empty()) scene.output.directory = output;
+  check_output_location(scene, comm);
+  const std::string dir = scene.output.directory;
+  if (root)
+    std::printf("tissue fit: %zu parameters to the %zu points of %s (%s against %s)\n", input.parameters.size(),
+                input.data_x.size(), input.data_path.c_str(), input.y.c_str(), input.x.c_str());
+
+  // 2. Forward runs, each the ordinary run on every rank, into DIR/forward; the optimizer (TAO POUNDERS).
+  ForwardRun forward = [&](const std::vector<std::string>& set, const std::string& directory) {
+    try {
+      return run(fit_path, "", set, directory, input.scene_text, /*quiet=*/true);
+    } catch (const InputError&) {
+      return 2;
+    } catch (const std::exception&) {
+      return 3;
+    }
+  };
+  const FitResult r = fit_parameters(input, forward, dir + "/forward", comm, scene.output.progress);
+
+  // 3. The fitted scene, runnable as is, and its run in DIR; fit.json.
+  const int last = run(fit_path, "", fit_overrides(input, r.values), dir, input.scene_text, /*quiet=*/true);
+  nlohmann::json j;
+  j["parameters"] = nlohmann::json::object();
+  j["standard_errors"] = nlohmann::json::object();
+  j["on_bound"] = nlohmann::json::object();
+  auto number = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
+  for (std::size_t i = 0; i < input.parameters.size(); ++i) {
+    const std::string& key = input.parameters[i].key;
+    j["parameters"][key] = r.values[i];
+    j["standard_errors"][key] = number(r.standard_errors[i]);
+    j["on_bound"][key] = static_cast<bool>(r.on_bound[i]);
+    j["bounds"][key] = {input.parameters[i].lower, input.parameters[i].upper};
+    j["start"][key] = input.parameters[i].start;
+  }
+  nlohmann::json corr = nlohmann::json::array();
+  for (const auto& row : r.correlation) {
+    nlohmann::json line = nlohmann::json::array();
+    for (double v : row) line.push_back(number(v));
+    corr.push_back(line);
+  }
+  j["correlation"] = corr;
+  j["residual_norm"] = r.residual_norm;
+  j["points"] = r.residuals;
+  j["forward_runs"] = r.forward_runs;
+  j["failed_runs"] = r.failed_runs;
+  j["converged"] = r.converged;
+  j["reason"] = r.reason;
+  j["identifiable"] = r.identifiable;
+  j["notes"] = r.notes;
+  j["data"] = input.data_path;
+  j["x"] = input.x, j["y"] = input.y;
+  j["fitted_run_exit_code"] = last;
+  j["wall_seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  agree(comm, [&] {
+    if (!root) return;
+    write_file_atomically(dir + "/fitted.toml", fitted_scene_text(input, r.values));
+    write_file_atomically(dir + "/fit.json", j.dump(2) + "\n");
+    std::error_code ec;
+    std::filesystem::remove_all(dir + "/forward", ec);  // the last forward run: a finite-difference probe
+  });
+  if (root) {
+    std::printf("tissue fit: %s after %ld forward runs (%ld failed); |r| = %.6e over %ld points\n",
+                r.converged ? "converged" : "stopped", r.forward_runs, r.failed_runs, r.residual_norm, r.residuals);
+    for (std::size_t i = 0; i < input.parameters.size(); ++i)
+      std::printf("  %s = %.8g +- %.3g%s\n", input.parameters[i].key.c_str(), r.values[i], r.standard_errors[i],
+                  r.on_bound[i] ? " (on a bound)" : "");
+    if (!r.notes.empty()) std::printf("  notes: %s\n", r.notes.c_str());
+    std::printf("  wrote %s/fit.json, %s/fitted.toml\n", dir.c_str(), dir.c_str());
+  }
+  return last == 0 ? 0 : 3;
 }
 
 // PETSc ignores options it does not know: a typo after -- (-ksp_typ gmres) would go unnoticed. After the run,
@@ -212,6 +303,10 @@ int main(int argc, char** argv) {
   restart_cmd->add_option("checkpoint", checkpoint_path, "checkpoint file (HDF5)")->required();
   restart_cmd->add_option("--set", overrides, "change solver.steps, solver.max_iterations or output.*");
   restart_cmd->add_option("--output", output, "output directory (default: the scene's output.directory)");
+  auto* fit_cmd = app.add_subcommand("fit", "fit material parameters so that the scene reproduces a measured curve");
+  fit_cmd->add_option("fit", scene_path, "the scene plus a [fit] table (TOML)")->required();
+  fit_cmd->add_option("--set", overrides, "override a key of FIT.toml");
+  fit_cmd->add_option("--output", output, "output directory (default: the scene's output.directory)");
   auto* info_cmd = app.add_subcommand("info", "say what a snapshot or checkpoint holds");
   info_cmd->add_option("file", info_path, "HDF5 file")->required();
   try {
@@ -243,6 +338,7 @@ int main(int argc, char** argv) {
       if (*run_cmd) return run(scene_path, "", overrides, output);
       if (*restart_cmd) return run("", checkpoint_path, overrides, output);
       if (*info_cmd) return info(info_path, PETSC_COMM_WORLD);
+      if (*fit_cmd) return fit(scene_path, overrides, output);
       return 0;
     });
   } catch (const InputError& e) {

@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <unordered_map>
 
+#include "partition/explicit_model.hpp"
 #include "partition/lattice_model.hpp"
 #include "src/model/topology.hpp"
 
@@ -191,20 +192,13 @@ bool compact_connection_types(LocalModel& m) {
 }
 
 LocalModel build_local_model(const Scene& scene, MPI_Comm comm, const MeshReader& read_mesh) {
-  // Explicit topologies (meshes, random clouds) come as lists: the explicit path. Box lattices from stencils.
+  // Explicit topologies (meshes, random clouds) are handed out by rank 0 in blocks; box lattices come from their
+  // stencils. Either way each rank builds only its share.
   const std::vector<BodySpec>& specs = scene.bodies;
   const bool is_explicit = std::any_of(specs.begin(), specs.end(), [](const BodySpec& b) { return b.unstructured(); }) ||
                            scene.body.unstructured();
-  LocalModel m;
-  if (is_explicit) {
-    Body body = build_body(scene, read_mesh);
-    PartitionStats stats;
-    std::vector<int> part = partition_molecules(body, comm, stats, scene.partition.method);
-    m = distribute(body, part, stats, comm);
-  } else {
-    m = build_lattice_model(scene, comm);
-  }
-  if (scene.partition.method == "ptscotch" && !is_explicit) {
+  LocalModel m = is_explicit ? build_explicit_model(scene, comm, read_mesh) : build_lattice_model(scene, comm);
+  if (scene.partition.method == "ptscotch") {
     // PT-Scotch's blocks cannot see their neighbours' parts: count the cut connections here, each once (by the
     // rank writing it, which owns end a; it is cut when end b is a ghost).
     long cut = 0;

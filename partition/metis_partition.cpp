@@ -10,6 +10,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 #include "partition/ptscotch_partition.hpp"
 
@@ -70,6 +71,29 @@ std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionS
   std::vector<long> count(size, 0);
   for (int p : part) ++count[p];
   stats.imbalance = static_cast<double>(*std::max_element(count.begin(), count.end())) * size / n;
+  return part;
+}
+
+std::vector<int> partition_graph_on_rank0(std::vector<int>&& xadj, std::vector<int>&& adjncy, std::int64_t n,
+                                          MPI_Comm comm, PartitionStats& stats) {
+  static_assert(std::is_same_v<idx_t, int>, "METIS built with 32-bit indices");
+  int rank, size;
+  MPI_Comm_rank(comm, &rank);
+  MPI_Comm_size(comm, &size);
+  stats = PartitionStats{};
+  int status = METIS_OK;
+  std::vector<int> part;
+  if (rank == 0) {
+    std::vector<idx_t> p = run_metis(xadj, adjncy, size, stats.edge_cut, status);
+    xadj = std::vector<int>(), adjncy = std::vector<int>();
+    part.assign(p.begin(), p.end());
+    std::vector<long> count(size, 0);
+    for (int q : part) ++count[q];
+    stats.imbalance = static_cast<double>(*std::max_element(count.begin(), count.end())) * size / n;
+  }
+  check_status(status, comm);
+  MPI_Bcast(&stats.edge_cut, 1, MPI_LONG, 0, comm);
+  MPI_Bcast(&stats.imbalance, 1, MPI_DOUBLE, 0, comm);
   return part;
 }
 

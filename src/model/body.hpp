@@ -137,7 +137,9 @@ struct Body : BoxGeometry {
   // topology's from the positions.
   double rest_distance(std::int64_t a, std::int64_t b) const {
     if (!part(a).unstructured()) return part(a).rest_distance(a, b);
-    const Vec3 x = rest_position(a), y = rest_position(b);
+    return point_distance(rest_position(a), rest_position(b));
+  }
+  static double point_distance(const Vec3& x, const Vec3& y) {
     return std::sqrt((y[0] - x[0]) * (y[0] - x[0]) + (y[1] - x[1]) * (y[1] - x[1]) + (y[2] - x[2]) * (y[2] - x[2]));
   }
   // The face `name` of body b of an explicit topology, or nullptr.

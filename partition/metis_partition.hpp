@@ -21,10 +21,6 @@ struct PartitionStats {
 // connections and the slowest rank sets the step, so the tightest balance pays (docs/benchmarks.md).
 constexpr int kMetisImbalance = 1;
 
-// part[m] = the rank that owns molecule m. One part is handled without METIS (METIS 5.1 crashes on it).
-std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionStats& stats);
-// The scene's partition.method: "metis" (above) or "ptscotch" (partition/ptscotch_partition.hpp).
-std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionStats& stats, const std::string& method);
 
 // Collective: METIS k-way, with the options above, on the graph that rank 0 alone holds (CSR, both directions of
 // every connection, rows sorted; empty elsewhere), freed as soon as METIS returns. Returns the part of every

@@ -13,8 +13,8 @@
 #include "io/scene.hpp"
 #include "partition/explicit_model.hpp"
 #include "partition/local_model.hpp"
-#include "partition/metis_partition.hpp"
 #include "src/model/body.hpp"
+#include "tests/whole_body.hpp"
 
 using namespace tissue;
 

@@ -20,6 +20,7 @@
 #include "src/physics/spring_kernel.hpp"
 #include "src/model/body.hpp"
 #include "src/model/topology.hpp"
+#include "tests/whole_body.hpp"
 
 using namespace tissue;
 

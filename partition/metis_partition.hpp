@@ -14,7 +14,7 @@ namespace tissue {
 struct PartitionStats {
   long edge_cut = 0;        // connections whose ends sit on different ranks
   double imbalance = 1.0;   // largest part / mean part
-  double surface_to_volume = 0.0;  // ghost molecules / owned molecules, largest over ranks (set by distribute)
+  double surface_to_volume = 0.0;  // ghost molecules / owned molecules, largest over ranks (set by the builders)
 };
 
 // METIS's allowed imbalance, in thousandths over 1 (its default is 30: 3 %). Every rank computes its molecules'

@@ -13,17 +13,16 @@
 #include <vector>
 
 #include "partition/agreement.hpp"
+#include "src/model/topology.hpp"
 
 namespace tissue {
 
 namespace {
 
-// Connections per molecule (each counted once) of a lattice topology, interior: rectangular 3, face-diagonals 9,
-// body-diagonals 13, tetrahedral about 7; a random cloud or mesh about 7.
+// Connections per molecule (each counted once) of an interior molecule: half its topology's stencil (which holds
+// both signs of every offset); a random cloud or a mesh about 7, as a Delaunay tetrahedralization has.
 double connections_per_molecule(const std::string& topology) {
-  if (topology == "rectangular") return 3;
-  if (topology == "face-diagonals") return 9;
-  if (topology == "body-diagonals") return 13;
+  if (const TopologyStyle* lattice = find_topology(topology)) return 0.5 * static_cast<double>(lattice->stencil.size());
   return 7;
 }
 

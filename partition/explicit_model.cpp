@@ -147,8 +147,10 @@ void merge_edges(std::vector<Edge>& edges, std::vector<Edge>& chunk) {
 
 }  // namespace
 
-LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, const MeshReader& read_mesh) {
+LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationInputs& inputs,
+                                const MeshReader& read_mesh) {
   LocalModel m;
+  inputs = CalibrationInputs();
   m.comm = comm;
   MPI_Comm_rank(comm, &m.rank);
   MPI_Comm_size(comm, &m.size);
@@ -517,12 +519,13 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, const MeshRea
   // The rank's LocalModel: owned molecules, then ghosts; connections in the global order.
   m.local = static_cast<int>(local_rows.size());
   m.id.resize(m.local), m.block.resize(m.local), m.rest.resize(3 * m.local), m.mass.resize(m.local);
-  m.youngs_modulus.resize(m.local), m.degree.resize(m.local), m.body.resize(m.local), m.first_connection.resize(m.local);
+  inputs.youngs_modulus.resize(m.local), inputs.degree.resize(m.local), m.body.resize(m.local);
+  m.first_connection.resize(m.local);
   for (int i = 0; i < m.local; ++i) {
     const Molecule& x = local_rows[i];
     m.id[i] = x.id, m.block[i] = static_cast<PetscInt>(x.block);
     for (int d = 0; d < 3; ++d) m.rest[3 * i + d] = x.x[d];
-    m.mass[i] = x.mass, m.youngs_modulus[i] = x.youngs_modulus, m.degree[i] = x.degree, m.body[i] = x.body;
+    m.mass[i] = x.mass, inputs.youngs_modulus[i] = x.youngs_modulus, inputs.degree[i] = x.degree, m.body[i] = x.body;
     m.first_connection[i] = x.first_connection;
   }
   local_rows = std::vector<Molecule>();
@@ -532,7 +535,8 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, const MeshRea
   };
   const std::size_t nc = rows.size();
   m.end_a.resize(nc), m.end_b.resize(nc), m.forward_rank.resize(nc), m.connection_class.resize(nc);
-  m.rest_length.resize(nc), m.stiffness.assign(nc, 0.0), m.tetra_volume.resize(nc), m.tetra_lloyd_sum.resize(nc);
+  std::vector<double> rest_length(nc);
+  inputs.tetra_volume.resize(nc), inputs.tetra_lloyd_sum.resize(nc);
   for (std::size_t l = 0; l < nc; ++l) {
     const ConnectionRow& c = rows[l];
     const int a = local_index(c.a), b = local_index(c.b);
@@ -540,13 +544,14 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, const MeshRea
     m.forward_rank[l] = static_cast<std::uint16_t>(c.id - m.first_connection[a]);
     m.connection_class[l] = static_cast<ConnectionClass>(c.cls);
     const BoxGeometry& box = m.shape.part(c.a);
-    m.rest_length[l] = box.unstructured()
+    rest_length[l] = box.unstructured()
                            ? Body::point_distance({m.rest[3 * a], m.rest[3 * a + 1], m.rest[3 * a + 2]},
                                                   {m.rest[3 * b], m.rest[3 * b + 1], m.rest[3 * b + 2]})
                            : box.rest_distance(c.a, c.b);
-    m.tetra_volume[l] = c.volume, m.tetra_lloyd_sum[l] = c.lloyd;
+    inputs.tetra_volume[l] = c.volume, inputs.tetra_lloyd_sum[l] = c.lloyd;
     if (a < m.owned) ++m.written_count;
   }
+  m.table.set_rest_lengths(std::move(rest_length));
 
   const int ghosts_here = m.local - m.owned, owned_count = std::max(m.owned, 1);
   double ratio = static_cast<double>(ghosts_here) / owned_count, worst = 0;

@@ -21,8 +21,9 @@
 
 namespace tissue {
 
-// Collective. This rank's LocalModel of a scene with at least one explicit body; mesh bodies are read by
-// `read_mesh` on rank 0 only.
-LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, const MeshReader& read_mesh);
+// Collective. This rank's LocalModel of a scene with at least one explicit body, and what calibration reads of
+// it; mesh bodies are read by `read_mesh` on rank 0 only.
+LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationInputs& inputs,
+                                const MeshReader& read_mesh);
 
 }  // namespace tissue

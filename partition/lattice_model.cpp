@@ -65,8 +65,9 @@ long find_sorted_near(const std::int64_t* v, long n, long hint, std::int64_t id)
 
 }  // namespace
 
-LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm) {
+LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInputs& inputs) {
   LocalModel m;
+  inputs = CalibrationInputs();
   m.comm = comm;
   MPI_Comm_rank(comm, &m.rank);
   MPI_Comm_size(comm, &m.size);
@@ -185,7 +186,7 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm) {
   m.id = owned_ids;
   m.id.insert(m.id.end(), ghosts.begin(), ghosts.end());
   m.block.resize(m.local), m.rest.resize(3 * m.local), m.mass.resize(m.local);
-  m.youngs_modulus.resize(m.local), m.degree.resize(m.local), m.body.resize(m.local);
+  inputs.youngs_modulus.resize(m.local), inputs.degree.resize(m.local), m.body.resize(m.local);
   m.first_connection.resize(m.local);
   for (int i = 0; i < m.local; ++i) {
     m.first_connection[i] = i < m.owned ? owned_first[i] : ghost_first[i - m.owned];
@@ -197,8 +198,8 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm) {
     for (int d = 0; d < 3; ++d) m.rest[3 * i + d] = x[d];
     const MoleculeMaterial mat = molecule_material(specs[b], box, g);
     m.mass[i] = mat.density * box.volume(g);
-    m.youngs_modulus[i] = mat.youngs_modulus;
-    m.degree[i] = static_cast<int>(nb.size());
+    inputs.youngs_modulus[i] = mat.youngs_modulus;
+    inputs.degree[i] = static_cast<int>(nb.size());
     m.body[i] = b;
   }
   owned_ids = owned_first = ghost_first = std::vector<std::int64_t>();  // m.id and m.first_connection hold them
@@ -218,6 +219,8 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm) {
   for (int b = 0; b < nbodies; ++b) any_tetrahedra = any_tetrahedra || style[b]->tetrahedra;
   // Rest lengths by type (LocalModel::length_type): the distinct lengths by their bits, with the last length
   // seen at each forward position as a shortcut (neighbouring molecules repeat their stencil's lengths).
+  std::vector<std::uint16_t> length_types;  // per connection
+  std::vector<double> length_table;
   std::unordered_map<std::uint64_t, std::uint16_t> length_index;
   std::vector<std::pair<std::uint64_t, int>> recent;  // per forward position: (bits, type), type -1: none yet
   auto length_type = [&](int forward, double l) {
@@ -226,10 +229,10 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm) {
     if (forward >= static_cast<int>(recent.size())) recent.resize(forward + 1, {0, -1});
     if (recent[forward].second >= 0 && recent[forward].first == bits)
       return static_cast<std::uint16_t>(recent[forward].second);
-    auto [it, added] = length_index.try_emplace(bits, static_cast<std::uint16_t>(m.length_table.size()));
+    auto [it, added] = length_index.try_emplace(bits, static_cast<std::uint16_t>(length_table.size()));
     if (added) {
-      if (m.length_table.size() == 65536) throw std::runtime_error("more than 65,536 distinct rest lengths in a lattice");
-      m.length_table.push_back(l);
+      if (length_table.size() == 65536) throw std::runtime_error("more than 65,536 distinct rest lengths in a lattice");
+      length_table.push_back(l);
     }
     recent[forward] = {bits, static_cast<int>(it->second)};
     return it->second;
@@ -258,7 +261,7 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm) {
         const int j = static_cast<int>(owned_j >= 0 ? owned_j : m.owned + find_sorted(ghosts, x.id));
         m.end_a.push_back(i), m.end_b.push_back(j);
         m.connection_class.push_back(x.cls);
-        m.length_type.push_back(length_type(forward, box.rest_distance(a, x.id)));
+        length_types.push_back(length_type(forward, box.rest_distance(a, x.id)));
         if (a_owned) ++m.written_count;
         if (any_tetrahedra) {
           // Tetrahedra incident on the connection (Van Gelder's Eq. 5, Lloyd's sum): every Kuhn tetrahedron of
@@ -268,17 +271,17 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm) {
             const double v = kuhn_tetrahedron_volume(box), l_equiv = std::cbrt(6.0 * std::sqrt(2.0) * v);
             for (int t = kuhn_tetrahedra_on(box, a, x.id); t > 0; --t) volume += v, lloyd += l_equiv;
           }
-          m.tetra_volume.push_back(volume), m.tetra_lloyd_sum.push_back(lloyd);
+          inputs.tetra_volume.push_back(volume), inputs.tetra_lloyd_sum.push_back(lloyd);
         }
       }
     }
   };
   walk(false);
   m.end_a.reserve(count), m.end_b.reserve(count);
-  m.connection_class.reserve(count), m.length_type.reserve(count);
-  if (any_tetrahedra) m.tetra_volume.reserve(count), m.tetra_lloyd_sum.reserve(count);
+  m.connection_class.reserve(count), length_types.reserve(count);
+  if (any_tetrahedra) inputs.tetra_volume.reserve(count), inputs.tetra_lloyd_sum.reserve(count);
   walk(true);
-  m.stiffness.assign(m.end_a.size(), 0.0);
+  m.table.set_rest_lengths(std::move(length_types), std::move(length_table));
 
   const int ghosts_here = m.local - m.owned, owned_count = std::max(m.owned, 1);
   double ratio = static_cast<double>(ghosts_here) / owned_count, worst = 0;

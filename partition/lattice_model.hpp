@@ -18,7 +18,7 @@
 
 namespace tissue {
 
-// Collective. This rank's LocalModel of a scene whose bodies are all box lattices.
-LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm);
+// Collective. This rank's LocalModel of a scene whose bodies are all box lattices, and what calibration reads.
+LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInputs& inputs);
 
 }  // namespace tissue

@@ -12,6 +12,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "partition/calibration_inputs.hpp"
+#include "partition/connection_table.hpp"
 #include "partition/metis_partition.hpp"
 #include "src/model/body.hpp"
 
@@ -52,7 +54,11 @@ private:
   const std::size_t& count_;
 };
 
-struct LocalModel {
+// The partition's layout of the rank's share: which molecules it holds (owned, then ghosts), where they sit in
+// PETSc's numbering and in space, and the ends of its connections. What a connection's spring is (k, l0) is the
+// connection table's (partition/connection_table.hpp); what only calibration reads (each molecule's E, ...) is
+// handed to calibration separately (partition/calibration_inputs.hpp) and dropped after it.
+struct MoleculeLayout {
   MPI_Comm comm = MPI_COMM_NULL;
   int rank = 0, size = 1;
   Body shape;  // the bodies' geometry only (body 0's n, h, offset, topology, and parts); global arrays left empty
@@ -66,45 +72,21 @@ struct LocalModel {
   std::vector<PetscInt> block;       // PETSc block id of each local molecule (ghosts too)
   std::vector<double> rest;          // 3 * local, rest positions
   std::vector<double> mass;          // local, kg
-  // Read by calibration only: emptied by release_calibration_inputs once the stiffness is final.
-  std::vector<double> youngs_modulus;  // local, Pa
-  std::vector<int> degree;           // local, number of connections of each molecule in the whole body
   std::vector<int> body;             // local, which body ([[body]] index) each molecule belongs to
   // local: the global id of the molecule's first connection to a higher id (the global connection order is
   // (a, b), so molecule a's connections to higher ids are numbered one after another from there).
   std::vector<std::int64_t> first_connection;
 
-  // Connections (structure of arrays), sorted by (a, b) in global ids: local end indices, class, rest length,
-  // stiffness, and b's position among a's connections to higher ids (with first_connection, the global id:
-  // 2 bytes a connection instead of 8). Box lattices leave forward_rank empty: the position comes from the
-  // topology's stencil when a connection's id is asked for (output plans, guard messages: never per step), and
-  // the 2 bytes a connection are saved.
+  // Connections, sorted by (a, b) in global ids: local end indices, class, and b's position among a's
+  // connections to higher ids (with first_connection, the global id: 2 bytes a connection instead of 8). Box
+  // lattices leave forward_rank empty: the position comes from the topology's stencil when a connection's id is
+  // asked for (output plans, guard messages: never per step), and the 2 bytes a connection are saved.
   std::vector<int> end_a, end_b;
   std::vector<std::uint16_t> forward_rank;
   std::vector<ConnectionClass> connection_class;
-  std::vector<double> rest_length, stiffness;
-  // Box lattices: rest lengths by geometry. A lattice has a handful of distinct lengths (one per stencil
-  // direction and body), so each connection keeps a 2-byte index into length_table and rest_length stays empty:
-  // 6 bytes a connection less while the stiffness is still per connection, which is the set-up's memory peak.
-  // Explicit topologies (meshes, clouds) keep rest_length. Read either through l0(c).
-  std::vector<std::uint16_t> length_type;
-  std::vector<double> length_table;
-  std::vector<double> tetra_volume;  // tetrahedral topology: volume of the tetrahedra incident on each connection
-  std::vector<double> tetra_lloyd_sum;  // tetrahedral: sum over incident tetrahedra of l_equiv = (6 sqrt2 V)^(1/3)
   std::size_t written_count = 0;     // connections whose end a this rank owns
-  // Connection types: after calibration, when the (k, l0) pairs take few distinct values (a lattice of one
-  // material has a handful: interior, face, edge, by class), each connection keeps a 2-byte type into these
-  // tables and stiffness and rest_length are released (16 bytes a connection; see compact_connection_types).
-  std::vector<std::uint16_t> connection_type;
-  std::vector<double> type_stiffness, type_rest_length;
 
   int connections() const { return static_cast<int>(end_a.size()); }
-  bool typed() const { return !connection_type.empty(); }
-  double k(int c) const { return typed() ? type_stiffness[connection_type[c]] : stiffness[c]; }
-  double l0(int c) const {
-    if (typed()) return type_rest_length[connection_type[c]];
-    return length_type.empty() ? rest_length[c] : length_table[length_type[c]];
-  }
   std::int64_t connection_id(int c) const {
     return first_connection[end_a[c]] + (forward_rank.empty() ? lattice_forward_rank(c) : forward_rank[c]);
   }
@@ -113,18 +95,19 @@ struct LocalModel {
   WrittenConnections written_here() const { return {end_a, owned, written_count}; }
 };
 
-// Replaces the per-connection stiffness and rest length by types when this rank has at most 65536 distinct
-// (k, l0) pairs; returns whether it did. Exact: the tables hold the same doubles. Call it only once the
-// stiffness no longer changes (not under angles-update or iterative calibration).
-bool compact_connection_types(LocalModel& model);
+// The rank's share of the body: the layout, and the connection table of its springs.
+struct LocalModel : MoleculeLayout {
+  ConnectionTable table;
 
-// Frees what only calibration reads (each molecule's E and degree: 12 bytes a molecule). Call it only once the
-// stiffness no longer changes, as compact_connection_types.
-void release_calibration_inputs(LocalModel& model);
+  double k(int c) const { return table.k(c); }
+  double l0(int c) const { return table.l0(c); }
+  bool typed() const { return table.typed(); }
+};
 
-// Collective. This rank's LocalModel of the scene, built rank by rank: box lattices from their stencils
-// (partition/lattice_model.hpp), scenes with a mesh or a random cloud from blocks that rank 0 hands out
-// (partition/explicit_model.hpp; mesh bodies read by `read_mesh`, io/gmsh_mesh.hpp's read_mesh).
-LocalModel build_local_model(const Scene& scene, MPI_Comm comm, const MeshReader& read_mesh = {});
+// Collective. This rank's LocalModel of the scene, built rank by rank, and what calibration reads of it: box
+// lattices from their stencils (partition/lattice_model.hpp), scenes with a mesh or a random cloud from blocks
+// that rank 0 hands out (partition/explicit_model.hpp; mesh bodies read by `read_mesh`, io/gmsh_mesh.hpp's
+// read_mesh).
+LocalModel build_local_model(const Scene& scene, MPI_Comm comm, CalibrationInputs& inputs, const MeshReader& read_mesh = {});
 
 }  // namespace tissue

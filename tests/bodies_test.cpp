@@ -109,7 +109,8 @@ TEST(Bodies, EachBodyGetsWhatItsMethodGivesItAlone) {
   EXPECT_EQ(differ, 0) << "connections whose k differs from the body's alone";
   // and the methods really differ: linear k on body A would be another set
   double sums[2] = {0, 0}, total[2];
-  for (int c : a->model.written_here()) sums[0] += linear_stiffness(a->model, c), sums[1] += a->model.k(c);
+  const CalibrationContext ctx{a->scene, a->model, a->inputs};
+  for (int c : a->model.written_here()) sums[0] += linear_stiffness(ctx, c), sums[1] += a->model.k(c);
   MPI_Allreduce(sums, total, 2, MPI_DOUBLE, MPI_SUM, PETSC_COMM_WORLD);
   EXPECT_GT(std::fabs(total[0] - total[1]), 0.1 * total[1]);
 

@@ -54,14 +54,16 @@ std::string scene_text(const Case& c) {
 struct Built {
   Scene scene;
   LocalModel model;
+  CalibrationInputs inputs;
 };
 
 // main.cpp steps 1-4 on `comm`.
 std::unique_ptr<Built> build(const Scene& scene, MPI_Comm comm) {
   auto b = std::make_unique<Built>();
   b->scene = scene;
-  b->model = build_local_model(b->scene, comm, read_mesh);
-  find_calibration(b->scene.calibration.method)->compute(CalibrationContext{b->scene, b->model}, b->model.stiffness);
+  b->model = build_local_model(b->scene, comm, b->inputs, read_mesh);
+  find_calibration(b->scene.calibration.method)
+      ->compute(CalibrationContext{b->scene, b->model, b->inputs}, b->model.table.stiffness());
   return b;
 }
 std::unique_ptr<Built> build(const Case& c, MPI_Comm comm = MPI_COMM_SELF) {
@@ -74,7 +76,7 @@ double k_of(const LocalModel& m, std::array<long, 3> p, std::array<long, 3> q) {
   std::int64_t a = s.id(p[0], p[1], p[2]), b = s.id(q[0], q[1], q[2]);
   for (int c = 0; c < m.connections(); ++c) {
     std::int64_t x = m.id[m.end_a[c]], y = m.id[m.end_b[c]];
-    if ((x == a && y == b) || (x == b && y == a)) return m.stiffness[c];
+    if ((x == a && y == b) || (x == b && y == a)) return m.table.stiffness()[c];
   }
   ADD_FAILURE() << "no connection " << a << " - " << b;
   return NAN;
@@ -178,7 +180,7 @@ TEST(Calibration, AnglesByHand) {
   c.method = "linear";
   auto l = build(c);
   ASSERT_EQ(r->model.connections(), l->model.connections());
-  for (int i = 0; i < r->model.connections(); ++i) EXPECT_EQ(r->model.stiffness[i], l->model.stiffness[i]);
+  for (int i = 0; i < r->model.connections(); ++i) EXPECT_EQ(r->model.table.stiffness()[i], l->model.table.stiffness()[i]);
 }
 
 // Angles-update: the refresher at the rest positions gives the angles k; scaled and rotated positions (same
@@ -190,8 +192,8 @@ TEST(Calibration, AnglesUpdateRefresher) {
   const CalibrationStyle* style = find_calibration("angles-update");
   ASSERT_NE(style->updater, nullptr);
   EXPECT_EQ(find_calibration("angles")->updater, nullptr);
-  std::vector<double> k0 = b->model.stiffness, k(k0.size(), 0.0);
-  auto refresh = style->updater(CalibrationContext{b->scene, b->model}, k);
+  std::vector<double> k0 = b->model.table.stiffness(), k(k0.size(), 0.0);
+  auto refresh = style->updater(CalibrationContext{b->scene, b->model, b->inputs}, k);
   refresh(b->model.rest.data());
   for (std::size_t i = 0; i < k.size(); ++i) EXPECT_DOUBLE_EQ(k[i], k0[i]);
   std::vector<double> x(b->model.rest.size());
@@ -262,7 +264,7 @@ TEST(Calibration, IndependentOfRankCount) {
     ASSERT_EQ(self->model.connections(), self->model.global_connections);
     for (int i = 0; i < world->model.connections(); ++i) {
       const std::int64_t g = world->model.connection_id(i);
-      EXPECT_DOUBLE_EQ(world->model.stiffness[i], self->model.stiffness[g]) << mt.method << " " << mt.topology;
+      EXPECT_DOUBLE_EQ(world->model.table.stiffness()[i], self->model.table.stiffness()[g]) << mt.method << " " << mt.topology;
     }
   }
   // angles-update at a deformed state known on every rank (a function of the molecule id).
@@ -277,14 +279,14 @@ TEST(Calibration, IndependentOfRankCount) {
     return x;
   };
   std::vector<double> xs = deformed(self->model), xw = deformed(world->model);
-  auto rs = find_calibration("angles-update")->updater(CalibrationContext{self->scene, self->model},
-                                                        self->model.stiffness);
-  auto rw = find_calibration("angles-update")->updater(CalibrationContext{world->scene, world->model},
-                                                        world->model.stiffness);
+  auto rs = find_calibration("angles-update")->updater(CalibrationContext{self->scene, self->model, self->inputs},
+                                                        self->model.table.stiffness());
+  auto rw = find_calibration("angles-update")->updater(CalibrationContext{world->scene, world->model, world->inputs},
+                                                        world->model.table.stiffness());
   rs(xs.data());
   rw(xw.data());
   for (int i = 0; i < world->model.connections(); ++i)
-    EXPECT_DOUBLE_EQ(world->model.stiffness[i], self->model.stiffness[world->model.connection_id(i)]);
+    EXPECT_DOUBLE_EQ(world->model.table.stiffness()[i], self->model.table.stiffness()[world->model.connection_id(i)]);
 }
 
 namespace {
@@ -297,11 +299,11 @@ Result run(Built& b) {
   SolverState state(b.model);
   SolverHooks hooks;
   const CalibrationStyle* style = find_calibration(b.scene.calibration.method);
-  if (style->updater) hooks.refresh = style->updater(CalibrationContext{b.scene, b.model}, b.model.stiffness);
+  if (style->updater) hooks.refresh = style->updater(CalibrationContext{b.scene, b.model, b.inputs}, b.model.table.stiffness());
   const TensionTest test = tension_test(b.scene, b.model.shape);
   Result r;
   if (b.scene.calibration.method == "iterative")
-    find_calibration("iterative")->wrap_solver(b.scene, b.model, forces, state, hooks, test, r.report);
+    find_calibration("iterative")->wrap_solver(b.scene, b.model, b.inputs, forces, state, hooks, test, r.report);
   else
     r.report = solve(b.scene, b.model, forces, state, hooks);
   r.measured = measure(b.scene, b.model, test, state.x.array(), nullptr);

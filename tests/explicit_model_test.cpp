@@ -21,17 +21,25 @@ using namespace tissue;
 
 namespace {
 
-LocalModel reference(const Scene& scene, MPI_Comm comm) {
+// A model and what calibration reads of it.
+struct Built {
+  LocalModel model;
+  CalibrationInputs inputs;
+};
+
+Built reference(const Scene& scene, MPI_Comm comm) {
   Body body = build_body(scene, read_mesh);
   PartitionStats stats;
   std::vector<int> part = partition_molecules(body, comm, stats, scene.partition.method);
-  LocalModel m = distribute(body, part, stats, comm);
+  Built b;
+  b.model = distribute(body, part, stats, comm, b.inputs);
+  LocalModel& m = b.model;
   if (scene.partition.method == "ptscotch") {  // counted by build_local_model on the production path
     long cut = 0;
     for (int c : m.written_here()) cut += m.end_b[c] >= m.owned;
     MPI_Allreduce(&cut, &m.partition.edge_cut, 1, MPI_LONG, MPI_SUM, comm);
   }
-  return m;
+  return b;
 }
 
 void expect_same_geometry(const BoxGeometry& x, const BoxGeometry& y) {
@@ -45,7 +53,9 @@ void expect_same_geometry(const BoxGeometry& x, const BoxGeometry& y) {
   EXPECT_EQ(x.total_volume, y.total_volume);
 }
 
-void expect_same(const LocalModel& x, const LocalModel& y) {
+void expect_same(const Built& bx, const Built& by) {
+  const LocalModel &x = bx.model, &y = by.model;
+  const CalibrationInputs &xi = bx.inputs, &yi = by.inputs;
   EXPECT_EQ(x.global_molecules, y.global_molecules);
   EXPECT_EQ(x.global_connections, y.global_connections);
   EXPECT_EQ(x.partition.edge_cut, y.partition.edge_cut);
@@ -58,28 +68,29 @@ void expect_same(const LocalModel& x, const LocalModel& y) {
   EXPECT_EQ(x.block, y.block);
   EXPECT_EQ(x.rest, y.rest);
   EXPECT_EQ(x.mass, y.mass);
-  EXPECT_EQ(x.youngs_modulus, y.youngs_modulus);
-  EXPECT_EQ(x.degree, y.degree);
+  EXPECT_EQ(xi.youngs_modulus, yi.youngs_modulus);
+  EXPECT_EQ(xi.degree, yi.degree);
   EXPECT_EQ(x.body, y.body);
   EXPECT_EQ(x.first_connection, y.first_connection);
   EXPECT_EQ(x.end_a, y.end_a);
   EXPECT_EQ(x.end_b, y.end_b);
   EXPECT_EQ(x.forward_rank, y.forward_rank);
   EXPECT_EQ(x.connection_class, y.connection_class);
-  EXPECT_EQ(x.rest_length, y.rest_length);
-  EXPECT_EQ(x.stiffness, y.stiffness);
+  EXPECT_EQ(x.table.rest_length_column().type, nullptr);  // one rest length a connection, as the reference
+  for (int c = 0; c < x.connections(); ++c) ASSERT_EQ(x.l0(c), y.l0(c)) << "connection " << c;
+  EXPECT_EQ(x.table.stiffness(), y.table.stiffness());
   // Explicit bodies' tetrahedra are summed from the same corners in the same order: bit for bit. A tetrahedral box
   // in the scene takes every Kuhn tetrahedron's volume as h_x h_y h_z / 6 (as the lattice path does), the
   // whole-body builder from each one's corners: round-off apart (tests/lattice_model_test.cpp).
-  ASSERT_EQ(x.tetra_volume.size(), y.tetra_volume.size());
-  ASSERT_EQ(x.tetra_lloyd_sum.size(), y.tetra_lloyd_sum.size());
-  for (std::size_t c = 0; c < x.tetra_volume.size(); ++c) {
+  ASSERT_EQ(xi.tetra_volume.size(), yi.tetra_volume.size());
+  ASSERT_EQ(xi.tetra_lloyd_sum.size(), yi.tetra_lloyd_sum.size());
+  for (std::size_t c = 0; c < xi.tetra_volume.size(); ++c) {
     if (x.shape.part(x.id[x.end_a[c]]).unstructured()) {
-      ASSERT_EQ(x.tetra_volume[c], y.tetra_volume[c]) << c;
-      ASSERT_EQ(x.tetra_lloyd_sum[c], y.tetra_lloyd_sum[c]) << c;
+      ASSERT_EQ(xi.tetra_volume[c], yi.tetra_volume[c]) << c;
+      ASSERT_EQ(xi.tetra_lloyd_sum[c], yi.tetra_lloyd_sum[c]) << c;
     } else {
-      ASSERT_NEAR(x.tetra_volume[c], y.tetra_volume[c], 1e-12 * std::fabs(y.tetra_volume[c])) << c;
-      ASSERT_NEAR(x.tetra_lloyd_sum[c], y.tetra_lloyd_sum[c], 1e-12 * std::fabs(y.tetra_lloyd_sum[c])) << c;
+      ASSERT_NEAR(xi.tetra_volume[c], yi.tetra_volume[c], 1e-12 * std::fabs(yi.tetra_volume[c])) << c;
+      ASSERT_NEAR(xi.tetra_lloyd_sum[c], yi.tetra_lloyd_sum[c], 1e-12 * std::fabs(yi.tetra_lloyd_sum[c])) << c;
     }
   }
   EXPECT_EQ(x.written_count, y.written_count);
@@ -107,7 +118,9 @@ void expect_same(const LocalModel& x, const LocalModel& y) {
 // ranks are every molecule once, with contiguous PETSc blocks; the ghosts are exactly the connections' ends
 // owned elsewhere. PT-Scotch's partition differs from one call to the next (run_scripts/compare_binaries.sh), so
 // this is what PT-Scotch runs are checked by.
-void expect_consistent(const LocalModel& x, const LocalModel& whole) {
+void expect_consistent(const Built& bx, const Built& bw) {
+  const LocalModel &x = bx.model, &whole = bw.model;
+  const CalibrationInputs &xi = bx.inputs, &wi = bw.inputs;
   long long owned = x.owned, all = 0;
   MPI_Allreduce(&owned, &all, 1, MPI_LONG_LONG, MPI_SUM, x.comm);
   EXPECT_EQ(all, whole.global_molecules);
@@ -119,8 +132,8 @@ void expect_consistent(const LocalModel& x, const LocalModel& whole) {
     if (i > 0 && i != x.owned) EXPECT_LT(x.id[i - 1], g);
     for (int d = 0; d < 3; ++d) ASSERT_EQ(x.rest[3 * i + d], whole.rest[3 * g + d]) << g;
     ASSERT_EQ(x.mass[i], whole.mass[g]) << g;
-    ASSERT_EQ(x.youngs_modulus[i], whole.youngs_modulus[g]) << g;
-    ASSERT_EQ(x.degree[i], whole.degree[g]) << g;
+    ASSERT_EQ(xi.youngs_modulus[i], wi.youngs_modulus[g]) << g;
+    ASSERT_EQ(xi.degree[i], wi.degree[g]) << g;
     ASSERT_EQ(x.body[i], whole.body[g]) << g;
     ASSERT_EQ(x.first_connection[i], whole.first_connection[g]) << g;
   }
@@ -136,8 +149,8 @@ void expect_consistent(const LocalModel& x, const LocalModel& whole) {
     ASSERT_EQ(x.connection_class[c], whole.connection_class[k]) << c;
     ASSERT_EQ(x.l0(c), whole.l0(k)) << c;
     const double tolerance = x.shape.part(x.id[x.end_a[c]]).unstructured() ? 0.0 : 1e-12;  // Kuhn: expect_same
-    ASSERT_NEAR(x.tetra_volume[c], whole.tetra_volume[k], tolerance * whole.tetra_volume[k]) << c;
-    ASSERT_NEAR(x.tetra_lloyd_sum[c], whole.tetra_lloyd_sum[k], tolerance * whole.tetra_lloyd_sum[k]) << c;
+    ASSERT_NEAR(xi.tetra_volume[c], wi.tetra_volume[k], tolerance * wi.tetra_volume[k]) << c;
+    ASSERT_NEAR(xi.tetra_lloyd_sum[c], wi.tetra_lloyd_sum[k], tolerance * wi.tetra_lloyd_sum[k]) << c;
   }
   for (int i = x.owned; i < x.local; ++i) EXPECT_TRUE(end_here[i]) << "ghost " << x.id[i] << " of no connection";
 }
@@ -204,11 +217,13 @@ class EveryExplicitScene : public ::testing::TestWithParam<std::tuple<int, const
 TEST_P(EveryExplicitScene, BlocksEqualWholeBody) {
   const Case& c = cases[std::get<0>(GetParam())];
   const Scene scene = parse_scene(*c.text, "explicit.toml", {std::string("partition.method=") + std::get<1>(GetParam())});
-  const LocalModel built = build_local_model(scene, PETSC_COMM_WORLD, read_mesh);
-  EXPECT_GT(built.connections(), 0);
+  Built built;
+  built.model = build_local_model(scene, PETSC_COMM_WORLD, built.inputs, read_mesh);
+  EXPECT_GT(built.model.connections(), 0);
   if (std::string(std::get<1>(GetParam())) == "metis") expect_same(built, reference(scene, PETSC_COMM_WORLD));
   const Body body = build_body(scene, read_mesh);
-  const LocalModel whole = distribute(body, std::vector<int>(body.molecules(), 0), PartitionStats{}, MPI_COMM_SELF);
+  Built whole;
+  whole.model = distribute(body, std::vector<int>(body.molecules(), 0), PartitionStats{}, MPI_COMM_SELF, whole.inputs);
   expect_consistent(built, whole);
 }
 
@@ -221,7 +236,8 @@ TEST(ExplicitModel, ReaderErrorOnEveryRank) {
   text.replace(text.find("\"surface\""), 9, "\"nowhere\"");
   const Scene scene = parse_scene(text, "explicit.toml");
   try {
-    build_local_model(scene, PETSC_COMM_WORLD, read_mesh);
+    CalibrationInputs inputs;
+    build_local_model(scene, PETSC_COMM_WORLD, inputs, read_mesh);
     FAIL() << "no error";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("body.region[0].name"), std::string::npos) << e.what();

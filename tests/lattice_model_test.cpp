@@ -26,11 +26,25 @@ using namespace tissue;
 
 namespace {
 
-LocalModel explicit_path(const Scene& scene, MPI_Comm comm) {
+// A model and what calibration reads of it.
+struct Built {
+  LocalModel model;
+  CalibrationInputs inputs;
+};
+
+Built explicit_path(const Scene& scene, MPI_Comm comm) {
   Body body = build_body(scene);
   PartitionStats stats;
   std::vector<int> part = partition_molecules(body, comm, stats);
-  return distribute(body, part, stats, comm);
+  Built b;
+  b.model = distribute(body, part, stats, comm, b.inputs);
+  return b;
+}
+
+Built lattice_path(const Scene& scene, MPI_Comm comm) {
+  Built b;
+  b.model = build_lattice_model(scene, comm, b.inputs);
+  return b;
 }
 
 // Every local connection's global id names that connection in the whole body's sorted list; each rank writes
@@ -56,7 +70,9 @@ void expect_numbering(const LocalModel& m, const Body& body) {
   EXPECT_EQ(all, static_cast<long long>(body.connections.size()));
 }
 
-void expect_same(const LocalModel& x, const LocalModel& y) {
+void expect_same(const Built& bx, const Built& by) {
+  const LocalModel &x = bx.model, &y = by.model;
+  const CalibrationInputs &xi = bx.inputs, &yi = by.inputs;
   EXPECT_EQ(x.global_molecules, y.global_molecules);
   EXPECT_EQ(x.global_connections, y.global_connections);
   EXPECT_EQ(x.partition.edge_cut, y.partition.edge_cut);
@@ -69,8 +85,8 @@ void expect_same(const LocalModel& x, const LocalModel& y) {
   EXPECT_EQ(x.block, y.block);
   EXPECT_EQ(x.rest, y.rest);
   EXPECT_EQ(x.mass, y.mass);
-  EXPECT_EQ(x.youngs_modulus, y.youngs_modulus);
-  EXPECT_EQ(x.degree, y.degree);
+  EXPECT_EQ(xi.youngs_modulus, yi.youngs_modulus);
+  EXPECT_EQ(xi.degree, yi.degree);
   EXPECT_EQ(x.body, y.body);
   EXPECT_EQ(x.end_a, y.end_a);
   EXPECT_EQ(x.end_b, y.end_b);
@@ -80,17 +96,18 @@ void expect_same(const LocalModel& x, const LocalModel& y) {
   for (int c = 0; c < x.connections(); ++c) ASSERT_EQ(x.connection_id(c), y.connection_id(c)) << "connection " << c;
   EXPECT_EQ(x.connection_class, y.connection_class);
   // The lattice keeps rest lengths by type (a handful), the explicit path one per connection: the same doubles.
-  EXPECT_TRUE(x.rest_length.empty());
-  EXPECT_LE(x.length_table.size(), 13u * static_cast<std::size_t>(x.shape.bodies()));
+  EXPECT_EQ(x.table.rest_length_column().type != nullptr, true);
+  EXPECT_EQ(y.table.rest_length_column().type, nullptr);
+  EXPECT_LE(x.table.length_types(), 13u * static_cast<std::size_t>(x.shape.bodies()));
   for (int c = 0; c < x.connections(); ++c) ASSERT_EQ(x.l0(c), y.l0(c)) << "connection " << c;
   EXPECT_EQ(x.written_count, y.written_count);
   // The explicit path computes each tetrahedron's volume from its corners (round-off differs cell to cell); the
   // lattice path uses h_x h_y h_z / 6 for all.
-  ASSERT_EQ(x.tetra_volume.size(), y.tetra_volume.size());
-  ASSERT_EQ(x.tetra_lloyd_sum.size(), y.tetra_lloyd_sum.size());
-  for (std::size_t c = 0; c < x.tetra_volume.size(); ++c) {
-    EXPECT_NEAR(x.tetra_volume[c], y.tetra_volume[c], 1e-12 * std::fabs(y.tetra_volume[c]) + 1e-300) << c;
-    EXPECT_NEAR(x.tetra_lloyd_sum[c], y.tetra_lloyd_sum[c], 1e-12 * std::fabs(y.tetra_lloyd_sum[c]) + 1e-300) << c;
+  ASSERT_EQ(xi.tetra_volume.size(), yi.tetra_volume.size());
+  ASSERT_EQ(xi.tetra_lloyd_sum.size(), yi.tetra_lloyd_sum.size());
+  for (std::size_t c = 0; c < xi.tetra_volume.size(); ++c) {
+    EXPECT_NEAR(xi.tetra_volume[c], yi.tetra_volume[c], 1e-12 * std::fabs(yi.tetra_volume[c]) + 1e-300) << c;
+    EXPECT_NEAR(xi.tetra_lloyd_sum[c], yi.tetra_lloyd_sum[c], 1e-12 * std::fabs(yi.tetra_lloyd_sum[c]) + 1e-300) << c;
   }
 }
 
@@ -118,9 +135,9 @@ class EveryTopology : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(EveryTopology, LatticePathEqualsExplicitPath) {
   const Scene scene = parse_scene(one_body(GetParam()), "lattice.toml");
-  const LocalModel lattice = build_lattice_model(scene, PETSC_COMM_WORLD);
+  const Built lattice = lattice_path(scene, PETSC_COMM_WORLD);
   expect_same(lattice, explicit_path(scene, PETSC_COMM_WORLD));
-  expect_numbering(lattice, build_body(scene));
+  expect_numbering(lattice.model, build_body(scene));
 }
 
 INSTANTIATE_TEST_SUITE_P(Topologies, EveryTopology,
@@ -152,9 +169,9 @@ topology = "face-diagonals"
 youngs_modulus = 1.0e4
 )";
   const Scene scene = parse_scene(text, "bodies.toml");
-  const LocalModel lattice = build_lattice_model(scene, PETSC_COMM_WORLD);
+  const Built lattice = lattice_path(scene, PETSC_COMM_WORLD);
   expect_same(lattice, explicit_path(scene, PETSC_COMM_WORLD));
-  expect_numbering(lattice, build_body(scene));
+  expect_numbering(lattice.model, build_body(scene));
 }
 
 // The stencil's neighbour counts against closed forms: the paper's Fig. 8 box has 7560 connections.
@@ -166,7 +183,7 @@ spacing = [0.111111, 0.111111, 0.0955556]
 topology = "face-diagonals"
 youngs_modulus = 1.0e5
 )", "fig8.toml");
-  EXPECT_EQ(build_lattice_model(scene, PETSC_COMM_WORLD).global_connections, 7560);
+  EXPECT_EQ(lattice_path(scene, PETSC_COMM_WORLD).model.global_connections, 7560);
 }
 
 }  // namespace
@@ -190,16 +207,17 @@ youngs_modulus = 2.0e7
 [calibration]
 method = "linear"
 )", "kernel.toml");
-  LocalModel model = build_local_model(scene, PETSC_COMM_WORLD);
-  ASSERT_FALSE(calibrate_scene(scene, model, model.stiffness));
+  CalibrationInputs inputs;
+  LocalModel model = build_local_model(scene, PETSC_COMM_WORLD, inputs);
+  ASSERT_FALSE(calibrate_scene(scene, model, inputs));
   ASSERT_TRUE(stiffness_is_final(scene, {}));
   std::vector<double> l0(model.connections());
   for (int c = 0; c < model.connections(); ++c) l0[c] = model.l0(c);
-  const std::vector<double> k = model.stiffness;
-  ASSERT_TRUE(compact_connection_types(model));
-  EXPECT_TRUE(model.stiffness.empty());
+  const std::vector<double> k = model.table.stiffness();
+  ASSERT_TRUE(model.table.compact());
+  EXPECT_TRUE(model.table.stiffness().empty());
   // A lattice of two materials has few distinct springs: by class, direction, boundary and material.
-  EXPECT_LT(model.type_stiffness.size(), 200u);
+  EXPECT_LT(model.table.connection_types(), 200u);
   for (int c = 0; c < model.connections(); ++c) {
     ASSERT_EQ(model.k(c), k[c]);
     ASSERT_EQ(model.l0(c), l0[c]);
@@ -258,10 +276,11 @@ method = "linear"
 // the same connections, untyped: the same bits on every owned molecule, on every partition (1, 2 and 3 ranks).
 TEST(SpringKernel, StencilSegmentsEqualGenericKernelBitForBit) {
   const Scene scene = parse_scene(std::string(solver) + kTwoMaterials, "stencil.toml");
-  LocalModel generic = build_local_model(scene, PETSC_COMM_WORLD);
-  ASSERT_FALSE(calibrate_scene(scene, generic, generic.stiffness));
+  CalibrationInputs inputs;
+  LocalModel generic = build_local_model(scene, PETSC_COMM_WORLD, inputs);
+  ASSERT_FALSE(calibrate_scene(scene, generic, inputs));
   LocalModel typed = generic;
-  ASSERT_TRUE(compact_connection_types(typed));
+  ASSERT_TRUE(typed.table.compact());
   const SpringKernel stencil_kernel(typed), generic_kernel(generic);
   EXPECT_EQ(generic_kernel.structured_connections(), 0);
   // Interior rows on one rank: most connections; on any partition some.

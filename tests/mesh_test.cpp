@@ -230,8 +230,8 @@ TEST(Mesh, GeometryAgainstClosedForms) {
   // Moduli: molecules strictly above the interface are "surface" (3e5), strictly below "deep" (1e5).
   for (int i = 0; i < r->model.local; ++i) {
     const double z = r->model.rest[3 * i + 2];
-    if (z > 0.25 + 1e-9) EXPECT_EQ(r->model.youngs_modulus[i], 3.0e5);
-    if (z < 0.25 - 1e-9) EXPECT_EQ(r->model.youngs_modulus[i], 1.0e5);
+    if (z > 0.25 + 1e-9) EXPECT_EQ(r->inputs.youngs_modulus[i], 3.0e5);
+    if (z < 0.25 - 1e-9) EXPECT_EQ(r->inputs.youngs_modulus[i], 1.0e5);
   }
 }
 

@@ -15,11 +15,12 @@ namespace tissue::test_pipeline {
 // The driver's stages (src/driver/simulation.hpp) with names for what a test looks at.
 struct RunResult {
   explicit RunResult(std::unique_ptr<Simulation> s)
-      : sim(std::move(s)), scene(sim->scene()), model(sim->model()), forces(&sim->forces()), state(&sim->state()),
+      : sim(std::move(s)), scene(sim->scene()), model(sim->model()), inputs(sim->calibration_inputs()), forces(&sim->forces()), state(&sim->state()),
         test(sim->test()), report(sim->report()), measured(sim->measured()), refresh(sim->refresh()) {}
   std::unique_ptr<Simulation> sim;
   Scene& scene;
   LocalModel& model;
+  const CalibrationInputs& inputs;  // kept: the pipeline runs with keep_calibration_inputs
   ForceModel* forces;
   SolverState* state;
   TensionTest& test;

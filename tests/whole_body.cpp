@@ -145,8 +145,10 @@ std::vector<int> partition_ptscotch(const Body& body, MPI_Comm comm, PartitionSt
   return part;
 }
 
-LocalModel distribute(const Body& body, const std::vector<int>& part, const PartitionStats& stats, MPI_Comm comm) {
+LocalModel distribute(const Body& body, const std::vector<int>& part, const PartitionStats& stats, MPI_Comm comm,
+                      CalibrationInputs& in) {
   LocalModel m;
+  in = CalibrationInputs();
   m.comm = comm;
   MPI_Comm_rank(comm, &m.rank);
   MPI_Comm_size(comm, &m.size);
@@ -203,7 +205,7 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
   m.local = static_cast<int>(m.id.size());
 
   m.block.resize(m.local), m.rest.resize(3 * m.local), m.mass.resize(m.local);
-  m.youngs_modulus.resize(m.local), m.degree.resize(m.local), m.body.resize(m.local);
+  in.youngs_modulus.resize(m.local), in.degree.resize(m.local), m.body.resize(m.local);
   m.first_connection.resize(m.local);
   for (int i = 0; i < m.local; ++i) {
     std::int64_t g = m.id[i];
@@ -212,8 +214,8 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
     Vec3 x = body.rest_position(g);
     for (int d = 0; d < 3; ++d) m.rest[3 * i + d] = x[d];
     m.mass[i] = body.mass[g];
-    m.youngs_modulus[i] = body.youngs_modulus[g];
-    m.degree[i] = degree[g];
+    in.youngs_modulus[i] = body.youngs_modulus[g];
+    in.degree[i] = degree[g];
     m.body[i] = body.body_of(g);
   }
 
@@ -221,19 +223,20 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
   std::unordered_map<std::int64_t, int> local_connection;  // key a * n + b
   const std::size_t nc = mine.size();
   m.end_a.resize(nc), m.end_b.resize(nc), m.forward_rank.resize(nc), m.connection_class.resize(nc);
-  m.rest_length.resize(nc), m.stiffness.assign(nc, 0.0);
+  std::vector<double> rest_length(nc);
   for (std::size_t l = 0; l < nc; ++l) {
     const auto& con = body.connections[mine[l]];
     m.end_a[l] = local_of[con.a], m.end_b[l] = local_of[con.b];
     m.forward_rank[l] = static_cast<std::uint16_t>(mine[l] - first_forward[con.a]);
     m.connection_class[l] = con.cls;
-    m.rest_length[l] = body.rest_distance(con.a, con.b);
+    rest_length[l] = body.rest_distance(con.a, con.b);
     if (part[con.a] == m.rank) ++m.written_count;
     if (!body.tetrahedra.empty()) local_connection[con.a * n + con.b] = static_cast<int>(l);
   }
+  m.table.set_rest_lengths(std::move(rest_length));
   if (!body.tetrahedra.empty()) {
-    m.tetra_volume.assign(nc, 0.0);
-    m.tetra_lloyd_sum.assign(nc, 0.0);  // Lloyd, Szekely & Harders 2007 (calibration/lloyd.cpp)
+    in.tetra_volume.assign(nc, 0.0);
+    in.tetra_lloyd_sum.assign(nc, 0.0);  // Lloyd, Szekely & Harders 2007 (calibration/lloyd.cpp)
     for (const auto& t : body.tetrahedra) {
       Vec3 p[4];
       for (int v = 0; v < 4; ++v) p[v] = body.rest_position(t[v]);
@@ -248,8 +251,8 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
         for (int y = x + 1; y < 4; ++y) {
           auto it = local_connection.find(std::min(t[x], t[y]) * n + std::max(t[x], t[y]));
           if (it == local_connection.end()) continue;
-          m.tetra_volume[it->second] += vol;
-          m.tetra_lloyd_sum[it->second] += l_equiv;
+          in.tetra_volume[it->second] += vol;
+          in.tetra_lloyd_sum[it->second] += l_equiv;
         }
     }
   }

@@ -25,7 +25,8 @@ std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionS
 std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionStats& stats, const std::string& method);
 std::vector<int> partition_ptscotch(const Body& body, MPI_Comm comm, PartitionStats& stats);
 
-// Collective. This rank's LocalModel from the whole body and the partition.
-LocalModel distribute(const Body& body, const std::vector<int>& part, const PartitionStats& stats, MPI_Comm comm);
+// Collective. This rank's LocalModel from the whole body and the partition, and what calibration reads of it.
+LocalModel distribute(const Body& body, const std::vector<int>& part, const PartitionStats& stats, MPI_Comm comm,
+                      CalibrationInputs& inputs);
 
 }  // namespace tissue

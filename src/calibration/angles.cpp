@@ -44,7 +44,8 @@ void check(PetscErrorCode ierr, const char* what) {
 
 class AnglesWorkspace {
 public:
-  explicit AnglesWorkspace(const LocalModel& m) : m_(m) {
+  explicit AnglesWorkspace(const CalibrationContext& ctx) : m_(ctx.model) {
+    const LocalModel& m = ctx.model;
     // Connections of each local molecule, in global order (complete for owned molecules).
     start_.assign(m.local + 1, 0);
     for (int c = 0; c < m.connections(); ++c) ++start_[m.end_a[c] + 1], ++start_[m.end_b[c] + 1];
@@ -53,9 +54,9 @@ public:
     std::vector<int> next(start_.begin(), start_.end() - 1);
     for (int c = 0; c < m.connections(); ++c) list_[next[m.end_a[c]]++] = c, list_[next[m.end_b[c]]++] = c;
     klinear_.resize(m.connections());
-    for (int c = 0; c < m.connections(); ++c) klinear_[c] = linear_stiffness(m, c);
+    for (int c = 0; c < m.connections(); ++c) klinear_[c] = linear_stiffness(ctx, c);
     int most = 1;
-    for (int i = 0; i < m.local; ++i) most = std::max(most, m.degree[i]);
+    for (int i = 0; i < m.local; ++i) most = std::max(most, ctx.inputs.degree[i]);
     MPI_Allreduce(&most, &slots_, 1, MPI_INT, MPI_MAX, m.comm);
     const PetscInt bs = 2 * slots_;
     std::vector<PetscInt> ghosts(m.block.begin() + m.owned, m.block.end());
@@ -136,11 +137,11 @@ private:
 }  // namespace
 
 void calibrate_angles(const CalibrationContext& ctx, std::vector<double>& k) {
-  AnglesWorkspace(ctx.model).compute(ctx.model.rest.data(), k);
+  AnglesWorkspace(ctx).compute(ctx.model.rest.data(), k);
 }
 
 CalibrationRefresher angles_updater(const CalibrationContext& ctx, std::vector<double>& k) {
-  auto workspace = std::make_shared<AnglesWorkspace>(ctx.model);
+  auto workspace = std::make_shared<AnglesWorkspace>(ctx);
   std::vector<double>* target = &k;
   return [workspace, target](const double* x) { workspace->compute(x, *target); };
 }

@@ -31,39 +31,30 @@ namespace {
 
 // The part of `m` a body's calibration sees: every local molecule (same local indices, so positions given to a
 // refresher need no mapping) but only the connections of body b (`which`: their indices in m), and the body's
-// geometry as the shape's own (what single-body methods such as homogenized read).
-LocalModel body_view(const LocalModel& m, int b, std::vector<int>& which) {
+// geometry as the shape's own (what single-body methods such as homogenized read); `vin` the same of `in`.
+LocalModel body_view(const LocalModel& m, const CalibrationInputs& in, int b, std::vector<int>& which,
+                     CalibrationInputs& vin) {
   LocalModel v;
-  v.comm = m.comm, v.rank = m.rank, v.size = m.size;
-  v.shape = m.shape;  // the geometry only: its global arrays are empty
+  static_cast<MoleculeLayout&>(v) = m;  // the connection arrays are replaced below
   static_cast<BoxGeometry&>(v.shape) = m.shape.body(b);
-  v.global_molecules = m.global_molecules, v.global_connections = m.global_connections;
-  v.partition = m.partition;
-  v.owned = m.owned, v.local = m.local, v.first_block = m.first_block;
-  v.id = m.id, v.block = m.block, v.rest = m.rest, v.mass = m.mass, v.youngs_modulus = m.youngs_modulus;
-  v.degree = m.degree, v.body = m.body, v.first_connection = m.first_connection;
+  v.end_a.clear(), v.end_b.clear(), v.forward_rank.clear(), v.connection_class.clear();
+  vin.youngs_modulus = in.youngs_modulus, vin.degree = in.degree;
+  // Only a body with tetrahedra has them: another body's view has none (the tetrahedral methods check this).
+  const TopologyStyle* lattice = find_topology(v.shape.topology);  // nullptr: a mesh or random cloud
+  const bool tetrahedra = !lattice || lattice->tetrahedra;
   which.clear();
-  std::vector<int> index_in_view(m.connections(), -1);
+  v.written_count = 0;
   for (int c = 0; c < m.connections(); ++c) {
     if (m.body[m.end_a[c]] != b) continue;  // connections never join two bodies: end a tells
-    index_in_view[c] = static_cast<int>(which.size());
     which.push_back(c);
     v.end_a.push_back(m.end_a[c]), v.end_b.push_back(m.end_b[c]);
     if (!m.forward_rank.empty()) v.forward_rank.push_back(m.forward_rank[c]);
     v.connection_class.push_back(m.connection_class[c]);
-    v.stiffness.push_back(m.stiffness[c]);
-    if (m.length_type.empty())
-      v.rest_length.push_back(m.rest_length[c]);
-    else
-      v.length_type.push_back(m.length_type[c]);
-    if (!m.tetra_volume.empty()) v.tetra_volume.push_back(m.tetra_volume[c]);
-    if (!m.tetra_lloyd_sum.empty()) v.tetra_lloyd_sum.push_back(m.tetra_lloyd_sum[c]);
+    if (tetrahedra && !in.tetra_volume.empty()) vin.tetra_volume.push_back(in.tetra_volume[c]);
+    if (tetrahedra && !in.tetra_lloyd_sum.empty()) vin.tetra_lloyd_sum.push_back(in.tetra_lloyd_sum[c]);
+    if (m.end_a[c] < m.owned) ++v.written_count;
   }
-  // Only a body with tetrahedra has them: another body's view has none (the tetrahedral methods check this).
-  if (v.shape.topology != "tetrahedral" && !v.shape.unstructured()) v.tetra_volume.clear(), v.tetra_lloyd_sum.clear();
-  v.length_table = m.length_table;
-  for (int c : m.written_here())
-    if (index_in_view[c] >= 0) ++v.written_count;
+  v.table = m.table.select(which);
   return v;
 }
 
@@ -103,13 +94,14 @@ const CalibrationStyle* solver_wrapping_calibration(const Scene& scene) {
   return style && style->wrap_solver ? style : nullptr;
 }
 
-CalibrationRefresher calibrate_scene(const Scene& scene, const LocalModel& model, std::vector<double>& stiffness) {
+CalibrationRefresher calibrate_scene(const Scene& scene, LocalModel& model, const CalibrationInputs& inputs) {
+  std::vector<double>& stiffness = model.table.stiffness();
   const int nbodies = model.shape.bodies();
   if (nbodies <= 1 || scene.calibrations.size() <= 1) {  // one body: the method sees the whole model
     const CalibrationStyle* method = find_calibration(scene.calibration.method);
-    method->compute(CalibrationContext{scene, model}, stiffness);
+    method->compute(CalibrationContext{scene, model, inputs}, stiffness);
     if (!method->updater) return {};
-    return method->updater(CalibrationContext{scene, model}, stiffness);
+    return method->updater(CalibrationContext{scene, model, inputs}, stiffness);
   }
   std::vector<CalibrationRefresher> refreshers;
   for (int b = 0; b < nbodies; ++b) {
@@ -117,6 +109,7 @@ CalibrationRefresher calibrate_scene(const Scene& scene, const LocalModel& model
     struct View {
       Scene scene;
       LocalModel model;
+      CalibrationInputs inputs;
       std::vector<int> which;  // view connection i is model connection which[i]
       std::vector<double> k;
     };
@@ -124,10 +117,10 @@ CalibrationRefresher calibrate_scene(const Scene& scene, const LocalModel& model
     view->scene = scene;
     view->scene.calibration = scene.calibrations[b];
     view->scene.body = scene.bodies[b];
-    view->model = body_view(model, b, view->which);
+    view->model = body_view(model, inputs, b, view->which, view->inputs);
     view->k.assign(view->which.size(), 0.0);
     const CalibrationStyle* method = find_calibration(view->scene.calibration.method);
-    const CalibrationContext ctx{view->scene, view->model};
+    const CalibrationContext ctx{view->scene, view->model, view->inputs};
     method->compute(ctx, view->k);  // collective methods (angles) are called by every rank, body after body
     for (std::size_t i = 0; i < view->which.size(); ++i) stiffness[view->which[i]] = view->k[i];
     if (!method->updater) continue;

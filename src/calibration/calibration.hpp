@@ -13,6 +13,7 @@
 namespace tissue {
 
 struct LocalModel;
+struct CalibrationInputs;
 struct SolverState;
 struct SolverHooks;
 struct SolveReport;
@@ -22,9 +23,10 @@ class ForceModel;
 struct CalibrationContext {
   const Scene& scene;
   const LocalModel& model;
+  const CalibrationInputs& inputs;  // each molecule's E and degree, tetrahedra per connection (dropped after)
 };
 
-// Sets model.stiffness[c] for every local connection c.
+// Sets stiffness[c] for every local connection c.
 using CalibrationFunction = void (*)(const CalibrationContext&, std::vector<double>& stiffness);
 
 // Methods whose k follows the deformation (angles-update): makes, once per run, a refresher that sets
@@ -36,8 +38,8 @@ using CalibrationUpdater = CalibrationRefresher (*)(const CalibrationContext&, s
 
 // Methods that wrap the solver (iterative): run the solve themselves, adjusting the stiffness between solves, and
 // fill `report`. The driver calls this instead of solve(). One-body scenes only (the scene reader checks).
-using CalibrationSolver = void (*)(const Scene&, LocalModel&, const ForceModel&, SolverState&, const SolverHooks&,
-                                   const TensionTest&, SolveReport&);
+using CalibrationSolver = void (*)(const Scene&, LocalModel&, const CalibrationInputs&, const ForceModel&, SolverState&,
+                                   const SolverHooks&, const TensionTest&, SolveReport&);
 
 // What a method needs of a body's topology; the scene reader checks it (the error names calibration.method).
 enum class CalibrationNeeds {
@@ -68,21 +70,21 @@ struct CalibrationStyle {
     return style;                                              \
   }
 
-// Main's step 4: sets stiffness[c] for every local connection c by the method of the body it lies in
+// Main's step 4: sets the model's stiffness k(c) for every local connection c by the method of the body it lies in
 // (Scene::calibrations). One body: its method runs on the whole model, as it always has. Several: each body's
 // method runs on a view of the model holding only that body's connections, with the body's geometry as the view's
 // first body and the body's calibration as the view's scene.calibration, and its k are copied back. Returns the
 // refreshers of the bodies whose method follows the deformation (angles-update), chained in body order (an empty
 // function if none): install it as SolverHooks::refresh. Collective.
 // Whether the stiffness stays as calibrated for the whole solve (every body's method has stiffness_final()): then
-// the connections can be stored by type (compact_connection_types).
+// the connections can be stored by type (ConnectionTable::compact).
 bool stiffness_is_final(const Scene& scene, const CalibrationRefresher& refresh);
 // The method that wraps the solver for this scene (body 0's, iterative), or nullptr: the driver solves.
 const CalibrationStyle* solver_wrapping_calibration(const Scene& scene);
 // Why `style` cannot calibrate a body of topology `topology` ("" when it can): for the scene reader's message.
 std::string calibration_topology_problem(const CalibrationStyle& style, const std::string& topology);
 
-CalibrationRefresher calibrate_scene(const Scene& scene, const LocalModel& model, std::vector<double>& stiffness);
+CalibrationRefresher calibrate_scene(const Scene& scene, LocalModel& model, const CalibrationInputs& inputs);
 
 // Every registered method, in the order of their files' names. find_calibration returns nullptr for an unknown name.
 const std::vector<CalibrationStyle>& calibration_styles();
@@ -91,9 +93,9 @@ std::vector<std::string> calibration_method_names();
 
 // Eq. 4 for one connection, k = E A / l0, with A and l0 the part of the body the connection stands for
 // (see linear.cpp); the divided and iterative methods scale it.
-double linear_stiffness(const LocalModel& model, int connection);
+double linear_stiffness(const CalibrationContext& ctx, int connection);
 // The same on an explicit topology (mesh, random): A l0 = half the volume of the tetrahedra around the connection.
-double linear_stiffness_tetrahedral(const LocalModel& model, int connection);
+double linear_stiffness_tetrahedral(const CalibrationContext& ctx, int connection);
 
 // The statistical method's estimated number of directions D among a molecule's N connections (statistical.cpp
 // documents the reading of the paper's boundary cases N = 8, 12, 20).

@@ -7,7 +7,7 @@ namespace tissue {
 
 void calibrate_divided(const CalibrationContext& ctx, std::vector<double>& k) {
   const double C = ctx.scene.calibration.divisor;
-  for (int c = 0; c < ctx.model.connections(); ++c) k[c] = linear_stiffness(ctx.model, c) / C;
+  for (int c = 0; c < ctx.model.connections(); ++c) k[c] = linear_stiffness(ctx, c) / C;
 }
 
 TISSUE_CALIBRATION(divided, {"divided", calibrate_divided, "the linear k divided by a constant C (calibration.divisor)",

@@ -110,7 +110,7 @@ void calibrate_homogenized(const CalibrationContext& ctx, std::vector<double>& k
       }
     }
     double per_cell = nd == 1 ? cell.edge[differ[0]] : nd == 2 ? cell.face[3 - differ[0] - differ[1]] : cell.body;
-    const double E = 0.5 * (m.youngs_modulus[m.end_a[c]] + m.youngs_modulus[m.end_b[c]]);
+    const double E = 0.5 * (ctx.inputs.youngs_modulus[m.end_a[c]] + ctx.inputs.youngs_modulus[m.end_b[c]]);
     k[c] = cells * per_cell * E;
   }
 }

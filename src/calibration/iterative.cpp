@@ -35,15 +35,17 @@ void calibrate_iterative(const CalibrationContext& ctx, std::vector<double>& k) 
                          ctx.scene.solver.kind + "\"");
   }
   const double C = ctx.scene.calibration.divisor;
-  for (int c = 0; c < ctx.model.connections(); ++c) k[c] = linear_stiffness(ctx.model, c) / C;
+  for (int c = 0; c < ctx.model.connections(); ++c) k[c] = linear_stiffness(ctx, c) / C;
 }
 
 // Wraps the solver. Repeats { k = linear / C; solve as the scene says; measure E (Eq. 3); C *= E_measured /
 // E_target } until |E - target| / target < calibration.tolerance, filling `report` (the last solve's report plus
 // calibration_divisor and calibration_updates). Throws SolverFailure when calibration.max_updates is reached;
-// model.stiffness and state hold the last C's solution.
-void solve_iterative(const Scene& scene, LocalModel& model, const ForceModel& forces, SolverState& state,
-                     const SolverHooks& hooks, const TensionTest& test, SolveReport& report) {
+// the model's stiffness and the state hold the last C's solution.
+void solve_iterative(const Scene& scene, LocalModel& model, const CalibrationInputs& inputs, const ForceModel& forces,
+                     SolverState& state, const SolverHooks& hooks, const TensionTest& test, SolveReport& report) {
+  const CalibrationContext ctx{scene, model, inputs};
+  std::vector<double>& k = model.table.stiffness();
   const double target = scene.body.youngs_modulus;
   double C = scene.calibration.divisor;
   long iterations = 0, linear_iterations = 0;
@@ -51,7 +53,7 @@ void solve_iterative(const Scene& scene, LocalModel& model, const ForceModel& fo
   long guard_checks = 0;
   std::string history;
   for (long update = 0;; ++update) {
-    for (int c = 0; c < model.connections(); ++c) model.stiffness[c] = linear_stiffness(model, c) / C;
+    for (int c = 0; c < model.connections(); ++c) k[c] = linear_stiffness(ctx, c) / C;
     report = solve(scene, model, forces, state, hooks);
     iterations += report.iterations, linear_iterations += report.linear_iterations;
     report.iterations = iterations, report.linear_iterations = linear_iterations;

@@ -7,18 +7,20 @@
 #include <cmath>
 
 #include "partition/local_model.hpp"
+#include "src/model/topology.hpp"
 #include "src/calibration/calibration.hpp"
 
 namespace tissue {
 
-double linear_stiffness(const LocalModel& m, int c) {
+double linear_stiffness(const CalibrationContext& ctx, int c) {
+  const LocalModel& m = ctx.model;
   const BoxGeometry& s = m.shape.part(m.id[m.end_a[c]]);  // the body the connection lies in
-  if (s.unstructured()) return linear_stiffness_tetrahedral(m, c);  // linear_tetrahedral.cpp
+  if (s.unstructured()) return linear_stiffness_tetrahedral(ctx, c);  // linear_tetrahedral.cpp
   auto ia = s.index(m.id[m.end_a[c]]), ib = s.index(m.id[m.end_b[c]]);
   int differ[3], nd = 0;
   for (int d = 0; d < 3; ++d)
     if (ia[d] != ib[d]) differ[nd++] = d;
-  const bool tetrahedral = s.topology == "tetrahedral";
+  const bool tetrahedral = find_topology(s.topology)->tetrahedra;  // every cell split into tetrahedra
   double volume = 0.0;
   if (nd == 1) {  // edge along differ[0]
     int a = differ[0], u = (a + 1) % 3, v = (a + 2) % 3;
@@ -29,13 +31,13 @@ double linear_stiffness(const LocalModel& m, int c) {
   } else {  // body diagonal
     volume = s.h[0] * s.h[1] * s.h[2] / (tetrahedral ? 1.0 : 4.0);
   }
-  const double E = 0.5 * (m.youngs_modulus[m.end_a[c]] + m.youngs_modulus[m.end_b[c]]);
+  const double E = 0.5 * (ctx.inputs.youngs_modulus[m.end_a[c]] + ctx.inputs.youngs_modulus[m.end_b[c]]);
   const double l0 = m.l0(c);
   return E * volume / (l0 * l0);
 }
 
 void calibrate_linear(const CalibrationContext& ctx, std::vector<double>& k) {
-  for (int c = 0; c < ctx.model.connections(); ++c) k[c] = linear_stiffness(ctx.model, c);
+  for (int c = 0; c < ctx.model.connections(); ++c) k[c] = linear_stiffness(ctx, c);
 }
 
 TISSUE_CALIBRATION(linear, {"linear", calibrate_linear, "Eq. 4, k = E A / l0 with the volume each connection stands for"});

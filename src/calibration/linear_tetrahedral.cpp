@@ -11,10 +11,11 @@
 
 namespace tissue {
 
-double linear_stiffness_tetrahedral(const LocalModel& m, int c) {
-  const double E = 0.5 * (m.youngs_modulus[m.end_a[c]] + m.youngs_modulus[m.end_b[c]]);
+double linear_stiffness_tetrahedral(const CalibrationContext& ctx, int c) {
+  const LocalModel& m = ctx.model;
+  const double E = 0.5 * (ctx.inputs.youngs_modulus[m.end_a[c]] + ctx.inputs.youngs_modulus[m.end_b[c]]);
   const double l0 = m.l0(c);
-  return E * 0.5 * m.tetra_volume.at(c) / (l0 * l0);
+  return E * 0.5 * ctx.inputs.tetra_volume.at(c) / (l0 * l0);
 }
 
 }  // namespace tissue

@@ -2,7 +2,7 @@
 // estimated number of directions D among them, an area 2 A / D per end, and
 //     k = (E_1 * 2A / D_1 + E_2 * 2A / D_2) / (2 * nominal distance).
 // E_1, E_2 are the end molecules' own moduli (heterogeneous bodies); the nominal distance is the connection's
-// rest length; N counts the molecule's connections in the whole body (LocalModel::degree). A, the
+// rest length; N counts the molecule's connections in the whole body (CalibrationInputs::degree). A, the
 // "cross-sectional area", is read as the connection's own cross-section, the A of the linear case (Eq. 4, see
 // linear.cpp): the algorithm then shares the linear stiffness among the directions met at each end,
 //     k = (A / l0) (E_1 / D_1 + E_2 / D_2)  =  k_linear (1 / D_1 + 1 / D_2) in a homogeneous body.
@@ -33,10 +33,10 @@ void calibrate_statistical(const CalibrationContext& ctx, std::vector<double>& k
   const LocalModel& m = ctx.model;
   for (int c = 0; c < m.connections(); ++c) {
     const int a = m.end_a[c], b = m.end_b[c];
-    const double Ea = m.youngs_modulus[a], Eb = m.youngs_modulus[b];
-    const double A = linear_stiffness(m, c) * m.l0(c) / (0.5 * (Ea + Eb));  // Eq. 4's A
-    const double area_a = 2.0 * A / statistical_directions(m.degree[a]);
-    const double area_b = 2.0 * A / statistical_directions(m.degree[b]);
+    const double Ea = ctx.inputs.youngs_modulus[a], Eb = ctx.inputs.youngs_modulus[b];
+    const double A = linear_stiffness(ctx, c) * m.l0(c) / (0.5 * (Ea + Eb));  // Eq. 4's A
+    const double area_a = 2.0 * A / statistical_directions(ctx.inputs.degree[a]);
+    const double area_b = 2.0 * A / statistical_directions(ctx.inputs.degree[b]);
     k[c] = (Ea * area_a + Eb * area_b) / (2.0 * m.l0(c));
   }
 }

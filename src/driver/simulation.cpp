@@ -8,16 +8,16 @@ Simulation::Simulation(Scene scene, MPI_Comm comm, Options options)
     : scene_(std::move(scene)), comm_(comm), options_(options) {}
 
 void Simulation::build(const MeshReader& read_mesh) {
-  model_ = build_local_model(scene_, comm_, read_mesh);
+  model_ = build_local_model(scene_, comm_, inputs_, read_mesh);
   test_ = tension_test(scene_, model_.shape);
 }
 
 void Simulation::calibrate() {
-  refresh_ = calibrate_scene(scene_, model_, model_.stiffness);
-  if (stiffness_is_final(scene_, refresh_)) {
-    compact_connection_types(model_);
-    if (!options_.keep_calibration_inputs) release_calibration_inputs(model_);
-  }
+  refresh_ = calibrate_scene(scene_, model_, inputs_);
+  if (stiffness_is_final(scene_, refresh_)) model_.table.compact();
+  // A refresher (angles-update) took what it reads when it was made; a solver-wrapping method reads the inputs
+  // at every update.
+  if (!options_.keep_calibration_inputs && !solver_wrapping_calibration(scene_)) inputs_ = CalibrationInputs();
 }
 
 void Simulation::make_forces() {
@@ -30,7 +30,7 @@ void Simulation::solve(SolverHooks hooks) {
   if (refresh_) hooks.refresh = refresh_;
   try {
     if (const CalibrationStyle* wrapper = solver_wrapping_calibration(scene_))
-      wrapper->wrap_solver(scene_, model_, *forces_, *state_, hooks, test_, report_);
+      wrapper->wrap_solver(scene_, model_, inputs_, *forces_, *state_, hooks, test_, report_);
     else
       report_ = tissue::solve(scene_, model_, *forces_, *state_, hooks);
     if (report_.interrupted) {

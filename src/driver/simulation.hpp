@@ -29,7 +29,8 @@ namespace tissue {
 class Simulation {
 public:
   struct Options {
-    // Keep each molecule's E and degree once the stiffness is final (tests read them); a run frees them.
+    // Keep the calibration inputs (each molecule's E and degree, ...) once the stiffness is final (tests read
+    // them); a run drops them.
     bool keep_calibration_inputs = false;
   };
 
@@ -59,6 +60,7 @@ public:
   const Scene& scene() const { return scene_; }
   Scene& scene() { return scene_; }
   LocalModel& model() { return model_; }
+  const CalibrationInputs& calibration_inputs() const { return inputs_; }
   const TensionTest& test() const { return test_; }
   TensionTest& test() { return test_; }
   CalibrationRefresher& refresh() { return refresh_; }
@@ -81,6 +83,7 @@ private:
   MPI_Comm comm_;
   Options options_;
   LocalModel model_;
+  CalibrationInputs inputs_;  // made by build(), read by calibrate() (and a solver-wrapping method), then dropped
   TensionTest test_;
   CalibrationRefresher refresh_;
   std::unique_ptr<ForceModel> forces_;

@@ -107,7 +107,8 @@ SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
   const int nc = model.connections();
   const int* a = model.end_a.data();
   const int* b = model.end_b.data();
-  const std::uint16_t* type = model.connection_type.data();
+  const ConnectionColumn kc = model.table.stiffness_column(), lc = model.table.rest_length_column();
+  const std::uint16_t* type = kc.type;  // typed: k and l0 share the connection type
   // Runs of the same end a; consecutive runs of consecutive molecules with one pattern form a segment.
   auto run_end = [&](int c) {
     int e = c + 1;
@@ -155,7 +156,7 @@ SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
       directions_.push_back(len);
       for (int s = 0; s < len; ++s) {
         offsets_.push_back(b[c + s] - a[c]), types_.push_back(type[c + s]);
-        k_.push_back(model.type_stiffness[type[c + s]]), l0_.push_back(model.type_rest_length[type[c + s]]);
+        k_.push_back(kc.value[type[c + s]]), l0_.push_back(lc.value[type[c + s]]);
         scatter_.push_back(s);
       }
       std::sort(scatter_.begin() + start, scatter_.end(),
@@ -172,12 +173,10 @@ void SpringKernel::forces(const double* x, double* f) const {
   std::fill(f, f + 3 * m.local, 0.0);
   const int* a = m.end_a.data();
   const int* b = m.end_b.data();
-  const bool typed = m.typed();
-  // Typed: k and l0 by connection type. Otherwise k per connection, and l0 per connection or by length type.
-  const std::uint16_t* ktype = typed ? m.connection_type.data() : nullptr;
-  const std::uint16_t* ltype = typed ? ktype : m.length_type.empty() ? nullptr : m.length_type.data();
-  const double* ks = typed ? m.type_stiffness.data() : m.stiffness.data();
-  const double* ls = typed ? m.type_rest_length.data() : ltype ? m.length_table.data() : m.rest_length.data();
+  // Each of k and l0 is per connection or by type (partition/connection_table.hpp).
+  const ConnectionColumn kc = m.table.stiffness_column(), lc = m.table.rest_length_column();
+  const std::uint16_t *ktype = kc.type, *ltype = lc.type;
+  const double *ks = kc.value, *ls = lc.value;
   int c = 0;
   for (const Segment& seg : segments_) {
     if (c < seg.first_connection) generic_forces(c, seg.first_connection, a, b, ktype, ltype, ks, ls, x, f);

@@ -32,7 +32,7 @@ double checked_time_step(const Scene& scene, const LocalModel& model, double req
 void check_connections(const Scene& scene, const LocalModel& model) {
   // The first bad connection (smallest global id) over all ranks.
   long long bad = std::numeric_limits<long long>::max();
-  const bool calibrated = model.typed() || !model.stiffness.empty();
+  const bool calibrated = model.table.calibrated();
   for (int c = 0; c < model.connections(); ++c) {
     const double l0 = model.l0(c), k = calibrated ? model.k(c) : 0.0;
     if (!(l0 > 0) || !std::isfinite(l0) || !(k >= 0) || !std::isfinite(k))

@@ -72,7 +72,7 @@ struct SolveReport {
 struct SolverHooks {
   std::function<void(const SolverState&)> snapshot;  // called every output.snapshot_every steps
   // Calibrations that follow the deformation (angles-update): called with the local positions (ghosts up to date)
-  // every relaxation iteration and at the start of every Newton iteration, to refresh model.stiffness. Collective.
+  // every relaxation iteration and at the start of every Newton iteration, to refresh the model's stiffness. Collective.
   std::function<void(const double* x)> refresh;
   // Writes a checkpoint of the state (collective); called every output.checkpoint_every steps and when a stop
   // is requested.

@@ -553,10 +553,7 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationIn
   }
   m.table.set_rest_lengths(std::move(rest_length));
 
-  const int ghosts_here = m.local - m.owned, owned_count = std::max(m.owned, 1);
-  double ratio = static_cast<double>(ghosts_here) / owned_count, worst = 0;
-  MPI_Allreduce(&ratio, &worst, 1, MPI_DOUBLE, MPI_MAX, comm);
-  m.partition.surface_to_volume = worst;
+  m.partition.surface_to_volume = largest_ghost_ratio(m);
   return m;
 }
 

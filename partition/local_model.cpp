@@ -29,6 +29,13 @@ int MoleculeLayout::lattice_forward_rank(int c) const {
   return rank;
 }
 
+double largest_ghost_ratio(const MoleculeLayout& m) {
+  const int ghosts_here = m.local - m.owned, owned_count = std::max(m.owned, 1);
+  double ratio = static_cast<double>(ghosts_here) / owned_count, worst = 0;
+  MPI_Allreduce(&ratio, &worst, 1, MPI_DOUBLE, MPI_MAX, m.comm);
+  return worst;
+}
+
 LocalModel build_local_model(const Scene& scene, MPI_Comm comm, CalibrationInputs& inputs, const MeshReader& read_mesh) {
   // Explicit topologies (meshes, random clouds) are handed out by rank 0 in blocks; box lattices come from their
   // stencils. Either way each rank builds only its share.

@@ -104,6 +104,9 @@ struct LocalModel : MoleculeLayout {
   bool typed() const { return table.typed(); }
 };
 
+// Collective: ghost molecules per owned one, the largest over the ranks (PartitionStats::surface_to_volume).
+double largest_ghost_ratio(const MoleculeLayout& layout);
+
 // Collective. This rank's LocalModel of the scene, built rank by rank, and what calibration reads of it: box
 // lattices from their stencils (partition/lattice_model.hpp), scenes with a mesh or a random cloud from blocks
 // that rank 0 hands out (partition/explicit_model.hpp; mesh bodies read by `read_mesh`, io/gmsh_mesh.hpp's

@@ -283,10 +283,7 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
   walk(true);
   m.table.set_rest_lengths(std::move(length_types), std::move(length_table));
 
-  const int ghosts_here = m.local - m.owned, owned_count = std::max(m.owned, 1);
-  double ratio = static_cast<double>(ghosts_here) / owned_count, worst = 0;
-  MPI_Allreduce(&ratio, &worst, 1, MPI_DOUBLE, MPI_MAX, comm);
-  m.partition.surface_to_volume = worst;
+  m.partition.surface_to_volume = largest_ghost_ratio(m);
   return m;
 }
 

@@ -104,14 +104,13 @@ struct LocalModel : MoleculeLayout {
   bool typed() const { return table.typed(); }
 };
 
-// Collective. Builds this rank's LocalModel from the global body and the partition (the explicit path: every
-// rank holds the whole body while it runs), and what calibration reads of it.
-LocalModel distribute(const Body& body, const std::vector<int>& part, const PartitionStats& stats, MPI_Comm comm,
-                      CalibrationInputs& inputs);
+// Collective: ghost molecules per owned one, the largest over the ranks (PartitionStats::surface_to_volume).
+double largest_ghost_ratio(const MoleculeLayout& layout);
 
-// Collective. This rank's LocalModel of the scene, by the cheapest path that describes it: box lattices are
-// generated rank by rank from their stencils (partition/lattice_model.hpp), anything else goes through the
-// explicit path (mesh bodies read by `read_mesh`, io/gmsh_mesh.hpp's read_mesh).
+// Collective. This rank's LocalModel of the scene, built rank by rank, and what calibration reads of it: box
+// lattices from their stencils (partition/lattice_model.hpp), scenes with a mesh or a random cloud from blocks
+// that rank 0 hands out (partition/explicit_model.hpp; mesh bodies read by `read_mesh`, io/gmsh_mesh.hpp's
+// read_mesh).
 LocalModel build_local_model(const Scene& scene, MPI_Comm comm, CalibrationInputs& inputs, const MeshReader& read_mesh = {});
 
 }  // namespace tissue

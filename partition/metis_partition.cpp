@@ -10,6 +10,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 #include "partition/ptscotch_partition.hpp"
 
@@ -40,43 +41,29 @@ void check_status(int status, MPI_Comm comm) {
 
 }  // namespace
 
-std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionStats& stats) {
+std::vector<int> partition_graph_on_rank0(std::vector<int>&& xadj, std::vector<int>&& adjncy, std::int64_t n,
+                                          MPI_Comm comm, PartitionStats& stats) {
+  static_assert(std::is_same_v<idx_t, int>, "METIS built with 32-bit indices");
   int rank, size;
   MPI_Comm_rank(comm, &rank);
   MPI_Comm_size(comm, &size);
-  const std::int64_t n = body.molecules();
-  std::vector<int> part(n, 0);
   stats = PartitionStats{};
-  if (size == 1) return part;
-  if (n < size) throw std::runtime_error("the body has fewer molecules than ranks");
-
   int status = METIS_OK;
+  std::vector<int> part;
   if (rank == 0) {
-    // The connection graph in CSR form, both directions.
-    std::vector<idx_t> xadj(n + 1, 0), adjncy(2 * body.connections.size());
-    for (const auto& c : body.connections) ++xadj[c.a + 1], ++xadj[c.b + 1];
-    for (std::int64_t m = 0; m < n; ++m) xadj[m + 1] += xadj[m];
-    std::vector<idx_t> fill(xadj.begin(), xadj.end() - 1);
-    for (const auto& c : body.connections) {
-      adjncy[fill[c.a]++] = static_cast<idx_t>(c.b);
-      adjncy[fill[c.b]++] = static_cast<idx_t>(c.a);
-    }
     std::vector<idx_t> p = run_metis(xadj, adjncy, size, stats.edge_cut, status);
-    std::copy(p.begin(), p.end(), part.begin());
+    xadj = std::vector<int>(), adjncy = std::vector<int>();
+    part.assign(p.begin(), p.end());
+    std::vector<long> count(size, 0);
+    for (int q : part) ++count[q];
+    stats.imbalance = static_cast<double>(*std::max_element(count.begin(), count.end())) * size / n;
   }
   check_status(status, comm);
-  MPI_Bcast(part.data(), static_cast<int>(n), MPI_INT, 0, comm);
   MPI_Bcast(&stats.edge_cut, 1, MPI_LONG, 0, comm);
-  std::vector<long> count(size, 0);
-  for (int p : part) ++count[p];
-  stats.imbalance = static_cast<double>(*std::max_element(count.begin(), count.end())) * size / n;
+  MPI_Bcast(&stats.imbalance, 1, MPI_DOUBLE, 0, comm);
   return part;
 }
 
-std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionStats& stats,
-                                     const std::string& method) {
-  return method == "ptscotch" ? partition_ptscotch(body, comm, stats) : partition_molecules(body, comm, stats);
-}
 
 std::vector<int> partition_lattice(const Body& shape, MPI_Comm comm, PartitionStats& stats, const std::string& method) {
   if (method == "ptscotch") {  // each rank hands over its block's rows, from the stencils: nobody builds the graph

@@ -69,35 +69,4 @@ std::vector<int> ptscotch_block(std::int64_t begin, std::int64_t end, std::int64
   return part;
 }
 
-std::vector<int> partition_ptscotch(const Body& body, MPI_Comm comm, PartitionStats& stats) {
-  int rank, size;
-  MPI_Comm_rank(comm, &rank);
-  MPI_Comm_size(comm, &size);
-  const std::int64_t n = body.molecules();
-  if (size == 1) {
-    stats = PartitionStats{};
-    return std::vector<int>(n, 0);
-  }
-  // Neighbour lists of this rank's even block, from the global connection list.
-  const std::int64_t begin = n * rank / size, end = n * (rank + 1) / size;
-  std::vector<std::vector<std::int64_t>> adjacency(end - begin);
-  for (const auto& c : body.connections) {
-    if (c.a >= begin && c.a < end) adjacency[c.a - begin].push_back(c.b);
-    if (c.b >= begin && c.b < end) adjacency[c.b - begin].push_back(c.a);
-  }
-  std::vector<int> mine = ptscotch_block(
-      begin, end, n, [&](std::int64_t g, std::vector<std::int64_t>& out) { out = adjacency[g - begin]; }, comm, stats);
-
-  // distribute() reads the whole owner map: gather the blocks in rank order.
-  std::vector<int> part(n), counts(size), displs(size);
-  for (int r = 0; r < size; ++r) {
-    displs[r] = static_cast<int>(n * r / size);
-    counts[r] = static_cast<int>(n * (r + 1) / size) - displs[r];
-  }
-  MPI_Allgatherv(mine.data(), static_cast<int>(mine.size()), MPI_INT, part.data(), counts.data(), displs.data(),
-                 MPI_INT, comm);
-  for (const auto& c : body.connections) stats.edge_cut += part[c.a] != part[c.b];
-  return part;
-}
-
 }  // namespace tissue

@@ -19,8 +19,5 @@ std::vector<int> ptscotch_block(std::int64_t begin, std::int64_t end, std::int64
                                 const std::function<void(std::int64_t, std::vector<std::int64_t>&)>& neighbours,
                                 MPI_Comm comm, PartitionStats& stats);
 
-// The explicit path: part[m] for every molecule, on every rank, rows taken from the global Body (even blocks);
-// stats: edge cut and imbalance. Collective.
-std::vector<int> partition_ptscotch(const Body& body, MPI_Comm comm, PartitionStats& stats);
 
 }  // namespace tissue

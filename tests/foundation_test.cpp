@@ -15,6 +15,7 @@
 #include "src/measure/measure.hpp"
 #include "src/model/body.hpp"
 #include "src/solvers/solver.hpp"
+#include "tests/whole_body.hpp"
 
 using namespace tissue;
 using tissue::test_pipeline::RunResult;

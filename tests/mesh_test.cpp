@@ -11,6 +11,7 @@
 #include "io/gmsh_mesh.hpp"
 #include "src/model/mesh_cloud.hpp"
 #include "tests/pipeline.hpp"
+#include "tests/whole_body.hpp"
 
 using namespace tissue;
 using tissue::test_pipeline::run;

@@ -137,7 +137,9 @@ struct Body : BoxGeometry {
   // topology's from the positions.
   double rest_distance(std::int64_t a, std::int64_t b) const {
     if (!part(a).unstructured()) return part(a).rest_distance(a, b);
-    const Vec3 x = rest_position(a), y = rest_position(b);
+    return point_distance(rest_position(a), rest_position(b));
+  }
+  static double point_distance(const Vec3& x, const Vec3& y) {
     return std::sqrt((y[0] - x[0]) * (y[0] - x[0]) + (y[1] - x[1]) * (y[1] - x[1]) + (y[2] - x[2]) * (y[2] - x[2]));
   }
   // The face `name` of body b of an explicit topology, or nullptr.
@@ -151,10 +153,8 @@ struct Body : BoxGeometry {
   double face_area(std::int64_t id, int axis) const { return part(id).face_area(id, axis); }
 };
 
-// Builds the whole body a scene describes, on the calling rank: geometry, every connection, per-molecule
-// material and mass. The explicit path (and the reference the lattice stencils are tested against). Mesh bodies
-// take their tetrahedra from `read_mesh` (a scene with a mesh body and no reader is a programming error).
-Body build_body(const Scene& scene, const MeshReader& read_mesh = {});
+// The geometry of one box body of the scene (its spec's n, h, offset, topology, radius), numbered from `first`.
+BoxGeometry body_geometry(const BodySpec& spec, std::int64_t first);
 
 // The bodies' geometry only (parts, no per-molecule or per-connection array): what every rank keeps.
 Body scene_shape(const Scene& scene);

@@ -5,8 +5,8 @@
 //
 // Two views of the same topology: the stencil answers "who are molecule g's neighbours" for any g, so each rank
 // generates only the connections of its own molecules (partition/lattice_model.cpp) and no rank ever holds the
-// whole connection list; the explicit builder enumerates every connection (and tetrahedron) of the body, for the
-// unstructured path and as the independent reference the tests check the stencil against.
+// whole connection list; the explicit builder enumerates every connection (and tetrahedron) of the body, the
+// independent reference the tests check the stencil against (tests/whole_body.hpp).
 #pragma once
 #include <string>
 #include <vector>
@@ -15,7 +15,7 @@
 
 namespace tissue {
 
-// Fills body.connections (any order; build_body sorts them) and, for tetrahedral meshes, body.tetrahedra.
+// Fills body.connections (any order; tests/whole_body's build_body sorts them) and, for tetrahedral meshes, body.tetrahedra.
 using TopologyBuilder = void (*)(Body& body);
 
 // A lattice offset (di, dj, dk) to a neighbour; its class is the number of non-zero components minus one.

@@ -80,14 +80,10 @@ NamedFace make_face(const TetMesh::Surface& s, const std::vector<Vec3>& x, std::
 
 }  // namespace
 
-Body build_unstructured(const BodySpec& spec, const TetMesh& mesh, std::int64_t first, const std::string& scene_file,
-                        const std::string& key) {
-  Body b;
+MeshMolecules mesh_molecules(const BodySpec& spec, const TetMesh& mesh, std::int64_t first,
+                             const std::string& scene_file, const std::string& key) {
+  MeshMolecules b;
   const std::int64_t n = static_cast<std::int64_t>(mesh.nodes.size());
-  b.count = n;
-  b.topology = spec.topology;  // "mesh" (its own tetrahedra) or "random" (in a box or in a mesh volume)
-  b.offset = spec.offset;
-  b.first = first;
   b.points.resize(n);
   for (std::int64_t i = 0; i < n; ++i)
     for (int d = 0; d < 3; ++d) b.points[i][d] = mesh.nodes[i][d] + spec.offset[d];
@@ -105,8 +101,6 @@ Body build_unstructured(const BodySpec& spec, const TetMesh& mesh, std::int64_t 
 
   b.mass.assign(n, 0.0);
   std::vector<int> region_of(n, -1);  // the last scene region among the molecule's tetrahedra
-  std::vector<Connection> edges;
-  edges.reserve(6 * mesh.tets.size());
   for (std::size_t t = 0; t < mesh.tets.size(); ++t) {
     const auto& T = mesh.tets[t];
     const double vol = signed_volume(b.points[T[0]], b.points[T[1]], b.points[T[2]], b.points[T[3]]);
@@ -115,11 +109,52 @@ Body build_unstructured(const BodySpec& spec, const TetMesh& mesh, std::int64_t 
     const int r = mesh.tet_region.empty() || mesh.tet_region[t] < 0 ? -1 : spec_of_region[mesh.tet_region[t]];
     const double rho = r >= 0 ? spec.regions[r].density : spec.density;
     b.total_volume += vol;
+    for (int v = 0; v < 4; ++v) {
+      b.mass[T[v]] += 0.25 * rho * vol;
+      region_of[T[v]] = std::max(region_of[T[v]], r);
+    }
+  }
+  b.youngs_modulus.resize(n);
+  for (std::int64_t i = 0; i < n; ++i) {
+    if (b.mass[i] <= 0)
+      throw InputError(mesh.file, "", fmt::format("node {} belongs to no tetrahedron", i));
+    b.youngs_modulus[i] = region_of[i] >= 0 ? spec.regions[region_of[i]].youngs_modulus : spec.youngs_modulus;
+  }
+  for (const auto& s : mesh.surfaces) b.faces.push_back(make_face(s, b.points, first));
+  return b;
+}
+
+double tetrahedron_volume(const Vec3& p0, const Vec3& p1, const Vec3& p2, const Vec3& p3) {
+  const Vec3* p[4] = {&p0, &p1, &p2, &p3};
+  double e[3][3];
+  for (int v = 0; v < 3; ++v)
+    for (int d = 0; d < 3; ++d) e[v][d] = (*p[v + 1])[d] - p0[d];
+  return std::fabs(e[0][0] * (e[1][1] * e[2][2] - e[1][2] * e[2][1]) -
+                   e[0][1] * (e[1][0] * e[2][2] - e[1][2] * e[2][0]) +
+                   e[0][2] * (e[1][0] * e[2][1] - e[1][1] * e[2][0])) / 6.0;
+}
+
+Body build_unstructured(const BodySpec& spec, const TetMesh& mesh, std::int64_t first, const std::string& scene_file,
+                        const std::string& key) {
+  Body b;
+  const std::int64_t n = static_cast<std::int64_t>(mesh.nodes.size());
+  b.count = n;
+  b.topology = spec.topology;  // "mesh" (its own tetrahedra) or "random" (in a box or in a mesh volume)
+  b.offset = spec.offset;
+  b.first = first;
+  MeshMolecules molecules = mesh_molecules(spec, mesh, first, scene_file, key);
+  b.points = std::move(molecules.points);
+  b.mass = std::move(molecules.mass);
+  b.youngs_modulus = std::move(molecules.youngs_modulus);
+  b.total_volume = molecules.total_volume;
+  b.faces = std::move(molecules.faces);
+
+  std::vector<Connection> edges;
+  edges.reserve(6 * mesh.tets.size());
+  for (const auto& T : mesh.tets) {
     Tetrahedron g;
     for (int v = 0; v < 4; ++v) {
       g[v] = T[v] + first;
-      b.mass[T[v]] += 0.25 * rho * vol;
-      region_of[T[v]] = std::max(region_of[T[v]], r);
       for (int w = v + 1; w < 4; ++w)
         edges.push_back({std::min(T[v], T[w]) + first, std::max(T[v], T[w]) + first, ConnectionClass::edge});
     }
@@ -131,29 +166,27 @@ Body build_unstructured(const BodySpec& spec, const TetMesh& mesh, std::int64_t 
                           [](const Connection& x, const Connection& y) { return x.a == y.a && x.b == y.b; }),
               edges.end());
   b.connections = std::move(edges);
-  b.youngs_modulus.resize(n);
-  for (std::int64_t i = 0; i < n; ++i) {
-    if (b.mass[i] <= 0)
-      throw InputError(mesh.file, "", fmt::format("node {} belongs to no tetrahedron", i));
-    b.youngs_modulus[i] = region_of[i] >= 0 ? spec.regions[region_of[i]].youngs_modulus : spec.youngs_modulus;
-  }
 
   // Nominal size: the mean connection length stands for the spacing (default contact radius: half of it), and
   // n for a cube of the same count (what iteration caps scale with).
-  double mean = 0;
-  for (const auto& c : b.connections) {
-    double l2 = 0;
-    for (int d = 0; d < 3; ++d) l2 += std::pow(b.points[c.b - first][d] - b.points[c.a - first][d], 2);
-    mean += std::sqrt(l2);
-  }
-  mean /= std::max<std::size_t>(b.connections.size(), 1);
+  double sum = 0;
+  for (const auto& c : b.connections) sum += edge_length(b.points[c.a - first], b.points[c.b - first]);
+  set_nominal_size(b, spec, sum, b.connections.size());
+  return b;
+}
+
+double edge_length(const Vec3& a, const Vec3& b) {
+  double l2 = 0;
+  for (int d = 0; d < 3; ++d) l2 += std::pow(b[d] - a[d], 2);
+  return std::sqrt(l2);
+}
+
+void set_nominal_size(BoxGeometry& b, const BodySpec& spec, double length_sum, std::int64_t connections) {
+  const double mean = length_sum / static_cast<double>(std::max<std::int64_t>(connections, 1));
   b.h = {mean, mean, mean};
-  const long side = std::max(2L, std::lround(std::cbrt(static_cast<double>(n))));
+  const long side = std::max(2L, std::lround(std::cbrt(static_cast<double>(b.count))));
   b.n = {side, side, side};
   b.radius = spec.radius ? *spec.radius : 0.5 * mean;
-
-  for (const auto& s : mesh.surfaces) b.faces.push_back(make_face(s, b.points, first));
-  return b;
 }
 
 void check_face_names(const Scene& scene, const Body& body) {

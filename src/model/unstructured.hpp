@@ -3,6 +3,7 @@
 // connections, named surfaces the faces that fixes and loads name, named volumes the regions materials name.
 #pragma once
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -39,6 +40,28 @@ double signed_volume(const Vec3& p0, const Vec3& p1, const Vec3& p2, const Vec3&
 // region whose name the mesh lacks.
 Body build_unstructured(const BodySpec& spec, const TetMesh& mesh, std::int64_t first, const std::string& scene_file,
                         const std::string& key);
+
+// What both construction paths take from a mesh apart from its connections: each molecule's rest position (the
+// spec's offset added), mass and modulus, the volume of the tetrahedra and the named faces, with the same checks
+// and messages as build_unstructured (which is this plus the edges).
+struct MeshMolecules {
+  std::vector<Vec3> points;
+  std::vector<double> mass, youngs_modulus;
+  double total_volume = 0.0;
+  std::vector<NamedFace> faces;  // body index left 0
+};
+MeshMolecules mesh_molecules(const BodySpec& spec, const TetMesh& mesh, std::int64_t first,
+                             const std::string& scene_file, const std::string& key);
+
+// The volume of a tetrahedron as Van Gelder's Eq. 5 sums it per connection (|det| / 6), and Lloyd's equivalent
+// edge (6 sqrt2 V)^(1/3): one formula for every path that sums them.
+double tetrahedron_volume(const Vec3& p0, const Vec3& p1, const Vec3& p2, const Vec3& p3);
+// The nominal size of an explicit body (b.count set): the mean connection length (length_sum over `connections`,
+// each summed in the global connection order from edge_length) stands for the spacing h and the default contact
+// radius (half of it), and n for a cube of the same count (what iteration caps scale with).
+double edge_length(const Vec3& a, const Vec3& b);
+void set_nominal_size(BoxGeometry& b, const BodySpec& spec, double length_sum, std::int64_t connections);
+inline double lloyd_edge(double volume) { return std::cbrt(6.0 * std::sqrt(2.0) * volume); }
 
 // Every [[fix]] and [[load]] face on an explicit body must be one of its named faces: InputError naming the key.
 void check_face_names(const Scene& scene, const Body& body);

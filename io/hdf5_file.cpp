@@ -293,7 +293,9 @@ void Hdf5File::close() {
       const int err = errno;
       file_ = -1;
       if (rc < 0) {
-        const std::string reason = hdf5_reason(), system = system_error(err);
+        const std::string reason = hdf5_reason();
+        std::string system = system_error(err);
+        if (system.empty()) system = probe_write_error(tmp);  // errno lost inside MPI-IO (see fail_io)
         throw OutputError(path_ + ": cannot write " + tmp + ": " +
                           (system.empty() ? "the file could not be flushed and closed" : system) +
                           (reason.empty() ? "" : " (" + reason + ")"));
@@ -346,7 +348,11 @@ void Hdf5File::abandon() noexcept {
 bool hdf5_files_abandoned() { return abandoned_files; }
 
 void Hdf5File::fail_io(const std::string& object, const std::string& what, int err) const {
-  const std::string reason = hdf5_reason(), system = system_error(err);
+  const std::string reason = hdf5_reason();
+  std::string system = system_error(err);
+  // Open MPI's MPI-IO layer reports a failed pwrite or open only as MPI_ERR_OTHER and may leave errno at 0: ask
+  // the system what writing this file says now (a full disk, a quota, a failing device tell again).
+  if (system.empty() && writable_) system = probe_write_error(path_ + ".tmp");
   std::string msg = path_ + ": ";
   if (!object.empty()) msg += object + ": ";
   msg += what;

@@ -8,7 +8,8 @@ snapshot, a checkpoint, final.h5, summary.json or the XDMF index, at 1, 2 and 3 
   - end within 30 s with the documented exit code: 3 when the faulted rank writes that file, 0 when it does not
     (rank 1 writes neither summary.json nor the XDMF index);
   - print one line (tissue's; the shim's own "fault:" line and Open MPI's "mca_fbtl_posix_pwritev: error ..."
-    line aside) naming the file;
+    line aside) naming the file and the system error (when MPI-IO lost errno, or a rank is stuck in a collective
+    past the write's deadline, tissue asks the system by writing the file again: probe_write_error());
   - leave no .tmp file, and every file written before the fault intact (bitwise the fault-free run's);
   - for the checkpoint and final.h5 cases: the newest checkpoint left restarts and ends in the fault-free run's
     final state, bitwise.
@@ -188,9 +189,10 @@ def main():
                 problems.append("%d lines on stderr, expected one: %r" % (len(lines), lines))
             elif file_name not in lines[0]:
                 problems.append("the line does not name %s: %r" % (file_name, lines[0]))
+            elif STRERROR[errno_name] not in lines[0]:
+                problems.append("the line does not name the system error (%s): %r" % (STRERROR[errno_name], lines[0]))
             else:
-                how = ("stuck write ended (StageDeadline)" if "did not finish" in lines[0]
-                       else "agreed error" if STRERROR[errno_name] in lines[0] else "agreed error (no errno)")
+                how = "stuck write ended (StageDeadline, probe)" if "did not finish" in lines[0] else "agreed error"
         tmp = glob.glob(os.path.join(out, "*.tmp")) + glob.glob(os.path.join(out, ".tissue-probe*"))
         if tmp:
             problems.append("left " + ", ".join(os.path.basename(t) for t in tmp))

@@ -329,8 +329,10 @@ def main():
             problems.append("left " + ", ".join(os.path.basename(t) for t in tmp))
         name = "injected failure in the %s, rank %s, at %d ranks" % (label, who, np_)
         detail = "; ".join(problems) if problems else "exit %d in %.1f s - %s" % (rc, seconds, lines[0])
+        kept_now = sorted(os.path.basename(p) for p in glob.glob(os.path.join(out, "*")))
         return not problems, name, detail, ("stage: " + label, who, np_, "throw", rc, seconds,
-                                            "agreed at the stage" if not problems else "FAILED", "-")
+                                            "agreed at the stage" if not problems else "FAILED",
+                                            ", ".join(kept_now) or "nothing written")
 
     cases = [(l, n) for l in stages for n in (2, 3) if args.only in "stage " + l]
     with concurrent.futures.ThreadPoolExecutor(max_workers=2) as pool:

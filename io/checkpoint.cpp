@@ -246,8 +246,11 @@ std::string walked_path;
 // unless this process walked the same, unchanged file before.
 Hdf5File open_checkpoint(const std::string& path, MPI_Comm comm) {
   struct stat st;
-  if (stat(path.c_str(), &st) != 0) throw InputError(path, "", "no such file");
-  if (!S_ISREG(st.st_mode)) throw InputError(path, "", "not a regular file");
+  // Agreed: a file that one rank cannot see (a node-local path) stops every rank, not only that one.
+  agree(comm, [&] {
+    if (stat(path.c_str(), &st) != 0) throw InputError(path, "", "no such file");
+    if (!S_ISREG(st.st_mode)) throw InputError(path, "", "not a regular file");
+  });
   const std::int64_t bytes = static_cast<std::int64_t>(st.st_size);
   int rank = 0;
   MPI_Comm_rank(comm, &rank);
@@ -268,7 +271,9 @@ CheckpointHeader read_checkpoint_header(const std::string& path, MPI_Comm comm) 
     Hdf5File f = open_checkpoint(path, comm);
     // The same walk again, here: the child survived it, and it reads nothing the child did not.
     struct stat st;
-    h = header_metadata(f, path, stat(path.c_str(), &st) == 0 ? static_cast<std::int64_t>(st.st_size) : 0);
+    agree(comm, [&] {  // local reads: agreed before the collectives below
+      h = header_metadata(f, path, stat(path.c_str(), &st) == 0 ? static_cast<std::int64_t>(st.st_size) : 0);
+    });
     // Every dataset is verified here (shape, checksum, finiteness), before the run prints anything or builds the
     // model, so that a damaged file stops the restart with its one line. Each rank checks an even block of rows.
     int rank = 0, size = 1;
@@ -277,10 +282,16 @@ CheckpointHeader read_checkpoint_header(const std::string& path, MPI_Comm comm) 
     auto verify = [&](const char* name, std::int64_t rows, int width, auto tag) {
       using T = decltype(tag);
       const std::int64_t first = rows * rank / size, count = rows * (rank + 1) / size - first;
+      // Agreed: a read or a check that fails on one rank stops every rank here, not in the checksum's reduction.
       std::vector<T> block;
-      if constexpr (std::is_same_v<T, double>) block = f.read_double(name, first, count);
-      else block = f.read_int64(name, first, count);
-      if (as_signed(checksum(block, width, first, comm)) != f.int64_attribute(name, "checksum"))
+      std::int64_t expected = 0;
+      agree(comm, [&] {
+        fault_point("restart", comm);
+        if constexpr (std::is_same_v<T, double>) block = f.read_double(name, first, count);
+        else block = f.read_int64(name, first, count);
+        expected = f.int64_attribute(name, "checksum");
+      });
+      if (as_signed(checksum(block, width, first, comm)) != expected)
         throw InputError(path, name, "checksum mismatch: the file is corrupt");
       int bad = 0, any = 0;
       if constexpr (std::is_same_v<T, double>)
@@ -309,15 +320,21 @@ void read_checkpoint_state(const std::string& path, const LocalModel& model, con
     Hdf5File f = open_checkpoint(path, model.comm);
     auto load = [&](const char* name, std::int64_t rows, int width, const NaturalOrder& order, auto tag) {
       using T = decltype(tag);
-      if (!f.exists(name)) throw InputError(path, name, "dataset missing");
-      auto shape = f.shape(name);
-      if (shape.size() != 2 || shape[0] != rows || shape[1] != width)
-        throw InputError(path, name, "has the wrong shape for this scene");
+      // Agreed, as in read_checkpoint_header: one rank's failed read or check stops every rank here.
       std::vector<T> block;
-      if constexpr (std::is_same_v<T, double>) block = f.read_double(name, order.begin(), order.count());
-      else block = f.read_int64(name, order.begin(), order.count());
-      if (!f.has_attribute(name, "checksum")) throw InputError(path, name, "checksum missing");
-      if (as_signed(checksum(block, width, order.begin(), model.comm)) != f.int64_attribute(name, "checksum"))
+      std::int64_t expected = 0;
+      agree(model.comm, [&] {
+        fault_point("restart", model.comm);
+        if (!f.exists(name)) throw InputError(path, name, "dataset missing");
+        auto shape = f.shape(name);
+        if (shape.size() != 2 || shape[0] != rows || shape[1] != width)
+          throw InputError(path, name, "has the wrong shape for this scene");
+        if constexpr (std::is_same_v<T, double>) block = f.read_double(name, order.begin(), order.count());
+        else block = f.read_int64(name, order.begin(), order.count());
+        if (!f.has_attribute(name, "checksum")) throw InputError(path, name, "checksum missing");
+        expected = f.int64_attribute(name, "checksum");
+      });
+      if (as_signed(checksum(block, width, order.begin(), model.comm)) != expected)
         throw InputError(path, name, "checksum mismatch: the file is corrupt");
       int bad = 0, any = 0;
       if constexpr (std::is_same_v<T, double>)
@@ -361,14 +378,16 @@ void read_checkpoint_state(const std::string& path, const LocalModel& model, con
       state.v_half = molecules.from_natural(half.data(), 3);
     }
     state.x.update_ghosts();
-    state.step = f.int64_attribute("/", "step");
-    state.time = f.double_attribute("/", "time");
-    state.time_step = f.double_attribute("/", "time_step");
-    state.divisor = f.double_attribute("/", "divisor");
-    state.calibration_updates = f.int64_attribute("/", "calibration_updates");
-    state.fire_dt = f.double_attribute("/", "fire_dt");
-    state.fire_alpha = f.double_attribute("/", "fire_alpha");
-    state.fire_positive = f.int64_attribute("/", "fire_positive");
+    agree(model.comm, [&] {  // local reads before the file's collective close
+      state.step = f.int64_attribute("/", "step");
+      state.time = f.double_attribute("/", "time");
+      state.time_step = f.double_attribute("/", "time_step");
+      state.divisor = f.double_attribute("/", "divisor");
+      state.calibration_updates = f.int64_attribute("/", "calibration_updates");
+      state.fire_dt = f.double_attribute("/", "fire_dt");
+      state.fire_alpha = f.double_attribute("/", "fire_alpha");
+      state.fire_positive = f.int64_attribute("/", "fire_positive");
+    });
     state.restarted = true;
     f.close();
   } catch (const InputError&) {

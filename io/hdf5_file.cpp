@@ -293,7 +293,9 @@ void Hdf5File::close() {
       const int err = errno;
       file_ = -1;
       if (rc < 0) {
-        const std::string reason = hdf5_reason(), system = system_error(err);
+        const std::string reason = hdf5_reason();
+        std::string system = system_error(err);
+        if (system.empty()) system = probe_write_error(tmp);  // errno lost inside MPI-IO (see fail_io)
         throw OutputError(path_ + ": cannot write " + tmp + ": " +
                           (system.empty() ? "the file could not be flushed and closed" : system) +
                           (reason.empty() ? "" : " (" + reason + ")"));
@@ -346,7 +348,11 @@ void Hdf5File::abandon() noexcept {
 bool hdf5_files_abandoned() { return abandoned_files; }
 
 void Hdf5File::fail_io(const std::string& object, const std::string& what, int err) const {
-  const std::string reason = hdf5_reason(), system = system_error(err);
+  const std::string reason = hdf5_reason();
+  std::string system = system_error(err);
+  // Open MPI's MPI-IO layer reports a failed pwrite or open only as MPI_ERR_OTHER and may leave errno at 0: ask
+  // the system what writing this file says now (a full disk, a quota, a failing device tell again).
+  if (system.empty() && writable_) system = probe_write_error(path_ + ".tmp");
   std::string msg = path_ + ": ";
   if (!object.empty()) msg += object + ": ";
   msg += what;
@@ -500,7 +506,7 @@ std::vector<int64_t> Hdf5File::read_int64(const std::string& dataset, int64_t of
 
 void Hdf5File::read_block(const std::string& dataset, int64_t offset, int64_t rows, void* data,
                           hid_t mem_type) const {
-  if (comm_ == MPI_COMM_NULL) fail(dataset, "collective read on a file opened without MPI");
+  if (comm_ == MPI_COMM_NULL) fail(dataset, "parallel read on a file opened without MPI");
   Handle dset(H5Dopen2(file_, dataset.c_str(), H5P_DEFAULT), H5Dclose);
   if (!dset.ok()) fail(dataset, "no such dataset");
   Handle file_space(H5Dget_space(dset.get()), H5Sclose);
@@ -509,14 +515,12 @@ void Hdf5File::read_block(const std::string& dataset, int64_t offset, int64_t ro
   hsize_t dims[2] = {0, 1};
   if (ndims < 1 || ndims > 2 || H5Sget_simple_extent_dims(file_space.get(), dims, nullptr) < 0)
     fail(dataset, "expected a 1-D or 2-D dataset");
-  // Agreed across ranks: one rank throwing alone would leave the others waiting in the collective read.
-  int bad = offset < 0 || rows < 0 || static_cast<hsize_t>(offset + rows) > dims[0], any_bad = 0;
-  check_mpi(MPI_Allreduce(&bad, &any_bad, 1, MPI_INT, MPI_MAX, comm_), path_, "MPI_Allreduce");
-  if (bad)
+  // Each rank reads its block alone (an independent transfer, no collective), so that a rank whose read or
+  // check fails leaves no other rank waiting in the read: the caller agrees on the outcome (io/checkpoint.cpp).
+  if (offset < 0 || rows < 0 || static_cast<hsize_t>(offset + rows) > dims[0])
     throw std::runtime_error(path_ + ": " + dataset + ": rows [" + std::to_string(offset) + ", " +
                              std::to_string(offset + rows) + ") lie outside the dataset's " +
                              std::to_string(dims[0]) + " rows");
-  if (any_bad) throw std::runtime_error(path_ + ": " + dataset + ": another rank asked for rows outside the dataset");
   const hsize_t start[2] = {static_cast<hsize_t>(offset), 0};
   const hsize_t count[2] = {static_cast<hsize_t>(rows), ndims == 2 ? dims[1] : 1};
   const hsize_t mem_dims[2] = {rows > 0 ? count[0] : 1, count[1]};
@@ -526,7 +530,7 @@ void Hdf5File::read_block(const std::string& dataset, int64_t offset, int64_t ro
                         : H5Sselect_none(file_space.get());
   if (sel < 0 || (rows == 0 && H5Sselect_none(mem_space.get()) < 0)) fail(dataset, "cannot select rows");
   Handle dxpl(H5Pcreate(H5P_DATASET_XFER), H5Pclose);
-  if (!dxpl.ok() || H5Pset_dxpl_mpio(dxpl.get(), H5FD_MPIO_COLLECTIVE) < 0) fail(dataset, "cannot set up transfer");
+  if (!dxpl.ok() || H5Pset_dxpl_mpio(dxpl.get(), H5FD_MPIO_INDEPENDENT) < 0) fail(dataset, "cannot set up transfer");
   double dummy[1];
   if (H5Dread(dset.get(), mem_type, mem_space.get(), file_space.get(), dxpl.get(), rows > 0 ? data : dummy) < 0)
     fail(dataset, "cannot read rows [" + std::to_string(offset) + ", " + std::to_string(offset + rows) + ")");

@@ -2,7 +2,8 @@
 //
 // Every call here is collective over the file's communicator unless it says otherwise: all ranks call it, in the
 // same order, with the same names and global shapes. Data are 2-D datasets [global_rows x width] of double or
-// int64, each rank writing or reading one contiguous block of rows (possibly none) with collective MPI-IO.
+// int64, each rank writing one contiguous block of rows (possibly none) with collective MPI-IO, or reading one
+// with an independent transfer (not collective: the caller agrees on the outcome).
 // Every HDF5 failure throws std::runtime_error naming the file and the dataset, in one line (HDF5's own error
 // stack printing is switched off; its innermost message is kept in the exception).
 //
@@ -44,7 +45,7 @@ public:
   // the same walk has passed in a child process, unchanged since (the caller checks that it is the same file).
   static Hdf5File open_walked(const std::string& path, MPI_Comm comm);
   // Not collective, no MPI at all: open read-only with HDF5's default serial (sec2) driver, without the seal check.
-  // For the metadata walk of open() in its child process; collective reads (read_double, read_int64) are refused.
+  // For the metadata walk of open() in its child process; parallel reads (read_double, read_int64) are refused.
   static Hdf5File open_serial(const std::string& path);
 
   Hdf5File(Hdf5File&& other) noexcept;
@@ -78,7 +79,8 @@ public:
   // Throws unless the dataset is stored as tissue writes it: contiguous, unfiltered, of 8-byte floats (or 8-byte
   // integers), so that reading its rows decodes no further metadata (no chunk index, no filter, no heap).
   void check_plain(const std::string& dataset, bool integer) const;
-  // Collective read of rows [offset, offset + rows) of a dataset: rows * width values.
+  // Rows [offset, offset + rows) of a dataset: rows * width values. Not collective (an independent MPI-IO read,
+  // so that one rank's failure leaves no rank waiting): a caller whose ranks go on to a collective agrees first.
   std::vector<double> read_double(const std::string& dataset, int64_t offset, int64_t rows) const;
   std::vector<int64_t> read_int64(const std::string& dataset, int64_t offset, int64_t rows) const;
 

@@ -1,12 +1,16 @@
 #include "partition/agreement.hpp"
 
+#include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <mutex>
 #include <thread>
 #include <vector>
@@ -114,9 +118,18 @@ void agree_on(MPI_Comm comm, std::exception_ptr error) {
 
   // Which rank failed first (the lowest failing rank; size when none did). A failed rank waits a bounded time:
   // the others may be stuck in a collective of the stage that it left.
-  int mine = error ? rank : size, first = size;
+  // With it, whether every rank threw a Collective (see agreement.hpp): then each passes its own on.
+  bool collective = false;
+  if (error) try {
+      std::rethrow_exception(error);
+    } catch (const Collective&) {
+      collective = true;
+    } catch (...) {
+    }
+  int mine[2] = {error ? rank : size, collective ? 1 : 0}, reduced[2] = {size, 0};
+  int& first = reduced[0];
   MPI_Request request;
-  MPI_Iallreduce(&mine, &first, 1, MPI_INT, MPI_MIN, dup, &request);
+  MPI_Iallreduce(mine, reduced, 2, MPI_INT, MPI_MIN, dup, &request);
   const double deadline = MPI_Wtime() + agreement_seconds();
   for (int done = 0;;) {
     MPI_Test(&request, &done, MPI_STATUS_IGNORE);
@@ -128,6 +141,7 @@ void agree_on(MPI_Comm comm, std::exception_ptr error) {
     usleep(200);
   }
   if (first == size) return;
+  if (reduced[1] == 1) std::rethrow_exception(error);  // every rank threw a Collective: each keeps its own
 
   // Every rank is here: the first failing rank's kind and message go to all, and all throw the same.
   int header[2] = {kind, static_cast<int>(message.size())};
@@ -136,6 +150,42 @@ void agree_on(MPI_Comm comm, std::exception_ptr error) {
   text.resize(static_cast<std::size_t>(header[1]));
   if (header[1] > 0) MPI_Bcast(text.data(), header[1], MPI_CHAR, first, dup);
   throw_kind(header[0], std::string(text.begin(), text.end()));
+}
+
+void fault_point(const char* stage, MPI_Comm comm) {
+  static const char* wanted = std::getenv("TISSUE_FAULT_STAGE");
+  if (!wanted || std::strcmp(wanted, stage) != 0) return;
+  static long calls = 0;
+  static const long after = [] {
+    const char* a = std::getenv("TISSUE_FAULT_STAGE_AFTER");
+    return a ? std::atol(a) : 0L;
+  }();
+  if (calls++ < after) return;
+  const char* who = std::getenv("TISSUE_FAULT_STAGE_RANK");
+  int rank = 0;
+  MPI_Comm_rank(comm, &rank);
+  if (who && std::strcmp(who, "all") == 0) who = nullptr;
+  else if (std::atoi(who ? who : "1") != rank) return;
+  throw std::runtime_error(std::string("injected failure in stage ") + stage + " on rank " + std::to_string(rank) +
+                           " (TISSUE_FAULT_STAGE)");
+}
+
+std::string probe_write_error(const std::string& file) {
+  // One block past the end, then the size given back: the file's content is untouched. A block, not a byte: a
+  // full disk may still have room in the file's last block.
+  const int fd = ::open(file.c_str(), O_WRONLY | O_CLOEXEC);
+  if (fd < 0) return errno == ENOENT ? "" : std::strerror(errno);
+  struct stat st;
+  int err = 0;
+  if (::fstat(fd, &st) == 0) {
+    static const char block[4096] = {0};
+    const off_t end = st.st_size + 4096 - st.st_size % 4096;
+    if (::pwrite(fd, block, sizeof block, end) != static_cast<ssize_t>(sizeof block)) err = errno ? errno : EIO;
+    else if (::fsync(fd) != 0) err = errno;
+    if (::ftruncate(fd, st.st_size) != 0 && !err) err = errno;
+  }
+  ::close(fd);
+  return err ? std::strerror(err) : "";
 }
 
 namespace {
@@ -147,8 +197,10 @@ struct Watchdog {
   std::condition_variable changed;
   int depth = 0;
   std::chrono::steady_clock::time_point deadline;
-  std::string message, leftover;
+  std::string message, leftover, what;
+  double seconds = 0;
   int rank = 0;
+  bool expired = false;  // past the deadline: the ranks are being told apart (see StageDeadline)
   bool started = false;
 };
 
@@ -165,13 +217,31 @@ void watch() {
       w.changed.wait(lock);
       continue;
     }
-    if (std::chrono::steady_clock::now() >= w.deadline) {
+    if (std::chrono::steady_clock::now() >= w.deadline && w.expired) {
+      // Grace over: no rank found a system error (or it could not end the job).
       if (w.rank == 0) {
         if (!w.leftover.empty()) std::remove(w.leftover.c_str());
         std::fprintf(stderr, "tissue: %s\n", w.message.c_str());
         std::fflush(stderr);
       }
       std::_Exit(3);
+    }
+    if (std::chrono::steady_clock::now() >= w.deadline) {
+      // The deadline: the rank that cannot write the file names the system's error (the lowest such rank first).
+      w.expired = true;
+      const std::string error = w.leftover.empty() ? "" : probe_write_error(w.leftover);
+      if (!error.empty()) {
+        lock.unlock();
+        std::this_thread::sleep_for(std::chrono::milliseconds(500 * std::min(w.rank, 8)));
+        std::remove(w.leftover.c_str());
+        std::fprintf(stderr, "tissue: %s: cannot write %s: %s (rank %d; the write did not finish within %lld s: "
+                             "job ended)\n", w.what.c_str(), w.leftover.c_str(), error.c_str(), w.rank,
+                     static_cast<long long>(w.seconds));
+        std::fflush(stderr);
+        std::_Exit(3);
+      }
+      w.deadline += std::chrono::seconds(5 + std::min(w.rank, 8));
+      continue;
     }
     w.changed.wait_until(lock, w.deadline);
   }
@@ -195,10 +265,12 @@ StageDeadline::StageDeadline(MPI_Comm comm, const std::string& what, double seco
   std::lock_guard<std::mutex> lock(w.mutex);
   armed_ = true;
   if (w.depth++ > 0) return;
-  w.deadline = std::chrono::steady_clock::now() +
-               std::chrono::milliseconds(static_cast<long long>(1000 * (seconds + std::min(rank, 8))));
+  w.deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(static_cast<long long>(1000 * seconds));
+  w.expired = false;
   w.rank = rank;
   w.leftover = leftover;
+  w.what = what;
+  w.seconds = seconds;
   w.message = what + ": the write did not finish within " + std::to_string(static_cast<long long>(seconds)) +
               " s (a rank is stuck in a collective: an I/O error on one rank can leave parallel HDF5 waiting " +
               "forever): job ended";

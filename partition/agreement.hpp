@@ -39,6 +39,14 @@ struct Agreed {
   virtual ~Agreed() = default;
 };
 
+// An exception that every rank throws together by design, because the ranks decided on it from reduced values
+// (a SolverFailure of the guards or the static solver). When every rank threw one, agree() lets each rank's own
+// exception pass unchanged (its type and what it carries, e.g. the state a SolverFailure left); when only some
+// ranks did, it is agreed like any other error.
+struct Collective {
+  virtual ~Collective() = default;
+};
+
 // The exit code a failure maps to: 2 for bad input (InputError), 3 otherwise.
 int exit_code_of(const std::exception& e);
 
@@ -78,16 +86,49 @@ auto agree(MPI_Comm comm, Work&& work) -> decltype(work()) {
   }
 }
 
+// Test hook (tests/faults_test.py): an injected failure on one rank in the middle of a collective stage. When
+// TISSUE_FAULT_STAGE names `stage`, the rank TISSUE_FAULT_STAGE_RANK (a number, or "all"; default 1) throws a
+// std::runtime_error here after TISSUE_FAULT_STAGE_AFTER calls (default 0) have passed. Without the variable: one
+// test of a cached flag.
+void fault_point(const char* stage, MPI_Comm comm);
+
+// What the system says when it is asked to write to `file` now (one block past its end, given back at once):
+// strerror of the failure ("No space left on device", "Disk quota exceeded", ...), or "" when the write works.
+// Used when a write failed inside a library that lost errno (Open MPI's MPI-IO), and at a write's deadline.
+std::string probe_write_error(const std::string& file);
+
+// Runs this rank's local work before a reduction and returns what it threw (null: nothing). The agreement then
+// costs no collective of its own: the reduction carries a "failed" flag beside its values, and when the reduced
+// flag is set every rank calls agree_on(comm, error), which throws the first failing rank's error everywhere.
+//
+//   std::exception_ptr error = attempt([&] { ... local work ... });
+//   double local[3] = {a, b, error ? 1.0 : 0.0}, global[3];
+//   MPI_Allreduce(local, global, 3, MPI_DOUBLE, MPI_SUM, comm);
+//   if (global[2] > 0) agree_on(comm, error);
+template <typename Work>
+std::exception_ptr attempt(Work&& work) {
+  try {
+    work();
+  } catch (const Agreed&) {
+    throw;
+  } catch (...) {
+    return std::current_exception();
+  }
+  return nullptr;
+}
+
 // Seconds a failed rank waits for the others at an agreement before it calls MPI_Abort.
 double agreement_seconds();
 
 // The bound on a stage whose ranks may be stuck where no agreement can reach them: inside a library's collective
 // (parallel HDF5 waits forever in H5Fclose or MPI_File_open when one rank's write or open failed). While a
-// StageDeadline lives, a watchdog thread watches the clock; past the deadline the rank prints one line ("tissue:
-// WHAT did not finish within N s ...") and exits with code 3, which ends the job (the launcher stops the other
-// ranks). Rank 0 alone prints and removes `leftover` (the stage's half-written file, if any); rank r > 0 waits r
-// extra seconds (up to 8) and exits silently, in case rank 0 is not stuck. Nested deadlines: the outermost
-// counts. The last resort, never a hang.
+// StageDeadline lives, a watchdog thread watches the clock. Past the deadline every rank asks the system whether
+// it can write `leftover` (the stage's half-written file; probe_write_error()): a rank that cannot is the failed
+// one, and after r / 2 s (its rank r, up to 4 s: the lowest such rank speaks) it removes `leftover`, prints
+// "FILE: cannot write LEFTOVER: SYSTEM ERROR (...did not finish within N s...)" and exits 3, which ends the job
+// (the launcher stops the other ranks). A rank whose write works waits 5 s more (r more for rank r > 0, up to
+// 8): then rank 0 removes `leftover` and prints "WHAT: the write did not finish within N s ..." without a system
+// error, and every rank exits 3. Nested deadlines: the outermost counts. The last resort, never a hang.
 class StageDeadline {
 public:
   StageDeadline(MPI_Comm comm, const std::string& what, double seconds, const std::string& leftover = "");

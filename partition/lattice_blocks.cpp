@@ -1,5 +1,7 @@
 #include "partition/lattice_blocks.hpp"
 
+#include "partition/agreement.hpp"
+
 #include <metis.h>
 
 #include <algorithm>
@@ -104,8 +106,11 @@ std::vector<int> partition_lattice_blocks(const Body& shape, MPI_Comm comm, int 
 
   std::vector<int> block_part(nv, 0);
   long edge_cut = 0;
-  int status = METIS_OK;
-  if (rank == 0) {
+  // Rank 0 partitions alone, agreed (partition/agreement.hpp): its failure stops every rank here, not in a
+  // broadcast.
+  agree(comm, [&] {
+    if (rank != 0) return;
+    fault_point("partition", comm);
     // Merge the ranks' counts (a block pair split between two natural blocks arrives twice), then the CSR graph
     // with both directions of every edge.
     std::unordered_map<std::int64_t, std::int64_t> merged;
@@ -134,14 +139,15 @@ std::vector<int> partition_lattice_blocks(const Body& shape, MPI_Comm comm, int 
     options[METIS_OPTION_SEED] = 1;
     options[METIS_OPTION_UFACTOR] = kMetisImbalance;
     std::vector<idx_t> p(nv, 0);
+    int status = METIS_OK;
     if (parts > 1)
       status = METIS_PartGraphKway(&nvtxs, &ncon, xadj.data(), adjncy.data(), vwgt.data(), nullptr, adjwgt.data(),
                                    &nparts, nullptr, nullptr, options, &objval, p.data());
+    if (status != METIS_OK)
+      throw std::runtime_error("METIS_PartGraphKway failed with status " + std::to_string(status));
     edge_cut = objval;
     std::copy(p.begin(), p.end(), block_part.begin());
-  }
-  MPI_Bcast(&status, 1, MPI_INT, 0, comm);
-  if (status != METIS_OK) throw std::runtime_error("METIS_PartGraphKway failed with status " + std::to_string(status));
+  });
   MPI_Bcast(block_part.data(), static_cast<int>(nv), MPI_INT, 0, comm);
   MPI_Bcast(&edge_cut, 1, MPI_LONG, 0, comm);
 

@@ -2,6 +2,7 @@
 
 #include <metis.h>
 
+#include "partition/agreement.hpp"
 #include "partition/lattice_blocks.hpp"
 #include "partition/natural_order.hpp"
 #include "src/model/topology.hpp"
@@ -34,8 +35,7 @@ std::vector<idx_t> run_metis(std::vector<idx_t>& xadj, std::vector<idx_t>& adjnc
   return p;
 }
 
-void check_status(int status, MPI_Comm comm) {
-  MPI_Bcast(&status, 1, MPI_INT, 0, comm);
+void check_status(int status) {
   if (status != METIS_OK) throw std::runtime_error("METIS_PartGraphKway failed with status " + std::to_string(status));
 }
 
@@ -48,6 +48,7 @@ std::vector<int> partition_graph_on_rank0(std::vector<int>&& xadj, std::vector<i
   MPI_Comm_rank(comm, &rank);
   MPI_Comm_size(comm, &size);
   stats = PartitionStats{};
+<<<<<<< HEAD
   int status = METIS_OK;
   std::vector<int> part;
   if (rank == 0) {
@@ -59,6 +60,31 @@ std::vector<int> partition_graph_on_rank0(std::vector<int>&& xadj, std::vector<i
     stats.imbalance = static_cast<double>(*std::max_element(count.begin(), count.end())) * size / n;
   }
   check_status(status, comm);
+=======
+  if (size == 1) return part;
+  if (n < size) throw std::runtime_error("the body has fewer molecules than ranks");
+
+  // Rank 0 partitions alone: agreed (partition/agreement.hpp), so that its failure (METIS, memory) stops every
+  // rank here instead of leaving them in the broadcast below.
+  agree(comm, [&] {
+    if (rank != 0) return;
+    fault_point("partition", comm);
+    // The connection graph in CSR form, both directions.
+    std::vector<idx_t> xadj(n + 1, 0), adjncy(2 * body.connections.size());
+    for (const auto& c : body.connections) ++xadj[c.a + 1], ++xadj[c.b + 1];
+    for (std::int64_t m = 0; m < n; ++m) xadj[m + 1] += xadj[m];
+    std::vector<idx_t> fill(xadj.begin(), xadj.end() - 1);
+    for (const auto& c : body.connections) {
+      adjncy[fill[c.a]++] = static_cast<idx_t>(c.b);
+      adjncy[fill[c.b]++] = static_cast<idx_t>(c.a);
+    }
+    int status = METIS_OK;
+    std::vector<idx_t> p = run_metis(xadj, adjncy, size, stats.edge_cut, status);
+    check_status(status);
+    std::copy(p.begin(), p.end(), part.begin());
+  });
+  MPI_Bcast(part.data(), static_cast<int>(n), MPI_INT, 0, comm);
+>>>>>>> faults2
   MPI_Bcast(&stats.edge_cut, 1, MPI_LONG, 0, comm);
   MPI_Bcast(&stats.imbalance, 1, MPI_DOUBLE, 0, comm);
   return part;
@@ -101,9 +127,10 @@ std::vector<int> partition_lattice(const Body& shape, MPI_Comm comm, PartitionSt
   if (const int b = lattice_block_size(shape, size); b > 1) return partition_lattice_blocks(shape, comm, size, b, stats);
   if (n > std::numeric_limits<idx_t>::max()) throw std::runtime_error("the body has more molecules than METIS's idx_t holds");
 
-  int status = METIS_OK;
   std::vector<int> all;  // rank 0: the part of every molecule, until scattered
-  if (rank == 0) {
+  agree(comm, [&] {  // rank 0 alone, agreed (see partition_molecules)
+    if (rank != 0) return;
+    fault_point("partition", comm);
     // The same CSR graph as partition_molecules() builds from the global list (neighbours in increasing id),
     // so both paths get the same partition.
     std::vector<idx_t> xadj(n + 1, 0), adjncy;
@@ -117,10 +144,11 @@ std::vector<int> partition_lattice(const Body& shape, MPI_Comm comm, PartitionSt
         xadj[g + 1] = static_cast<idx_t>(adjncy.size());
       }
     }
+    int status = METIS_OK;
     std::vector<idx_t> p = run_metis(xadj, adjncy, size, stats.edge_cut, status);
+    check_status(status);
     all.assign(p.begin(), p.end());
-  }
-  check_status(status, comm);
+  });
   std::vector<int> counts(size), displs(size);
   for (int r = 0; r < size; ++r) {
     displs[r] = static_cast<int>(NaturalOrder::block_begin(n, size, r));

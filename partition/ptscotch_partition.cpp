@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "partition/agreement.hpp"
+
 namespace tissue {
 namespace {
 
@@ -26,22 +28,27 @@ std::vector<int> ptscotch_block(std::int64_t begin, std::int64_t end, std::int64
   if (n < size) throw std::runtime_error("the body has fewer molecules than ranks");
 
   // MatCreateMPIAdj takes the arrays and frees them with PetscFree: they must come from PetscMalloc.
+  // This rank's rows, built alone: agreed (partition/agreement.hpp) before the collective partitioning, so that a
+  // failure here stops every rank at once. A failure inside PT-Scotch's collectives has only the last resort.
   std::vector<std::int64_t> nb;
   std::vector<PetscInt> cols;
   PetscInt* ia = nullptr;
-  check(PetscMalloc1(rows + 1, &ia), "PetscMalloc1");
-  ia[0] = 0;
-  for (PetscInt r = 0; r < rows; ++r) {
-    nb.clear();
-    neighbours(begin + r, nb);
-    std::sort(nb.begin(), nb.end());
-    for (auto x : nb) cols.push_back(static_cast<PetscInt>(x));
-    ia[r + 1] = static_cast<PetscInt>(cols.size());
-  }
   PetscInt* ja = nullptr;
-  check(PetscMalloc1(std::max<std::size_t>(cols.size(), 1), &ja), "PetscMalloc1");
-  std::copy(cols.begin(), cols.end(), ja);
-  cols = std::vector<PetscInt>();
+  agree(comm, [&] {
+    fault_point("partition", comm);
+    check(PetscMalloc1(rows + 1, &ia), "PetscMalloc1");
+    ia[0] = 0;
+    for (PetscInt r = 0; r < rows; ++r) {
+      nb.clear();
+      neighbours(begin + r, nb);
+      std::sort(nb.begin(), nb.end());
+      for (auto x : nb) cols.push_back(static_cast<PetscInt>(x));
+      ia[r + 1] = static_cast<PetscInt>(cols.size());
+    }
+    check(PetscMalloc1(std::max<std::size_t>(cols.size(), 1), &ja), "PetscMalloc1");
+    std::copy(cols.begin(), cols.end(), ja);
+    cols = std::vector<PetscInt>();
+  });
 
   Mat adj;
   MatPartitioning mp;

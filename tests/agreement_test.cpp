@@ -6,7 +6,10 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <string>
 
@@ -142,4 +145,94 @@ TEST(OutputLocation, RefusesBadDirectoriesOnEveryRankAndLeavesNothing) {
   }
   MPI_Barrier(MPI_COMM_WORLD);
   if (comm_rank() == 0) fs::remove_all(base);
+}
+
+namespace {
+
+// An error that every rank throws together, carrying something of its own (as SolverFailure carries its state).
+struct Together : std::runtime_error, Collective {
+  Together(const std::string& what, int payload) : std::runtime_error(what), payload(payload) {}
+  int payload;
+};
+
+}  // namespace
+
+TEST(Agreement, ACollectiveErrorOfEveryRankPassesUnchanged) {
+  // Every rank throws a Collective: each keeps its own, type and payload (here: its rank), through two stages.
+  try {
+    agree(MPI_COMM_WORLD, [&] {
+      agree(MPI_COMM_WORLD, [&] { throw Together("together", comm_rank()); });
+    });
+    ADD_FAILURE() << "nothing thrown";
+  } catch (const Together& e) {
+    EXPECT_EQ(e.payload, comm_rank());
+    EXPECT_STREQ(e.what(), "together");
+  }
+  // Only the last rank throws it: then it is agreed like any other error, and no rank gets a Together (at one
+  // rank, every rank threw it: it passes).
+  const int last = comm_size() - 1;
+  std::string kind = "none", message;
+  try {
+    agree(MPI_COMM_WORLD, [&] {
+      if (comm_rank() == last) throw Together("alone", 7);
+    });
+  } catch (const Together& e) {
+    kind = "together", message = e.what();
+  } catch (const std::exception& e) {
+    kind = "other", message = e.what();
+  }
+  EXPECT_EQ(kind, comm_size() > 1 ? "other" : "together");
+  EXPECT_EQ(message, "alone");
+}
+
+TEST(Agreement, AFlagInAReductionAgreesWithoutACollectiveOfItsOwn) {
+  const int last = comm_size() - 1;
+  for (int failing : {-1, last}) {
+    double local[2] = {1.0, 0.0}, global[2];
+    const std::exception_ptr error = attempt([&] {
+      if (comm_rank() == failing) throw OutputError("rank " + std::to_string(failing) + " failed");
+    });
+    local[1] = error ? 1.0 : 0.0;
+    MPI_Allreduce(local, global, 2, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
+    EXPECT_EQ(global[0], comm_size());  // the values are reduced as usual
+    std::string kind = "none", message;
+    try {
+      if (global[1] > 0) agree_on(MPI_COMM_WORLD, error);
+    } catch (const OutputError& e) {
+      kind = "output", message = e.what();
+    }
+    EXPECT_EQ(kind, failing < 0 ? "none" : "output");
+    if (failing >= 0) EXPECT_EQ(message, "rank " + std::to_string(last) + " failed");
+  }
+}
+
+TEST(Agreement, TheFaultPointThrowsOnTheChosenRankOnly) {
+  // The hook reads its variables once, at its first call: this is the first in this program.
+  const int last = comm_size() - 1;
+  setenv("TISSUE_FAULT_STAGE", "agreement_test", 1);
+  setenv("TISSUE_FAULT_STAGE_RANK", std::to_string(last).c_str(), 1);
+  setenv("TISSUE_FAULT_STAGE_AFTER", "1", 1);
+  EXPECT_NO_THROW(fault_point("another_stage", MPI_COMM_WORLD));
+  EXPECT_NO_THROW(fault_point("agreement_test", MPI_COMM_WORLD));  // the one call let through
+  auto r = outcome([&] { fault_point("agreement_test", MPI_COMM_WORLD); });
+  EXPECT_EQ(r.first, "other");
+  EXPECT_EQ(r.second, "injected failure in stage agreement_test on rank " + std::to_string(last) +
+                          " (TISSUE_FAULT_STAGE)");
+  unsetenv("TISSUE_FAULT_STAGE");
+}
+
+TEST(Agreement, TheWriteProbeNamesTheSystemError) {
+  // /dev/full fails every write with ENOSPC, as a full disk does; a writable file passes and keeps its size.
+  EXPECT_EQ(probe_write_error("/dev/full"), std::strerror(ENOSPC));
+  const std::string file = "agreement_probe_" + std::to_string(comm_rank()) + ".bin";
+  {
+    std::FILE* f = std::fopen(file.c_str(), "w");
+    ASSERT_NE(f, nullptr);
+    std::fputs("12345", f);
+    std::fclose(f);
+  }
+  EXPECT_EQ(probe_write_error(file), "");
+  EXPECT_EQ(fs::file_size(file), 5u);
+  EXPECT_EQ(probe_write_error(file + ".missing"), "");  // nothing to probe: no answer
+  fs::remove(file);
 }

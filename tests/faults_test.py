@@ -8,10 +8,17 @@ snapshot, a checkpoint, final.h5, summary.json or the XDMF index, at 1, 2 and 3 
   - end within 30 s with the documented exit code: 3 when the faulted rank writes that file, 0 when it does not
     (rank 1 writes neither summary.json nor the XDMF index);
   - print one line (tissue's; the shim's own "fault:" line and Open MPI's "mca_fbtl_posix_pwritev: error ..."
-    line aside) naming the file;
+    line aside) naming the file and the system error (when MPI-IO lost errno, or a rank is stuck in a collective
+    past the write's deadline, tissue asks the system by writing the file again: probe_write_error());
   - leave no .tmp file, and every file written before the fault intact (bitwise the fault-free run's);
   - for the checkpoint and final.h5 cases: the newest checkpoint left restarts and ends in the fault-free run's
     final state, bitwise.
+Then: a failure injected on one rank in the middle of each collective stage that is not a write (the test hook
+fault_point() of partition/agreement.hpp: TISSUE_FAULT_STAGE): the partitioning, the model build, the
+calibration, the guards' reductions (dynamic and relaxation), the static solver's function evaluation (the other
+ranks are inside SNES's collectives), and the reads of a restart (the header, the state), at 2 and 3 ranks. Each
+must end through the stage's own agreement: within 30 s although the agreement's last resort is set to 60 s, with
+one line naming the stage, exit 3 (exit 2 for a restart: an unreadable checkpoint is bad input), no .tmp.
 Then: the three cases of issue 19 (an output directory that cannot be created, a file in the way; exit 2 quickly,
 nothing left), and kill -9 of one rank in the middle of a checkpoint write (the job ends, the previous checkpoint
 restarts).
@@ -182,9 +189,10 @@ def main():
                 problems.append("%d lines on stderr, expected one: %r" % (len(lines), lines))
             elif file_name not in lines[0]:
                 problems.append("the line does not name %s: %r" % (file_name, lines[0]))
+            elif STRERROR[errno_name] not in lines[0]:
+                problems.append("the line does not name the system error (%s): %r" % (STRERROR[errno_name], lines[0]))
             else:
-                how = ("stuck write ended (StageDeadline)" if "did not finish" in lines[0]
-                       else "agreed error" if STRERROR[errno_name] in lines[0] else "agreed error (no errno)")
+                how = "stuck write ended (StageDeadline, probe)" if "did not finish" in lines[0] else "agreed error"
         tmp = glob.glob(os.path.join(out, "*.tmp")) + glob.glob(os.path.join(out, ".tissue-probe*"))
         if tmp:
             problems.append("left " + ", ".join(os.path.basename(t) for t in tmp))
@@ -279,6 +287,58 @@ def main():
         rows.append(("kill -9 during checkpoint", "1", np_, "pwrite SIGKILL", rc, seconds, "the launcher ends the job",
                      ", ".join(sorted(os.path.basename(p) for p in glob.glob(os.path.join(out, "*"))
                                       if os.path.basename(p) != "restart")) + restarted))
+
+    # A failure on one rank inside a collective stage that is not a write: agreed at that stage, within seconds.
+    # The last resorts are set beyond the limit (60 s), so a case that reaches them fails.
+    stage_bounds = {"TISSUE_STAGE_SECONDS": "60", "TISSUE_AGREEMENT_SECONDS": "60"}
+    checkpoint_np = {np_: os.path.join(reference[np_], "checkpoint_0000000015.h5") for np_ in (1, 2, 3)}
+    # name: (stage, faulted rank, calls let through, extra --set, restart?, expected exit)
+    stages = {
+        "partition (METIS on rank 0)": ("partition", "0", 0, [], False, 3),
+        "model build": ("build", "1", 0, [], False, 3),
+        "calibration": ("calibration", "1", 0, [], False, 3),
+        "guard reduction, dynamic": ("guard", "1", 1, [], False, 3),
+        "guard reduction, relaxation": ("guard", "1", 0, ["solver.kind=relaxation", "solver.max_iterations=300"],
+                                        False, 3),
+        "static solver, function evaluation": ("static", "1", 2, ["solver.kind=static"], False, 3),
+        "restart, header read": ("restart", "1", 2, [], True, 2),
+        "restart, state read": ("restart", "1", 7, [], True, 2),
+    }
+
+    def stage_case(label, np_):
+        stage, who, after, extra, restart, expected = stages[label]
+        out = os.path.join(work, "stage_%s_np%d" % (re.sub(r"\W+", "_", label), np_))
+        fault = {"TISSUE_FAULT_STAGE": stage, "TISSUE_FAULT_STAGE_RANK": who, "TISSUE_FAULT_STAGE_AFTER": str(after)}
+        cmd = ["mpirun", "--quiet", "--oversubscribe", "-np", str(np_)] + \
+            sum((["-x", k] for k in list(fault) + list(stage_bounds)), [])
+        env = dict(ENV, **fault, **stage_bounds)
+        args_ = ["restart", checkpoint_np[np_]] if restart else ["run", scene, *sets, *sum((["--set", e] for e in extra), [])]
+        rc, _, err, seconds = run(cmd + [exe, *args_, "--output", out], env, timeout=LIMIT + 60)
+        lines = [l for l in err.splitlines() if l.strip()]
+        problems = []
+        if rc is None or seconds > LIMIT:
+            problems.append("did not end within %.0f s (%s)" % (LIMIT, "hung" if rc is None else "%.1f s" % seconds))
+        if rc != expected:
+            problems.append("exit %s, expected %d" % (rc, expected))
+        if len(lines) != 1:
+            problems.append("%d lines on stderr, expected one: %r" % (len(lines), lines[:4]))
+        elif "stage " + stage not in lines[0] or "job aborted" in lines[0]:
+            problems.append("the line does not name the stage or came from the last resort: %r" % lines[0])
+        tmp = glob.glob(os.path.join(out, "*.tmp"))
+        if tmp:
+            problems.append("left " + ", ".join(os.path.basename(t) for t in tmp))
+        name = "injected failure in the %s, rank %s, at %d ranks" % (label, who, np_)
+        detail = "; ".join(problems) if problems else "exit %d in %.1f s - %s" % (rc, seconds, lines[0])
+        kept_now = sorted(os.path.basename(p) for p in glob.glob(os.path.join(out, "*")))
+        return not problems, name, detail, ("stage: " + label, who, np_, "throw", rc, seconds,
+                                            "agreed at the stage" if not problems else "FAILED",
+                                            ", ".join(kept_now) or "nothing written")
+
+    cases = [(l, n) for l in stages for n in (2, 3) if args.only in "stage " + l]
+    with concurrent.futures.ThreadPoolExecutor(max_workers=2) as pool:
+        for ok, name, detail, row in pool.map(lambda c: stage_case(*c), cases):
+            check(ok, name, detail)
+            rows.append(row)
 
     def short(text):
         """File names in the table: checkpoint_0000000005.h5 -> ckpt 5, snapshot_00000010.h5 -> snap 10."""

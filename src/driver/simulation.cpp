@@ -2,28 +2,42 @@
 
 #include <utility>
 
+#include "partition/agreement.hpp"
+
 namespace tissue {
 
 Simulation::Simulation(Scene scene, MPI_Comm comm, Options options)
     : scene_(std::move(scene)), comm_(comm), options_(options) {}
 
+// Each stage is agreed (partition/agreement.hpp): what one rank throws at its end stops every rank there with the
+// same line, before the next stage's collectives. (Inside a stage, the partitioning agrees on its own.)
 void Simulation::build(const MeshReader& read_mesh) {
-  model_ = build_local_model(scene_, comm_, inputs_, read_mesh);
-  test_ = tension_test(scene_, model_.shape);
+  agree(comm_, [&] {
+    model_ = build_local_model(scene_, comm_, inputs_, read_mesh);
+    test_ = tension_test(scene_, model_.shape);
+    fault_point("build", comm_);
+  });
 }
 
 void Simulation::calibrate() {
-  refresh_ = calibrate_scene(scene_, model_, inputs_);
-  if (stiffness_is_final(scene_, refresh_)) model_.table.compact();
-  // A refresher (angles-update) took what it reads when it was made; a solver-wrapping method reads the inputs
-  // at every update.
-  if (!options_.keep_calibration_inputs && !solver_wrapping_calibration(scene_)) inputs_ = CalibrationInputs();
+  agree(comm_, [&] {
+    refresh_ = calibrate_scene(scene_, model_, inputs_);
+    fault_point("calibration", comm_);
+  });
+  agree(comm_, [&] {
+    if (stiffness_is_final(scene_, refresh_)) model_.table.compact();
+    // A refresher (angles-update) took what it reads when it was made; a solver-wrapping method reads the inputs
+    // at every update.
+    if (!options_.keep_calibration_inputs && !solver_wrapping_calibration(scene_)) inputs_ = CalibrationInputs();
+  });
 }
 
 void Simulation::make_forces() {
-  forces_ = std::make_unique<ForceModel>(scene_, model_);
-  dt_critical_ = tissue::critical_time_step(*forces_);
-  state_ = std::make_unique<SolverState>(model_);
+  agree(comm_, [&] {
+    forces_ = std::make_unique<ForceModel>(scene_, model_);
+    dt_critical_ = tissue::critical_time_step(*forces_);
+    state_ = std::make_unique<SolverState>(model_);
+  });
 }
 
 void Simulation::solve(SolverHooks hooks) {

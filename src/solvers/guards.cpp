@@ -9,6 +9,7 @@
 #include <cstring>
 #include <limits>
 
+#include "partition/agreement.hpp"
 #include "src/physics/force_model.hpp"
 #include "src/solvers/molecule_report.hpp"
 
@@ -38,9 +39,18 @@ StepGuard::StepGuard(const char* solver, const Scene& scene, const LocalModel& m
   if (!enabled_ && rank_of(model.comm) == 0)
     std::fprintf(stderr, "tissue: warning: -tissue_guards false: the %s solver's per-step guards are disabled (for "
                          "benchmarks only: NaN, Inf and energy growth are not caught)\n", solver);
-  double local = 0;
-  for (int i = 0; i < 3 * model.owned; ++i) local += 0.5 * model.mass[i / 3] * state.v[i] * state.v[i];
-  MPI_Allreduce(&local, &kinetic_, 1, MPI_DOUBLE, MPI_SUM, model.comm);
+  // Each reduction of the guards carries a "failed" flag for the local work before it (attempt(),
+  // partition/agreement.hpp): a rank that fails there stops every rank at that reduction with its line, instead
+  // of leaving them in the next collective; no collective of its own.
+  prepare_agreement(model.comm);  // collective, once: here every rank is at the same point
+  double local[2] = {0, 0}, global[2];
+  const std::exception_ptr error = attempt([&] {
+    for (int i = 0; i < 3 * model.owned; ++i) local[0] += 0.5 * model.mass[i / 3] * state.v[i] * state.v[i];
+  });
+  local[1] = error ? 1.0 : 0.0;
+  MPI_Allreduce(local, global, 2, MPI_DOUBLE, MPI_SUM, model.comm);
+  if (global[1] > 0) agree_on(model.comm, error);
+  kinetic_ = global[0];
   kinetic_checked_ = kinetic_;
   energy_check_ = energy_check_ && forces.energy_never_grows();
   double spring, work;
@@ -61,34 +71,44 @@ void StepGuard::keep() {
 // returns spring - work. Each connection is counted once over all ranks (written_here).
 double StepGuard::energy(double* spring, double* work) {
   const double* x = state_.x.array();
-  double local[2] = {0, 0};
-  worst_ratio_ = std::numeric_limits<double>::infinity(), worst_id_ = -1, worst_c_ = -1;
-  for (int c : model_.written_here()) {
-    const double length = length_of(x, model_.end_a[c], model_.end_b[c]);
-    const double stretch = length - model_.l0(c), ratio = length / model_.l0(c);
-    local[0] += 0.5 * model_.k(c) * stretch * stretch;
-    if (ratio < worst_ratio_) worst_ratio_ = ratio, worst_id_ = model_.connection_id(c), worst_c_ = c;
-  }
-  for (const auto& a : forces_.applied()) local[1] += a.value * (x[a.component] - model_.rest[a.component]);
-  if (const auto& g = scene_.physics.gravity)
-    for (int i = 0; i < model_.owned; ++i)
-      for (int d = 0; d < 3; ++d) local[1] += model_.mass[i] * (*g)[d] * (x[3 * i + d] - model_.rest[3 * i + d]);
-  double global[2];
-  MPI_Allreduce(local, global, 2, MPI_DOUBLE, MPI_SUM, model_.comm);
+  double sums[3] = {0, 0, 0};
+  const std::exception_ptr error = attempt([&] {
+    worst_ratio_ = std::numeric_limits<double>::infinity(), worst_id_ = -1, worst_c_ = -1;
+    for (int c : model_.written_here()) {
+      const double length = length_of(x, model_.end_a[c], model_.end_b[c]);
+      const double stretch = length - model_.l0(c), ratio = length / model_.l0(c);
+      sums[0] += 0.5 * model_.k(c) * stretch * stretch;
+      if (ratio < worst_ratio_) worst_ratio_ = ratio, worst_id_ = model_.connection_id(c), worst_c_ = c;
+    }
+    for (const auto& a : forces_.applied()) sums[1] += a.value * (x[a.component] - model_.rest[a.component]);
+    if (const auto& g = scene_.physics.gravity)
+      for (int i = 0; i < model_.owned; ++i)
+        for (int d = 0; d < 3; ++d) sums[1] += model_.mass[i] * (*g)[d] * (x[3 * i + d] - model_.rest[3 * i + d]);
+  });
+  sums[2] = error ? 1.0 : 0.0;
+  double global[3];
+  MPI_Allreduce(sums, global, 3, MPI_DOUBLE, MPI_SUM, model_.comm);
+  if (global[2] > 0) agree_on(model_.comm, error);
   *spring = global[0], *work = global[1];
   return global[0] - global[1];
 }
 
 void StepGuard::check_finite_state() {
   const double* x = state_.x.array();
-  std::vector<double> bad(model_.owned, 0.0);
-  int any = 0, all = 0;
-  for (int i = 0; i < model_.owned; ++i)
-    for (int d = 0; d < 3; ++d)
-      if (!std::isfinite(x[3 * i + d]) || !std::isfinite(state_.v[3 * i + d]) || !std::isfinite(state_.f[3 * i + d]))
-        bad[i] = 1.0, any = 1;
-  MPI_Allreduce(&any, &all, 1, MPI_INT, MPI_MAX, model_.comm);
-  if (!all) return;
+  std::vector<double> bad;
+  int any[2] = {0, 0}, all[2];
+  const std::exception_ptr error = attempt([&] {
+    fault_point("guard", model_.comm);
+    bad.assign(model_.owned, 0.0);
+    for (int i = 0; i < model_.owned; ++i)
+      for (int d = 0; d < 3; ++d)
+        if (!std::isfinite(x[3 * i + d]) || !std::isfinite(state_.v[3 * i + d]) || !std::isfinite(state_.f[3 * i + d]))
+          bad[i] = 1.0, any[0] = 1;
+  });
+  any[1] = error ? 1 : 0;
+  MPI_Allreduce(any, all, 2, MPI_INT, MPI_MAX, model_.comm);
+  if (all[1]) agree_on(model_.comm, error);
+  if (!all[0]) return;
   // The first non-finite molecule: bad = 1 is the largest value, ties go to the smallest id.
   fail("non-finite position, velocity or force" + first_seen_, argmax_molecule(model_, bad));
 }
@@ -98,16 +118,21 @@ void StepGuard::check_lengths(bool from_energy) {
   double worst = std::numeric_limits<double>::infinity();
   long long worst_id = -1;
   int worst_c = -1;
+  std::exception_ptr error;
   if (from_energy) {
     worst = worst_ratio_, worst_id = worst_id_, worst_c = worst_c_;
   } else {
-    for (int c : model_.written_here()) {
-      const double ratio = length_of(x, model_.end_a[c], model_.end_b[c]) / model_.l0(c);
-      if (ratio < worst) worst = ratio, worst_id = model_.connection_id(c), worst_c = c;
-    }
+    error = attempt([&] {
+      for (int c : model_.written_here()) {
+        const double ratio = length_of(x, model_.end_a[c], model_.end_b[c]) / model_.l0(c);
+        if (ratio < worst) worst = ratio, worst_id = model_.connection_id(c), worst_c = c;
+      }
+    });
   }
-  double global = 0;
-  MPI_Allreduce(&worst, &global, 1, MPI_DOUBLE, MPI_MIN, model_.comm);
+  double mins[2] = {worst, error ? -1.0 : 0.0}, reduced[2];  // MIN: the flag is -1 when a rank failed
+  MPI_Allreduce(mins, reduced, 2, MPI_DOUBLE, MPI_MIN, model_.comm);
+  if (reduced[1] < 0) agree_on(model_.comm, error);
+  const double global = reduced[0];
   if (!(global < kCollapsedLengthRatio)) return;
   long long mine = worst == global ? worst_id : std::numeric_limits<long long>::max(), first = 0;
   MPI_Allreduce(&mine, &first, 1, MPI_LONG_LONG, MPI_MIN, model_.comm);
@@ -131,8 +156,11 @@ void StepGuard::dynamic_step(double local_kinetic) {
   Timer timer{seconds_};
   if (!std::isfinite(local_kinetic) && first_bad_step_ < 0) first_bad_step_ = state_.step;
   if (state_.step % kReduceEvery != 0) return;  // the solver's full_check() at the last step covers the rest
-  double local[2] = {first_bad_step_ >= 0 ? 0.0 : local_kinetic, first_bad_step_ >= 0 ? 1.0 : 0.0}, global[2];
-  MPI_Allreduce(local, global, 2, MPI_DOUBLE, MPI_SUM, model_.comm);
+  const std::exception_ptr error = attempt([&] { fault_point("guard", model_.comm); });
+  double local[3] = {first_bad_step_ >= 0 ? 0.0 : local_kinetic, first_bad_step_ >= 0 ? 1.0 : 0.0,
+                     error ? 1.0 : 0.0}, global[3];
+  MPI_Allreduce(local, global, 3, MPI_DOUBLE, MPI_SUM, model_.comm);
+  if (global[2] > 0) agree_on(model_.comm, error);
   kinetic_ = global[0];
   if (global[1] > 0 || !std::isfinite(kinetic_)) {
     long mine = first_bad_step_ >= 0 ? first_bad_step_ : state_.step, first = 0;

@@ -8,14 +8,16 @@
 #include <string>
 #include <vector>
 
+#include "partition/agreement.hpp"
 #include "partition/ghosted_vector.hpp"
 #include "src/physics/force_model.hpp"
 
 namespace tissue {
 
 // The solver failed (diverged, not converged, NaN): the driver reports it and exits 3. `state` says what the
-// SolverState holds afterwards, which decides what the driver writes.
-class SolverFailure : public std::runtime_error {
+// SolverState holds afterwards, which decides what the driver writes. The ranks throw it together (they decide
+// from reduced values): Collective, so that an agreed stage lets it pass with its state (partition/agreement.hpp).
+class SolverFailure : public std::runtime_error, public Collective {
 public:
   enum class State {
     finished,   // the failed solve's own state, finite: written as final.h5

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstring>
 #include <memory>
+#include <utility>
 
 #include "src/solvers/guards.hpp"
 #include "src/solvers/lattice_galerkin.hpp"
@@ -35,6 +36,10 @@ struct Context {
   double first_rtol = 0.0, rtol = 1e-10;
   // The lattice multigrid's coarse operators from the lattice structure (null: PCMG's own Galerkin product).
   LatticeGalerkin* galerkin = nullptr;
+  // What a callback threw on this rank. An exception must not cross PETSc's C frames, and this rank must not leave
+  // SNES while the others go on in its collectives: the callback keeps it, SNES ends the solve on every rank
+  // (see residual()), and the ranks agree on it after SNESSolve.
+  std::exception_ptr error = nullptr;
 };
 
 // Preconditioner reuse. The multigrid set-up (Galerkin products) costs several Krylov solves, and at the strains
@@ -93,10 +98,15 @@ PetscErrorCode residual(SNES, Vec X, Vec R, void* p) {
   PetscFunctionBeginUser;
   auto* ctx = static_cast<Context*>(p);
   PetscCall(load_positions(ctx, X));
-  ctx->forces->forces(ctx->state->x.array(), ctx->state->v.data(), ctx->state->f.data(), ctx->load_factor);
+  if (!ctx->error) ctx->error = attempt([&] {
+    fault_point("static", ctx->model->comm);
+    ctx->forces->forces(ctx->state->x.array(), ctx->state->v.data(), ctx->state->f.data(), ctx->load_factor);
+  });
   PetscScalar* r;
   PetscCall(VecGetArray(R, &r));
-  for (int i = 0; i < 3 * ctx->model->owned; ++i) r[i] = -ctx->state->f[i];
+  // A rank whose evaluation failed hands SNES a NaN residual: its norm is NaN on every rank, so every rank's SNES
+  // stops at this iteration (DIVERGED_FNORM_NAN) and reaches the agreement after SNESSolve together.
+  for (int i = 0; i < 3 * ctx->model->owned; ++i) r[i] = ctx->error ? NAN : -ctx->state->f[i];
   PetscCall(VecRestoreArray(R, &r));
   PetscFunctionReturn(0);
 }
@@ -112,7 +122,7 @@ PetscErrorCode before_newton_step(SNES snes, PetscInt step) {
     Vec X;
     PetscCall(SNESGetSolution(snes, &X));
     PetscCall(load_positions(ctx, X));
-    ctx->hooks->refresh(ctx->state->x.array());
+    if (!ctx->error) ctx->error = attempt([&] { ctx->hooks->refresh(ctx->state->x.array()); });
   }
   if (ctx->first_rtol > 0) {
     KSP ksp;
@@ -126,7 +136,11 @@ PetscErrorCode tangent(SNES snes, Vec X, Mat J, Mat P, void* p) {
   PetscFunctionBeginUser;
   auto* ctx = static_cast<Context*>(p);
   PetscCall(load_positions(ctx, X));
-  PetscCall(ctx->forces->assemble_tangent(ctx->state->x.array(), P));
+  // A throw here (before or after the assembly's collectives: not known) is kept for the agreement after
+  // SNESSolve; the tangent left may be partial, and the solve's result is discarded by that agreement.
+  PetscErrorCode assembled = 0;
+  if (!ctx->error) ctx->error = attempt([&] { assembled = ctx->forces->assemble_tangent(ctx->state->x.array(), P); });
+  PetscCall(assembled);
   if (ctx->galerkin) {
     // The preconditioner is rebuilt after this call exactly when the lag is -2 (see Reuse); then its coarse
     // operators must be this tangent's. -pc_mg_galerkin given by the user hands them back to PCMG.
@@ -288,7 +302,13 @@ PetscErrorCode run_static(const Scene& scene, const LocalModel& model, const For
     double target = std::min(1.0, done + increment);
     ctx.load_factor = target;
     PetscCall(VecCopy(X, saved));
-    PetscCall(SNESSolve(snes, nullptr, X));
+    // Agreed (partition/agreement.hpp): a callback's failure on one rank, or SNESSolve's own error return on one
+    // rank, is the same one-line error on every rank here, before the fall-backs below decide anything.
+    const PetscErrorCode solved = SNESSolve(snes, nullptr, X);
+    agree(model.comm, [&] {
+      if (ctx.error) std::rethrow_exception(std::exchange(ctx.error, nullptr));
+      if (solved) throw std::runtime_error("static: SNESSolve failed (PETSc error " + std::to_string(solved) + ")");
+    });
     SNESConvergedReason reason;
     PetscInt its, lits;
     PetscCall(SNESGetConvergedReason(snes, &reason));
@@ -374,6 +394,9 @@ PetscErrorCode run_static(const Scene& scene, const LocalModel& model, const For
   Vec R;
   PetscCall(VecDuplicate(X, &R));
   PetscCall(residual(snes, X, R, &ctx));
+  agree(model.comm, [&] {
+    if (ctx.error) std::rethrow_exception(std::exchange(ctx.error, nullptr));
+  });
   report.residual = relative_residual(model, forces, state.f.data());
   report.converged = report.residual <= tolerance * 1.0000001;
   check_finite(model, state.x.array(), state.f.data(), report.iterations, "static");

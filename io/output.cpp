@@ -206,6 +206,10 @@ void Output::write_summary(const TensionTest& test, const Measurements& measured
   s["cross_section"] = test.valid ? json(test.cross_section) : json(nullptr);
   s["applied_force"] = test.valid ? json(test.force) : json(nullptr);
   s["poisson_ratio_measured"] = opt(measured.poisson_ratio);
+  s["poisson_ratios_measured"] =
+      measured.poisson_ratios ? json(*measured.poisson_ratios) : json(nullptr);
+  s["shear_modulus_measured"] = opt(measured.shear_modulus);
+  s["aggregate_modulus_measured"] = opt(measured.aggregate_modulus);
   auto divisor = [](const CalibrationSpec& c) {  // C, where the method reads it as given
     return find_calibration(c.method)->reads_divisor ? json(c.divisor) : json(nullptr);
   };

@@ -48,7 +48,8 @@ std::vector<std::string> material_names() {
 
 // material / youngs_modulus / density, for the body and for each region: a preset gives defaults for both,
 // "custom" needs the modulus.
-void read_material(const Section& s, std::string& material, double& E, double& density) {
+void read_material(const Section& s, std::string& material, double& E, double& density,
+                   std::optional<double>* poisson_ratio = nullptr) {
   material = s.choice("material", material_names()).value_or("custom");
   const TissuePreset* preset = material == "custom" ? nullptr : find_tissue(material);
   auto e = s.number("youngs_modulus");
@@ -57,6 +58,53 @@ void read_material(const Section& s, std::string& material, double& E, double& d
   s.positive("youngs_modulus", E);
   density = s.number("density").value_or(preset ? preset->density : 1000.0);
   s.positive("density", density);
+  if (!poisson_ratio) return;
+  // The given nu only; a preset's is applied once the calibration method is known (apply_preset_poisson).
+  *poisson_ratio = s.number("poisson_ratio");
+  // The isotropic target needs K > 0 and mu > 0; the stable range of the lattice is documented in
+  // docs/poisson.md ("Range").
+  if (*poisson_ratio && !(**poisson_ratio > -1.0 && **poisson_ratio <= 0.499))
+    s.fail("poisson_ratio", fmt::format("must be in (-1, 0.499], got {}", **poisson_ratio));
+}
+
+// The Poisson ratio a body and its regions get, once the body's calibration method is known: the scene's, else
+// the preset's when homogenized honours it; an explicit nu with another method is refused (naming
+// calibration.method), a preset's is ignored with a note (src/calibration/calibration.cpp prints it).
+void apply_poisson(const Section& body_table, BodySpec& b, const CalibrationSpec& c) {
+  const bool homogenized = c.method == "homogenized";
+  bool given = b.poisson_ratio.has_value();
+  for (const auto& r : b.regions) given = given || r.poisson_ratio.has_value();
+  b.poisson_ratio_given = given;
+  if (given && !homogenized)
+    throw InputError(body_table.file(), c.key + ".method",
+                     fmt::format("{} cannot honour a poisson_ratio (nu = 1/4 is built in: central springs); use "
+                                 "method = \"homogenized\" or remove poisson_ratio", c.method));
+  if (!homogenized) return;
+  if (given && b.topology != "face-diagonals" && b.topology != "body-diagonals")
+    body_table.fail("poisson_ratio", fmt::format("needs topology \"face-diagonals\" or \"body-diagonals\" (the body "
+                                                 "has \"{}\")", b.topology));
+  auto preset_nu = [](const std::string& material) -> std::optional<double> {
+    const TissuePreset* p = material == "custom" ? nullptr : find_tissue(material);
+    return p ? std::optional<double>(p->poisson_ratio) : std::nullopt;
+  };
+  if (!b.poisson_ratio) b.poisson_ratio = preset_nu(b.material);
+  for (auto& r : b.regions) {
+    if (!r.poisson_ratio) r.poisson_ratio = preset_nu(r.material);
+    if (!r.poisson_ratio) r.poisson_ratio = b.poisson_ratio;
+  }
+  // A body of one nu = 1/4 everywhere builds nothing new: keep it absent.
+  bool all_quarter = !b.poisson_ratio || *b.poisson_ratio == 0.25;
+  for (const auto& r : b.regions) all_quarter = all_quarter && (!r.poisson_ratio || *r.poisson_ratio == 0.25);
+  if (all_quarter && !given) {
+    b.poisson_ratio.reset();
+    for (auto& r : b.regions) r.poisson_ratio.reset();
+  }
+  if (b.poisson_ratio || !b.regions.empty()) {
+    if (b.topology != "face-diagonals" && b.topology != "body-diagonals") {
+      b.poisson_ratio.reset();  // a preset's nu on a topology that cannot carry it: 1/4 as before
+      for (auto& r : b.regions) r.poisson_ratio.reset();
+    }
+  }
 }
 
 // shape = "mesh": a Gmsh file, its physical volumes as regions (by name). The file is read with the body.
@@ -110,7 +158,7 @@ BodySpec read_body(const Section& s) {
     s.fail("shape", fmt::format("unknown value \"{}\" (one of: box, mesh)", b.shape));
   if (b.shape == "mesh") return read_mesh_body(s, b);
   s.allow({"shape", "molecules", "spacing", "size", "topology", "material", "youngs_modulus", "density", "offset",
-           "region", "radius", "calibration", "seed"});  // calibration: read by build_scene (read_calibration)
+           "region", "radius", "calibration", "seed", "poisson_ratio"});  // calibration: read by build_scene (read_calibration)
 
   s.require("molecules", "3 integers, molecules along x, y, z");
   b.molecules = *s.int3("molecules");
@@ -142,13 +190,13 @@ BodySpec read_body(const Section& s) {
   b.seed = s.integer("seed").value_or(b.seed);
   if (b.topology == "random" && !s.tables("region").empty())
     s.fail("region", "a random box has no regions yet (give the body one material)");
-  read_material(s, b.material, b.youngs_modulus, b.density);
+  read_material(s, b.material, b.youngs_modulus, b.density, &b.poisson_ratio);
   b.offset = s.vec3("offset").value_or(b.offset);
   b.radius = s.number("radius");
   if (b.radius) s.positive("radius", *b.radius);
 
   for (const auto& r : s.tables("region")) {
-    r.allow({"lo", "hi", "material", "youngs_modulus", "density"});
+    r.allow({"lo", "hi", "material", "youngs_modulus", "density", "poisson_ratio"});
     RegionSpec spec;
     r.require("lo");
     r.require("hi");
@@ -157,7 +205,7 @@ BodySpec read_body(const Section& s) {
     for (int a = 0; a < 3; ++a)
       if (spec.lo[a] > spec.hi[a])
         r.fail("hi", fmt::format("hi[{}] = {} is below lo[{}] = {}", a, spec.hi[a], a, spec.lo[a]));
-    read_material(r, spec.material, spec.youngs_modulus, spec.density);
+    read_material(r, spec.material, spec.youngs_modulus, spec.density, &spec.poisson_ratio);
     b.regions.push_back(spec);
   }
   return b;
@@ -317,9 +365,11 @@ Scene build_scene(const Value& root, const std::string& file) {
     default_used = default_used || !own.has("calibration");
     scene.calibrations.push_back(read_calibration(own.has("calibration") ? own.table("calibration") : calibration,
                                                   &scene.bodies[b], b, nbodies));
+    apply_poisson(own, scene.bodies[b], scene.calibrations[b]);
   }
   if (!default_used) read_calibration(calibration, nullptr, 0, nbodies);  // unused, but its keys must be valid
   scene.calibration = scene.calibrations[0];
+  scene.body = scene.bodies[0];  // with its Poisson ratio resolved
   auto which_body = [&](const Section& t) {
     int b = static_cast<int>(t.integer("body").value_or(0));
     if (b < 0 || b >= nbodies)

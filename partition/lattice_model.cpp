@@ -10,6 +10,7 @@
 #include "partition/exchange.hpp"
 #include "partition/metis_partition.hpp"
 #include "partition/natural_order.hpp"
+#include "src/model/cell_law.hpp"
 #include "src/model/topology.hpp"
 
 namespace tissue {
@@ -142,12 +143,29 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
     for (std::int64_t g = begin; g < end; ++g) directory_block[g - begin] = static_cast<PetscInt>(blocks[next[part[g - begin]]++]);
   }
 
-  // Ghosts: the neighbours of owned molecules that another rank owns.
+  // Ghosts: the neighbours of owned molecules that another rank owns. A body with the cell term
+  // (src/model/cell_law.hpp) needs every corner of every cell an owned molecule is in: its whole 3 x 3 x 3
+  // neighbourhood, which the face-diagonals stencil lacks the body-diagonal corners of.
+  std::vector<char> cells(nbodies, 0);
+  for (int b = 0; b < nbodies; ++b)
+    cells[b] = body_has_cells(specs[b], b < static_cast<int>(scene.calibrations.size()) ? scene.calibrations[b]
+                                                                                           : scene.calibration);
   std::vector<std::int64_t> ghosts;
   for (long i = 0; i < m.owned; ++i) {
-    neighbours(owned_ids[i]);
+    const int b = neighbours(owned_ids[i]);
     for (const auto& x : nb)
       if (find_sorted_near(owned_ids.data(), m.owned, i, x.id) < 0) ghosts.push_back(x.id);
+    if (!cells[b]) continue;
+    const BoxGeometry& box = m.shape.body(b);
+    const auto ijk = box.index(owned_ids[i]);
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const long q[3] = {ijk[0] + dx, ijk[1] + dy, ijk[2] + dz};
+          if (q[0] < 0 || q[1] < 0 || q[2] < 0 || q[0] >= box.n[0] || q[1] >= box.n[1] || q[2] >= box.n[2]) continue;
+          const std::int64_t g = box.id(q[0], q[1], q[2]);
+          if (find_sorted_near(owned_ids.data(), m.owned, i, g) < 0) ghosts.push_back(g);
+        }
   }
   std::sort(ghosts.begin(), ghosts.end());
   ghosts.erase(std::unique(ghosts.begin(), ghosts.end()), ghosts.end());

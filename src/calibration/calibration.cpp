@@ -1,8 +1,10 @@
 #include "src/calibration/calibration.hpp"
 
+#include <cstdio>
 #include <memory>
 
 #include "partition/local_model.hpp"
+#include "src/model/material.hpp"
 #include "src/model/registry.hpp"
 #include "src/model/topology.hpp"
 
@@ -94,7 +96,28 @@ const CalibrationStyle* solver_wrapping_calibration(const Scene& scene) {
   return style && style->wrap_solver ? style : nullptr;
 }
 
+namespace {
+// A preset's Poisson ratio is honoured by homogenized only: say once that another method ignores it.
+void note_ignored_poisson(const Scene& scene, const LocalModel& model) {
+  if (model.rank != 0) return;
+  const std::vector<BodySpec> specs = scene.bodies.empty() ? std::vector<BodySpec>{scene.body} : scene.bodies;
+  for (std::size_t b = 0; b < specs.size(); ++b) {
+    const CalibrationSpec& c = b < scene.calibrations.size() ? scene.calibrations[b] : scene.calibration;
+    if (c.method == "homogenized") continue;
+    std::string material = specs[b].material;
+    for (const auto& r : specs[b].regions)
+      if (material == "custom") material = r.material;
+    const TissuePreset* preset = material == "custom" ? nullptr : find_tissue(material);
+    if (!preset) continue;
+    std::fprintf(stderr, "tissue: note: body %zu: the poisson_ratio %g of material \"%s\" is used by "
+                         "calibration.method = \"homogenized\" only; %s gives nu = 1/4\n",
+                 b, preset->poisson_ratio, material.c_str(), c.method.c_str());
+  }
+}
+}  // namespace
+
 CalibrationRefresher calibrate_scene(const Scene& scene, LocalModel& model, const CalibrationInputs& inputs) {
+  note_ignored_poisson(scene, model);
   std::vector<double>& stiffness = model.table.stiffness();
   const int nbodies = model.shape.bodies();
   if (nbodies <= 1 || scene.calibrations.size() <= 1) {  // one body: the method sees the whole model

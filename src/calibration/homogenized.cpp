@@ -24,11 +24,14 @@
 // sets). The body-diagonals topology has both diagonal kinds; any blend t of the two sets stays exact and
 // isotropic (it keeps k1 = k2 + 8 k3 / 3 on the infinite lattice); t = 1/2 is chosen, the even blend: per cubic
 // cell 3 E a / 20 per edge, E a / 10 per face diagonal, 3 E a / 20 per body diagonal.
-// Unequal spacing: the same formulas make each rectangular cell exactly isotropic (so E and nu = 1/4 stay exact)
-// as long as every edge k_a comes out positive, i.e. for face-diagonals h_a^2/h_b^2 + h_a^2/h_c^2 < 3 for every
-// axis a (with h_x = h_y: 0.707 < h_z/h_x < 1.22; the Table 2 box, h_z/h_x = 0.86, is inside). Beyond that no
-// isotropic cell of central springs of these directions exists: a negative edge k is set to 0 (the cell is then
-// stiffer along that axis than the material; not exact) and rank 0 says so on stderr.
+// Unequal spacing: the same formulas make each rectangular cell exactly isotropic as long as every edge k_a comes
+// out positive, i.e. for face-diagonals h_a^2/h_b^2 + h_a^2/h_c^2 < 3 for every axis a (with h_x = h_y:
+// 0.707 < h_z/h_x < 1.22; the Table 2 box, h_z/h_x = 0.86, is inside). Beyond that no isotropic cell of central
+// springs of these directions exists: the diagonals are scaled down and the cell term
+// (src/physics/terms/cell_elasticity.cpp) carries the shear they leave out, so E and nu stay exact for cells from
+// 1:4 to 4:1 and beyond (src/model/cell_law.hpp).
+// Any Poisson ratio: the springs carry lambda = mu = s = min(mu, 3K/5) of the target (E_s = 2.5 s instead of E
+// below) and the cell term the rest (docs/poisson.md).
 // Rectangular topology (edges only): isotropy is impossible (nu = 0); each cell gives k_a = E V / (4 h_a^2) to its
 // edges, exact for the uniaxial modulus (C11 = E, C12 = 0). Tetrahedral (Kuhn) cells have one diagonal per
 // face and are refused: no per-class split makes them isotropic.
@@ -38,51 +41,10 @@
 
 #include "partition/local_model.hpp"
 #include "src/calibration/calibration.hpp"
+#include "src/model/cell_law.hpp"
 #include "src/model/topology.hpp"
 
 namespace tissue {
-
-namespace {
-
-struct CellSprings {
-  double edge[3] = {0, 0, 0};  // along axis a
-  double face[3] = {0, 0, 0};  // diagonal of the face normal to axis w
-  double body = 0;
-  bool clamped = false;
-};
-
-// Per-cell spring constants for E = 1 (they scale with E).
-CellSprings cell_springs(const Vec3& h, const std::string& topology) {
-  CellSprings s;
-  const double V = h[0] * h[1] * h[2];
-  const double h2[3] = {h[0] * h[0], h[1] * h[1], h[2] * h[2]};
-  if (topology == "rectangular") {
-    for (int a = 0; a < 3; ++a) s.edge[a] = V / (4.0 * h2[a]);
-    return s;
-  }
-  const double mu = 0.4;
-  const double Lb2 = h2[0] + h2[1] + h2[2];
-  if (topology == "body-diagonals") {
-    const double t = 0.5;
-    const double most = std::max({h2[0] * h2[1], h2[0] * h2[2], h2[1] * h2[2]});
-    s.body = t * mu * V * Lb2 / (4.0 * most);
-  }
-  for (int w = 0; w < 3; ++w) {
-    const int a = (w + 1) % 3, b = (w + 2) % 3;
-    const double from_body = 4.0 * s.body * h2[a] * h2[b] / (Lb2 * V);
-    s.face[w] = (mu - from_body) * V * (h2[a] + h2[b]) / (4.0 * h2[a] * h2[b]);
-  }
-  for (int a = 0; a < 3; ++a) {
-    double rest = 3.0 * mu - 4.0 * s.body * h2[a] * h2[a] / (Lb2 * V);
-    for (int b = 0; b < 3; ++b)
-      if (b != a) rest -= 4.0 * s.face[3 - a - b] * h2[a] * h2[a] / ((h2[a] + h2[b]) * V);
-    if (rest < 0) rest = 0, s.clamped = true;
-    s.edge[a] = rest * V / (4.0 * h2[a]);
-  }
-  return s;
-}
-
-}  // namespace
 
 void calibrate_homogenized(const CalibrationContext& ctx, std::vector<double>& k) {
   const LocalModel& m = ctx.model;
@@ -94,10 +56,22 @@ void calibrate_homogenized(const CalibrationContext& ctx, std::vector<double>& k
                      "homogenized needs a box lattice topology (rectangular, face-diagonals or body-diagonals), "
                      "not \"" + topology + "\"");
   const CellSprings cell = cell_springs(shape.h, topology);
-  if (cell.clamped && m.rank == 0)
-    std::fprintf(stderr, "tissue: homogenized: cells %g x %g x %g m are too far from cubic for an isotropic cell of "
-                         "central springs; negative edge stiffness set to 0 (E and nu will not be exact)\n",
-                 shape.h[0], shape.h[1], shape.h[2]);
+  // The springs' modulus E_s per molecule: E itself unless the molecule has a Poisson ratio (cell_law.hpp).
+  const std::vector<BodySpec> specs = ctx.scene.bodies.empty() ? std::vector<BodySpec>{ctx.scene.body} : ctx.scene.bodies;
+  std::vector<double> spring_modulus;
+  if (m.connections() > 0) {
+    const int b = m.body[m.end_a[0]];
+    const BodySpec& spec = specs[b];
+    bool any_nu = spec.poisson_ratio.has_value();
+    for (const auto& r : spec.regions) any_nu = any_nu || r.poisson_ratio.has_value();
+    if (any_nu) {
+      spring_modulus = ctx.inputs.youngs_modulus;
+      for (int i = 0; i < m.local; ++i)
+        if (m.body[i] == b) spring_modulus[i] = cell_moduli(ctx.inputs.youngs_modulus[i], molecule_material(spec, shape, m.id[i]).poisson_ratio)
+                                .spring_modulus;
+    }
+  }
+  const std::vector<double>& Es = spring_modulus.empty() ? ctx.inputs.youngs_modulus : spring_modulus;
   for (int c = 0; c < m.connections(); ++c) {
     const auto ia = shape.index(m.id[m.end_a[c]]), ib = shape.index(m.id[m.end_b[c]]);
     int cells = 1, differ[3], nd = 0;
@@ -110,13 +84,13 @@ void calibrate_homogenized(const CalibrationContext& ctx, std::vector<double>& k
       }
     }
     double per_cell = nd == 1 ? cell.edge[differ[0]] : nd == 2 ? cell.face[3 - differ[0] - differ[1]] : cell.body;
-    const double E = 0.5 * (ctx.inputs.youngs_modulus[m.end_a[c]] + ctx.inputs.youngs_modulus[m.end_b[c]]);
+    const double E = 0.5 * (Es[m.end_a[c]] + Es[m.end_b[c]]);
     k[c] = cells * per_cell * E;
   }
 }
 
 TISSUE_CALIBRATION(homogenized, {"homogenized", calibrate_homogenized,
-                                 "per-cell springs exact for an isotropic E, nu = 1/4 (Cauchy-Born)", nullptr,
+                                 "per-cell springs (and a cell term for nu != 1/4 or flat cells) exact for an isotropic E, nu", nullptr,
                                  nullptr, CalibrationNeeds::lattice_cells});
 
 }  // namespace tissue

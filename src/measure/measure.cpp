@@ -2,8 +2,60 @@
 
 #include <array>
 #include <cmath>
+#include <utility>
 
 namespace tissue {
+
+namespace {
+
+// Confined compression: a box's four lateral faces (of the test's body) all held in their normal.
+bool confined(const Scene& scene, const TensionTest& test) {
+  if (!test.load_face.empty()) return false;
+  int held = 0;
+  for (const auto& f : scene.fixes) {
+    int a, side;
+    if (f.body == test.body && parse_face(f.face, a, side) && a != test.axis) ++held;
+  }
+  return held == 4;  // at most one fix per face (the reader checks)
+}
+
+// Simple shear on a box: a clamped face and, on the face opposite, a load along the face (other loads, such as
+// the complementary tractions on the side faces, may be present). Collective when the scene is one.
+std::optional<double> shear_modulus(const Scene& scene, const LocalModel& model, const double* x) {
+  const Body& s = model.shape;
+  for (const auto& load : scene.loads) {
+    int axis, side;
+    if (load.period > 0 || !parse_face(load.face, axis, side) || s.body(load.body).unstructured()) continue;
+    const Vec3& F = load.force;
+    const double norm = std::sqrt(F[0] * F[0] + F[1] * F[1] + F[2] * F[2]);
+    if (!(norm > 0) || std::fabs(F[axis]) > 1e-12 * norm) continue;
+    bool clamped = false;
+    for (const auto& fix : scene.fixes) {
+      int a, fs;
+      if (fix.body == load.body && fix.mode == FixSpec::Mode::clamped && parse_face(fix.face, a, fs) && a == axis &&
+          fs != side)
+        clamped = true;
+    }
+    if (!clamped) continue;
+    const BoxGeometry& box = s.body(load.body);
+    std::array<double, 4> sum{}, total{};  // loaded face: sum along F, count; clamped face: the same
+    for (int i = 0; i < model.owned; ++i) {
+      if (model.body[i] != load.body) continue;
+      double along = 0;
+      for (int d = 0; d < 3; ++d) along += (x[3 * i + d] - model.rest[3 * i + d]) * F[d] / norm;
+      if (box.on_face(model.id[i], axis, side)) sum[0] += along, sum[1] += 1;
+      if (box.on_face(model.id[i], axis, 1 - side)) sum[2] += along, sum[3] += 1;
+    }
+    MPI_Allreduce(sum.data(), total.data(), 4, MPI_DOUBLE, MPI_SUM, model.comm);
+    const double gamma = (total[0] / total[1] - total[2] / total[3]) / box.length(axis);
+    const double area = box.length((axis + 1) % 3) * box.length((axis + 2) % 3);
+    if (gamma == 0.0) return std::nullopt;
+    return norm / area / gamma;
+  }
+  return std::nullopt;
+}
+
+}  // namespace
 
 Measurements measure(const Scene& scene, const LocalModel& model, const TensionTest& test, const double* x,
                      const double* v) {
@@ -72,8 +124,16 @@ Measurements measure(const Scene& scene, const LocalModel& model, const TensionT
         lateral += 0.5 * (total[11 + 4 * l] / total[12 + 4 * l] - total[9 + 4 * l] / total[10 + 4 * l]) /
                    s.length(axes[l]);
       m.poisson_ratio = -lateral / axial;
+      std::array<double, 2> each{};
+      for (int l = 0; l < 2; ++l)
+        each[l] = -(total[11 + 4 * l] / total[12 + 4 * l] - total[9 + 4 * l] / total[10 + 4 * l]) /
+                  s.length(axes[l]) / axial;
+      if (u > w) std::swap(each[0], each[1]);  // x, y, z order (../shared/interface.md)
+      m.poisson_ratios = each;
     }
+    if (confined(scene, test) && m.youngs_modulus) m.aggregate_modulus = m.youngs_modulus, m.youngs_modulus.reset();
   }
+  m.shear_modulus = shear_modulus(scene, model, x);
   return m;
 }
 

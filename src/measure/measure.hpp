@@ -1,6 +1,7 @@
 // What a run measures: Eq. 3 (the body's Young's modulus from its elongation), the Poisson ratio, the centre of
 // mass and the kinetic energy. Every value is a global reduction over the owned molecules.
 #pragma once
+#include <array>
 #include <optional>
 #include <vector>
 
@@ -14,6 +15,14 @@ struct Measurements {
   std::optional<double> elongation;        // m: mean displacement along the load, loaded face minus fixed face
   std::optional<double> youngs_modulus;    // Eq. 3: F l0 / (dl A)
   std::optional<double> poisson_ratio;     // lateral contraction / axial strain, when lateral faces are free
+  // The same per lateral axis, (axis + 1) % 3 and (axis + 2) % 3: both differ on an anisotropic body.
+  std::optional<std::array<double, 2>> poisson_ratios;
+  // Simple shear: a clamped face and a tangential load on the face opposite: G = (F / A) / gamma, gamma the mean
+  // displacement along F of the loaded face relative to the clamped one over their distance.
+  std::optional<double> shear_modulus;
+  // Confined compression: the tension test with all four lateral faces held in their normal (rollers): H_A =
+  // F l0 / (dl A), reported instead of youngs_modulus.
+  std::optional<double> aggregate_modulus;
   Vec3 center_of_mass{};
   double kinetic_energy = 0.0;
   double mass = 0.0;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <initializer_list>
+#include <limits>
 
 #include "src/model/material.hpp"
 
@@ -35,7 +36,8 @@ BoxGeometry body_geometry(const BodySpec& spec, std::int64_t first) {
 // Material per molecule: the body's, then each region in turn (the last region holding a molecule wins). A
 // connection across a region's boundary joins two materials: the calibration methods see both ends' E.
 MoleculeMaterial molecule_material(const BodySpec& spec, const BoxGeometry& box, std::int64_t id) {
-  MoleculeMaterial m{spec.youngs_modulus, spec.density};
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  MoleculeMaterial m{spec.youngs_modulus, spec.density, spec.poisson_ratio.value_or(nan)};
   if (spec.regions.empty()) return m;
   const Vec3 x = box.rest_position(id);
   for (const auto& r : spec.regions) {
@@ -44,7 +46,7 @@ MoleculeMaterial molecule_material(const BodySpec& spec, const BoxGeometry& box,
       double xa = x[a] - box.offset[a], tol = 1e-9 * box.h[a];
       inside = inside && xa >= r.lo[a] - tol && xa <= r.hi[a] + tol;
     }
-    if (inside) m = {r.youngs_modulus, r.density};
+    if (inside) m = {r.youngs_modulus, r.density, r.poisson_ratio.value_or(nan)};
   }
   return m;
 }

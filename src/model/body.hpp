@@ -162,6 +162,7 @@ Body scene_shape(const Scene& scene);
 // A molecule's material: its body's, or that of the last region holding it. `id` is the global id.
 struct MoleculeMaterial {
   double youngs_modulus, density;  // Pa, kg/m^3
+  double poisson_ratio;            // NaN: absent (1/4 on lattices, nothing built for it)
 };
 MoleculeMaterial molecule_material(const BodySpec& spec, const BoxGeometry& box, std::int64_t id);
 

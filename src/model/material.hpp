@@ -13,6 +13,9 @@ struct TissuePreset {
   double density;         // kg/m^3
   std::string range;      // the literature range, in words
   std::string source;
+  double poisson_ratio;             // drained / linear-region nu, representative
+  std::string poisson_range;        // its literature range, in words
+  std::string poisson_source;
 };
 
 const std::vector<TissuePreset>& tissue_presets();

@@ -46,6 +46,8 @@ struct RegionSpec {
   std::string material = "custom";
   double youngs_modulus = 0.0;  // Pa
   double density = 0.0;         // kg/m^3
+  // nu: the region's own, else its preset's (homogenized only), else the body's (docs/poisson.md).
+  std::optional<double> poisson_ratio;
 };
 
 struct BodySpec {
@@ -56,6 +58,10 @@ struct BodySpec {
   std::string material = "custom";
   double youngs_modulus = 0.0;  // Pa (from the preset unless the scene gives it)
   double density = 1000.0;      // kg/m^3
+  // nu: given, or the preset's when the body is calibrated by homogenized; absent = 1/4 on lattices (today's
+  // springs only, nothing more built). Only homogenized honours it (docs/poisson.md).
+  std::optional<double> poisson_ratio;
+  bool poisson_ratio_given = false;  // written in the scene (not a preset's): other methods refuse it
   Vec3 offset{0.0, 0.0, 0.0};   // m, where molecule (0,0,0) sits
   std::vector<RegionSpec> regions;
   std::optional<double> radius;  // m, a molecule's contact sphere; absent = half the smallest spacing

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 
 #include "src/physics/named_faces.hpp"
@@ -166,7 +167,30 @@ double ForceModel::largest_stiffness_rate() const {
   return global;
 }
 
-PetscErrorCode ForceModel::create_tangent(Mat* J) const { return tangent_.create(model_, J); }
+PetscErrorCode ForceModel::create_tangent(Mat* J) const {
+  std::vector<std::vector<int>> extra;
+  for (const auto& t : terms_) {
+    if (extra.empty()) extra.resize(model_.owned);
+    t->add_couplings(extra);
+  }
+  bool any = false;
+  for (const auto& e : extra) any = any || !e.empty();
+  if (!any) extra.clear();
+  return tangent_.create(model_, J, extra);
+}
+
+double ForceModel::terms_critical_time_step() const {
+  double dt = std::numeric_limits<double>::infinity();
+  if (terms_.empty()) return dt;  // every rank builds the same terms
+  for (const auto& t : terms_) dt = std::min(dt, t->critical_time_step());
+  double global = dt;
+  MPI_Allreduce(&dt, &global, 1, MPI_DOUBLE, MPI_MIN, model_.comm);
+  return global;
+}
+
+void ForceModel::add_force_scale(std::vector<double>& scale) const {
+  for (const auto& t : terms_) t->add_force_scale(scale);
+}
 
 PetscErrorCode ForceModel::assemble_tangent(const double* x, Mat J) const {
   PetscFunctionBeginUser;

@@ -35,6 +35,10 @@ public:
   // by identity (so the matrix stays symmetric). J must come from create_tangent (its row pattern is cached here).
   PetscErrorCode assemble_tangent(const double* x, Mat J) const;
   PetscErrorCode create_tangent(Mat* J) const;  // AIJ, block size 3, exactly preallocated
+  // Collective: the smallest time step bound the terms impose by themselves (infinity: none; Term::critical_time_step).
+  double terms_critical_time_step() const;
+  // Adds each term's force scale per owned molecule (N) to scale (the residual's round-off floor).
+  void add_force_scale(std::vector<double>& scale) const;
 
   const std::vector<std::uint8_t>& held() const { return held_; }   // 3 * owned: 1 = held component
   // The held components of owned molecules, ascending (few: faces only), so a step does not scan held().

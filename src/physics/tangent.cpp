@@ -4,7 +4,7 @@
 
 namespace tissue {
 
-PetscErrorCode TangentStorage::create(const LocalModel& model, Mat* J) {
+PetscErrorCode TangentStorage::create(const LocalModel& model, Mat* J, const std::vector<std::vector<int>>& extra) {
   PetscFunctionBeginUser;
   const int n = model.owned, nc = model.connections();
   // Each owned molecule's connections (counting sort by end), then its distinct neighbours sorted by block id.
@@ -35,6 +35,7 @@ PetscErrorCode TangentStorage::create(const LocalModel& model, Mat* J) {
       const int c = row_conns[p];
       row_cols.push_back(model.end_a[c] == i ? model.end_b[c] : model.end_a[c]);
     }
+    if (!extra.empty()) row_cols.insert(row_cols.end(), extra[i].begin(), extra[i].end());
     std::sort(row_cols.begin() + begin, row_cols.end(), by_block);
     row_cols.erase(std::unique(row_cols.begin() + begin, row_cols.end(),
                                 [&](int p, int q) { return model.block[p] == model.block[q]; }),

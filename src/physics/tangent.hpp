@@ -14,7 +14,8 @@ class TangentStorage {
 public:
   // Collective. The pattern of the model's connections and J: AIJ, block size 3, exactly preallocated, whose
   // arrays are held here until J is destroyed (J must not outlive this object).
-  PetscErrorCode create(const LocalModel& model, Mat* J);
+  // extra: per owned row, local columns beyond its connections' (terms' couplings; may be empty).
+  PetscErrorCode create(const LocalModel& model, Mat* J, const std::vector<std::vector<int>>& extra = {});
 
   // The tangent's block rows (built by create): row i's columns are the local molecules
   // row_cols[row_start[i] .. row_start[i+1]) sorted by PETSc block id, itself included; its connections are

@@ -9,6 +9,7 @@
 #include <petscmat.h>
 
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -47,6 +48,14 @@ public:
   virtual PetscErrorCode add_tangent(const double* x, BlockAdd add, void* ctx) const { return 0; }
   // Contact terms: the force totals of the last evaluation (this rank's owned molecules).
   virtual void add_totals(ContactTotals& t) const {}
+  // Terms whose tangent couples molecules no connection joins: the local columns each owned row needs beyond its
+  // connections' (extra[i] for owned molecule i), for the tangent's fixed pattern.
+  virtual void add_couplings(std::vector<std::vector<int>>& extra) const {}
+  // A bound on the stable explicit time step the term imposes by itself (s), used instead of the springs'
+  // Gershgorin bound when finite (a wave-speed bound: the cell term's h / c_p).
+  virtual double critical_time_step() const { return std::numeric_limits<double>::infinity(); }
+  // The scale of the term's forces per owned molecule (N), added in squares to the residual's round-off floor.
+  virtual void add_force_scale(std::vector<double>& scale) const {}
 };
 
 using TermFactory = std::unique_ptr<Term> (*)(const TermContext&);

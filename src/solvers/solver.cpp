@@ -15,6 +15,10 @@ namespace tissue {
 double critical_time_step(const ForceModel& forces) {
   // Gershgorin on the mass-scaled stiffness: |lambda| <= max_i (sum_j ||K_ij||) / m_i = max_i 2 sum_c k_c / m_i.
   double rate = forces.largest_stiffness_rate();
+  // A term with its own bound (the cell term's h / c_p, docs/poisson.md) replaces Gershgorin's, which would count
+  // its stiffness many times over.
+  const double wave = forces.terms_critical_time_step();
+  if (std::isfinite(wave)) return wave;
   return rate > 0 ? 2.0 / std::sqrt(rate) : std::numeric_limits<double>::infinity();
 }
 
@@ -24,6 +28,7 @@ double reachable_tolerance(const Scene& scene, const LocalModel& model, const Fo
     const double kl = std::fabs(model.k(c)) * model.l0(c);
     scale[model.end_a[c]] += kl, scale[model.end_b[c]] += kl;
   }
+  forces.add_force_scale(scale);  // the terms' own (cells): Newton stalls at nu -> 1/2 without them
   double sum = 0, total = 0;
   for (int i = 0; i < model.owned; ++i) sum += scale[i] * scale[i];
   MPI_Allreduce(&sum, &total, 1, MPI_DOUBLE, MPI_SUM, model.comm);

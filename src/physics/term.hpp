@@ -47,6 +47,14 @@ public:
   virtual PetscErrorCode add_tangent(const double* x, BlockAdd add, void* ctx) const { return 0; }
   // Contact terms: the force totals of the last evaluation (this rank's owned molecules).
   virtual void add_totals(ContactTotals& t) const {}
+
+  // Terms with internal variables that follow the time steps (the viscoelastic history of an elastic term: springs
+  // now, per-cell terms later). Until the first begin_step such a term adds nothing, so static and relaxation
+  // solves find the relaxed equilibrium. begin_step: the next evaluations are a step of dt (s; 0: a step at one
+  // instant, the instantaneous response) from the committed state; commit_step: the state at x ends the step.
+  virtual bool has_history() const { return false; }
+  virtual void begin_step(double dt) {}
+  virtual void commit_step(const double* x) {}
 };
 
 using TermFactory = std::unique_ptr<Term> (*)(const TermContext&);

@@ -164,6 +164,46 @@ std::string Output::checkpoint(const SolverState& state) {
   });
 }
 
+void Output::history_row(const SolverState& state, const ForceModel& forces, const TensionTest& test) {
+  const Measurements m = measure(scene_, model_, test, state.x.array(), state.v.data());
+  std::vector<double> scratch(3 * model_.local);
+  const std::vector<Vec3> reactions = forces.reactions(state.x.array(), state.v.data(), scratch.data());
+  const Vec3 applied = forces.applied_total(state.time);
+  make_directory();  // collective (agreed): before rank 0 goes on alone
+  const std::string path = scene_.output.directory + "/history.csv";
+  agree(model_.comm, [&] {
+    if (model_.rank != 0) return;
+    std::string text;
+    char cell[40];
+    auto number = [&](double v) {
+      std::snprintf(cell, sizeof cell, ",%.17g", v);
+      text += cell;
+    };
+    if (!history_started_) {
+      text = "step,time,force_x,force_y,force_z,elongation,kinetic_energy";
+      for (std::size_t f = 0; f < reactions.size(); ++f)
+        for (const char* axis : {"x", "y", "z"}) text += ",reaction" + std::to_string(f) + "_" + axis;
+      text += "\n";
+    }
+    text += std::to_string(state.step);
+    number(state.time);
+    for (double c : applied) number(c);
+    if (m.elongation) number(*m.elongation);
+    else text += ",";
+    number(m.kinetic_energy);
+    for (const Vec3& r : reactions)
+      for (double c : r) number(c);
+    text += "\n";
+    FILE* file = std::fopen(path.c_str(), history_started_ ? "a" : "w");
+    if (!file) throw OutputError(path + ": cannot open: " + std::strerror(errno));
+    const bool written = std::fwrite(text.data(), 1, text.size(), file) == text.size() && std::fflush(file) == 0;
+    const int error = errno;
+    if (std::fclose(file) != 0 || !written)
+      throw OutputError(path + ": cannot write: " + std::strerror(written ? errno : error));
+  });
+  history_started_ = true;
+}
+
 void Output::summary(const TensionTest& test, const Measurements& measured, const Measurements& initial,
                      const SolveReport& report, const SolverState& state, double wall_seconds,
                      const std::string& failure) {
@@ -243,8 +283,8 @@ void Output::write_summary(const TensionTest& test, const Measurements& measured
                  {"guard_checks", kind->explicit_steps ? json(report.guard_checks) : json(nullptr)},
                  {"guard_seconds", kind->explicit_steps ? json(report.guard_seconds) : json(nullptr)},
                  {"failure", failure.empty() ? json(nullptr) : json(failure)}};
-  s["time"] = dynamic ? json(state.time) : json(nullptr);
-  s["steps"] = dynamic ? json(state.step) : json(nullptr);
+  s["time"] = kind->time_line ? json(state.time) : json(nullptr);
+  s["steps"] = kind->time_line ? json(state.step) : json(nullptr);
   s["kinetic_energy"] = dynamic ? json(measured.kinetic_energy) : json(nullptr);
   s["energy_initial"] = dynamic ? json(report.energy_initial) : json(nullptr);
   s["energy_final"] = dynamic ? json(report.energy_final) : json(nullptr);
@@ -252,6 +292,8 @@ void Output::write_summary(const TensionTest& test, const Measurements& measured
   s["center_of_mass"] = measured.center_of_mass;
   s["contact_force"] = measured.contact_force ? json(*measured.contact_force) : json(nullptr);
   s["body_contact_force"] = measured.body_contact_force.empty() ? json(nullptr) : json(measured.body_contact_force);
+  s["reactions"] = scene_.fixes.empty() || measured.reactions.size() != scene_.fixes.size()
+                       ? json(nullptr) : json(measured.reactions);
   s["bodies"] = scene_.bodies.size();
   s["partition"] = {{"edge_cut", model_.partition.edge_cut},
                     {"imbalance", model_.partition.imbalance},

@@ -30,8 +30,13 @@ public:
   void summary(const TensionTest& test, const Measurements& measured, const Measurements& initial,
                const SolveReport& report, const SolverState& state, double wall_seconds, const std::string& failure);
 
+  // Collective; rank 0 appends the state's row to DIR/history.csv (the first call of a run writes the header
+  // over any earlier file), flushed at once so that a crash keeps the rows so far.
+  void history_row(const SolverState& state, const ForceModel& forces, const TensionTest& test);
+
 private:
   void make_directory();
+  bool history_started_ = false;
   static std::string snapshot_name(long step);
   double stage_bytes() const;  // a bound on one file's size, for its StageDeadline
   void write_snapshot_stage(const SolverState& state, const ForceModel& forces, bool final, const char* name);

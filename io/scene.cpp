@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -107,10 +108,61 @@ void apply_poisson(const Section& body_table, BodySpec& b, const CalibrationSpec
   }
 }
 
+// history = [[t0, f0], [t1, f1], ...]: (time s, factor) pairs, times increasing.
+TimeHistory read_history(const Section& s) {
+  TimeHistory h;
+  if (!s.has("history")) return h;
+  const Value& v = s.get("history");
+  const char* want = "expected an array of [time, factor] pairs, times increasing";
+  if (!v.is_array() || v.as_array().empty()) s.fail("history", want);
+  for (const Value& p : v.as_array()) {
+    if (!p.is_array() || p.as_array().size() != 2) s.fail("history", want);
+    std::array<double, 2> point{};
+    for (int j = 0; j < 2; ++j) {
+      const Value& x = p.as_array()[j];
+      if (x.is_integer()) point[j] = static_cast<double>(x.as_integer());
+      else if (x.is_floating()) point[j] = x.as_floating();
+      else s.fail("history", want);
+      if (!std::isfinite(point[j])) s.fail("history", "every time and factor must be finite");
+    }
+    if (!h.empty() && !(point[0] > h.back()[0]))
+      s.fail("history", fmt::format("times must increase, got {} after {}", point[0], h.back()[0]));
+    if (point[0] < 0) s.fail("history", fmt::format("times start at 0 or later, got {}", point[0]));
+    h.push_back(point);
+  }
+  return h;
+}
+
+// A list of numbers (gamma = [...], tau = [...]).
+std::vector<double> read_numbers(const Section& s, const std::string& k) {
+  const Value& v = s.get(k);
+  if (!v.is_array() || v.as_array().empty()) s.fail(k, "expected a non-empty array of numbers");
+  std::vector<double> out;
+  for (const Value& x : v.as_array()) {
+    if (x.is_integer()) out.push_back(static_cast<double>(x.as_integer()));
+    else if (x.is_floating() && std::isfinite(x.as_floating())) out.push_back(x.as_floating());
+    else s.fail(k, "expected a non-empty array of finite numbers");
+  }
+  return out;
+}
+
+// [body.viscoelastic]: a Prony series, gamma_i >= 0 and tau_i > 0, as many of each.
+PronySpec read_viscoelastic(const Section& s) {
+  s.allow({"gamma", "tau"});
+  s.require("gamma", "the Prony weights, E(t) = E (1 + sum gamma_i exp(-t / tau_i))");
+  s.require("tau", "the Prony time constants (s)");
+  PronySpec p{read_numbers(s, "gamma"), read_numbers(s, "tau")};
+  if (p.gamma.size() != p.tau.size())
+    s.fail("tau", fmt::format("{} time constants for {} weights (gamma)", p.tau.size(), p.gamma.size()));
+  for (double g : p.gamma) s.non_negative("gamma", g);
+  for (double t : p.tau) s.positive("tau", t);
+  return p;
+}
+
 // shape = "mesh": a Gmsh file, its physical volumes as regions (by name). The file is read with the body.
 BodySpec read_mesh_body(const Section& s, BodySpec b) {
   s.allow({"shape", "file", "topology", "material", "youngs_modulus", "density", "offset", "region", "radius",
-           "calibration", "seed", "interior_molecules", "mesh_size"});
+           "calibration", "seed", "interior_molecules", "mesh_size", "viscoelastic"});
   s.require("file", "the Gmsh mesh (.msh) or geometry (.geo) of the body");
   b.file = *s.string("file");
   if (b.file.empty()) s.fail("file", "empty path");
@@ -126,6 +178,7 @@ BodySpec read_mesh_body(const Section& s, BodySpec b) {
   // topology = "random": the mesh's boundary nodes and interior_molecules points at random inside it, Delaunay
   // (src/model/mesh_cloud.hpp); "mesh": the mesh's own tetrahedra.
   b.topology = s.choice("topology", {"mesh", "random"}).value_or("mesh");
+  if (s.has("viscoelastic")) b.viscoelastic = read_viscoelastic(s.table("viscoelastic"));
   for (const char* k : {"seed", "interior_molecules"})
     if (s.has(k) && b.topology != "random") s.fail(k, "only topology = \"random\" has it");
   b.seed = s.integer("seed").value_or(b.seed);
@@ -158,7 +211,8 @@ BodySpec read_body(const Section& s) {
     s.fail("shape", fmt::format("unknown value \"{}\" (one of: box, mesh)", b.shape));
   if (b.shape == "mesh") return read_mesh_body(s, b);
   s.allow({"shape", "molecules", "spacing", "size", "topology", "material", "youngs_modulus", "density", "offset",
-           "region", "radius", "calibration", "seed", "poisson_ratio"});  // calibration: read by build_scene (read_calibration)
+           "region", "radius", "calibration", "seed", "poisson_ratio", "viscoelastic"});  // calibration: read by
+                                                                                          // build_scene
 
   s.require("molecules", "3 integers, molecules along x, y, z");
   b.molecules = *s.int3("molecules");
@@ -186,6 +240,7 @@ BodySpec read_body(const Section& s) {
   std::vector<std::string> topologies = topology_names();
   topologies.push_back("random");  // explicit: src/model/random_cloud.hpp
   b.topology = s.choice("topology", topologies).value_or(b.topology);
+  if (s.has("viscoelastic")) b.viscoelastic = read_viscoelastic(s.table("viscoelastic"));
   if (s.has("seed") && b.topology != "random") s.fail("seed", "only topology = \"random\" has a seed");
   b.seed = s.integer("seed").value_or(b.seed);
   if (b.topology == "random" && !s.tables("region").empty())
@@ -273,7 +328,8 @@ CalibrationSpec read_calibration(const Section& s, const BodySpec* body, int ind
 
 SolverSpec read_solver(const Section& s) {
   SolverSpec v;
-  s.allow({"kind", "tolerance", "time_step", "steps", "max_iterations", "load_steps", "allow_unstable_time_step"});
+  s.allow({"kind", "tolerance", "time_step", "steps", "end_time", "max_iterations", "load_steps",
+           "allow_unstable_time_step"});
   v.kind = s.choice("kind", solver_names()).value_or(v.kind);
   v.tolerance = s.number("tolerance").value_or(v.tolerance);
   if (!(v.tolerance > 0 && v.tolerance < 1))
@@ -282,6 +338,9 @@ SolverSpec read_solver(const Section& s) {
   if (v.time_step) s.positive("time_step", *v.time_step);
   v.steps = s.integer("steps").value_or(v.steps);
   s.at_least("steps", v.steps, 0);
+  v.end_time = s.number("end_time");
+  if (v.end_time) s.non_negative("end_time", *v.end_time);
+  if (v.end_time && s.has("steps")) s.fail("end_time", "give steps or end_time, not both");
   v.max_iterations = s.integer("max_iterations").value_or(v.max_iterations);
   s.at_least("max_iterations", v.max_iterations, 0);
   v.load_steps = s.integer("load_steps").value_or(v.load_steps);
@@ -389,18 +448,20 @@ Scene build_scene(const Value& root, const std::string& file) {
   // Fixes: at most one per face of a body.
   std::map<std::pair<int, std::string>, std::string> fixed;  // (body, face) -> which fix[i]
   for (const auto& f : top.tables("fix")) {
-    f.allow({"face", "mode", "body"});
+    f.allow({"face", "mode", "body", "displacement", "history"});
     FixSpec spec;
     spec.body = which_body(f);
     f.require("face", "one of " + join(face_names));
     spec.face = face_of(f);
     if (f.choice("mode", {"clamped", "roller"}).value_or("clamped") == "roller") spec.mode = FixSpec::Mode::roller;
+    spec.displacement = f.vec3("displacement").value_or(spec.displacement);
+    spec.history = read_history(f);
     auto [it, added] = fixed.emplace(std::make_pair(spec.body, spec.face), f.path());
     if (!added) f.fail("face", fmt::format("face {} is already fixed by {}", spec.face, it->second));
     scene.fixes.push_back(spec);
   }
   for (const auto& l : top.tables("load")) {
-    l.allow({"face", "force", "distribution", "body", "period"});
+    l.allow({"face", "force", "distribution", "body", "period", "history"});
     LoadSpec spec;
     spec.body = which_body(l);
     l.require("face", "one of " + join(face_names));
@@ -413,6 +474,8 @@ Scene build_scene(const Value& root, const std::string& file) {
     spec.distribution = l.choice("distribution", {"traction", "equal"}).value_or(spec.distribution);
     spec.period = l.number("period").value_or(0.0);
     if (l.has("period")) l.positive("period", spec.period);
+    spec.history = read_history(l);
+    if (spec.period > 0 && !spec.history.empty()) l.fail("history", "a cyclic load (period) has no history");
     scene.loads.push_back(spec);
   }
 
@@ -451,7 +514,31 @@ Scene build_scene(const Value& root, const std::string& file) {
     if (scene.loads[i].period > 0 && !solver.integrates_time)
       throw InputError(file, fmt::format("load[{}].period", i),
                        "a cyclic load needs solver.kind = " + join(in_time, " or "));
+  // Loads and holds in time, and the Prony history, need a solver that follows time; a prescribed displacement
+  // moves held molecules, which only the quasi-static solver does for now.
+  if (scene.solver.kind != "quasi-static") {
+    for (std::size_t i = 0; i < scene.fixes.size(); ++i) {
+      const FixSpec& f = scene.fixes[i];
+      if (f.displacement != Vec3{0.0, 0.0, 0.0} || !f.history.empty())
+        throw InputError(file, fmt::format("fix[{}].{}", i, f.history.empty() ? "displacement" : "history"),
+                         "a moving hold needs solver.kind = \"quasi-static\"");
+    }
+    for (std::size_t i = 0; i < scene.loads.size(); ++i)
+      if (!scene.loads[i].history.empty() && !solver.integrates_time)
+        throw InputError(file, fmt::format("load[{}].history", i),
+                         "a load history needs solver.kind = \"quasi-static\" or \"dynamic\"");
+  }
   if (top.has("output")) scene.output = read_output(top.table("output"));
+  if (scene.solver.kind == "quasi-static" && !scene.solver.time_step)
+    throw InputError(file, "solver.time_step", "missing: a quasi-static run needs its time step (s)");
+  // Checkpoints do not hold the quasi-static time line or the viscoelastic history yet: refused, not restarted
+  // into a different run.
+  bool viscoelastic = false;
+  for (const auto& b : scene.bodies) viscoelastic = viscoelastic || !b.viscoelastic.empty();
+  if (scene.output.checkpoint_every > 0 && (scene.solver.kind == "quasi-static" || viscoelastic))
+    throw InputError(file, "output.checkpoint_every",
+                     viscoelastic ? "checkpoints do not hold the viscoelastic history yet (give 0)"
+                                  : "a quasi-static run is not checkpointed yet (give 0)");
   if (top.has("partition")) {
     Section p = top.table("partition");
     p.allow({"method"});

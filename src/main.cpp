@@ -142,6 +142,7 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
   hooks.snapshot = [&](const SolverState& s) { out.snapshot(s, sim.forces()); };
   std::string last_checkpoint;
   hooks.checkpoint = [&](const SolverState& s) { last_checkpoint = out.checkpoint(s); };
+  hooks.record = [&](const SolverState& s) { out.history_row(s, sim.forces(), sim.test()); };
   sim.solve(hooks);
   const SolveReport& report = sim.report();
   if (report.interrupted && root)

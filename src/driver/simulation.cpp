@@ -64,6 +64,10 @@ void Simulation::measure() {
   measured_ = tissue::measure(scene_, model_, test_, state_->x.array(), state_->v.data());
   initial_ = tissue::measure(scene_, model_, test_, model_.rest.data(), nullptr);
   measure_contact(*forces_, measured_);  // the contact forces of the final state's force evaluation
+  if (!scene_.fixes.empty()) {
+    std::vector<double> scratch(3 * model_.local);  // the state's forces stay as the solve left them
+    measured_.reactions = forces_->reactions(state_->x.array(), state_->v.data(), scratch.data());
+  }
 }
 
 void Simulation::write(Output& out, double wall_seconds) {

@@ -28,6 +28,7 @@ struct Measurements {
   double mass = 0.0;
   std::optional<Vec3> contact_force;      // total force the obstacles exert on the bodies (scenes with obstacles)
   std::vector<Vec3> body_contact_force;   // per body: force molecules of other bodies exert on it ([physics] contact)
+  std::vector<Vec3> reactions;            // per [[fix]], scene order: the total force the hold exerts on the body
 };
 
 // x: local positions (owned first); v: owned velocities, or nullptr.

@@ -38,6 +38,17 @@ private:
 
 using Vec3 = std::array<double, 3>;
 
+// A factor in time, piecewise linear through (time s, factor) points with increasing times; constant before the
+// first and after the last point. Empty: factor 1 at every time.
+using TimeHistory = std::vector<std::array<double, 2>>;
+double history_factor(const TimeHistory& history, double t);
+
+// A Prony series: E(t) = E (1 + sum_i gamma_i exp(-t / tau_i)), E the relaxed modulus. Empty: elastic.
+struct PronySpec {
+  std::vector<double> gamma, tau;  // as many of each; gamma >= 0, tau > 0 (s)
+  bool empty() const { return gamma.empty(); }
+};
+
 // A box region of a body with its own material (heterogeneous bodies). Bounds are in metres, in the body's
 // own frame (before offset); a molecule belongs to the last region whose closed box holds it.
 struct RegionSpec {
@@ -72,6 +83,7 @@ struct BodySpec {
   long interior_molecules = 0;  // shape = "mesh", topology = "random": points sampled inside the mesh's volume
   double mesh_size = 0.0;       // m; shape = "mesh" from a .geo: the largest element Gmsh makes (0: the .geo's own)
   bool unstructured() const { return shape == "mesh" || topology == "random"; }
+  PronySpec viscoelastic;  // [body.viscoelastic]; empty: elastic
 };
 
 struct CalibrationSpec {
@@ -89,6 +101,8 @@ struct FixSpec {
   // clamped: every component held; roller: the face-normal component (plus the fewest in-plane holds that stop
   // rigid motion). Read from the scene's "clamped" | "roller".
   enum class Mode { clamped, roller } mode = Mode::clamped;
+  Vec3 displacement{0.0, 0.0, 0.0};  // m: the held components move by this times the history factor
+  TimeHistory history;               // the factor in time (empty: 1)
 };
 
 struct LoadSpec {
@@ -97,6 +111,7 @@ struct LoadSpec {
   std::string distribution = "traction";  // traction | equal
   int body = 0;                       // which body's face
   double period = 0.0;                // s; > 0: cyclic, the force scaled by sin(2 pi t / period) (dynamic)
+  TimeHistory history;                // the force's factor in time (empty: 1)
 };
 
 struct PhysicsSpec {  // absent means off
@@ -119,7 +134,8 @@ struct SolverSpec {
   std::string kind = "static";         // static | relaxation | dynamic
   double tolerance = 1e-10;            // relative force residual (static, relaxation)
   std::optional<double> time_step;     // s (relaxation, dynamic); absent = from the critical time step
-  long steps = 1000;                   // dynamic: total step count of the run
+  long steps = 1000;                   // dynamic, quasi-static: total step count of the run
+  std::optional<double> end_time;      // quasi-static: s, instead of steps
   long max_iterations = 0;             // relaxation/static cap; 0 = a default that grows with the lattice
   long load_steps = 1;                 // static: load increments
   // A time_step above the critical one (explicit integration unstable) is refused unless this is true; then it

@@ -59,13 +59,21 @@ void add_face_load(const LoadSpec& load, const LocalModel& model, double* out) {
   }
 }
 
-ForceModel::ForceModel(const Scene& scene, const LocalModel& model) : model_(model), kernel_(model) {
+ForceModel::ForceModel(const Scene& scene, const LocalModel& model)
+    : model_(model), kernel_(model), scene_(scene), load_scale_(scene.loads.size(), 1.0) {
   const Body& s = model.shape;
   held_.assign(3 * model.local, 0);
+  std::vector<int> first_fix(3 * model.owned, -1);  // which fix holds an owned component first
   for (int i = 0; i < model.local; ++i)
-    for (const auto& fix : scene.fixes) hold(s, fix, model.id[i], &held_[3 * i]);
+    for (std::size_t f = 0; f < scene.fixes.size(); ++f) {
+      hold(s, scene.fixes[f], model.id[i], &held_[3 * i]);
+      if (i < model.owned)
+        for (int d = 0; d < 3; ++d)
+          if (held_[3 * i + d] && first_fix[3 * i + d] < 0) first_fix[3 * i + d] = static_cast<int>(f);
+    }
   for (int j = 0; j < 3 * model.owned; ++j)
-    if (held_[j]) held_owned_.push_back(j);
+    if (held_[j]) held_owned_.push_back(j), held_fix_.push_back(first_fix[j]);
+  for (const auto& fix : scene.fixes) moves_held_ = moves_held_ || fix.displacement != Vec3{0.0, 0.0, 0.0};
 
   // Constant face loads; cyclic ones (period > 0) are a term of their own. Kept sparse: only loaded faces carry
   // them, and a dense copy would cost 24 bytes a molecule.
@@ -73,7 +81,23 @@ ForceModel::ForceModel(const Scene& scene, const LocalModel& model) : model_(mod
   bool any_cyclic = false;
   for (const auto& load : scene.loads) any_cyclic = any_cyclic || load.period > 0;
   if (any_cyclic) cyclic.assign(3 * model.owned, 0.0);
-  for (const auto& load : scene.loads) add_face_load(load, model, (load.period > 0 ? cyclic : constant).data());
+  // Loads with a history keep their own entries (each scaled by its factor); without any, one summed entry per
+  // component as before (all factors 1).
+  bool any_history = false;
+  for (const auto& load : scene.loads) any_history = any_history || !load.history.empty();
+  for (std::size_t l = 0; l < scene.loads.size(); ++l) {
+    const LoadSpec& load = scene.loads[l];
+    if (!any_history || load.period > 0) {
+      add_face_load(load, model, (load.period > 0 ? cyclic : constant).data());
+      continue;
+    }
+    std::vector<double> own(3 * model.owned, 0.0);
+    add_face_load(load, model, own.data());
+    for (int j = 0; j < 3 * model.owned; ++j) {
+      constant[j] += own[j];  // for the residual's reference below
+      if (own[j] != 0.0) applied_.push_back({j, own[j], static_cast<int>(l)});
+    }
+  }
   for (const auto& style : term_styles())
     if (style.listed(scene)) terms_.push_back(style.make(TermContext{scene, model})), term_styles_.push_back(&style);
 
@@ -85,8 +109,9 @@ ForceModel::ForceModel(const Scene& scene, const LocalModel& model) : model_(mod
       double fe = constant[3 * i + d] + (any_cyclic ? cyclic[3 * i + d] : 0.0) + model.mass[i] * g[d];
       if (!held_[3 * i + d]) sum += fe * fe;
     }
-  for (int j = 0; j < 3 * model.owned; ++j)
-    if (constant[j] != 0.0) applied_.push_back({j, constant[j]});
+  if (!any_history)
+    for (int j = 0; j < 3 * model.owned; ++j)
+      if (constant[j] != 0.0) applied_.push_back({j, constant[j], 0});
   MPI_Allreduce(&sum, &applied_norm_, 1, MPI_DOUBLE, MPI_SUM, model.comm);
   applied_norm_ = std::sqrt(applied_norm_);
 }
@@ -134,7 +159,7 @@ void ForceModel::connection_forces(const double* x, double* f) const { kernel_.f
 
 void ForceModel::forces(const double* x, const double* v, double* f, double load_factor) const {
   connection_forces(x, f);
-  for (const auto& a : applied_) f[a.component] += load_factor * a.value;
+  for (const auto& a : applied_) f[a.component] += load_factor * load_scale_[a.load] * a.value;
   for (const auto& t : terms_) t->add_forces(x, v, time_, f);  // one call per term, none per connection
   for (int i : held_owned_) f[i] = 0.0;
 }
@@ -148,9 +173,61 @@ double ForceModel::potential_energy(const double* x, double load_factor) const {
     double stretch = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2) - model_.l0(c);
     e += 0.5 * model_.k(c) * stretch * stretch;
   }
-  for (const auto& a : applied_) e -= load_factor * a.value * (x[a.component] - model_.rest[a.component]);
+  for (const auto& a : applied_)
+    e -= load_factor * load_scale_[a.load] * a.value * (x[a.component] - model_.rest[a.component]);
   for (const auto& t : terms_) e += t->potential_energy(x);
   return e;
+}
+
+void ForceModel::set_time(double t) const {
+  time_ = t;
+  for (std::size_t l = 0; l < load_scale_.size(); ++l) load_scale_[l] = history_factor(scene_.loads[l].history, t);
+}
+
+void ForceModel::place_held(double t, double* x) const {
+  if (!moves_held_) return;
+  std::vector<double> factor(scene_.fixes.size());
+  for (std::size_t f = 0; f < factor.size(); ++f) factor[f] = history_factor(scene_.fixes[f].history, t);
+  for (std::size_t q = 0; q < held_owned_.size(); ++q) {
+    const int j = held_owned_[q], f = held_fix_[q];
+    x[j] = model_.rest[j] + factor[f] * scene_.fixes[f].displacement[j % 3];
+  }
+}
+
+std::vector<Vec3> ForceModel::reactions(const double* x, const double* v, double* f) const {
+  connection_forces(x, f);
+  for (const auto& a : applied_) f[a.component] += load_scale_[a.load] * a.value;
+  for (const auto& t : terms_) t->add_forces(x, v, time_, f);
+  std::vector<double> local(3 * scene_.fixes.size(), 0.0), global(local.size(), 0.0);
+  for (std::size_t q = 0; q < held_owned_.size(); ++q) local[3 * held_fix_[q] + held_owned_[q] % 3] -= f[held_owned_[q]];
+  MPI_Allreduce(local.data(), global.data(), static_cast<int>(local.size()), MPI_DOUBLE, MPI_SUM, model_.comm);
+  for (int i : held_owned_) f[i] = 0.0;
+  std::vector<Vec3> r(scene_.fixes.size());
+  for (std::size_t k = 0; k < r.size(); ++k) r[k] = {global[3 * k], global[3 * k + 1], global[3 * k + 2]};
+  return r;
+}
+
+Vec3 ForceModel::applied_total(double t) const {
+  Vec3 total{0, 0, 0};
+  for (const auto& load : scene_.loads) {
+    const double factor = load.period > 0 ? std::sin(2.0 * M_PI * t / load.period) : history_factor(load.history, t);
+    for (int d = 0; d < 3; ++d) total[d] += factor * load.force[d];
+  }
+  return total;
+}
+
+bool ForceModel::has_history() const {
+  for (const auto& t : terms_)
+    if (t->has_history()) return true;
+  return false;
+}
+
+void ForceModel::begin_step(double dt) const {
+  for (const auto& t : terms_) t->begin_step(dt);
+}
+
+void ForceModel::commit_step(const double* x) const {
+  for (const auto& t : terms_) t->commit_step(x);
 }
 
 double ForceModel::largest_stiffness_rate() const {

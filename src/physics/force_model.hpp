@@ -47,14 +47,31 @@ public:
   struct AppliedForce {
     int component;
     double value;
+    int load;  // its [[load]] (scene order), whose history scales it
   };
   const std::vector<AppliedForce>& applied() const { return applied_; }
   double applied_norm() const { return applied_norm_; }             // global 2-norm of loads + gravity
   double largest_stiffness_rate() const;
   const SpringKernel& kernel() const { return kernel_; }  // max over molecules of 2 sum k / m (Gershgorin bound of omega^2)
 
-  // Time of the next force evaluation (s): time-dependent terms (cyclic loads) read it. The dynamic solver sets it.
-  void set_time(double t) const { time_ = t; }
+  // Time of the next force evaluation (s): time-dependent terms (cyclic loads) and the loads' histories read it.
+  // The dynamic and quasi-static solvers set it.
+  void set_time(double t) const;
+  // Moves the held components of owned molecules to where their [[fix]] holds them at time t (rest position plus
+  // displacement times the fix's history factor); ghosts are left to the caller's update. Nothing moves for fixes
+  // without a displacement.
+  void place_held(double t, double* x) const;
+  bool moves_held() const { return moves_held_; }
+  // Collective: the total force each [[fix]] exerts on the body at x (scene order; a component held by several
+  // fixes counts for the first), i.e. minus the other forces on its held components.
+  std::vector<Vec3> reactions(const double* x, const double* v, double* scratch) const;
+  // The applied loads' total at time t (N), the [[load]] forces times their history (or cyclic) factors.
+  Vec3 applied_total(double t) const;
+  // Terms with internal variables that follow time (viscoelastic history, src/physics/term.hpp): the solver
+  // begins each step with its dt and commits its end state.
+  bool has_history() const;
+  void begin_step(double dt) const;
+  void commit_step(const double* x) const;
   // The terms built for this scene, by name (the connection forces and constant loads are not listed).
   std::vector<std::string> term_names() const;
   // Every listed term keeps the total energy from growing (TermStyle::energy_never_grows; true with none).
@@ -79,6 +96,10 @@ private:
   std::vector<const TermStyle*> term_styles_;  // the style of each (what it can do)
   double applied_norm_ = 0.0;
   mutable double time_ = 0.0;
+  const Scene& scene_;
+  std::vector<int> held_fix_;            // parallel to held_owned_: the fix that holds the component
+  bool moves_held_ = false;              // some fix has a displacement
+  mutable std::vector<double> load_scale_;  // per [[load]]: its history factor at time_ (1 without history)
   // The tangent's block-row pattern and CSR storage (src/physics/tangent.hpp), built by create_tangent.
   mutable TangentStorage tangent_;
 };

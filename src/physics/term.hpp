@@ -56,6 +56,14 @@ public:
   virtual double critical_time_step() const { return std::numeric_limits<double>::infinity(); }
   // The scale of the term's forces per owned molecule (N), added in squares to the residual's round-off floor.
   virtual void add_force_scale(std::vector<double>& scale) const {}
+
+  // Terms with internal variables that follow the time steps (the viscoelastic history of an elastic term: springs
+  // now, per-cell terms later). Until the first begin_step such a term adds nothing, so static and relaxation
+  // solves find the relaxed equilibrium. begin_step: the next evaluations are a step of dt (s; 0: a step at one
+  // instant, the instantaneous response) from the committed state; commit_step: the state at x ends the step.
+  virtual bool has_history() const { return false; }
+  virtual void begin_step(double dt) {}
+  virtual void commit_step(const double* x) {}
 };
 
 using TermFactory = std::unique_ptr<Term> (*)(const TermContext&);

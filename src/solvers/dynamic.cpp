@@ -75,6 +75,7 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
     const long snap = hooks.snapshot ? scene.output.snapshot_every : 0, ckpt = scene.output.checkpoint_every;
     return s < total && s % kReduceEvery != 0 && !(snap > 0 && s % snap == 0) && !(ckpt > 0 && s % ckpt == 0);
   };
+  const bool history = forces.has_history();
   bool drifted = false;  // the last pass already did this step's half kick and drift
   while (state.step < total) {
     if (!drifted)
@@ -88,7 +89,9 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
       }
     state.x.update_ghosts();
     forces.set_time(state.time + dt);
+    if (history) forces.begin_step(dt);  // viscoelastic history: this step's update, committed at its end
     forces.forces(x, v, f);
+    if (history) forces.commit_step(x);
     double kinetic = 0;
     drifted = unobserved(state.step + 1);
     if (drifted)
@@ -140,6 +143,7 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
 }
 
 TISSUE_SOLVER(dynamic, {"dynamic", solve_dynamic, "velocity Verlet in time (explicit)", /*equilibrium=*/false,
-                        /*newton=*/false, /*explicit_steps=*/true, /*integrates_time=*/true});
+                        /*newton=*/false, /*explicit_steps=*/true, /*integrates_time=*/true,
+                        /*settles_on_obstacles=*/false, /*time_line=*/true});
 
 }  // namespace tissue

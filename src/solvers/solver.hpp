@@ -83,6 +83,9 @@ struct SolverHooks {
   // Writes a checkpoint of the state (collective); called every output.checkpoint_every steps and when a stop
   // is requested.
   std::function<void(const SolverState&)> checkpoint;
+  // Solvers that step in time (quasi-static): called after every step, the t = 0 step included, with the state
+  // at the step's end (DIR/history.csv). Collective.
+  std::function<void(const SolverState&)> record;
 };
 
 // Set by the SIGTERM/SIGINT handler that main() installs: the solvers write a checkpoint at the next step
@@ -121,6 +124,7 @@ struct SolverStyle {
   bool explicit_steps = false;        // steps with a time step (solver.time_step) under the per-step guards
   bool integrates_time = false;       // follows the motion in time: cyclic loads; rigid motion need not be held
   bool settles_on_obstacles = false;  // an equilibrium may be held by obstacles alone (never inverts the stiffness)
+  bool time_line = false;             // advances a time line: time and steps in the summary
 };
 
 #define TISSUE_SOLVER(id, ...)                    \

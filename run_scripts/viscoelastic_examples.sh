@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# The examples of docs/viscoelastic.md: ligament creep under a constant pull and cartilage stress relaxation after
+# a ramped compression, both quasi-static with Prony-series connections, on NP ranks (default 2); plots their
+# history.csv into docs/examples/visco_*.png (python3-matplotlib).
+#   bash run_scripts/viscoelastic_examples.sh [NP]
+set -euo pipefail
+ROOT="$(cd "$(dirname "$0")/.." && pwd)"
+NP="${1:-2}"
+cd "$ROOT"
+[ -x build/tissue ] || bash run_scripts/build.sh tissue
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+mkdir -p docs/examples
+for name in ligament_creep cartilage_relaxation; do
+  scene="run_scripts/scenes/example_$name.toml"
+  /usr/bin/time -f "$name: %e s" mpirun --oversubscribe -np "$NP" build/tissue run "$scene" > "out/visco_$name.log"
+done
+python3 run_scripts/plot_history.py docs/examples/visco_ligament_creep.png \
+  "Ligament creep, 40 N on 16 mm^2 (E = 400 MPa relaxed)" \
+  "out/visco/ligament_creep:force_z:applied force (N)" "out/visco/ligament_creep:elongation:elongation (m)"
+python3 run_scripts/plot_history.py docs/examples/visco_cartilage_relaxation.png \
+  "Cartilage stress relaxation, 2 % ramped in 1 s and held" \
+  "out/visco/cartilage_relaxation:elongation:elongation (m)" \
+  "out/visco/cartilage_relaxation:reaction1_z:reaction of the moving face (N)"
+echo "plots: docs/examples/visco_ligament_creep.png docs/examples/visco_cartilage_relaxation.png"

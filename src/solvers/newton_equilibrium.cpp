@@ -1,0 +1,469 @@
+// The Newton equilibrium solve behind the static and quasi-static solvers: PETSc SNES Newton on the geometrically
+// exact spring forces, with the assembled tangent stiffness (material and geometric parts, AIJ block size 3, held
+// components eliminated so it stays symmetric). Defaults: Newton with a backtracking line search, CG
+// preconditioned by the lattice's geometric multigrid (lattice_mg.hpp; GAMG with the rigid-body near-null space on
+// -pc_type gamg, for tiny lattices and as fall-back), the lattice multigrid reused across Newton iterations, load
+// steps and time steps; every choice can be changed from the PETSc options database (tissue run s.toml --
+// -ksp_type gmres -pc_type hypre -snes_monitor -log_view). Large loads are applied in load increments, and an
+// increment that fails is cut in half (up to 8 times). A tangent found indefinite (compressed springs) switches
+// the Krylov method to GMRES, with a message.
+#include <petscsnes.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <memory>
+#include <utility>
+
+#include "src/solvers/guards.hpp"
+#include "src/solvers/lattice_galerkin.hpp"
+#include "src/solvers/lattice_mg.hpp"
+#include "src/solvers/molecule_report.hpp"
+#include "src/solvers/newton_equilibrium.hpp"
+#include "src/solvers/solver.hpp"
+
+namespace tissue {
+
+namespace {
+
+constexpr double kFirstRtol = 1e-4;  // Krylov tolerance of a load step's first Newton step (see NewtonEquilibrium::setup)
+
+struct Context {
+  const LocalModel* model;
+  const ForceModel* forces;
+  SolverState* state;
+  double load_factor;
+  const SolverHooks* hooks;
+  // Krylov tolerance of the first Newton step of each load step and of the later ones (first_rtol 0: no change).
+  double first_rtol = 0.0, rtol = 1e-10;
+  // The lattice multigrid's coarse operators from the lattice structure (null: PCMG's own Galerkin product).
+  LatticeGalerkin* galerkin = nullptr;
+  // What a callback threw on this rank. An exception must not cross PETSc's C frames, and this rank must not leave
+  // SNES while the others go on in its collectives: the callback keeps it, SNES ends the solve on every rank
+  // (see residual()), and the ranks agree on it after SNESSolve.
+  std::exception_ptr error = nullptr;
+};
+
+// Preconditioner reuse. The multigrid set-up (Galerkin products) costs several Krylov solves, and at the strains
+// of a tissue test the tangent hardly changes between Newton iterations and load steps, so the lattice
+// multigrid is built once (SNES preconditioner lag -1, persisting across solves) and rebuilt, on the next
+// tangent, only when a linear solve takes more than twice the iterations (plus 10) of the first solve after
+// the last rebuild, or fails. GAMG is rebuilt every iteration as before: on the small, mechanism-prone lattices
+// it serves (rectangular topology) a stale GAMG took 149 iterations instead of 16 and moved an unloaded body by
+// 3e-14 m where the test allows 1e-14. Off when the user sets -snes_lag_preconditioner (-snes_lag_preconditioner
+// -2 -snes_lag_preconditioner_persists gives GAMG the same reuse).
+struct Reuse {
+  bool active = false;
+  bool fresh = true;    // the next linear solve uses a freshly built preconditioner
+  PetscInt fresh_its = 0;
+  long rebuilds = 0;
+};
+
+PetscErrorCode rebuild_next(SNES snes, Reuse* reuse) {
+  PetscFunctionBeginUser;
+  PetscCall(SNESSetLagPreconditioner(snes, -2));  // -2: rebuild once at the next tangent, then lag -1 again
+  reuse->fresh = true;
+  PetscFunctionReturn(0);
+}
+
+// SNES monitor (called after every Newton iteration's linear solve): watches the Krylov iterations.
+PetscErrorCode watch_reuse(SNES snes, PetscInt it, PetscReal, void* p) {
+  PetscFunctionBeginUser;
+  auto* reuse = static_cast<Reuse*>(p);
+  if (!reuse->active || it == 0) PetscFunctionReturn(0);
+  KSP ksp;
+  PetscInt its;
+  PetscCall(SNESGetKSP(snes, &ksp));
+  PetscCall(KSPGetIterationNumber(ksp, &its));
+  if (reuse->fresh) {
+    reuse->fresh = false, reuse->fresh_its = its;
+  } else if (its > 2 * reuse->fresh_its + 10) {
+    reuse->rebuilds++;
+    PetscCall(rebuild_next(snes, reuse));
+  }
+  PetscFunctionReturn(0);
+}
+
+// Copies the owned values of X into the state's positions and refreshes the ghosts.
+PetscErrorCode load_positions(Context* ctx, Vec X) {
+  PetscFunctionBeginUser;
+  const PetscScalar* xs;
+  PetscCall(VecGetArrayRead(X, &xs));
+  std::memcpy(ctx->state->x.array(), xs, sizeof(double) * 3 * ctx->model->owned);
+  PetscCall(VecRestoreArrayRead(X, &xs));
+  ctx->state->x.update_ghosts();
+  PetscFunctionReturn(0);
+}
+
+// R(x) = -(connection forces + applied forces), zero on held components: SNES drives it to zero.
+PetscErrorCode residual(SNES, Vec X, Vec R, void* p) {
+  PetscFunctionBeginUser;
+  auto* ctx = static_cast<Context*>(p);
+  PetscCall(load_positions(ctx, X));
+  if (!ctx->error) ctx->error = attempt([&] {
+    fault_point("static", ctx->model->comm);
+    ctx->forces->forces(ctx->state->x.array(), ctx->state->v.data(), ctx->state->f.data(), ctx->load_factor);
+  });
+  PetscScalar* r;
+  PetscCall(VecGetArray(R, &r));
+  // A rank whose evaluation failed hands SNES a NaN residual: its norm is NaN on every rank, so every rank's SNES
+  // stops at this iteration (DIVERGED_FNORM_NAN) and reaches the agreement after SNESSolve together.
+  for (int i = 0; i < 3 * ctx->model->owned; ++i) r[i] = ctx->error ? NAN : -ctx->state->f[i];
+  PetscCall(VecRestoreArray(R, &r));
+  PetscFunctionReturn(0);
+}
+
+// SNES update, at the start of every Newton iteration: a calibration that follows the deformation (angles-update)
+// refreshes the stiffness from the current iterate, and the Krylov tolerance is set for this step.
+PetscErrorCode before_newton_step(SNES snes, PetscInt step) {
+  PetscFunctionBeginUser;
+  void* p;
+  PetscCall(SNESGetApplicationContext(snes, &p));
+  auto* ctx = static_cast<Context*>(p);
+  if (ctx->hooks->refresh) {
+    Vec X;
+    PetscCall(SNESGetSolution(snes, &X));
+    PetscCall(load_positions(ctx, X));
+    if (!ctx->error) ctx->error = attempt([&] { ctx->hooks->refresh(ctx->state->x.array()); });
+  }
+  if (ctx->first_rtol > 0) {
+    KSP ksp;
+    PetscCall(SNESGetKSP(snes, &ksp));
+    PetscCall(KSPSetTolerances(ksp, step == 0 ? ctx->first_rtol : ctx->rtol, PETSC_DEFAULT, PETSC_DEFAULT, 10000));
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode tangent(SNES snes, Vec X, Mat J, Mat P, void* p) {
+  PetscFunctionBeginUser;
+  auto* ctx = static_cast<Context*>(p);
+  PetscCall(load_positions(ctx, X));
+  // A throw here (before or after the assembly's collectives: not known) is kept for the agreement after
+  // SNESSolve; the tangent left may be partial, and the solve's result is discarded by that agreement.
+  PetscErrorCode assembled = 0;
+  if (!ctx->error) ctx->error = attempt([&] { assembled = ctx->forces->assemble_tangent(ctx->state->x.array(), P); });
+  PetscCall(assembled);
+  if (ctx->galerkin) {
+    // The preconditioner is rebuilt after this call exactly when the lag is -2 (see Reuse); then its coarse
+    // operators must be this tangent's. -pc_mg_galerkin given by the user hands them back to PCMG.
+    PetscInt lag;
+    KSP ksp;
+    PC pc;
+    PCMGGalerkinType galerkin;
+    PetscCall(SNESGetLagPreconditioner(snes, &lag));
+    PetscCall(SNESGetKSP(snes, &ksp));
+    PetscCall(KSPGetPC(ksp, &pc));
+    PetscCall(PCMGGetGalerkin(pc, &galerkin));
+    if (lag == -2 && galerkin == PC_MG_GALERKIN_NONE) PetscCall(ctx->galerkin->update(P, pc));
+  }
+  if (J != P) {
+    PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
+    PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
+  }
+  PetscFunctionReturn(0);
+}
+
+// The rigid-body modes of the rest configuration as J's near-null space: what GAMG needs (six vectors; the
+// lattice multigrid does without, so they are made only when GAMG is the preconditioner).
+PetscErrorCode attach_rigid_modes(const LocalModel& model, Vec like, Mat J) {
+  PetscFunctionBeginUser;
+  Vec coords;
+  PetscCall(VecDuplicate(like, &coords));
+  PetscCall(VecSetBlockSize(coords, 3));
+  PetscScalar* c;
+  PetscCall(VecGetArray(coords, &c));
+  std::copy(model.rest.begin(), model.rest.begin() + 3 * model.owned, c);
+  PetscCall(VecRestoreArray(coords, &c));
+  MatNullSpace rigid;
+  PetscCall(MatNullSpaceCreateRigidBody(coords, &rigid));
+  PetscCall(MatSetNearNullSpace(J, rigid));  // J keeps a reference
+  PetscCall(MatNullSpaceDestroy(&rigid));
+  PetscCall(VecDestroy(&coords));
+  PetscFunctionReturn(0);
+}
+
+}  // namespace
+
+struct NewtonEquilibrium::Impl {
+  Impl(const Scene& scene, const LocalModel& model, const ForceModel& forces, SolverState& state,
+       const SolverHooks& hooks, SolveReport& report, const char* kind)
+      : scene(scene), model(model), forces(forces), state(state), report(report), kind(kind),
+        ctx{&model, &forces, &state, 1.0, &hooks} {}
+  ~Impl() {
+    // Nothing can be reported from here: the objects are released whatever the errors.
+    if (set_ptap) PetscOptionsClearValue(nullptr, "-matptap_via");
+    VecDestroy(&saved);
+    SNESDestroy(&snes);
+    MatDestroy(&J);
+    VecDestroy(&X);
+  }
+  PetscErrorCode setup();
+  PetscErrorCode solve(long steps);
+  PetscErrorCode finish();
+  PetscErrorCode clear_ptap() {
+    PetscFunctionBeginUser;
+    if (set_ptap) PetscCall(PetscOptionsClearValue(nullptr, "-matptap_via"));
+    set_ptap = false;
+    PetscFunctionReturn(0);
+  }
+
+  const Scene& scene;
+  const LocalModel& model;
+  const ForceModel& forces;
+  SolverState& state;
+  SolveReport& report;
+  const std::string kind;
+  Context ctx;
+  Vec X = nullptr, saved = nullptr;
+  Mat J = nullptr;
+  SNES snes = nullptr;
+  KSP ksp = nullptr;
+  PC pc = nullptr;
+  bool lattice_mg = false, set_ptap = false, switched = false;
+  std::unique_ptr<LatticeGalerkin> galerkin;
+  double reference = 1.0, tolerance = 0.0;
+  Reuse reuse;
+};
+
+PetscErrorCode NewtonEquilibrium::Impl::setup() {
+  PetscFunctionBeginUser;
+  PetscCall(VecDuplicate(state.x.global(), &X));
+  PetscCall(VecCopy(state.x.global(), X));
+  PetscCall(forces.create_tangent(&J));
+
+  PetscCall(SNESCreate(model.comm, &snes));
+  PetscCall(SNESSetFunction(snes, nullptr, residual, &ctx));
+  PetscCall(SNESSetJacobian(snes, J, J, tangent, &ctx));
+  PetscCall(SNESSetType(snes, SNESNEWTONLS));
+  PetscCall(SNESSetApplicationContext(snes, &ctx));
+  PetscCall(SNESSetUpdate(snes, before_newton_step));
+  PetscCall(SNESGetKSP(snes, &ksp));
+  PetscCall(KSPSetType(ksp, KSPCG));
+  PetscCall(KSPGetPC(ksp, &pc));
+  // The preconditioner: geometric multigrid on the lattice (lattice_mg.hpp) unless the user names one
+  // (-pc_type gamg: smoothed aggregation with the rigid-body near-null space). GAMG also stands in
+  // when the lattice is too small to coarsen, and takes over if a solve with the lattice multigrid fails.
+  PetscBool user_pc = PETSC_FALSE;
+  PetscCall(PetscOptionsHasName(nullptr, nullptr, "-pc_type", &user_pc));
+  PetscInt mg_levels = 1;
+  LatticeLevels hierarchy;
+  if (!user_pc) PetscCall(setup_lattice_mg(model, forces.held(), pc, 1000, &mg_levels, &hierarchy));
+  lattice_mg = mg_levels > 1;
+  PetscBool user_lag = PETSC_FALSE;
+  PetscCall(PetscOptionsHasName(nullptr, nullptr, "-snes_lag_preconditioner", &user_lag));
+  // The coarse operators from the lattice structure (lattice_galerkin.hpp) when the tangent is a lattice stencil
+  // and the preconditioner's rebuilds are ours (Reuse): cheaper than hypre's triple product (docs/benchmarks.md).
+  if (lattice_mg && !user_lag) {
+    galerkin = std::make_unique<LatticeGalerkin>(model, forces.held(), std::move(hierarchy));
+    bool stencil = false;
+    PetscCall(galerkin->applies(J, &stencil));
+    if (stencil) {
+      PetscCall(PCMGSetGalerkin(pc, PC_MG_GALERKIN_NONE));
+      ctx.galerkin = galerkin.get();
+    } else {
+      galerkin.reset();
+    }
+  }
+  // The lattice multigrid's Galerkin products through hypre's triple product: a lower memory peak than PETSc's
+  // default (scalable) algorithm, in no more time (docs/benchmarks.md).
+  // The option is global, so it is set only for this solve and only for the lattice multigrid (GAMG's
+  // products with it gave NaN on a contact test); -matptap_via or -mat_product_algorithm override it.
+  // On one rank hypre's product of the sequential matrices came out wrong (the first Krylov solve diverged at
+  // iteration 1 and every 1-rank run fell back to GAMG), so it is used on 2+ ranks only.
+  if (lattice_mg && model.size > 1) {
+    PetscBool user_ptap = PETSC_FALSE, user_product = PETSC_FALSE;
+    PetscCall(PetscOptionsHasName(nullptr, nullptr, "-matptap_via", &user_ptap));
+    PetscCall(PetscOptionsHasName(nullptr, nullptr, "-mat_product_algorithm", &user_product));
+    set_ptap = !user_ptap && !user_product;
+    if (set_ptap) PetscCall(PetscOptionsSetValue(nullptr, "-matptap_via", "hypre"));
+  }
+  PetscCall(PetscInfo(pc, "lattice multigrid: %d levels\n", (int)mg_levels));
+  if (!lattice_mg) PetscCall(PCSetType(pc, PCGAMG));
+  reference = forces.applied_norm() > 0 ? forces.applied_norm() : 1.0;
+  const long max_newton = scene.solver.max_iterations > 0 ? scene.solver.max_iterations : 50;
+  tolerance = reachable_tolerance(scene, model, forces);
+  report.tolerance_used = tolerance;
+  PetscCall(SNESSetTolerances(snes, tolerance * reference, 0.0, 0.0, max_newton, 1000000));
+  // A tight linear tolerance: an inexact last Newton step leaves errors in soft modes that the force residual
+  // hardly sees (1e-6 gave 2e-7 relative differences in elongation between rank counts). With multigrid each
+  // decade costs about one Krylov iteration, so this is cheap; -ksp_rtol and -snes_ksp_ew trade it away.
+  // The first Newton step of a load step is the exception: its linear solve to 1e-10 is wasted on a nonlinear
+  // error of order 1e-4 that the next step removes anyway, so it stops at kFirstRtol (1e-4; the next
+  // step's tight solve sets the answer's precision). Peer problem at 64,000 molecules: 3 + 9 Krylov iterations
+  // instead of 8 + 9, still 2 Newton steps, the final residual 1.7e-10 instead of 1.0e-10 relative. The larger
+  // residual after the first step grows the second step's result by about that factor too, so for tolerances
+  // below 1e-9 a third Newton step would be needed (at 1e-3 one already was at 1e-8): the forcing is used only
+  // for tolerances of 1e-9 and looser. And only with the lattice multigrid (about a decade per iteration): GAMG
+  // on a tiny lattice can gain 8 decades in one iteration, so the loose step itself met the tolerance and ended
+  // Newton with an answer only as exact as the tolerance (a calibration test at strain 1e-7 then missed E by
+  // 1.0e-6 on 2 ranks). -static_first_rtol R sets it (0: off), -ksp_rtol or -snes_ksp_ew end it.
+  PetscCall(KSPSetTolerances(ksp, ctx.rtol, PETSC_DEFAULT, PETSC_DEFAULT, 10000));
+  {
+    PetscBool user_rtol = PETSC_FALSE, user_ew = PETSC_FALSE;
+    PetscCall(PetscOptionsHasName(nullptr, nullptr, "-ksp_rtol", &user_rtol));
+    PetscCall(PetscOptionsHasName(nullptr, nullptr, "-snes_ksp_ew", &user_ew));
+    PetscReal first = kFirstRtol;
+    PetscCall(PetscOptionsGetReal(nullptr, nullptr, "-static_first_rtol", &first, nullptr));
+    if (!user_rtol && !user_ew && lattice_mg && tolerance >= 1e-9) ctx.first_rtol = first;
+  }
+  if (lattice_mg) {
+    PetscCall(SNESSetLagPreconditioner(snes, -2));
+    PetscCall(SNESSetLagPreconditionerPersists(snes, PETSC_TRUE));
+  }
+  PetscCall(SNESSetFromOptions(snes));  // the user's -snes_*, -ksp_*, -pc_* options win
+  {
+    PetscBool gamg = PETSC_FALSE;
+    PetscCall(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(pc), PCGAMG, &gamg));
+    if (gamg) PetscCall(attach_rigid_modes(model, X, J));
+  }
+  {
+    reuse.active = lattice_mg && !user_lag;
+    if (reuse.active) PetscCall(SNESMonitorSet(snes, watch_reuse, &reuse, nullptr));
+  }
+  PetscCall(VecDuplicate(X, &saved));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode NewtonEquilibrium::Impl::solve(long steps) {
+  PetscFunctionBeginUser;
+  double done = 0.0, increment = 1.0 / steps;
+  int cutbacks = 0;
+  bool retried = false;
+  while (done < 1.0 - 1e-12) {
+    double target = std::min(1.0, done + increment);
+    ctx.load_factor = target;
+    PetscCall(VecCopy(X, saved));
+    // Agreed (partition/agreement.hpp): a callback's failure on one rank, or SNESSolve's own error return on one
+    // rank, is the same one-line error on every rank here, before the fall-backs below decide anything.
+    const PetscErrorCode solved = SNESSolve(snes, nullptr, X);
+    agree(model.comm, [&] {
+      if (ctx.error) std::rethrow_exception(std::exchange(ctx.error, nullptr));
+      if (solved) throw std::runtime_error("static: SNESSolve failed (PETSc error " + std::to_string(solved) + ")");
+    });
+    SNESConvergedReason reason;
+    PetscInt its, lits;
+    PetscCall(SNESGetConvergedReason(snes, &reason));
+    PetscCall(SNESGetIterationNumber(snes, &its));
+    PetscCall(SNESGetLinearSolveIterations(snes, &lits));
+    report.iterations += its;
+    report.linear_iterations += lits;
+    if (reason > 0) {
+      done = target;
+      retried = false;
+      PetscReal norm;
+      PetscCall(SNESGetFunctionNorm(snes, &norm));
+      report.residual_history.push_back(norm / reference);
+      continue;
+    }
+    PetscCall(VecCopy(saved, X));
+    KSPConvergedReason kreason;
+    PetscCall(KSPGetConvergedReason(ksp, &kreason));
+    if (!switched && (kreason == KSP_DIVERGED_INDEFINITE_MAT || kreason == KSP_DIVERGED_INDEFINITE_PC)) {
+      // Compressed springs make the geometric stiffness negative: CG cannot go on, GMRES can.
+      switched = true;
+      PetscCall(KSPSetType(ksp, KSPGMRES));
+      PetscCall(KSPSetPCSide(ksp, PC_RIGHT));  // right-preconditioned GMRES minimises the true residual
+      report.note += "tangent indefinite at load factor " + std::to_string(target) + ": switched CG to GMRES. ";
+      PetscCall(PetscPrintf(model.comm, "%s: the tangent stiffness is indefinite at load factor %g; "
+                                        "switching the Krylov method from CG to GMRES\n", kind.c_str(), target));
+      continue;
+    }
+    if (lattice_mg) {
+      // GAMG is the more general of the two (it sees the matrix, not the lattice): retry the increment with it.
+      lattice_mg = false;
+      ctx.galerkin = nullptr;
+      ctx.first_rtol = 0.0;  // see the forcing above
+      PetscCall(KSPSetTolerances(ksp, ctx.rtol, PETSC_DEFAULT, PETSC_DEFAULT, 10000));
+      PetscCall(clear_ptap());
+      PetscCall(attach_rigid_modes(model, X, J));
+      PetscCall(PCSetType(pc, PCGAMG));
+      PetscCall(PCSetFromOptions(pc));
+      if (reuse.active) {
+        reuse.active = false;  // GAMG is rebuilt every Newton iteration (see Reuse)
+        PetscCall(SNESSetLagPreconditioner(snes, 1));
+        PetscCall(SNESSetLagPreconditionerPersists(snes, PETSC_FALSE));
+      }
+      report.note += "lattice multigrid failed at load factor " + std::to_string(target) + ": switched to GAMG. ";
+      PetscCall(PetscPrintf(model.comm, "%s: the solve with the lattice multigrid failed at load factor %g "
+                                        "(%s); retrying with GAMG\n", kind.c_str(), target, SNESConvergedReasons[reason]));
+      continue;
+    }
+    if (reuse.active && !retried && !reuse.fresh) {
+      // A stale preconditioner may be what failed: retry the same increment once with a fresh one first.
+      retried = true;
+      reuse.rebuilds++;
+      PetscCall(rebuild_next(snes, &reuse));
+      continue;
+    }
+    if (++cutbacks > 8) {
+      // The last converged load step is the last good state (main() writes it as last_good.h5); the molecule
+      // named is the one with the largest unbalanced force there under the load Newton could not reach.
+      PetscCall(load_positions(&ctx, X));
+      forces.forces(state.x.array(), state.v.data(), state.f.data(), target);
+      const std::int64_t worst = largest_force_molecule(model, state.f.data());
+      const std::string where = describe_molecule(model, state.x.array(), worst);
+      throw SolverFailure(kind + ": Newton failed (" + std::string(SNESConvergedReasons[reason]) +
+                          ") at load step " + std::to_string(report.residual_history.size() + 1) +
+                          " (load factor " + std::to_string(target) + ") after 8 cut-backs: " + where +
+                          "; last good state: load factor " + std::to_string(done),
+                          SolverFailure::State::last_good);
+    }
+    increment *= 0.5;
+    retried = false;
+    report.note += "Newton failed (" + std::string(SNESConvergedReasons[reason]) + ") at load factor " +
+                   std::to_string(target) + ": load increment cut to " + std::to_string(increment) + ". ";
+    PetscCall(PetscPrintf(model.comm, "%s: Newton failed at load factor %g (%s); cutting the increment to %g\n",
+                          kind.c_str(), target, SNESConvergedReasons[reason], increment));
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode NewtonEquilibrium::Impl::finish() {
+  PetscFunctionBeginUser;
+  // The final state and its residual, in the common definition.
+  ctx.load_factor = 1.0;
+  Vec R;
+  PetscCall(VecDuplicate(X, &R));
+  PetscCall(residual(snes, X, R, &ctx));
+  agree(model.comm, [&] {
+    if (ctx.error) std::rethrow_exception(std::exchange(ctx.error, nullptr));
+  });
+  report.residual = relative_residual(model, forces, state.f.data());
+  report.converged = report.residual <= tolerance * 1.0000001;
+  check_finite(model, state.x.array(), state.f.data(), report.iterations, kind.c_str());
+  {
+    StepGuard guard(kind.c_str(), scene, model, forces, state);
+    guard.full_check();  // a collapsed (inverted) connection at equilibrium is a failure too
+  }
+  PetscCall(VecDestroy(&R));
+  PetscFunctionReturn(0);
+}
+
+NewtonEquilibrium::NewtonEquilibrium(const Scene& scene, const LocalModel& model, const ForceModel& forces,
+                                     SolverState& state, const SolverHooks& hooks, SolveReport& report,
+                                     const char* kind)
+    : impl_(std::make_unique<Impl>(scene, model, forces, state, hooks, report, kind)) {
+  if (impl_->setup()) throw SolverFailure(std::string(kind) + ": a PETSc call failed");
+}
+
+NewtonEquilibrium::~NewtonEquilibrium() = default;
+
+void NewtonEquilibrium::solve(long load_steps) {
+  if (impl_->solve(std::max(1L, load_steps))) throw SolverFailure(impl_->kind + ": a PETSc call failed");
+}
+
+void NewtonEquilibrium::finish() {
+  if (impl_->finish() || impl_->clear_ptap()) throw SolverFailure(impl_->kind + ": a PETSc call failed");
+}
+
+Vec NewtonEquilibrium::solution() const { return impl_->X; }
+
+void NewtonEquilibrium::set_force_reference(double reference) {
+  impl_->reference = reference;
+  if (SNESSetTolerances(impl_->snes, impl_->tolerance * reference, 0.0, 0.0, PETSC_DEFAULT, PETSC_DEFAULT))
+    throw SolverFailure(impl_->kind + ": a PETSc call failed");
+}
+
+double NewtonEquilibrium::tolerance() const { return impl_->tolerance; }
+
+}  // namespace tissue

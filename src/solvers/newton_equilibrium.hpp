@@ -1,0 +1,35 @@
+// The Newton equilibrium solve (newton_equilibrium.cpp) as an object: set up once (SNES, tangent, the lattice
+// multigrid or GAMG), then solved as often as the solver needs (the static solver's load steps, the quasi-static
+// solver's time steps), the preconditioner reused across solves.
+#pragma once
+#include <petscvec.h>
+
+#include <memory>
+
+#include "src/solvers/solver.hpp"
+
+namespace tissue {
+
+class NewtonEquilibrium {
+public:
+  // Collective. Starts from the state's positions; `kind` names the solver in messages.
+  NewtonEquilibrium(const Scene& scene, const LocalModel& model, const ForceModel& forces, SolverState& state,
+                    const SolverHooks& hooks, SolveReport& report, const char* kind);
+  ~NewtonEquilibrium();
+  // Collective. Equilibrium from the positions in solution(), the loads raised from 0 to their full value in
+  // load_steps increments (cut in half on failure); throws SolverFailure (last good state) when that fails.
+  void solve(long load_steps);
+  // Collective. The final residual (relative to the applied forces) and the guards' last check into the report.
+  void finish();
+  // The positions (owned, a PETSc Vec) the next solve starts from and leaves its answer in.
+  Vec solution() const;
+  // Newton stops when the force residual is below tolerance() times this (N); set up with the applied forces.
+  void set_force_reference(double reference);
+  double tolerance() const;
+
+private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace tissue

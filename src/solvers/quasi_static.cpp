@@ -1,0 +1,122 @@
+// Quasi-static: equilibrium at every time step, no inertia (solver.kind = "quasi-static"). The loads and holds
+// follow their histories ([[load]] / [[fix]] history, [[fix]] displacement) and terms with internal variables (the
+// viscoelastic history) advance by each step. Time (../shared/interface.md): the run starts undeformed with zero
+// history at t = 0-; the factors at t = 0 are a step solved at t = 0 (dt = 0: the instantaneous response), then
+// each step advances by solver.time_step up to solver.steps steps or solver.end_time, shortened to land exactly
+// on every history's breakpoints. One Newton solver (newton_equilibrium.hpp) serves every step, so the lattice
+// multigrid is built once and reused.
+#include <algorithm>
+#include <cfloat>
+#include <cmath>
+#include <cstring>
+#include <vector>
+
+#include "src/solvers/newton_equilibrium.hpp"
+#include "src/solvers/progress.hpp"
+
+namespace tissue {
+
+namespace {
+
+// Every breakpoint time after 0 of the loads' and holds' histories, ascending.
+std::vector<double> breakpoints(const Scene& scene) {
+  std::vector<double> t;
+  for (const auto& l : scene.loads)
+    for (const auto& p : l.history) t.push_back(p[0]);
+  for (const auto& f : scene.fixes)
+    for (const auto& p : f.history) t.push_back(p[0]);
+  std::sort(t.begin(), t.end());
+  t.erase(std::unique(t.begin(), t.end()), t.end());
+  return t;
+}
+
+double norm(const std::vector<Vec3>& r) {
+  double s = 0;
+  for (const auto& v : r)
+    for (double c : v) s += c * c;
+  return std::sqrt(s);
+}
+
+// The owned positions of X into the state, ghosts refreshed.
+void load_state(Vec X, const LocalModel& model, SolverState& state) {
+  const PetscScalar* xs;
+  if (VecGetArrayRead(X, &xs)) throw SolverFailure("quasi-static: a PETSc call failed");
+  std::memcpy(state.x.array(), xs, sizeof(double) * 3 * model.owned);
+  if (VecRestoreArrayRead(X, &xs)) throw SolverFailure("quasi-static: a PETSc call failed");
+  state.x.update_ghosts();
+}
+
+}  // namespace
+
+SolveReport solve_quasi_static(const Scene& scene, const LocalModel& model, const ForceModel& forces,
+                               SolverState& state, const SolverHooks& hooks) {
+  SolveReport report;
+  report.kind = "quasi-static";
+  const double dt = *scene.solver.time_step;  // the scene reader requires it
+  const double end = scene.solver.end_time ? *scene.solver.end_time : dt * static_cast<double>(scene.solver.steps);
+  report.time_step = state.time_step = dt;
+  const double slack = 1e-9 * dt;  // a step within this of a breakpoint or the end lands on it
+  const std::vector<double> marks = breakpoints(scene);
+  const bool history = forces.has_history();
+
+  NewtonEquilibrium newton(scene, model, forces, state, hooks, report, "quasi-static");
+  Vec X = newton.solution();
+  Progress progress("quasi-static", scene.output.progress, model.comm);
+  const long total = static_cast<long>(std::ceil(end / dt - 1e-9));
+  std::vector<Vec3> reactions(scene.fixes.size(), Vec3{0, 0, 0});
+  bool initial = state.step == 0 && state.time == 0.0;
+  double worst = 0.0;
+  while (initial || state.time < end - slack) {
+    double next = initial ? 0.0 : std::min(state.time + dt, end);
+    for (double m : marks)
+      if (m > state.time + slack && m < next - slack) {
+        next = m;
+        break;
+      }
+    if (std::fabs(next - end) <= slack) next = end;
+    forces.set_time(next);
+    if (history) forces.begin_step(next - state.time);
+    // The holds move to where they are at `next`; the Newton solve starts from the last equilibrium.
+    PetscScalar* xs;
+    if (VecGetArray(X, &xs)) throw SolverFailure("quasi-static: a PETSc call failed");
+    forces.place_held(next, xs);
+    if (VecRestoreArray(X, &xs)) throw SolverFailure("quasi-static: a PETSc call failed");
+    // The residual's reference: the unbalanced force the step starts with (the change of loads and holds) or the
+    // reactions of the last step (what the holds carry), whichever is larger, so that a scene driven only by
+    // displacements, or a hold whose history only creeps, is measured against the forces it carries.
+    load_state(X, model, state);
+    forces.forces(state.x.array(), state.v.data(), state.f.data());
+    const double start = relative_residual(model, forces, state.f.data()) *
+                         (forces.applied_norm() > 0 ? forces.applied_norm() : 1.0);
+    const double reference = std::max({start, norm(reactions), DBL_MIN});
+    newton.set_force_reference(reference);
+    newton.solve(1);
+    load_state(X, model, state);
+    forces.forces(state.x.array(), state.v.data(), state.f.data());
+    check_finite(model, state.x.array(), state.f.data(), state.step, "quasi-static");
+    const double residual = relative_residual(model, forces, state.f.data()) *
+                            (forces.applied_norm() > 0 ? forces.applied_norm() : 1.0) / reference;
+    worst = std::max(worst, residual);
+    reactions = forces.reactions(state.x.array(), state.v.data(), state.f.data());
+    if (history) forces.commit_step(state.x.array());
+    state.time = next;
+    if (!initial) ++state.step;
+    initial = false;
+    if (hooks.record) hooks.record(state);
+    progress.update(state.step, residual, newton.tolerance(), total);
+    if (hooks.snapshot && scene.output.snapshot_every > 0 && state.step > 0 &&
+        state.step % scene.output.snapshot_every == 0 && state.time < end - slack)
+      hooks.snapshot(state);
+  }
+  report.residual = worst;
+  report.tolerance_used = newton.tolerance();
+  report.converged = worst <= newton.tolerance() * 1.0000001;
+  return report;
+}
+
+TISSUE_SOLVER(quasi_static, {"quasi-static", solve_quasi_static,
+                             "equilibrium at every time step (loads and holds in time, viscoelastic history)",
+                             /*equilibrium=*/false, /*newton=*/true, /*explicit_steps=*/false,
+                             /*integrates_time=*/false, /*settles_on_obstacles=*/false, /*time_line=*/true});
+
+}  // namespace tissue

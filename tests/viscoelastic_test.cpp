@@ -1,0 +1,183 @@
+// Viscoelastic connections and the quasi-static solver (issue 16) against closed forms, at 1, 2 and 3 ranks:
+// step-strain relaxation (the reaction follows E A eps0 G(t), G(t) = 1 + sum gamma_i exp(-t/tau_i)), standard-
+// linear-solid creep under a step force (error falling as dt^2), the static solve at the relaxed modulus and the
+// first quasi-static step at the instantaneous one, loads and holds landing on their histories' breakpoints, and
+// the same curves on every rank count (the one-rank run, MPI_COMM_SELF, as reference).
+#include <gtest/gtest.h>
+#include <petscsys.h>
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "io/scene.hpp"
+#include "src/driver/simulation.hpp"
+#include "src/measure/measure.hpp"
+#include "tests/pipeline.hpp"
+
+using namespace tissue;
+
+namespace {
+
+struct Row {
+  double time;
+  std::vector<Vec3> reactions;
+  double elongation;
+};
+
+// Runs a scene and records, after every time step, the time, the reactions and the elongation.
+std::vector<Row> run_rows(const std::string& text, MPI_Comm comm, const std::vector<std::string>& set = {},
+                          std::unique_ptr<Simulation>* keep = nullptr) {
+  Scene scene = parse_scene(text, "test.toml", set);
+  scene.output.progress = false;
+  auto sim = std::make_unique<Simulation>(std::move(scene), comm);
+  sim->build(read_mesh);
+  sim->calibrate();
+  sim->make_forces();
+  std::vector<Row> rows;
+  SolverHooks hooks;
+  Simulation* s = sim.get();
+  hooks.record = [&](const SolverState& state) {
+    std::vector<double> scratch(3 * s->model().local);
+    Row row{state.time, s->forces().reactions(state.x.array(), state.v.data(), scratch.data()), 0.0};
+    Measurements m = measure(s->scene(), s->model(), s->test(), state.x.array(), state.v.data());
+    row.elongation = m.elongation ? *m.elongation : NAN;
+    rows.push_back(row);
+  };
+  sim->solve(hooks);
+  if (sim->failed()) throw std::runtime_error(sim->failure());
+  sim->measure();
+  if (keep) *keep = std::move(sim);
+  return rows;
+}
+
+// A 3 x 3 x 5 bar, rectangular springs (nu = 0: a uniform stretch, no lateral stress), the bottom clamped and the
+// top clamped and pulled up by eps0 * l0 at t = 0 and held.
+const char* relaxation = R"(
+title = "step-strain relaxation"
+[body]
+molecules = [3, 3, 5]
+size = [0.02, 0.02, 0.04]
+topology = "rectangular"
+youngs_modulus = 1.0e5
+[body.viscoelastic]
+gamma = [1.5, 0.8]
+tau = [0.5, 5.0]
+[calibration]
+method = "linear"
+[[fix]]
+face = "z-"
+[[fix]]
+face = "z+"
+displacement = [0.0, 0.0, 4.0e-6]
+[solver]
+kind = "quasi-static"
+time_step = 0.25
+end_time = 10.0
+)";
+
+// The same bar, face diagonals on rollers, under a step force on its top: creep.
+const char* creep = R"(
+title = "creep"
+[body]
+molecules = [3, 3, 4]
+size = [0.02, 0.02, 0.03]
+topology = "face-diagonals"
+youngs_modulus = 1.0e5
+[body.viscoelastic]
+gamma = [2.0]
+tau = [1.0]
+[calibration]
+method = "homogenized"
+[[fix]]
+face = "z-"
+mode = "roller"
+[[load]]
+face = "z+"
+force = [0.0, 0.0, 4.0e-5]
+[solver]
+kind = "quasi-static"
+time_step = 0.2
+end_time = 2.0
+tolerance = 1e-12
+)";
+
+double G(double t) { return 1.0 + 1.5 * std::exp(-t / 0.5) + 0.8 * std::exp(-t / 5.0); }
+
+}  // namespace
+
+// Step strain: the reaction of the pulled face is E A eps0 G(t) at every step (the elastic reaction at the same
+// strain times the relaxation function), to 1e-9 relative; the first row is t = 0 at the instantaneous modulus.
+TEST(Viscoelastic, StepStrainReactionFollowsTheRelaxationFunction) {
+  const std::vector<Row> rows = run_rows(relaxation, PETSC_COMM_WORLD);
+  const std::vector<Row> elastic = run_rows(relaxation, PETSC_COMM_WORLD, {"solver.end_time=0.0",
+                                                                         "body.viscoelastic.gamma=[0.0,0.0]"});
+  ASSERT_EQ(rows.size(), 41u);  // t = 0, then 40 steps of 0.25 s
+  ASSERT_EQ(elastic.size(), 1u);
+  const double E = 1.0e5, A = 0.02 * 0.02, eps0 = 4.0e-6 / 0.04;
+  const double reference = elastic[0].reactions[1][2];
+  EXPECT_NEAR(-reference, E * A * eps0, 1e-6 * E * A * eps0) << "the elastic reaction is E A eps0";
+  EXPECT_EQ(rows[0].time, 0.0);
+  double worst = 0;
+  for (const Row& r : rows) {
+    worst = std::max(worst, std::fabs(r.reactions[1][2] - reference * G(r.time)) / std::fabs(reference));
+    // The two holds carry the same force, opposite.
+    EXPECT_NEAR(r.reactions[0][2], -r.reactions[1][2], 1e-9 * std::fabs(reference));
+  }
+  EXPECT_LT(worst, 1e-9) << "reaction / (E A eps0) against G(t)";
+  EXPECT_NEAR(rows.back().time, 10.0, 1e-12);
+}
+
+// Standard linear solid under a step force: eps(t) = (sigma0/E)[1 - gamma/(1+gamma) exp(-t/(tau(1+gamma)))] with
+// sigma0/E the static (relaxed) elongation; at t = 0 the instantaneous one, 1/(1+gamma) of it. The time error
+// falls as dt^2 (the exact exponential update is exact only for a force linear within the step).
+TEST(Viscoelastic, CreepOfTheStandardLinearSolidConvergesAsDtSquared) {
+  const double gamma = 2.0, tau = 1.0;
+  auto relaxed = tissue::test_pipeline::run(creep, PETSC_COMM_WORLD, {"solver.kind=\"static\""});
+  const double e_inf = *relaxed->measured.elongation;
+  auto closed = [&](double t) { return e_inf * (1.0 - gamma / (1.0 + gamma) * std::exp(-t / (tau * (1.0 + gamma)))); };
+  double error[2];
+  for (int level = 0; level < 2; ++level) {
+    const double dt = level == 0 ? 0.2 : 0.1;
+    const std::vector<Row> rows = run_rows(creep, PETSC_COMM_WORLD, {"solver.time_step=" + std::to_string(dt)});
+    ASSERT_EQ(rows.size(), static_cast<std::size_t>(std::lround(2.0 / dt)) + 1);
+    // The first step: the instantaneous modulus E (1 + gamma), to the solver's precision.
+    EXPECT_NEAR(rows[0].elongation, e_inf / (1.0 + gamma), 1e-9 * e_inf);
+    error[level] = 0;
+    for (const Row& r : rows) error[level] = std::max(error[level], std::fabs(r.elongation - closed(r.time)) / e_inf);
+  }
+  EXPECT_LT(error[0], 2e-3);
+  const double order = std::log2(error[0] / error[1]);
+  EXPECT_GT(order, 1.9) << "errors " << error[0] << ", " << error[1];
+  EXPECT_LT(order, 2.1) << "errors " << error[0] << ", " << error[1];
+}
+
+// A static solve of a scene with a Prony table is the elastic solve (the relaxed equilibrium), bit for bit.
+TEST(Viscoelastic, StaticSolveIsTheRelaxedElasticSolve) {
+  auto with = tissue::test_pipeline::run(creep, PETSC_COMM_WORLD, {"solver.kind=\"static\""});
+  auto without = tissue::test_pipeline::run(creep, PETSC_COMM_WORLD,
+                                            {"solver.kind=\"static\"", "body.viscoelastic.gamma=[0.0]"});
+  EXPECT_EQ(*with->measured.elongation, *without->measured.elongation);
+}
+
+// A ramp-and-hold load history lands on its breakpoints (0.35 s is not a multiple of the step), and the applied
+// force follows the factor; the curve is the one-rank run's on every rank count.
+TEST(Viscoelastic, RampAndHoldLandsOnBreakpointsOnEveryRankCount) {
+  const std::vector<std::string> set = {"load.0.history=[[0.0,0.0],[0.35,1.0],[1.0,1.0]]", "solver.end_time=1.0"};
+  const std::vector<Row> rows = run_rows(creep, PETSC_COMM_WORLD, set);
+  const std::vector<Row> one = run_rows(creep, MPI_COMM_SELF, set);
+  ASSERT_EQ(rows.size(), one.size());
+  bool landed = false;
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    landed = landed || rows[i].time == 0.35;
+    EXPECT_EQ(rows[i].time, one[i].time);
+    EXPECT_NEAR(rows[i].elongation, one[i].elongation, 1e-10 * std::fabs(one.back().elongation));
+  }
+  EXPECT_TRUE(landed);
+  EXPECT_EQ(rows[0].elongation, 0.0);  // factor 0 at t = 0: nothing happens
+  // Equilibrium: the roller's reaction balances the applied force at every step.
+  for (const Row& r : rows) {
+    const double applied = 4.0e-5 * history_factor({{0.0, 0.0}, {0.35, 1.0}, {1.0, 1.0}}, r.time);
+    EXPECT_NEAR(r.reactions[0][2], -applied, 1e-9 * 4.0e-5);
+  }
+}

@@ -48,43 +48,21 @@ std::vector<int> partition_graph_on_rank0(std::vector<int>&& xadj, std::vector<i
   MPI_Comm_rank(comm, &rank);
   MPI_Comm_size(comm, &size);
   stats = PartitionStats{};
-<<<<<<< HEAD
-  int status = METIS_OK;
   std::vector<int> part;
-  if (rank == 0) {
+  // Rank 0 partitions alone: agreed (partition/agreement.hpp), so that its failure (METIS, memory) stops every
+  // rank here instead of leaving them in the broadcasts below.
+  agree(comm, [&] {
+    if (rank != 0) return;
+    fault_point("partition", comm);
+    int status = METIS_OK;
     std::vector<idx_t> p = run_metis(xadj, adjncy, size, stats.edge_cut, status);
     xadj = std::vector<int>(), adjncy = std::vector<int>();
+    check_status(status);
     part.assign(p.begin(), p.end());
     std::vector<long> count(size, 0);
     for (int q : part) ++count[q];
     stats.imbalance = static_cast<double>(*std::max_element(count.begin(), count.end())) * size / n;
-  }
-  check_status(status, comm);
-=======
-  if (size == 1) return part;
-  if (n < size) throw std::runtime_error("the body has fewer molecules than ranks");
-
-  // Rank 0 partitions alone: agreed (partition/agreement.hpp), so that its failure (METIS, memory) stops every
-  // rank here instead of leaving them in the broadcast below.
-  agree(comm, [&] {
-    if (rank != 0) return;
-    fault_point("partition", comm);
-    // The connection graph in CSR form, both directions.
-    std::vector<idx_t> xadj(n + 1, 0), adjncy(2 * body.connections.size());
-    for (const auto& c : body.connections) ++xadj[c.a + 1], ++xadj[c.b + 1];
-    for (std::int64_t m = 0; m < n; ++m) xadj[m + 1] += xadj[m];
-    std::vector<idx_t> fill(xadj.begin(), xadj.end() - 1);
-    for (const auto& c : body.connections) {
-      adjncy[fill[c.a]++] = static_cast<idx_t>(c.b);
-      adjncy[fill[c.b]++] = static_cast<idx_t>(c.a);
-    }
-    int status = METIS_OK;
-    std::vector<idx_t> p = run_metis(xadj, adjncy, size, stats.edge_cut, status);
-    check_status(status);
-    std::copy(p.begin(), p.end(), part.begin());
   });
-  MPI_Bcast(part.data(), static_cast<int>(n), MPI_INT, 0, comm);
->>>>>>> faults2
   MPI_Bcast(&stats.edge_cut, 1, MPI_LONG, 0, comm);
   MPI_Bcast(&stats.imbalance, 1, MPI_DOUBLE, 0, comm);
   return part;

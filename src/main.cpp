@@ -322,7 +322,9 @@ int main(int argc, char** argv) {
     return 2;
   }
 
+  // argv ends in a null pointer, as main's does: MPI walks it to the end (Open MPI's MPI_Init crashed without).
   int petsc_argc = static_cast<int>(petsc.size());
+  petsc.push_back(nullptr);
   char** petsc_argv = petsc.data();
   PetscCall(PetscInitialize(&petsc_argc, &petsc_argv, nullptr, nullptr));
   // Large arrays (model set-up temporaries, tens of MB) in their own mappings, so freeing one gives its memory

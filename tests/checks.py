@@ -1,4 +1,4 @@
-"""The python tests' tally: check() counts a passed or failed assertion (printing the failed ones), report()
+"""The python tests' tally: check() counts a passed or failed assertion (printing the failed ones) and returns it, report()
 prints 'N passed, M failed' and gives the exit code."""
 counts = {"passed": 0, "failed": 0}
 
@@ -9,6 +9,7 @@ def check(ok, what):
     else:
         counts["failed"] += 1
         print("FAILED:", what)
+    return ok
 
 
 def report():

@@ -56,6 +56,9 @@ struct Problem {
   long inside = 0;      // of which inside the measured x range (the points that count)
   long runs = 0, failed = 0;
   std::vector<double> best_r, best_values;
+  // TAO sees r / y_scale (y_scale: the largest |measured y|), so that its tolerances mean the same for a curve in
+  // metres (1e-5) as for one in newtons: relative misfit. Reported norms and errors are in the data's units.
+  double y_scale = 1.0;
   double best = std::numeric_limits<double>::infinity();
 
   std::vector<double> values(const double* u) const {
@@ -138,7 +141,7 @@ PetscErrorCode tao_residual(Tao, Vec U, Vec R, void* ctx) {
   PetscInt len;
   PetscCall(VecGetLocalSize(R, &len));
   PetscCall(VecGetArray(R, &out));
-  for (PetscInt i = 0; i < len; ++i) out[i] = i < static_cast<PetscInt>(r.size()) ? r[i] : 0.0;
+  for (PetscInt i = 0; i < len; ++i) out[i] = i < static_cast<PetscInt>(r.size()) ? r[i] / P->y_scale : 0.0;
   PetscCall(VecRestoreArray(R, &out));
   PetscFunctionReturn(0);
 }
@@ -156,6 +159,9 @@ FitResult fit_parameters(const FitInput& input, const ForwardRun& forward, const
   std::vector<double> u0(n);
   for (const auto& p : input.parameters) P.scales.emplace_back(p);
   for (int j = 0; j < n; ++j) u0[j] = P.scales[j].unit(input.parameters[j].start);
+  double y_largest = 0.0;
+  for (double y : input.data_y) y_largest = std::max(y_largest, std::fabs(y));
+  P.y_scale = y_largest > 0 ? y_largest : 1.0;
 
   // 1. The start: its run fixes the residual's length (a failure here is the scene's, not the optimizer's).
   std::vector<double> r0;

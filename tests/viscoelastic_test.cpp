@@ -215,3 +215,46 @@ TEST(Viscoelastic, DynamicRunsUseTheInstantaneousModulusAndDissipate) {
   EXPECT_LT(elastic_drift, 1e-6 * scale);
   EXPECT_GT(lost, 0.05 * scale);
 }
+
+// A sinusoidal strain (a history of 100 points a period, one Prony term, omega tau = 1): once the start has died
+// out, the loop of reaction against displacement encloses pi E'' eps_a^2 V, E'' = E gamma w tau / (1 + w^2 tau^2)
+// (the work dissipated per cycle). The bar has face diagonals (the rectangular one buckles in compression) and
+// clamped ends, so its elastic stiffness K is measured (an elastic step) rather than E A / l0: the loop is
+// pi (E''/E) K d_a^2 by the correspondence principle. The piecewise linear history and the trapezoid rule cost
+// O(dt^2), the strain of 1e-4 its geometric nonlinearity.
+TEST(Viscoelastic, HysteresisLoopAreaIsPiLossModulusStrainSquared) {
+  const double pi = std::acos(-1.0), omega = 1.0, period = 2.0 * pi / omega, amplitude = 4.0e-6;
+  const int per_period = 100, periods = 4;
+  std::string history = "fix.1.history=[";
+  std::vector<double> times;
+  for (int i = 0; i <= per_period * periods; ++i) {
+    const double t = period * i / per_period;
+    times.push_back(t);
+    char point[80];
+    std::snprintf(point, sizeof point, "%s[%.17g,%.17g]", i ? "," : "", t, std::sin(omega * t));
+    history += point;
+  }
+  history += "]";
+  const std::vector<std::string> set = {history, "body.viscoelastic.gamma=[1.0]", "body.viscoelastic.tau=[1.0]",
+                                        "solver.time_step=1.0", "solver.end_time=" + std::to_string(times.back())};
+  const std::vector<std::string> bar = {"body.topology=\"face-diagonals\"", "calibration.method=\"homogenized\""};
+  std::vector<std::string> cyclic = bar, elastic = bar;
+  cyclic.insert(cyclic.end(), set.begin(), set.end());
+  elastic.insert(elastic.end(), {"body.viscoelastic.gamma=[0.0,0.0]", "solver.end_time=0.0"});
+  const std::vector<Row> rows = run_rows(relaxation, PETSC_COMM_WORLD, cyclic);
+  const double K = run_rows(relaxation, PETSC_COMM_WORLD, elastic)[0].reactions[1][2] / amplitude;
+  ASSERT_EQ(rows.size(), times.size());  // every breakpoint landed on, none skipped
+  double area = 0;
+  for (std::size_t i = rows.size() - per_period; i < rows.size(); ++i) {
+    const double d0 = amplitude * std::sin(omega * rows[i - 1].time), d1 = amplitude * std::sin(omega * rows[i].time);
+    area += 0.5 * (rows[i - 1].reactions[1][2] + rows[i].reactions[1][2]) * (d1 - d0);
+  }
+  const double loss_over_E = 1.0 * omega * 1.0 / (1.0 + omega * omega);  // gamma w tau / (1 + w^2 tau^2)
+  const double expected = pi * loss_over_E * K * amplitude * amplitude;
+  int rank;
+  MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+  if (rank == 0)
+    std::printf("hysteresis: loop area %.9e J, pi (E''/E) K d_a^2 %.9e J, relative error %.2e\n", area, expected,
+                area / expected - 1.0);
+  EXPECT_NEAR(area, expected, 2e-3 * expected);
+}

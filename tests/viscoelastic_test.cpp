@@ -224,7 +224,7 @@ TEST(Viscoelastic, DynamicRunsUseTheInstantaneousModulusAndDissipate) {
 // O(dt^2), the strain of 1e-4 its geometric nonlinearity.
 TEST(Viscoelastic, HysteresisLoopAreaIsPiLossModulusStrainSquared) {
   const double pi = std::acos(-1.0), omega = 1.0, period = 2.0 * pi / omega, amplitude = 4.0e-6;
-  const int per_period = 100, periods = 4;
+  const int per_period = 100, periods = 3;  // the start is gone (exp(-4 pi)) before the last period
   std::string history = "fix.1.history=[";
   std::vector<double> times;
   for (int i = 0; i <= per_period * periods; ++i) {
@@ -235,8 +235,13 @@ TEST(Viscoelastic, HysteresisLoopAreaIsPiLossModulusStrainSquared) {
     history += point;
   }
   history += "]";
+  auto number = [](double x) {
+    char text[40];
+    std::snprintf(text, sizeof text, "%.17g", x);
+    return std::string(text);
+  };
   const std::vector<std::string> set = {history, "body.viscoelastic.gamma=[1.0]", "body.viscoelastic.tau=[1.0]",
-                                        "solver.time_step=1.0", "solver.end_time=" + std::to_string(times.back())};
+                                        "solver.time_step=1.0", "solver.end_time=" + number(times.back())};
   const std::vector<std::string> bar = {"body.topology=\"face-diagonals\"", "calibration.method=\"homogenized\""};
   std::vector<std::string> cyclic = bar, elastic = bar;
   cyclic.insert(cyclic.end(), set.begin(), set.end());

@@ -66,6 +66,8 @@ SolveReport solve_quasi_static(const Scene& scene, const LocalModel& model, cons
   std::vector<Vec3> reactions(scene.fixes.size(), Vec3{0, 0, 0});
   bool initial = state.step == 0 && state.time == 0.0;
   double worst = 0.0;
+  // Below this the residual is the springs' round-off (a step with nothing loaded yet): already in equilibrium.
+  const double floor = std::max(force_round_off(model) / newton.tolerance(), DBL_MIN);
   while (initial || state.time < end - slack) {
     double next = initial ? 0.0 : std::min(state.time + dt, end);
     for (double m : marks)
@@ -81,14 +83,14 @@ SolveReport solve_quasi_static(const Scene& scene, const LocalModel& model, cons
     if (VecGetArray(X, &xs)) throw SolverFailure("quasi-static: a PETSc call failed");
     forces.place_held(next, xs);
     if (VecRestoreArray(X, &xs)) throw SolverFailure("quasi-static: a PETSc call failed");
-    // The residual's reference: the unbalanced force the step starts with (the change of loads and holds) or the
-    // reactions of the last step (what the holds carry), whichever is larger, so that a scene driven only by
-    // displacements, or a hold whose history only creeps, is measured against the forces it carries.
+    // The residual's reference: the largest of the unbalanced force the step starts with (the change of loads and
+    // holds), the reactions of the last step (what the holds carry) and the loads at full value, so that a scene
+    // driven only by displacements, or a hold whose history only creeps, is measured against the forces it carries.
     load_state(X, model, state);
     forces.forces(state.x.array(), state.v.data(), state.f.data());
     const double start = relative_residual(model, forces, state.f.data()) *
                          (forces.applied_norm() > 0 ? forces.applied_norm() : 1.0);
-    const double reference = std::max({start, norm(reactions), DBL_MIN});
+    const double reference = std::max({start, norm(reactions), forces.applied_norm(), floor});
     newton.set_force_reference(reference);
     newton.solve(1);
     load_state(X, model, state);

@@ -22,7 +22,7 @@ double critical_time_step(const ForceModel& forces) {
   return rate > 0 ? 2.0 / std::sqrt(rate) : std::numeric_limits<double>::infinity();
 }
 
-double reachable_tolerance(const Scene& scene, const LocalModel& model, const ForceModel& forces) {
+double force_round_off(const LocalModel& model) {
   std::vector<double> scale(model.local, 0.0);
   for (int c = 0; c < model.connections(); ++c) {
     const double kl = std::fabs(model.k(c)) * model.l0(c);
@@ -32,8 +32,13 @@ double reachable_tolerance(const Scene& scene, const LocalModel& model, const Fo
   double sum = 0, total = 0;
   for (int i = 0; i < model.owned; ++i) sum += scale[i] * scale[i];
   MPI_Allreduce(&sum, &total, 1, MPI_DOUBLE, MPI_SUM, model.comm);
+  return 2.0 * std::numeric_limits<double>::epsilon() * std::sqrt(total);
+}
+
+double reachable_tolerance(const Scene& scene, const LocalModel& model, const ForceModel& forces) {
+  const double round_off = force_round_off(model);
   const double reference = forces.applied_norm() > 0 ? forces.applied_norm() : 1.0;
-  const double floor = 2.0 * std::numeric_limits<double>::epsilon() * std::sqrt(total) / reference;
+  const double floor = round_off / reference;
   if (scene.solver.tolerance >= floor) return scene.solver.tolerance;
   // A floor this high means the load is lost in the round-off of the spring forces: any "converged" answer
   // would be noise. Stop and say so rather than report a number.

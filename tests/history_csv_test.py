@@ -1,0 +1,100 @@
+#!/usr/bin/env python3
+"""DIR/history.csv and summary.json's `reactions` as a user reads them (issue 16): `tissue run` of a small quasi-
+static creep scene with a ramp-and-hold load at 1 and 2 ranks, read back with the csv module. Checks: the header
+is the interface's (step, time, force_x..z, elongation, kinetic_energy, reaction<i>_x..z per [[fix]]); one row per
+step, t = 0 first, the breakpoint 0.3 s landed on; every cell a number; the applied force follows the history; the
+roller's reaction balances it to the solver's tolerance; summary.json's reactions and time are the last row's;
+the same curve at 1 and 2 ranks to 1e-10; and a second run into the same directory starts a new file.
+
+Usage: history_csv_test.py --build BUILD_DIR --source SOURCE_DIR      Prints 'N passed, M failed'."""
+import argparse
+import csv
+import json
+import os
+import shutil
+import subprocess
+import sys
+
+SCENE = """
+title = "history.csv"
+[body]
+molecules = [3, 3, 4]
+size = [0.02, 0.02, 0.03]
+topology = "face-diagonals"
+youngs_modulus = 1.0e5
+[body.viscoelastic]
+gamma = [2.0]
+tau = [1.0]
+[calibration]
+method = "homogenized"
+[[fix]]
+face = "z-"
+mode = "roller"
+[[load]]
+face = "z+"
+force = [0.0, 0.0, 4.0e-3]
+history = [[0.0, 0.0], [0.3, 1.0]]
+[solver]
+kind = "quasi-static"
+time_step = 0.25
+end_time = 1.0
+tolerance = 1e-9
+[output]
+fields = []
+progress = false
+"""
+COLUMNS = ["step", "time", "force_x", "force_y", "force_z", "elongation", "kinetic_energy",
+           "reaction0_x", "reaction0_y", "reaction0_z"]
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from checks import check, report  # noqa: E402
+
+
+def run(build, workdir, ranks, out):
+    cmd = ["mpirun", "--oversubscribe", "-np", str(ranks), os.path.join(build, "tissue"), "run",
+           os.path.join(workdir, "scene.toml"), "--output", out]
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    check(r.returncode == 0, f"{ranks} ranks: exit code {r.returncode}: {r.stderr[-500:]}")
+    with open(os.path.join(out, "history.csv"), newline="") as f:
+        rows = list(csv.reader(f))
+    return rows, json.load(open(os.path.join(out, "summary.json")))
+
+
+def main():
+    p = argparse.ArgumentParser()
+    p.add_argument("--build", required=True)
+    p.add_argument("--source", required=True)
+    a = p.parse_args()
+    workdir = os.path.join(a.build, "tests", "out", "history_csv")
+    shutil.rmtree(workdir, ignore_errors=True)
+    os.makedirs(workdir)
+    with open(os.path.join(workdir, "scene.toml"), "w") as f:
+        f.write(SCENE)
+    curves = {}
+    for ranks in (1, 2):
+        rows, summary = run(a.build, workdir, ranks, os.path.join(workdir, f"np{ranks}"))
+        check(rows[0] == COLUMNS, f"{ranks} ranks: header {rows[0]}")
+        data = [[float(c) for c in r] for r in rows[1:]]  # every cell a number (a float() error fails the test)
+        times = [r[1] for r in data]
+        check(times == [0.0, 0.25, 0.3, 0.55, 0.8, 1.0], f"{ranks} ranks: times {times}")
+        check([r[0] for r in data] == list(range(len(data))), f"{ranks} ranks: steps numbered from 0")
+        for r in data:
+            factor = min(r[1] / 0.3, 1.0)
+            check(abs(r[4] - 4.0e-3 * factor) <= 1e-15, f"{ranks} ranks: force_z {r[4]} at t = {r[1]}")
+            check(abs(r[9] + r[4]) <= 1e-8 * 4.0e-3, f"{ranks} ranks: reaction {r[9]} balances {r[4]} at t = {r[1]}")
+            check(r[6] == 0.0, "no kinetic energy in a quasi-static run")
+        check(data[0][5] == 0.0 and all(b[5] > a_[5] for a_, b in zip(data[1:], data[2:])),
+              f"{ranks} ranks: the elongation starts at 0 and creeps: {[r[5] for r in data]}")
+        check(summary["reactions"] == [data[-1][7:10]], f"{ranks} ranks: summary reactions {summary['reactions']}")
+        check(summary["time"] == 1.0 and summary["steps"] == 5, f"{ranks} ranks: summary time and steps")
+        curves[ranks] = data
+    check(all(abs(x - y) <= 1e-10 * abs(curves[1][-1][5]) for x, y in
+              zip([r[5] for r in curves[1]], [r[5] for r in curves[2]])), "the same elongation at 1 and 2 ranks")
+    # A second run into the same directory writes a new history.csv, not rows after the old ones.
+    rows, _ = run(a.build, workdir, 1, os.path.join(workdir, "np1"))
+    check(len(rows) == 7, f"a second run rewrites history.csv ({len(rows)} lines)")
+    return report()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -67,7 +67,7 @@ SolveReport solve_quasi_static(const Scene& scene, const LocalModel& model, cons
   bool initial = state.step == 0 && state.time == 0.0;
   double worst = 0.0;
   // Below this the residual is the springs' round-off (a step with nothing loaded yet): already in equilibrium.
-  const double floor = std::max(force_round_off(model) / newton.tolerance(), DBL_MIN);
+  const double floor = std::max(force_round_off(model, forces) / newton.tolerance(), DBL_MIN);
   while (initial || state.time < end - slack) {
     double next = initial ? 0.0 : std::min(state.time + dt, end);
     for (double m : marks)

@@ -22,7 +22,7 @@ double critical_time_step(const ForceModel& forces) {
   return rate > 0 ? 2.0 / std::sqrt(rate) : std::numeric_limits<double>::infinity();
 }
 
-double force_round_off(const LocalModel& model) {
+double force_round_off(const LocalModel& model, const ForceModel& forces) {
   std::vector<double> scale(model.local, 0.0);
   for (int c = 0; c < model.connections(); ++c) {
     const double kl = std::fabs(model.k(c)) * model.l0(c);
@@ -36,7 +36,7 @@ double force_round_off(const LocalModel& model) {
 }
 
 double reachable_tolerance(const Scene& scene, const LocalModel& model, const ForceModel& forces) {
-  const double round_off = force_round_off(model);
+  const double round_off = force_round_off(model, forces);
   const double reference = forces.applied_norm() > 0 ? forces.applied_norm() : 1.0;
   const double floor = round_off / reference;
   if (scene.solver.tolerance >= floor) return scene.solver.tolerance;

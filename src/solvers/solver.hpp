@@ -104,7 +104,7 @@ double critical_time_step(const ForceModel& forces);
 // are differences of lengths, so each carries an error of about eps k l. Collective.
 double reachable_tolerance(const Scene& scene, const LocalModel& model, const ForceModel& forces);
 // The round-off of the force residual (N): 2 eps |sum over connections of k l| per molecule, 2-norm. Collective.
-double force_round_off(const LocalModel& model);
+double force_round_off(const LocalModel& model, const ForceModel& forces);
 
 // Relative force residual: |F on free components| / |applied forces| (global), from f of every owned molecule.
 double relative_residual(const LocalModel& model, const ForceModel& forces, const double* f);

@@ -231,16 +231,18 @@ void watch() {
       w.expired = true;
       const std::string error = w.leftover.empty() ? "" : probe_write_error(w.leftover);
       if (!error.empty()) {
+        const std::string what = w.what, leftover = w.leftover;
+        const int rank = w.rank;
+        const long long seconds = static_cast<long long>(w.seconds);
         lock.unlock();
-        std::this_thread::sleep_for(std::chrono::milliseconds(500 * std::min(w.rank, 8)));
-        std::remove(w.leftover.c_str());
+        std::this_thread::sleep_for(std::chrono::seconds(std::min(rank, 8)));
+        std::remove(leftover.c_str());
         std::fprintf(stderr, "tissue: %s: cannot write %s: %s (rank %d; the write did not finish within %lld s: "
-                             "job ended)\n", w.what.c_str(), w.leftover.c_str(), error.c_str(), w.rank,
-                     static_cast<long long>(w.seconds));
+                             "job ended)\n", what.c_str(), leftover.c_str(), error.c_str(), rank, seconds);
         std::fflush(stderr);
         std::_Exit(3);
       }
-      w.deadline += std::chrono::seconds(5 + std::min(w.rank, 8));
+      w.deadline += std::chrono::seconds(10 + std::min(w.rank, 8));
       continue;
     }
     w.changed.wait_until(lock, w.deadline);

@@ -124,9 +124,9 @@ double agreement_seconds();
 // (parallel HDF5 waits forever in H5Fclose or MPI_File_open when one rank's write or open failed). While a
 // StageDeadline lives, a watchdog thread watches the clock. Past the deadline every rank asks the system whether
 // it can write `leftover` (the stage's half-written file; probe_write_error()): a rank that cannot is the failed
-// one, and after r / 2 s (its rank r, up to 4 s: the lowest such rank speaks) it removes `leftover`, prints
+// one, and after r s (its rank r, up to 8 s: the lowest such rank speaks) it removes `leftover`, prints
 // "FILE: cannot write LEFTOVER: SYSTEM ERROR (...did not finish within N s...)" and exits 3, which ends the job
-// (the launcher stops the other ranks). A rank whose write works waits 5 s more (r more for rank r > 0, up to
+// (the launcher stops the other ranks). A rank whose write works waits 10 s more (r more for rank r > 0, up to
 // 8): then rank 0 removes `leftover` and prints "WHAT: the write did not finish within N s ..." without a system
 // error, and every rank exits 3. Nested deadlines: the outermost counts. The last resort, never a hang.
 class StageDeadline {

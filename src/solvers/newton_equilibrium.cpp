@@ -100,10 +100,13 @@ PetscErrorCode residual(SNES, Vec X, Vec R, void* p) {
   PetscFunctionBeginUser;
   auto* ctx = static_cast<Context*>(p);
   PetscCall(load_positions(ctx, X));
-  if (!ctx->error) ctx->error = attempt([&] {
+  // Called on every evaluation even after a failure, so that the ranks make the same collectives (contact terms
+  // exchange inside forces()); the first error is kept.
+  const std::exception_ptr error = attempt([&] {
     fault_point("static", ctx->model->comm);
     ctx->forces->forces(ctx->state->x.array(), ctx->state->v.data(), ctx->state->f.data(), ctx->load_factor);
   });
+  if (!ctx->error) ctx->error = error;
   PetscScalar* r;
   PetscCall(VecGetArray(R, &r));
   // A rank whose evaluation failed hands SNES a NaN residual: its norm is NaN on every rank, so every rank's SNES
@@ -124,7 +127,8 @@ PetscErrorCode before_newton_step(SNES snes, PetscInt step) {
     Vec X;
     PetscCall(SNESGetSolution(snes, &X));
     PetscCall(load_positions(ctx, X));
-    if (!ctx->error) ctx->error = attempt([&] { ctx->hooks->refresh(ctx->state->x.array()); });
+    const std::exception_ptr error = attempt([&] { ctx->hooks->refresh(ctx->state->x.array()); });
+    if (!ctx->error) ctx->error = error;
   }
   if (ctx->first_rtol > 0) {
     KSP ksp;
@@ -141,7 +145,9 @@ PetscErrorCode tangent(SNES snes, Vec X, Mat J, Mat P, void* p) {
   // A throw here (before or after the assembly's collectives: not known) is kept for the agreement after
   // SNESSolve; the tangent left may be partial, and the solve's result is discarded by that agreement.
   PetscErrorCode assembled = 0;
-  if (!ctx->error) ctx->error = attempt([&] { assembled = ctx->forces->assemble_tangent(ctx->state->x.array(), P); });
+  const std::exception_ptr error =
+      attempt([&] { assembled = ctx->forces->assemble_tangent(ctx->state->x.array(), P); });
+  if (!ctx->error) ctx->error = error;
   PetscCall(assembled);
   if (ctx->galerkin) {
     // The preconditioner is rebuilt after this call exactly when the lag is -2 (see Reuse); then its coarse

@@ -237,14 +237,27 @@ TEST(Poisson, SameOnEveryRankCount) {
   EXPECT_NEAR(total, self->forces->potential_energy(xs.data()), 1e-12 * std::fabs(total));
 }
 
-// The critical time step of a body with the cell term is h / c_p, c_p = sqrt((lambda + 2 mu) / rho).
+// The critical time step of a body with the cell term is 0.8 h / c_p, c_p = sqrt((lambda + 2 mu) / rho); a
+// dynamic run at 0.8 times it stays finite, one at 2.5 times it is stopped by the guards.
 TEST(Poisson, CriticalTimeStepFromPWave) {
   for (double nu : {0.1, 0.45, 0.49}) {
     Case c;
     c.h = {0.5, 0.5, 0.25}, c.nu = nu;
     auto r = run(scene_text(c), PETSC_COMM_WORLD, {}, /*do_solve=*/false);
-    const double rho = 1000.0;
-    EXPECT_NEAR(critical_time_step(*r->forces), 0.25 / std::sqrt(aggregate(nu) / rho), 1e-12) << nu;
+    const double rho = 1000.0, dt = critical_time_step(*r->forces);
+    EXPECT_NEAR(dt, 0.8 * 0.25 / std::sqrt(aggregate(nu) / rho), 1e-12) << nu;
+    c.solver = "dynamic", c.strain = 1e-3;
+    const std::vector<std::string> steps{"solver.steps=1500", "solver.allow_unstable_time_step=true"};
+    auto with_step = [&](double factor) {
+      std::vector<std::string> set = steps;
+      char value[64];
+      std::snprintf(value, sizeof value, "solver.time_step=%.17g", factor * dt);
+      set.push_back(value);
+      return set;
+    };
+    auto stable = run(scene_text(c), PETSC_COMM_WORLD, with_step(0.8));
+    EXPECT_TRUE(std::isfinite(stable->measured.kinetic_energy)) << nu;
+    EXPECT_THROW(run(scene_text(c), PETSC_COMM_WORLD, with_step(2.5)), SolverFailure) << nu;
   }
 }
 

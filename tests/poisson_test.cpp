@@ -274,6 +274,19 @@ TEST(Poisson, BadInput) {
   std::string rectangular = text;
   rectangular.replace(rectangular.find("face-diagonals"), 14, "rectangular");
   EXPECT_THROW(parse_scene(rectangular, "test.toml"), InputError);
+  // The cell term needs the lattice path: no mesh or random body beside it.
+  std::string with_cloud = text;
+  with_cloud.replace(with_cloud.find("[body]"), 6, "[[body]]");
+  with_cloud.replace(with_cloud.find("[calibration]"), 13,
+                     "[[body]]\nmolecules = [3, 3, 3]\nspacing = [1.0, 1.0, 1.0]\ntopology = \"random\"\n"
+                     "youngs_modulus = 1000.0\noffset = [10.0, 0.0, 0.0]\ncalibration = { method = \"linear\" }\n"
+                     "[calibration]");
+  try {
+    parse_scene(with_cloud, "test.toml");
+    ADD_FAILURE() << "a random body beside a body with cells accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("body[1]"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

@@ -21,6 +21,7 @@
 #include "io/toml_text.hpp"
 #include "src/calibration/calibration.hpp"
 #include "src/model/body.hpp"
+#include "src/model/cell_law.hpp"
 #include "src/model/material.hpp"
 #include "src/model/topology.hpp"
 #include "src/solvers/solver.hpp"
@@ -429,6 +430,12 @@ Scene build_scene(const Value& root, const std::string& file) {
   if (!default_used) read_calibration(calibration, nullptr, 0, nbodies);  // unused, but its keys must be valid
   scene.calibration = scene.calibrations[0];
   scene.body = scene.bodies[0];  // with its Poisson ratio resolved
+  // The cell term needs the lattice path's ghost layer (every cell corner): a scene with a mesh or random body is
+  // built by the explicit path instead.
+  for (int b = 0; b < nbodies; ++b)
+    if (scene.bodies[b].unstructured() && scene_has_cells(scene))
+      body_tables[b].fail("shape", "a mesh or random body cannot share a scene with a body that has a "
+                                   "poisson_ratio (or cells far from cubic) under homogenized (docs/poisson.md)");
   auto which_body = [&](const Section& t) {
     int b = static_cast<int>(t.integer("body").value_or(0));
     if (b < 0 || b >= nbodies)

@@ -66,7 +66,8 @@ extern "C" int LLVMFuzzerInitialize(int* argc, char*** argv) {
   if (PetscInitialize(&pargc, &pargv, nullptr, nullptr)) std::abort();
   fx = new Fixture;
   fx->scene = parse_scene(scene_text, "fuzz.toml");
-  fx->model = build_local_model(fx->scene, PETSC_COMM_WORLD, read_mesh);
+  CalibrationInputs inputs;  // the fixture never calibrates
+  fx->model = build_local_model(fx->scene, PETSC_COMM_WORLD, inputs, read_mesh);
   const LocalModel& m = fx->model;
   fx->molecules = std::make_unique<NaturalOrder>(
       m.comm, std::vector<std::int64_t>(m.id.begin(), m.id.begin() + m.owned), m.global_molecules);

@@ -265,12 +265,12 @@ FitResult fit_parameters(const FitInput& input, const ForwardRun& forward, const
     const Eigen::MatrixXd Jn = J * norms.cwiseInverse().asDiagonal();
     Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> en(Jn.transpose() * Jn);
     const double cond = en.eigenvalues().maxCoeff() / std::max(en.eigenvalues().minCoeff(), 1e-300);
-    const Eigen::MatrixXd cov = s2 * JtJ.inverse();
+    const Eigen::MatrixXd inv = JtJ.inverse(), cov = s2 * inv;
     for (int a = 0; a < n; ++a) out.standard_errors[a] = std::sqrt(std::max(cov(a, a), 0.0));
     for (int a = 0; a < n; ++a)
       for (int b = 0; b < n; ++b) {
-        const double d = std::sqrt(std::max(JtJ.inverse()(a, a), 0.0) * std::max(JtJ.inverse()(b, b), 0.0));
-        out.correlation[a][b] = d > 0 ? JtJ.inverse()(a, b) / d : std::numeric_limits<double>::quiet_NaN();
+        const double d = std::sqrt(std::max(inv(a, a), 0.0) * std::max(inv(b, b), 0.0));
+        out.correlation[a][b] = d > 0 ? inv(a, b) / d : std::numeric_limits<double>::quiet_NaN();
       }
     if (cond > 1e10) out.identifiable = false, out.notes += "J^T J is nearly singular (condition " + std::to_string(cond) + "); ";
     for (int a = 0; a < n; ++a)

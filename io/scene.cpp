@@ -109,6 +109,74 @@ void apply_poisson(const Section& body_table, BodySpec& b, const CalibrationSpec
   }
 }
 
+// [body.fibres] (and [body.region.fibres]): one fibre family (docs/anisotropy.md). The five constants are checked
+// once the body's nu_TT is known (apply_fibres).
+FibreSpec read_fibres(const Section& s) {
+  s.allow({"direction", "youngs_modulus", "poisson_ratio", "shear_modulus", "tension_only", "toe"});
+  s.require("direction", "the fibre direction, 3 numbers (normalized by the reader)");
+  s.require("youngs_modulus", "E_L, the modulus along the fibres (Pa)");
+  s.require("poisson_ratio", "nu_LT, the contraction across the fibres under tension along them");
+  FibreSpec f;
+  const Vec3 d = *s.vec3("direction");
+  const double n = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+  if (!(n > 0) || !std::isfinite(n)) s.fail("direction", "must be a non-zero vector");
+  for (int a = 0; a < 3; ++a) f.direction[a] = d[a] / n;
+  f.youngs_modulus = *s.number("youngs_modulus");
+  s.positive("youngs_modulus", f.youngs_modulus);
+  f.poisson_ratio = *s.number("poisson_ratio");
+  f.shear_modulus = s.number("shear_modulus");
+  if (f.shear_modulus) s.positive("shear_modulus", *f.shear_modulus);
+  f.tension_only = s.boolean("tension_only").value_or(false);
+  if (s.has("toe")) {
+    const Section t = s.table("toe");
+    t.allow({"law", "stretch", "exponent"});
+    t.require("law", "the toe law: \"exp-linear\"");
+    t.choice("law", {"exp-linear"});
+    t.require("stretch", "the fibre stretch where the toe ends and the linear part starts (> 1)");
+    t.require("exponent", "the exponential's rate c4 (> 0)");
+    f.toe_stretch = *t.number("stretch");
+    if (!(f.toe_stretch > 1.0)) t.fail("stretch", fmt::format("must be > 1, got {}", f.toe_stretch));
+    f.toe_exponent = *t.number("exponent");
+    t.positive("exponent", f.toe_exponent);
+    if (f.toe_exponent * (f.toe_stretch - 1.0) > 700.0)
+      t.fail("exponent", fmt::format("exponent x (stretch - 1) = {} overflows the exponential (at most 700)",
+                                     f.toe_exponent * (f.toe_stretch - 1.0)));
+  }
+  return f;
+}
+
+// Fibres: only homogenized on a box lattice with diagonals honours them; the five constants must be a positive
+// definite transversely isotropic material whose matrix the lattice can carry (cell_law.hpp).
+void apply_fibres(const Section& body_table, const BodySpec& b, const CalibrationSpec& c) {
+  if (!b.has_fibres()) return;
+  if (c.method != "homogenized")
+    throw InputError(body_table.file(), c.key + ".method",
+                     fmt::format("{} cannot honour fibres (central springs are isotropic); use method = "
+                                 "\"homogenized\" or remove [body.fibres]", c.method));
+  if (b.topology != "face-diagonals" && b.topology != "body-diagonals")
+    body_table.fail("fibres", fmt::format("needs topology \"face-diagonals\" or \"body-diagonals\" (the body has "
+                                          "\"{}\")", b.topology));
+  auto check = [](const Section& where, double E, const std::optional<double>& nu, const FibreSpec& f) {
+    const TransverseIsotropy t = transverse_isotropy(E, nu.value_or(std::nan("")), f);
+    const std::string problem = ti_problem(t);
+    if (!problem.empty()) where.fail("fibres", problem);
+    const FibreModuli m = fibre_moduli(t);
+    if ((f.tension_only || f.toe_stretch > 0) && !(m.E_f > 0))
+      where.fail("fibres", fmt::format("tension_only and toe need fibres stiffer than the matrix (fibre modulus E_f "
+                                       "= {} Pa <= 0)", m.E_f));
+  };
+  const std::vector<Section> regions = body_table.tables("region");
+  if (b.fibres) {
+    // The body's own material, and every region that inherits the body's fibres.
+    check(body_table, b.youngs_modulus, b.poisson_ratio, *b.fibres);
+  }
+  for (std::size_t i = 0; i < b.regions.size() && i < regions.size(); ++i) {
+    const RegionSpec& r = b.regions[i];
+    if (r.fibres) check(regions[i], r.youngs_modulus, r.poisson_ratio, *r.fibres);
+    else if (b.fibres) check(regions[i], r.youngs_modulus, r.poisson_ratio, *b.fibres);
+  }
+}
+
 // history = [[t0, f0], [t1, f1], ...]: (time s, factor) pairs, times increasing.
 TimeHistory read_history(const Section& s) {
   TimeHistory h;
@@ -212,7 +280,7 @@ BodySpec read_body(const Section& s) {
     s.fail("shape", fmt::format("unknown value \"{}\" (one of: box, mesh)", b.shape));
   if (b.shape == "mesh") return read_mesh_body(s, b);
   s.allow({"shape", "molecules", "spacing", "size", "topology", "material", "youngs_modulus", "density", "offset",
-           "region", "radius", "calibration", "seed", "poisson_ratio", "viscoelastic"});  // calibration: read by
+           "region", "radius", "calibration", "seed", "poisson_ratio", "viscoelastic", "fibres"});  // calibration: read by
                                                                                           // build_scene
 
   s.require("molecules", "3 integers, molecules along x, y, z");
@@ -242,6 +310,7 @@ BodySpec read_body(const Section& s) {
   topologies.push_back("random");  // explicit: src/model/random_cloud.hpp
   b.topology = s.choice("topology", topologies).value_or(b.topology);
   if (s.has("viscoelastic")) b.viscoelastic = read_viscoelastic(s.table("viscoelastic"));
+  if (s.has("fibres")) b.fibres = read_fibres(s.table("fibres"));
   if (s.has("seed") && b.topology != "random") s.fail("seed", "only topology = \"random\" has a seed");
   b.seed = s.integer("seed").value_or(b.seed);
   if (b.topology == "random" && !s.tables("region").empty())
@@ -252,7 +321,7 @@ BodySpec read_body(const Section& s) {
   if (b.radius) s.positive("radius", *b.radius);
 
   for (const auto& r : s.tables("region")) {
-    r.allow({"lo", "hi", "material", "youngs_modulus", "density", "poisson_ratio"});
+    r.allow({"lo", "hi", "material", "youngs_modulus", "density", "poisson_ratio", "fibres"});
     RegionSpec spec;
     r.require("lo");
     r.require("hi");
@@ -262,6 +331,7 @@ BodySpec read_body(const Section& s) {
       if (spec.lo[a] > spec.hi[a])
         r.fail("hi", fmt::format("hi[{}] = {} is below lo[{}] = {}", a, spec.hi[a], a, spec.lo[a]));
     read_material(r, spec.material, spec.youngs_modulus, spec.density, &spec.poisson_ratio);
+    if (r.has("fibres")) spec.fibres = read_fibres(r.table("fibres"));
     b.regions.push_back(spec);
   }
   return b;
@@ -426,6 +496,7 @@ Scene build_scene(const Value& root, const std::string& file) {
     scene.calibrations.push_back(read_calibration(own.has("calibration") ? own.table("calibration") : calibration,
                                                   &scene.bodies[b], b, nbodies));
     apply_poisson(own, scene.bodies[b], scene.calibrations[b]);
+    apply_fibres(own, scene.bodies[b], scene.calibrations[b]);
   }
   if (!default_used) read_calibration(calibration, nullptr, 0, nbodies);  // unused, but its keys must be valid
   scene.calibration = scene.calibrations[0];

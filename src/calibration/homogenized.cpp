@@ -62,13 +62,16 @@ void calibrate_homogenized(const CalibrationContext& ctx, std::vector<double>& k
   if (m.connections() > 0) {
     const int b = m.body[m.end_a[0]];
     const BodySpec& spec = specs[b];
-    bool any_nu = spec.poisson_ratio.has_value();
+    bool any_nu = spec.poisson_ratio.has_value() || spec.has_fibres();
     for (const auto& r : spec.regions) any_nu = any_nu || r.poisson_ratio.has_value();
     if (any_nu) {
       spring_modulus = ctx.inputs.youngs_modulus;
       for (int i = 0; i < m.local; ++i)
-        if (m.body[i] == b) spring_modulus[i] = cell_moduli(ctx.inputs.youngs_modulus[i], molecule_material(spec, shape, m.id[i]).poisson_ratio)
-                                .spring_modulus;
+        if (m.body[i] == b) {
+          const MoleculeMaterial mat = molecule_material(spec, shape, m.id[i]);
+          // With fibres the springs carry the matrix part of the TI target (cell_law.hpp).
+          spring_modulus[i] = cell_moduli(ctx.inputs.youngs_modulus[i], mat.poisson_ratio, mat.fibres).spring_modulus;
+        }
     }
   }
   const std::vector<double>& Es = spring_modulus.empty() ? ctx.inputs.youngs_modulus : spring_modulus;

@@ -37,7 +37,8 @@ BoxGeometry body_geometry(const BodySpec& spec, std::int64_t first) {
 // connection across a region's boundary joins two materials: the calibration methods see both ends' E.
 MoleculeMaterial molecule_material(const BodySpec& spec, const BoxGeometry& box, std::int64_t id) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
-  MoleculeMaterial m{spec.youngs_modulus, spec.density, spec.poisson_ratio.value_or(nan)};
+  const FibreSpec* body_fibres = spec.fibres ? &*spec.fibres : nullptr;
+  MoleculeMaterial m{spec.youngs_modulus, spec.density, spec.poisson_ratio.value_or(nan), body_fibres};
   if (spec.regions.empty()) return m;
   const Vec3 x = box.rest_position(id);
   for (const auto& r : spec.regions) {
@@ -46,7 +47,7 @@ MoleculeMaterial molecule_material(const BodySpec& spec, const BoxGeometry& box,
       double xa = x[a] - box.offset[a], tol = 1e-9 * box.h[a];
       inside = inside && xa >= r.lo[a] - tol && xa <= r.hi[a] + tol;
     }
-    if (inside) m = {r.youngs_modulus, r.density, r.poisson_ratio.value_or(nan)};
+    if (inside) m = {r.youngs_modulus, r.density, r.poisson_ratio.value_or(nan), r.fibres ? &*r.fibres : body_fibres};
   }
   return m;
 }

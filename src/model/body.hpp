@@ -163,6 +163,7 @@ Body scene_shape(const Scene& scene);
 struct MoleculeMaterial {
   double youngs_modulus, density;  // Pa, kg/m^3
   double poisson_ratio;            // NaN: absent (1/4 on lattices, nothing built for it)
+  const FibreSpec* fibres = nullptr;  // the molecule's fibre family (its region's, else its body's), or none
 };
 MoleculeMaterial molecule_material(const BodySpec& spec, const BoxGeometry& box, std::int64_t id);
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 namespace tissue {
 
@@ -76,9 +77,84 @@ CellModuli cell_moduli(double E, double nu) {
   return {s / 0.4, std::max(0.0, mu - s), std::max(0.0, K - 5.0 * s / 3.0)};
 }
 
+CellModuli cell_moduli(double E, double nu, const FibreSpec* fibres) {
+  if (!fibres) return cell_moduli(E, nu);
+  const FibreModuli f = fibre_moduli(transverse_isotropy(E, nu, *fibres));
+  return cell_moduli(f.E_m, f.nu_m);
+}
+
+TiStiffness ti_stiffness(const TransverseIsotropy& t) {
+  const double e = t.E_T / t.E_L;
+  const double delta = 1.0 - t.nu_TT - 2.0 * t.nu_LT * t.nu_LT * e;
+  TiStiffness c;
+  c.C11 = t.E_L * (1.0 - t.nu_TT) / delta;
+  c.C12 = t.E_T * t.nu_LT / delta;
+  c.C22 = t.E_T * (1.0 - t.nu_LT * t.nu_LT * e) / ((1.0 + t.nu_TT) * delta);
+  c.C23 = t.E_T * (t.nu_TT + t.nu_LT * t.nu_LT * e) / ((1.0 + t.nu_TT) * delta);
+  c.C44 = 0.5 * t.E_T / (1.0 + t.nu_TT);
+  c.C55 = t.G_L;
+  return c;
+}
+
+std::string ti_problem(const TransverseIsotropy& t) {
+  char buf[256];
+  if (!(t.E_L > 0 && t.E_T > 0 && t.G_L > 0)) return "E_L, E_T and G_L must be > 0";
+  if (!(t.nu_TT > -1.0 && t.nu_TT < 1.0)) {
+    std::snprintf(buf, sizeof buf, "nu_TT = %g (the body's poisson_ratio) must be in (-1, 1)", t.nu_TT);
+    return buf;
+  }
+  // The normal compliance block is positive definite iff also (1 - nu_TT) - 2 nu_LT^2 E_T / E_L > 0.
+  const double d = 1.0 - t.nu_TT - 2.0 * t.nu_LT * t.nu_LT * t.E_T / t.E_L;
+  if (!(d > 0)) {
+    std::snprintf(buf, sizeof buf,
+                  "not a positive definite material: 1 - nu_TT - 2 nu_LT^2 E_T / E_L = %g must be > 0 (nu_LT = %g, "
+                  "nu_TT = %g, E_T / E_L = %g)",
+                  d, t.nu_LT, t.nu_TT, t.E_T / t.E_L);
+    return buf;
+  }
+  const TiStiffness c = ti_stiffness(t);
+  const double K_m = c.C23 + 2.0 * c.C44 / 3.0;
+  if (!(K_m > 0)) {
+    std::snprintf(buf, sizeof buf,
+                  "the isotropic matrix part lambda_m = C23 = %g Pa, mu_m = G_T = %g Pa has bulk modulus %g <= 0: "
+                  "springs cannot carry it (raise nu_TT or lower nu_LT)",
+                  c.C23, c.C44, K_m);
+    return buf;
+  }
+  return "";
+}
+
+FibreModuli fibre_moduli(const TransverseIsotropy& t) {
+  const TiStiffness c = ti_stiffness(t);
+  const double mu = c.C44, lambda = c.C23;
+  FibreModuli f;
+  f.E_m = mu * (3.0 * lambda + 2.0 * mu) / (lambda + mu);
+  f.nu_m = lambda / (2.0 * (lambda + mu));
+  f.alpha = c.C12 - lambda;
+  f.E_f = c.C11 - lambda - 2.0 * mu - 2.0 * f.alpha;
+  f.dG = c.C55 - mu;
+  return f;
+}
+
+TransverseIsotropy transverse_isotropy(double E, double nu, const FibreSpec& fibres) {
+  if (std::isnan(nu)) nu = 0.25;
+  TransverseIsotropy t{fibres.youngs_modulus, E, fibres.poisson_ratio, nu, 0.0};
+  t.G_L = fibres.shear_modulus ? *fibres.shear_modulus : 0.5 * E / (1.0 + nu);
+  return t;
+}
+
+double ti_stiffest_modulus(const TiStiffness& c) {
+  // Normal block: the transverse antisymmetric mode C22 - C23, and the 2 x 2 block [[C11, sqrt2 C12],
+  // [sqrt2 C12, C22 + C23]]; shears (Mandel) 2 C44, 2 C55.
+  const double m = 0.5 * (c.C11 + c.C22 + c.C23);
+  const double r = std::sqrt(0.25 * (c.C11 - c.C22 - c.C23) * (c.C11 - c.C22 - c.C23) + 2.0 * c.C12 * c.C12);
+  return std::max({m + r, c.C22 - c.C23, 2.0 * c.C44, 2.0 * c.C55});
+}
+
 bool body_has_cells(const BodySpec& body, const CalibrationSpec& calibration) {
   if (calibration.method != "homogenized" || body.unstructured()) return false;
   if (body.topology != "face-diagonals" && body.topology != "body-diagonals") return false;
+  if (body.has_fibres()) return true;
   if (body.poisson_ratio && *body.poisson_ratio != 0.25) return true;
   for (const auto& r : body.regions)
     if (r.poisson_ratio && *r.poisson_ratio != 0.25) return true;

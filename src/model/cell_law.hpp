@@ -38,8 +38,40 @@ struct CellModuli {
 };
 CellModuli cell_moduli(double youngs_modulus, double poisson_ratio);
 
+// Transverse isotropy (docs/anisotropy.md): the five constants split into an isotropic matrix (lambda_m, mu_m),
+// carried as above by springs + the isotropic cell term, and three per-cell invariant terms of the fibre direction
+// a (I4 = a.C a, I5 = a.C^2 a): fibre E_f/8 (I4 - 1)^2, fibre shear dG/2 (I5 - I4^2), coupling
+// alpha/2 (I4 - 1)(J - 1). In the fibre frame (axis 1 = a) the TI tensor has C11, C12 = C13, C22 = C33, C23,
+// C44 = (C22 - C23)/2 = G_T, C55 = C66 = G_L; the matrix gives lambda_m + 2 mu_m to C11, C22, lambda_m to C12,
+// C23, mu_m to C44..C66; the fibre E_f to C11; the coupling 2 alpha to C11 and alpha to C12, C13; the fibre
+// shear dG to C55, C66. Solved in turn: mu_m = G_T, lambda_m = C23, alpha = C12 - C23,
+// E_f = C11 - lambda_m - 2 mu_m - 2 alpha, dG = G_L - G_T.
+struct TransverseIsotropy {
+  double E_L, E_T, nu_LT, nu_TT, G_L;
+};
+struct TiStiffness {  // fibre frame, Voigt
+  double C11, C12, C22, C23, C44, C55;
+};
+TiStiffness ti_stiffness(const TransverseIsotropy& t);
+// "" when (E_L, E_T, nu_LT, nu_TT, G_L) is a positive definite material whose matrix part the lattice can carry
+// (bulk modulus K_m > 0), else the problem in words.
+std::string ti_problem(const TransverseIsotropy& t);
+struct FibreModuli {
+  double E_m, nu_m;       // the isotropic matrix, for cell_moduli and the springs
+  double E_f, dG, alpha;  // Pa: the fibre, fibre-shear and coupling terms
+};
+FibreModuli fibre_moduli(const TransverseIsotropy& t);
+// The material's five constants: the body's E and nu (NaN: 1/4) are E_T and nu_TT; G_L defaults to G_T.
+TransverseIsotropy transverse_isotropy(double youngs_modulus, double poisson_ratio, const FibreSpec& fibres);
+// The largest eigenvalue of the TI tensor (Mandel form): an upper bound of rho c^2 for every wave.
+double ti_stiffest_modulus(const TiStiffness& c);
+
+// The isotropic split of a molecule's material: of (E, nu) itself, or with fibres of its matrix (E_m, nu_m).
+CellModuli cell_moduli(double youngs_modulus, double poisson_ratio, const FibreSpec* fibres);
+
 // Does a body need the cell term: homogenized, a box lattice with diagonals, and a Poisson ratio other than 1/4
 // somewhere or cells too far from cubic for isotropic springs.
+// (with fibres: always)
 bool body_has_cells(const BodySpec& body, const CalibrationSpec& calibration);
 bool scene_has_cells(const Scene& scene);
 

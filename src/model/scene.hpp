@@ -49,6 +49,20 @@ struct PronySpec {
   bool empty() const { return gamma.empty(); }
 };
 
+// [body.fibres]: one fibre family, transversely isotropic about `direction` (docs/anisotropy.md). The body's (or
+// region's) own youngs_modulus and poisson_ratio then mean E_T and nu_TT, across the fibres. Only homogenized on a
+// box lattice with diagonals honours it (the per-cell fibre terms of src/physics/terms/cell_elasticity.cpp).
+struct FibreSpec {
+  Vec3 direction{0.0, 0.0, 1.0};      // unit (normalized by the reader)
+  double youngs_modulus = 0.0;        // E_L, Pa
+  double poisson_ratio = 0.0;         // nu_LT
+  std::optional<double> shear_modulus;  // G_L, Pa; absent: G_T = E_T / (2 (1 + nu_TT)), no fibre-shear term
+  bool tension_only = false;          // the fibre and coupling terms switch off while I4 < 1
+  // toe = { law = "exp-linear", stretch, exponent }: the fibre's nominal stress against its stretch (Weiss);
+  // toe_stretch = 0: no toe (the quadratic fibre term).
+  double toe_stretch = 0.0, toe_exponent = 0.0;
+};
+
 // A box region of a body with its own material (heterogeneous bodies). Bounds are in metres, in the body's
 // own frame (before offset); a molecule belongs to the last region whose closed box holds it.
 struct RegionSpec {
@@ -59,6 +73,8 @@ struct RegionSpec {
   double density = 0.0;         // kg/m^3
   // nu: the region's own, else its preset's (homogenized only), else the body's (docs/poisson.md).
   std::optional<double> poisson_ratio;
+  // The region's own [body.region.fibres], else the body's (a region inherits the body's fibres as it does nu).
+  std::optional<FibreSpec> fibres;
 };
 
 struct BodySpec {
@@ -84,6 +100,13 @@ struct BodySpec {
   double mesh_size = 0.0;       // m; shape = "mesh" from a .geo: the largest element Gmsh makes (0: the .geo's own)
   bool unstructured() const { return shape == "mesh" || topology == "random"; }
   PronySpec viscoelastic;  // [body.viscoelastic]; empty: elastic
+  std::optional<FibreSpec> fibres;  // [body.fibres]; absent: isotropic, nothing built for it
+  bool has_fibres() const {
+    if (fibres) return true;
+    for (const auto& r : regions)
+      if (r.fibres) return true;
+    return false;
+  }
 };
 
 struct CalibrationSpec {

@@ -48,15 +48,115 @@ inline Dual power(Dual x, double p) {
 }
 inline double logarithm(double x) { return std::log(x); }
 inline Dual logarithm(Dual x) { return {std::log(x.v), x.d / x.v}; }
+inline double exponential(double x) { return std::exp(x); }
+inline Dual exponential(Dual x) {
+  const double y = std::exp(x.v);
+  return {y, y * x.d};
+}
+inline double root(double x) { return std::sqrt(x); }
+inline Dual root(Dual x) {
+  const double y = std::sqrt(x.v);
+  return {y, 0.5 * x.d / y};
+}
 
 struct Moduli {
   double mu = 0, kappa = 0, alpha[3] = {0, 0, 0};
 };
 
+// One fibre family of a cell (docs/anisotropy.md): unit direction a, fibre modulus E_f, fibre-shear dG, coupling
+// alpha (Pa); tension_only: the fibre and coupling terms (both carry the factor I4 - 1) are off while I4 < 1; toe:
+// the fibre term is the exp-linear law of the fibre's nominal stress s(lambda), lambda = sqrt(I4):
+//   s = c3 (exp(c4 (lambda - 1)) - 1) up to lambda1, then s(lambda1) + E_f (lambda - lambda1),
+//   c3 = E_f / (c4 exp(c4 (lambda1 - 1))) (continuous slope), energy W = integral_1^lambda s.
+// Families of the cell's 8 corners that share a direction and a law are merged (their moduli add: exact, every
+// term is linear in its modulus).
+struct Fibre {
+  double a[3] = {0, 0, 1};
+  double E_f = 0, dG = 0, alpha = 0;
+  bool tension_only = false;
+  double toe_stretch = 0, toe_exponent = 0;  // toe_stretch = 0: the quadratic fibre term
+  bool same_law(const Fibre& o) const {
+    return a[0] == o.a[0] && a[1] == o.a[1] && a[2] == o.a[2] && tension_only == o.tension_only &&
+           toe_stretch == o.toe_stretch && toe_exponent == o.toe_exponent;
+  }
+};
+
+// The toe law's nominal stress s(lambda) and energy W(lambda) per unit reference volume.
+template <class T>
+T toe_stress(const T& lambda, const Fibre& f) {
+  const double c4 = f.toe_exponent, l1 = f.toe_stretch;
+  const double c3 = f.E_f / (c4 * std::exp(c4 * (l1 - 1.0)));
+  if (value(lambda) <= l1) return T(c3) * (exponential(T(c4) * (lambda - T(1.0))) - T(1.0));
+  return T(c3 * std::expm1(c4 * (l1 - 1.0))) + T(f.E_f) * (lambda - T(l1));
+}
+double toe_energy(double lambda, const Fibre& f) {
+  const double c4 = f.toe_exponent, l1 = f.toe_stretch;
+  const double c3 = f.E_f / (c4 * std::exp(c4 * (l1 - 1.0)));
+  auto exp_part = [&](double l) { return c3 * (std::expm1(c4 * (l - 1.0)) / c4 - (l - 1.0)); };
+  if (lambda <= l1) return exp_part(lambda);
+  const double d = lambda - l1;
+  return exp_part(l1) + c3 * std::expm1(c4 * (l1 - 1.0)) * d + 0.5 * f.E_f * d * d;
+}
+
+// Adds the fibre family's P = dW/dF (J, cof = J F^-T as in stress()).
+template <class T>
+void add_fibre_stress(const T F[9], const T& J, const T cof[9], const Fibre& f, T P[9]) {
+  T Fa[3];
+  for (int i = 0; i < 3; ++i) Fa[i] = F[3 * i] * T(f.a[0]) + F[3 * i + 1] * T(f.a[1]) + F[3 * i + 2] * T(f.a[2]);
+  const T I4 = Fa[0] * Fa[0] + Fa[1] * Fa[1] + Fa[2] * Fa[2];
+  const bool stretched = !f.tension_only || value(I4) >= 1.0;
+  // c (F a) (x) a collects the fibre and the coupling terms' share along (F a) (x) a.
+  T c = T(0.0);
+  if (stretched) {
+    if (f.toe_stretch > 0) {
+      const T lambda = root(I4);
+      c = toe_stress(lambda, f) / lambda;  // dW/dF = s(lambda) / lambda (F a) (x) a
+    } else {
+      c = T(0.5 * f.E_f) * (I4 - T(1.0));  // E_f/8 (I4 - 1)^2
+    }
+    if (f.alpha != 0) {
+      // alpha/2 (I4 - 1)(J - 1): alpha (J - 1) (F a) (x) a + alpha/2 (I4 - 1) cof
+      c = c + T(f.alpha) * (J - T(1.0));
+      const T v = T(0.5 * f.alpha) * (I4 - T(1.0));
+      for (int q = 0; q < 9; ++q) P[q] = P[q] + v * cof[q];
+    }
+  }
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) P[3 * i + j] = P[3 * i + j] + c * Fa[i] * T(f.a[j]);
+  if (f.dG != 0) {
+    // dG/2 (I5 - I4^2): dG [(F a) (x) (C a) + (F C a) (x) a - 2 I4 (F a) (x) a]
+    T Ca[3], FCa[3];
+    for (int j = 0; j < 3; ++j) Ca[j] = F[j] * Fa[0] + F[3 + j] * Fa[1] + F[6 + j] * Fa[2];  // F^T (F a)
+    for (int i = 0; i < 3; ++i) FCa[i] = F[3 * i] * Ca[0] + F[3 * i + 1] * Ca[1] + F[3 * i + 2] * Ca[2];
+    const T g = T(f.dG);
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j)
+        P[3 * i + j] = P[3 * i + j] + g * (Fa[i] * Ca[j] + FCa[i] * T(f.a[j]) - T(2.0) * I4 * Fa[i] * T(f.a[j]));
+  }
+}
+
+double fibre_energy_density(const double F[9], double J, const Fibre& f) {
+  double Fa[3];
+  for (int i = 0; i < 3; ++i) Fa[i] = F[3 * i] * f.a[0] + F[3 * i + 1] * f.a[1] + F[3 * i + 2] * f.a[2];
+  const double I4 = Fa[0] * Fa[0] + Fa[1] * Fa[1] + Fa[2] * Fa[2];
+  double W = 0;
+  if (!f.tension_only || I4 >= 1.0) {
+    W += f.toe_stretch > 0 ? toe_energy(std::sqrt(I4), f) : 0.125 * f.E_f * (I4 - 1.0) * (I4 - 1.0);
+    W += 0.5 * f.alpha * (I4 - 1.0) * (J - 1.0);
+  }
+  if (f.dG != 0) {
+    double Ca[3], I5 = 0;
+    for (int j = 0; j < 3; ++j) Ca[j] = F[j] * Fa[0] + F[3 + j] * Fa[1] + F[6 + j] * Fa[2];
+    for (int j = 0; j < 3; ++j) I5 += Ca[j] * Ca[j];
+    W += 0.5 * f.dG * (I5 - I4 * I4);
+  }
+  return W;
+}
+
 // First Piola-Kirchhoff stress P = dW/dF (row-major 3 x 3) of the energy density above; returns false when
 // J <= 0 (the energy is infinite there).
 template <class T>
-bool stress(const T F[9], const Moduli& m, T P[9]) {
+bool stress(const T F[9], const Moduli& m, const Fibre* fibres, int nfibres, T P[9]) {
   const T J = F[0] * (F[4] * F[8] - F[5] * F[7]) - F[1] * (F[3] * F[8] - F[5] * F[6]) +
               F[2] * (F[3] * F[7] - F[4] * F[6]);
   if (!(value(J) > 0)) return false;
@@ -91,10 +191,11 @@ bool stress(const T F[9], const Moduli& m, T P[9]) {
       }
     }
   }
+  for (int k = 0; k < nfibres; ++k) add_fibre_stress(F, J, cof, fibres[k], P);
   return true;
 }
 
-double energy_density(const double F[9], const Moduli& m) {
+double energy_density(const double F[9], const Moduli& m, const Fibre* fibres, int nfibres) {
   const double J = F[0] * (F[4] * F[8] - F[5] * F[7]) - F[1] * (F[3] * F[8] - F[5] * F[6]) +
                    F[2] * (F[3] * F[7] - F[4] * F[6]);
   if (!(J > 0)) return std::numeric_limits<double>::infinity();
@@ -112,6 +213,7 @@ double energy_density(const double F[9], const Moduli& m) {
       W += 0.25 * m.alpha[w] * s * s;
     }
   }
+  for (int k = 0; k < nfibres; ++k) W += fibre_energy_density(F, J, fibres[k]);
   return W;
 }
 
@@ -151,6 +253,7 @@ public:
       const BoxGeometry& box = model.shape.body(b);
       const auto ijk = box.index(base);
       double E_s = 0, mu = 0, kappa = 0, modulus = 0, density = 0;
+      std::vector<Fibre> families;
       for (int c = 0; c < 8; ++c) {
         const std::int64_t g = box.id(ijk[0] + (c & 1), ijk[1] + ((c >> 1) & 1), ijk[2] + ((c >> 2) & 1));
         auto at = local.find(g);
@@ -159,9 +262,31 @@ public:
                                    "built by partition/lattice_model.cpp)");
         corner_[8 * k + c] = at->second;
         const MoleculeMaterial mat = molecule_material(specs[b], box, g);
-        const CellModuli cm = cell_moduli(mat.youngs_modulus, mat.poisson_ratio);
+        const CellModuli cm = cell_moduli(mat.youngs_modulus, mat.poisson_ratio, mat.fibres);
         E_s += cm.spring_modulus / 8, mu += cm.mu_c / 8, kappa += cm.kappa_c / 8;
-        modulus += p_wave_modulus(mat.youngs_modulus, mat.poisson_ratio) / 8, density += mat.density / 8;
+        density += mat.density / 8;
+        if (!mat.fibres) {
+          modulus += p_wave_modulus(mat.youngs_modulus, mat.poisson_ratio) / 8;
+          continue;
+        }
+        // The fibre terms of this corner's eighth of the cell; the time step from the stiffest wave (E_L).
+        const TransverseIsotropy ti = transverse_isotropy(mat.youngs_modulus, mat.poisson_ratio, *mat.fibres);
+        const FibreModuli fm = fibre_moduli(ti);
+        modulus += ti_stiffest_modulus(ti_stiffness(ti)) / 8;
+        Fibre f;
+        for (int d = 0; d < 3; ++d) f.a[d] = mat.fibres->direction[d];
+        f.E_f = fm.E_f / 8, f.dG = fm.dG / 8, f.alpha = fm.alpha / 8;
+        f.tension_only = mat.fibres->tension_only;
+        f.toe_stretch = mat.fibres->toe_stretch, f.toe_exponent = mat.fibres->toe_exponent;
+        bool merged = false;
+        for (Fibre& o : families)
+          if (o.same_law(f)) o.E_f += f.E_f, o.dG += f.dG, o.alpha += f.alpha, merged = true;
+        if (!merged) families.push_back(f);
+      }
+      if (!families.empty() && fibre_begin_.empty()) fibre_begin_.assign(k + 1, 0);
+      if (!fibre_begin_.empty()) {
+        fibres_.insert(fibres_.end(), families.begin(), families.end());
+        fibre_begin_.push_back(static_cast<int>(fibres_.size()));
       }
       const CellSprings split = cell_springs(box.h, box.topology);
       Moduli& md = moduli_[k];
@@ -191,7 +316,7 @@ public:
       const Geometry& geo = geometry_[body_[k]];
       double F[9], P[9];
       gradient(x, corner, geo, F);
-      if (!stress(F, moduli_[k], P)) {
+      if (!stress(F, moduli_[k], fibres(k), fibre_count(k), P)) {
         // An inverted cell: its energy is infinite; NaN forces make every solver's guard stop or cut back.
         for (int c = 0; c < 8; ++c)
           if (corner[c] < m_.owned)
@@ -214,7 +339,7 @@ public:
       const Geometry& geo = geometry_[body_[k]];
       double F[9];
       gradient(x, &corner_[8 * k], geo, F);
-      e += geo.volume * energy_density(F, moduli_[k]);
+      e += geo.volume * energy_density(F, moduli_[k], fibres(k), fibre_count(k));
     }
     return e;
   }
@@ -230,7 +355,7 @@ public:
       for (int kl = 0; kl < 9; ++kl) {
         Dual Fd[9], Pd[9];
         for (int q = 0; q < 9; ++q) Fd[q] = Dual(F[q], q == kl ? 1.0 : 0.0);
-        if (!stress(Fd, moduli_[k], Pd)) return 0;  // inverted: the residual is NaN already
+        if (!stress(Fd, moduli_[k], fibres(k), fibre_count(k), Pd)) return 0;  // inverted: the residual is NaN already
         for (int q = 0; q < 9; ++q) D[kl][q] = Pd[q].d;
       }
       // Dg[kl][a][i] = sum_j D[kl][ij] g_a[j]
@@ -270,7 +395,9 @@ public:
     for (int k = 0; k < cells_; ++k) {
       const Moduli& md = moduli_[k];
       const Geometry& geo = geometry_[body_[k]];
-      const double modulus = md.kappa + 2 * md.mu + 2 * (md.alpha[0] + md.alpha[1] + md.alpha[2]);
+      double modulus = md.kappa + 2 * md.mu + 2 * (md.alpha[0] + md.alpha[1] + md.alpha[2]);
+      for (int q = 0; q < fibre_count(k); ++q)
+        modulus += std::abs(fibres(k)[q].E_f) + 2 * std::abs(fibres(k)[q].dG) + 2 * std::abs(fibres(k)[q].alpha);
       for (int a = 0; a < 8; ++a) {
         const double* g = geo.g[a];
         scale[corner_[8 * k + a]] += geo.volume * modulus * std::sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
@@ -297,8 +424,15 @@ private:
     for (int q = 0; q < 9; ++q) F[q] = G[q] + (q % 4 == 0 ? 1.0 : 0.0);
   }
 
+  // The fibre families of cell k: fibres_[fibre_begin_[k] .. fibre_begin_[k + 1]); both empty on a rank
+  // without fibres (a body without fibres pays nothing).
+  const Fibre* fibres(int k) const { return fibre_begin_.empty() ? nullptr : fibres_.data() + fibre_begin_[k]; }
+  int fibre_count(int k) const { return fibre_begin_.empty() ? 0 : fibre_begin_[k + 1] - fibre_begin_[k]; }
+
   const LocalModel& m_;
   int cells_ = 0;
+  std::vector<int> fibre_begin_;
+  std::vector<Fibre> fibres_;
   std::vector<int> corner_;  // 8 local indices per cell, corner c = (c & 1, c >> 1 & 1, c >> 2 & 1)
   std::vector<Moduli> moduli_;
   std::vector<int> body_;

@@ -111,20 +111,24 @@ void apply_poisson(const Section& body_table, BodySpec& b, const CalibrationSpec
 
 // [body.fibres] (and [body.region.fibres]): one fibre family (docs/anisotropy.md). The five constants are checked
 // once the body's nu_TT is known (apply_fibres).
-FibreSpec read_fibres(const Section& s) {
+// A tissue preset with fibre values (ligament, tendon) gives E_L, nu_LT and G_L unless the table does.
+FibreSpec read_fibres(const Section& s, const std::string& material) {
   s.allow({"direction", "youngs_modulus", "poisson_ratio", "shear_modulus", "tension_only", "toe"});
+  const TissuePreset* p = material == "custom" ? nullptr : find_tissue(material);
+  if (p && !(p->transverse_modulus > 0)) p = nullptr;
   s.require("direction", "the fibre direction, 3 numbers (normalized by the reader)");
-  s.require("youngs_modulus", "E_L, the modulus along the fibres (Pa)");
-  s.require("poisson_ratio", "nu_LT, the contraction across the fibres under tension along them");
+  if (!p) s.require("youngs_modulus", "E_L, the modulus along the fibres (Pa)");
+  if (!p) s.require("poisson_ratio", "nu_LT, the contraction across the fibres under tension along them");
   FibreSpec f;
   const Vec3 d = *s.vec3("direction");
   const double n = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
   if (!(n > 0) || !std::isfinite(n)) s.fail("direction", "must be a non-zero vector");
   for (int a = 0; a < 3; ++a) f.direction[a] = d[a] / n;
-  f.youngs_modulus = *s.number("youngs_modulus");
+  f.youngs_modulus = p ? s.number("youngs_modulus").value_or(p->youngs_modulus) : *s.number("youngs_modulus");
   s.positive("youngs_modulus", f.youngs_modulus);
-  f.poisson_ratio = *s.number("poisson_ratio");
+  f.poisson_ratio = p ? s.number("poisson_ratio").value_or(p->fibre_poisson_ratio) : *s.number("poisson_ratio");
   f.shear_modulus = s.number("shear_modulus");
+  if (!f.shear_modulus && p) f.shear_modulus = p->fibre_shear_modulus;
   if (f.shear_modulus) s.positive("shear_modulus", *f.shear_modulus);
   f.tension_only = s.boolean("tension_only").value_or(false);
   if (s.has("toe")) {
@@ -143,6 +147,13 @@ FibreSpec read_fibres(const Section& s) {
                                      f.toe_exponent * (f.toe_stretch - 1.0)));
   }
   return f;
+}
+
+// [fibres] of a body or region: with a fibre preset its youngs_modulus, unless given, is the preset's E_T.
+void read_fibre_material(const Section& s, const std::string& material, double& E, std::optional<FibreSpec>& fibres) {
+  fibres = read_fibres(s.table("fibres"), material);
+  const TissuePreset* p = material == "custom" ? nullptr : find_tissue(material);
+  if (p && p->transverse_modulus > 0 && !s.has("youngs_modulus")) E = p->transverse_modulus;
 }
 
 // Fibres: only homogenized on a box lattice with diagonals honours them; the five constants must be a positive
@@ -310,12 +321,12 @@ BodySpec read_body(const Section& s) {
   topologies.push_back("random");  // explicit: src/model/random_cloud.hpp
   b.topology = s.choice("topology", topologies).value_or(b.topology);
   if (s.has("viscoelastic")) b.viscoelastic = read_viscoelastic(s.table("viscoelastic"));
-  if (s.has("fibres")) b.fibres = read_fibres(s.table("fibres"));
   if (s.has("seed") && b.topology != "random") s.fail("seed", "only topology = \"random\" has a seed");
   b.seed = s.integer("seed").value_or(b.seed);
   if (b.topology == "random" && !s.tables("region").empty())
     s.fail("region", "a random box has no regions yet (give the body one material)");
   read_material(s, b.material, b.youngs_modulus, b.density, &b.poisson_ratio);
+  if (s.has("fibres")) read_fibre_material(s, b.material, b.youngs_modulus, b.fibres);
   b.offset = s.vec3("offset").value_or(b.offset);
   b.radius = s.number("radius");
   if (b.radius) s.positive("radius", *b.radius);
@@ -331,7 +342,7 @@ BodySpec read_body(const Section& s) {
       if (spec.lo[a] > spec.hi[a])
         r.fail("hi", fmt::format("hi[{}] = {} is below lo[{}] = {}", a, spec.hi[a], a, spec.lo[a]));
     read_material(r, spec.material, spec.youngs_modulus, spec.density, &spec.poisson_ratio);
-    if (r.has("fibres")) spec.fibres = read_fibres(r.table("fibres"));
+    if (r.has("fibres")) read_fibre_material(r, spec.material, spec.youngs_modulus, spec.fibres);
     b.regions.push_back(spec);
   }
   return b;

@@ -12,9 +12,13 @@ const std::vector<TissuePreset>& tissue_presets() {
        "Jurvelin, Buschmann, Hunziker 1997, J Biomech 30:235"},
       {"ligament", 400.0e6, 1130.0, "184-516 MPa (human MCL 327-442, LCL 184-494, rabbit ACL 516)",
        "PMC8792233; Woo 1992, J Biomech 25:377", 0.45, "0.4-0.5 (nearly incompressible)",
-       "Weiss, Maker, Govindjee 1996, CMAME 135:107"},
+       "Weiss, Maker, Govindjee 1996, CMAME 135:107", 11.0e6, 0.45, 1.4e6,
+       "E_T 11.0 +- 3.6 MPa (human MCL, Quapp & Weiss 1998, J Biomech Eng 120:757); G_L 1.4 MPa (human MCL shear, "
+       "Weiss, Gardiner, Bonifasi-Lista 2002, J Biomech 35:943); nu_LT = nu_TT = 0.45 assumed"},
       {"tendon", 600.0e6, 1130.0, "500-660 MPa (range 143-2310 MPa)", "Ann Biomed Eng 43:641 (2015) Table 1", 0.45,
-       "0.4-0.5 (nearly incompressible)", "Weiss, Maker, Govindjee 1996, CMAME 135:107"},
+       "0.4-0.5 (nearly incompressible)", "Weiss, Maker, Govindjee 1996, CMAME 135:107", 20.0e6, 0.45, 1.4e6,
+       "E_T and G_L: the ligament's ratios E_T / E_L = 11 / 332 and G_L (assumed; transverse tendon data are sparse, "
+       "Lynch et al. 2003, J Biomech Eng 125:726); nu_LT = nu_TT = 0.45 assumed"},
       {"cortical-bone", 17.0e9, 2000.0, "10-20 GPa (range 3-30 GPa)",
        "Zysset 1999 J Biomech 32:1005; Mech Mater 44:174 (2012)", 0.3, "0.2-0.4",
        "Reilly, Burstein 1975, J Biomech 8:393"},

@@ -16,6 +16,12 @@ struct TissuePreset {
   double poisson_ratio;             // drained / linear-region nu, representative
   std::string poisson_range;        // its literature range, in words
   std::string poisson_source;
+  // Fibres (docs/anisotropy.md), used only when the scene gives [body.fibres] (0: none): the body's E is then
+  // transverse_modulus (E_T) unless given, and the fibres' E_L = youngs_modulus, nu_LT, G_L unless given.
+  double transverse_modulus = 0;
+  double fibre_poisson_ratio = 0;   // nu_LT
+  double fibre_shear_modulus = 0;   // G_L
+  std::string fibre_source;
 };
 
 const std::vector<TissuePreset>& tissue_presets();

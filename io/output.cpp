@@ -15,6 +15,7 @@
 #include "io/summary.hpp"
 #include "partition/agreement.hpp"
 #include "src/calibration/calibration.hpp"
+#include "src/model/cell_law.hpp"
 
 namespace tissue {
 
@@ -25,6 +26,17 @@ std::vector<std::int64_t> written_connection_ids(const LocalModel& m) {
   ids.reserve(m.written_here().size());
   for (int c : m.written_here()) ids.push_back(m.connection_id(c));
   return ids;
+}
+
+// Bodies with fibres (docs/anisotropy.md): the deformed fibre direction and stretch per molecule, 0 where no fibre
+// cell touches the molecule. Decided from the scene, so every rank takes part in the collective reordering.
+bool scene_has_fibres(const Scene& scene) {
+  const std::vector<BodySpec> specs = scene.bodies.empty() ? std::vector<BodySpec>{scene.body} : scene.bodies;
+  for (std::size_t b = 0; b < specs.size(); ++b)
+    if (specs[b].has_fibres() &&
+        body_has_cells(specs[b], b < scene.calibrations.size() ? scene.calibrations[b] : scene.calibration))
+      return true;
+  return false;
 }
 
 bool wants(const Scene& s, const char* field) {
@@ -89,7 +101,18 @@ std::string Output::snapshot_name(long step) {
 
 double Output::stage_bytes() const {
   // At most: 4 vectors of 3 doubles per molecule, the endpoints and 3 doubles per connection.
-  return 96.0 * static_cast<double>(model_.global_molecules) + 40.0 * static_cast<double>(model_.global_connections);
+  // Fibres add a direction and a stretch per molecule.
+  return (scene_has_fibres(scene_) ? 128.0 : 96.0) * static_cast<double>(model_.global_molecules) + 40.0 * static_cast<double>(model_.global_connections);
+}
+
+
+void Output::add_fibre_field(SnapshotFrame& frame, const ForceModel& forces, const double* x) {
+  if (!scene_has_fibres(scene_)) return;
+  const int n = model_.owned;
+  std::vector<double> direction(3 * n, 0.0), stretch(n, 0.0);
+  forces.fibre_field(x, direction.data(), stretch.data());
+  frame.fibre_direction = molecules().to_natural(direction.data(), 3);
+  frame.fibre_stretch = molecules().to_natural(stretch.data(), 1);
 }
 
 void Output::write_snapshot_stage(const SolverState& state, const ForceModel& forces, bool final,
@@ -115,6 +138,7 @@ void Output::write_snapshot_stage(const SolverState& state, const ForceModel& fo
     frame.displacements = molecules().to_natural(u.data(), 3);
   }
   if (wants(scene_, "velocities")) frame.velocities = molecules().to_natural(state.v.data(), 3);
+  add_fibre_field(frame, forces, x);
   if (wants(scene_, "forces")) {
     // The connection forces on each molecule: they balance the loads at equilibrium and are the reactions at
     // held molecules (the net force, zero at equilibrium, would show nothing).
@@ -327,7 +351,8 @@ std::string describe(const Hdf5File& file) {
   out += "  written by:  " + number("ranks") + " ranks, tissue " + text("version") + "\n";
   out += "  datasets:   ";
   for (const char* d : {"/molecules/positions", "/molecules/displacements", "/molecules/velocities",
-                        "/molecules/forces", "/connections/endpoints", "/connections/strain", "/connections/force"})
+                        "/molecules/forces", "/molecules/fibre_direction", "/molecules/fibre_stretch",
+                        "/connections/endpoints", "/connections/strain", "/connections/force"})
     if (file.exists(d)) {
       auto shape = file.shape(d);
       out += std::string(" ") + d + " [" + std::to_string(shape[0]) + " x " +

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "io/snapshot.hpp"
 #include "io/xdmf.hpp"
 #include "partition/natural_order.hpp"
 #include "src/measure/measure.hpp"
@@ -40,6 +41,7 @@ private:
   static std::string snapshot_name(long step);
   double stage_bytes() const;  // a bound on one file's size, for its StageDeadline
   void write_snapshot_stage(const SolverState& state, const ForceModel& forces, bool final, const char* name);
+  void add_fibre_field(SnapshotFrame& frame, const ForceModel& forces, const double* x);
   void write_summary(const TensionTest& test, const Measurements& measured, const Measurements& initial,
                      const SolveReport& report, const SolverState& state, double wall_seconds,
                      const std::string& failure, long peak_max);

@@ -33,6 +33,8 @@ XdmfEntry write_snapshot(const std::string& path, MPI_Comm comm, const SnapshotF
       {"/connections/endpoints", "", false, 2, nullptr, f.endpoints.data(), f.endpoints.size()},
       {"/connections/strain", "1", false, 1, f.connection_strain.data(), nullptr, f.connection_strain.size()},
       {"/connections/force", "N", false, 1, f.connection_force.data(), nullptr, f.connection_force.size()},
+      {"/molecules/fibre_direction", "1", true, 3, f.fibre_direction.data(), nullptr, f.fibre_direction.size()},
+      {"/molecules/fibre_stretch", "1", true, 1, f.fibre_stretch.data(), nullptr, f.fibre_stretch.size()},
   };
   constexpr int n_fields = sizeof(fields) / sizeof(fields[0]);
 
@@ -109,6 +111,8 @@ XdmfEntry write_snapshot(const std::string& path, MPI_Comm comm, const SnapshotF
   e.endpoints = any[4];
   e.connection_strain = any[5];
   e.connection_force = any[6];
+  e.fibre_direction = any[7];
+  e.fibre_stretch = any[8];
   return e;
 }
 

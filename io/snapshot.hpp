@@ -30,6 +30,8 @@ struct SnapshotFrame {
 
   int64_t molecule_offset = 0, molecule_rows = 0;
   std::vector<double> positions, displacements, velocities, forces;  // 3 * molecule_rows each, or empty
+  // Bodies with fibres (docs/anisotropy.md): the deformed fibre direction (3) and stretch (1) per molecule.
+  std::vector<double> fibre_direction, fibre_stretch;
 
   int64_t connection_offset = 0, connection_rows = 0;
   std::vector<int64_t> endpoints;                        // 2 * connection_rows, or empty

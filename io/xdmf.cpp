@@ -43,6 +43,13 @@ void attribute(std::ostream& os, const char* name, bool vector, bool node, const
   os << "        </Attribute>\n";
 }
 
+// Bodies with fibres: the deformed fibre direction (glyphs) and stretch (colour) per molecule.
+void write_fibre_attributes(std::ostream& os, const XdmfEntry& f) {
+  if (f.fibre_direction)
+    attribute(os, "fibre_direction", true, true, f.h5_file, "/molecules/fibre_direction", f.molecules);
+  if (f.fibre_stretch) attribute(os, "fibre_stretch", false, true, f.h5_file, "/molecules/fibre_stretch", f.molecules);
+}
+
 }  // namespace
 
 void write_xdmf(const std::string& path, const std::vector<XdmfEntry>& frames) {
@@ -74,6 +81,7 @@ void write_xdmf(const std::string& path, const std::vector<XdmfEntry>& frames) {
     if (f.connection_strain) attribute(os, "strain", false, false, f.h5_file, "/connections/strain", f.connections);
     if (f.connection_force)
       attribute(os, "connection_force", false, false, f.h5_file, "/connections/force", f.connections);
+    write_fibre_attributes(os, f);
     os << "      </Grid>\n";
   }
   os << "    </Grid>\n"

@@ -18,6 +18,7 @@ struct XdmfEntry {
   bool positions = true, endpoints = true;                          // the mesh: required by write_xdmf
   bool displacements = false, velocities = false, forces = false;  // /molecules/...
   bool connection_strain = false, connection_force = false;         // /connections/strain, /connections/force
+  bool fibre_direction = false, fibre_stretch = false;              // /molecules/fibre_* (bodies with fibres)
 };
 
 // Not collective: call on one rank (rank 0). Writes <path>.tmp and renames it to path, so readers never see a

@@ -9,6 +9,7 @@
 //  - a toe-law bar follows the one-cell Cauchy-Born response of the same energy (lateral stretch solved by a
 //    Newton here) to 1e-6 along the whole curve; the static Newton converges quadratically through the toe;
 //  - the fibre terms' force against a finite difference of the energy, the tangent against one of the force;
+//  - the snapshot's fibre field (direction, stretch) against the affine stretch;
 //  - bad input: exit-2 errors naming the key.
 #include <gtest/gtest.h>
 #include <petscsys.h>
@@ -384,6 +385,29 @@ TEST(Anisotropy, FibreTermDerivatives) {
     }
     EXPECT_GT(checked, 30);
     MatDestroy(&J);
+  }
+}
+
+// The fibre field of the snapshots: under tension along the fibres (affine state) every molecule's fibre stretch
+// is 1 + the measured strain and its direction stays along z; across the fibres the stretch is 1 - nu_TL strain.
+TEST(Anisotropy, FibreFieldIsTheAffineStretch) {
+  const Material m;
+  for (const int axis : {2, 0}) {
+    Case c;
+    c.direction = {0, 0, 0};
+    c.direction[axis] = 1;
+    c.stress = 1e-4 * (axis == 2 ? m.E_L : m.E_T);
+    auto r = run(scene_text(c), PETSC_COMM_WORLD);
+    ASSERT_TRUE(r->measured.elongation);
+    const double strain = *r->measured.elongation / 3.0;
+    const double want = axis == 2 ? 1 + strain : 1 - m.nu_LT * m.E_T / m.E_L * strain;
+    const int n = r->model.owned;
+    std::vector<double> direction(3 * n), stretch(n);
+    ASSERT_TRUE(r->forces->fibre_field(r->state->x.array(), direction.data(), stretch.data()));
+    for (int i = 0; i < n; ++i) {
+      EXPECT_NEAR(stretch[i] - 1, want - 1, 1e-6 * 1e-4) << "molecule " << r->model.id[i];
+      EXPECT_NEAR(direction[3 * i + axis], 1.0, 1e-9);
+    }
   }
 }
 

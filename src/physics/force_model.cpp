@@ -265,6 +265,12 @@ double ForceModel::terms_critical_time_step() const {
   return global;
 }
 
+bool ForceModel::fibre_field(const double* x, double* direction, double* stretch) const {
+  for (const auto& t : terms_)
+    if (t->fibre_field(x, direction, stretch)) return true;
+  return false;
+}
+
 void ForceModel::add_force_scale(std::vector<double>& scale) const {
   for (const auto& t : terms_) t->add_force_scale(scale);
 }

@@ -39,6 +39,9 @@ public:
   double terms_critical_time_step() const;
   // Adds each term's force scale per owned molecule (N) to scale (the residual's round-off floor).
   void add_force_scale(std::vector<double>& scale) const;
+  // The fibre field of the terms that carry fibres (Term::fibre_field), 3 and 1 values per owned molecule; false
+  // (and nothing written) when no term has fibres on this rank.
+  bool fibre_field(const double* x, double* direction, double* stretch) const;
 
   const std::vector<std::uint8_t>& held() const { return held_; }   // 3 * owned: 1 = held component
   // The held components of owned molecules, ascending (few: faces only), so a step does not scan held().

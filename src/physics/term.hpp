@@ -56,6 +56,10 @@ public:
   virtual double critical_time_step() const { return std::numeric_limits<double>::infinity(); }
   // The scale of the term's forces per owned molecule (N), added in squares to the residual's round-off floor.
   virtual void add_force_scale(std::vector<double>& scale) const {}
+  // Terms that carry fibres (the cell term, docs/anisotropy.md): per owned molecule the mean over its fibre cells
+  // of the deformed fibre direction F a / |F a| (3 values, normalized; 0 where no cell has fibres) and of the
+  // fibre stretch |F a| (0 there). Returns false when the term has no fibres on any molecule of this rank.
+  virtual bool fibre_field(const double* x, double* direction, double* stretch) const { return false; }
 
   // Terms with internal variables that follow the time steps (the viscoelastic history of an elastic term: springs
   // now, per-cell terms later). Until the first begin_step such a term adds nothing, so static and relaxation

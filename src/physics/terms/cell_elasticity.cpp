@@ -405,6 +405,39 @@ public:
     }
   }
 
+  bool fibre_field(const double* x, double* direction, double* stretch) const override {
+    if (fibre_begin_.empty()) return false;
+    std::vector<int> count(m_.owned, 0);
+    std::fill(direction, direction + 3 * m_.owned, 0.0);
+    std::fill(stretch, stretch + m_.owned, 0.0);
+    for (int k = 0; k < cells_; ++k) {
+      if (fibre_count(k) == 0) continue;
+      // The cell's stiffest family (a cell across a region boundary may hold two).
+      const Fibre* f = fibres(k);
+      for (int q = 1; q < fibre_count(k); ++q)
+        if (fibres(k)[q].E_f > f->E_f) f = fibres(k) + q;
+      double F[9], Fa[3];
+      gradient(x, &corner_[8 * k], geometry_[body_[k]], F);
+      for (int i = 0; i < 3; ++i) Fa[i] = F[3 * i] * f->a[0] + F[3 * i + 1] * f->a[1] + F[3 * i + 2] * f->a[2];
+      const double l = std::sqrt(Fa[0] * Fa[0] + Fa[1] * Fa[1] + Fa[2] * Fa[2]);
+      for (int c = 0; c < 8; ++c) {
+        const int i = corner_[8 * k + c];
+        if (i >= m_.owned) continue;
+        for (int d = 0; d < 3; ++d) direction[3 * i + d] += Fa[d] / l;
+        stretch[i] += l;
+        ++count[i];
+      }
+    }
+    for (int i = 0; i < m_.owned; ++i) {
+      if (count[i] == 0) continue;
+      stretch[i] /= count[i];
+      const double* d = direction + 3 * i;
+      const double n = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+      for (int j = 0; j < 3; ++j) direction[3 * i + j] /= n > 0 ? n : 1.0;
+    }
+    return true;
+  }
+
 private:
   struct Geometry {
     double volume = 0;

@@ -217,6 +217,24 @@ double energy_density(const double F[9], const Moduli& m, const Fibre* fibres, i
   return W;
 }
 
+// The fibre terms' second Piola-Kirchhoff stress S_f = F^-1 P_f (objective: the quantity the Prony history of
+// quasi-linear viscoelasticity follows, docs/anisotropy.md); false when J <= 0.
+template <class T>
+bool fibre_pk2(const T F[9], const Fibre* fibres, int nfibres, T S[9]) {
+  const T cof[9] = {F[4] * F[8] - F[5] * F[7], F[5] * F[6] - F[3] * F[8], F[3] * F[7] - F[4] * F[6],
+                    F[2] * F[7] - F[1] * F[8], F[0] * F[8] - F[2] * F[6], F[1] * F[6] - F[0] * F[7],
+                    F[1] * F[5] - F[2] * F[4], F[2] * F[3] - F[0] * F[5], F[0] * F[4] - F[1] * F[3]};
+  const T J = F[0] * cof[0] + F[1] * cof[1] + F[2] * cof[2];
+  if (!(value(J) > 0)) return false;
+  T P[9];
+  for (int q = 0; q < 9; ++q) P[q] = T(0.0);
+  for (int k = 0; k < nfibres; ++k) add_fibre_stress(F, J, cof, fibres[k], P);
+  // F^-1_im = cof_mi / J
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) S[3 * i + j] = (cof[i] * P[j] + cof[3 + i] * P[3 + j] + cof[6 + i] * P[6 + j]) / J;
+  return true;
+}
+
 class CellElasticity final : public Term {
 public:
   CellElasticity(const Scene& scene, const LocalModel& model) : m_(model) {
@@ -283,6 +301,16 @@ public:
           if (o.same_law(f)) o.E_f += f.E_f, o.dG += f.dG, o.alpha += f.alpha, merged = true;
         if (!merged) families.push_back(f);
       }
+      if (!families.empty() && !specs[b].viscoelastic.empty()) {
+        // Quasi-linear viscoelastic fibres: a history per Prony term on this cell's fibre stress.
+        if (history_.empty()) history_.assign(k, -1);
+        history_.push_back(history_cells_++);
+        double sum = 0;
+        for (double g : specs[b].viscoelastic.gamma) sum += g;
+        modulus *= 1.0 + sum;  // the explicit step follows the instantaneous modulus (an upper bound here)
+      } else if (!history_.empty()) {
+        history_.push_back(-1);
+      }
       if (!families.empty() && fibre_begin_.empty()) fibre_begin_.assign(k + 1, 0);
       if (!fibre_begin_.empty()) {
         fibres_.insert(fibres_.end(), families.begin(), families.end());
@@ -298,6 +326,17 @@ public:
       // 0.8 h / c_p: measured limits of dynamic runs are 0.85-1.1 h / c_p (docs/poisson.md), so this is a lower
       // bound within 1.4x of them.
       dt_ = std::min(dt_, 0.8 * h / std::sqrt(modulus / density));
+    }
+    if (history_cells_ > 0) {
+      const int nb = static_cast<int>(specs.size());
+      for (const auto& spec : specs) width_ = std::max(width_, static_cast<int>(spec.viscoelastic.gamma.size()));
+      gamma_.assign(nb * width_, 0.0), tau_.assign(nb * width_, 1.0);
+      for (int b = 0; b < nb; ++b)
+        for (std::size_t i = 0; i < specs[b].viscoelastic.gamma.size(); ++i)
+          gamma_[b * width_ + i] = specs[b].viscoelastic.gamma[i], tau_[b * width_ + i] = specs[b].viscoelastic.tau[i];
+      decay_.assign(gamma_.size(), 1.0), weight_.assign(gamma_.size(), 0.0);
+      s_old_.assign(9 * static_cast<std::size_t>(history_cells_), 0.0);
+      h_.assign(9 * static_cast<std::size_t>(history_cells_) * width_, 0.0);
     }
     // The gradient weights g_a and V0 per body.
     for (int b = 0; b < model.shape.bodies(); ++b) {
@@ -316,7 +355,7 @@ public:
       const Geometry& geo = geometry_[body_[k]];
       double F[9], P[9];
       gradient(x, corner, geo, F);
-      if (!stress(F, moduli_[k], fibres(k), fibre_count(k), P)) {
+      if (!stress(F, moduli_[k], fibres(k), fibre_count(k), P) || !add_history(F, k, P)) {
         // An inverted cell: its energy is infinite; NaN forces make every solver's guard stop or cut back.
         for (int c = 0; c < 8; ++c)
           if (corner[c] < m_.owned)
@@ -355,7 +394,7 @@ public:
       for (int kl = 0; kl < 9; ++kl) {
         Dual Fd[9], Pd[9];
         for (int q = 0; q < 9; ++q) Fd[q] = Dual(F[q], q == kl ? 1.0 : 0.0);
-        if (!stress(Fd, moduli_[k], fibres(k), fibre_count(k), Pd)) return 0;  // inverted: the residual is NaN already
+        if (!stress(Fd, moduli_[k], fibres(k), fibre_count(k), Pd) || !add_history(Fd, k, Pd)) return 0;  // inverted: the residual is NaN already
         for (int q = 0; q < 9; ++q) D[kl][q] = Pd[q].d;
       }
       // Dg[kl][a][i] = sum_j D[kl][ij] g_a[j]
@@ -405,6 +444,38 @@ public:
     }
   }
 
+  bool has_history() const override { return history_cells_ > 0; }
+
+  void begin_step(double dt) override {
+    if (history_cells_ == 0) return;
+    active_ = stepping_ = true;
+    for (std::size_t j = 0; j < gamma_.size(); ++j) {
+      const double r = dt / tau_[j];
+      decay_[j] = std::exp(-r);
+      weight_[j] = gamma_[j] * (r > 0 ? -std::expm1(-r) / r : 1.0);  // gamma beta, as the springs' history
+    }
+  }
+
+  void commit_step(const double* x) override {
+    if (!active_) return;
+    for (int k = 0; k < cells_; ++k) {
+      const int c = history_[k];
+      if (c < 0) continue;
+      double F[9], S[9];
+      gradient(x, &corner_[8 * k], geometry_[body_[k]], F);
+      if (!fibre_pk2(F, fibres(k), fibre_count(k), S)) continue;
+      const double* w = weight_.data() + body_[k] * width_;
+      const double* e = decay_.data() + body_[k] * width_;
+      double* so = &s_old_[9 * static_cast<std::size_t>(c)];
+      for (int i = 0; i < width_; ++i) {
+        double* h = &h_[(static_cast<std::size_t>(c) * width_ + i) * 9];
+        for (int q = 0; q < 9; ++q) h[q] = e[i] * h[q] + w[i] * (S[q] - so[q]);
+      }
+      for (int q = 0; q < 9; ++q) so[q] = S[q];
+    }
+    stepping_ = false;
+  }
+
   bool fibre_field(const double* x, double* direction, double* stretch) const override {
     if (fibre_begin_.empty()) return false;
     std::vector<int> count(m_.owned, 0);
@@ -439,6 +510,33 @@ public:
   }
 
 private:
+  // Quasi-linear viscoelastic fibres: P += F H, H = sum_i h_i the Prony histories of the fibre stress S_f,
+  //   h_i <- exp(-dt/tau_i) h_i + gamma_i beta_i (S_f(n+1) - S_f(n))
+  // (the springs' exact exponential update, src/physics/terms/viscoelastic.cpp); within a step H follows x (the
+  // tangent is exact through the same dual numbers), outside one it is frozen. False when J <= 0.
+  template <class T>
+  bool add_history(const T F[9], int k, T P[9]) const {
+    if (!active_ || history_.empty() || history_[k] < 0) return true;
+    const std::size_t c = static_cast<std::size_t>(history_[k]);
+    T H[9];
+    for (int q = 0; q < 9; ++q) H[q] = T(0.0);
+    if (stepping_) {
+      T S[9];
+      if (!fibre_pk2(F, fibres(k), fibre_count(k), S)) return false;
+      const double* w = weight_.data() + body_[k] * width_;
+      const double* e = decay_.data() + body_[k] * width_;
+      for (int i = 0; i < width_; ++i)
+        for (int q = 0; q < 9; ++q) H[q] = H[q] + T(e[i] * h_[(c * width_ + i) * 9 + q]) + T(w[i]) * (S[q] - T(s_old_[9 * c + q]));
+    } else {
+      for (int i = 0; i < width_; ++i)
+        for (int q = 0; q < 9; ++q) H[q] = H[q] + T(h_[(c * width_ + i) * 9 + q]);
+    }
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j)
+        P[3 * i + j] = P[3 * i + j] + F[3 * i] * H[j] + F[3 * i + 1] * H[3 + j] + F[3 * i + 2] * H[6 + j];
+    return true;
+  }
+
   struct Geometry {
     double volume = 0;
     double g[8][3];
@@ -466,6 +564,12 @@ private:
   int cells_ = 0;
   std::vector<int> fibre_begin_;
   std::vector<Fibre> fibres_;
+  // Viscoelastic fibre cells only (all empty otherwise): history_[k] = the cell's history slot or -1.
+  std::vector<int> history_;
+  int history_cells_ = 0, width_ = 0;
+  std::vector<double> gamma_, tau_, decay_, weight_;  // per body and Prony term
+  std::vector<double> s_old_, h_;                     // per history cell: committed S_f (9), h per term (9 each)
+  bool active_ = false, stepping_ = false;
   std::vector<int> corner_;  // 8 local indices per cell, corner c = (c & 1, c >> 1 & 1, c >> 2 & 1)
   std::vector<Moduli> moduli_;
   std::vector<int> body_;

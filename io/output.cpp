@@ -15,6 +15,7 @@
 #include "io/summary.hpp"
 #include "partition/agreement.hpp"
 #include "src/calibration/calibration.hpp"
+#include "src/model/cell_law.hpp"
 
 namespace tissue {
 
@@ -88,8 +89,11 @@ std::string Output::snapshot_name(long step) {
 }
 
 double Output::stage_bytes() const {
-  // At most: 4 vectors of 3 doubles per molecule, the endpoints and 3 doubles per connection.
-  return 96.0 * static_cast<double>(model_.global_molecules) + 40.0 * static_cast<double>(model_.global_connections);
+  // At most: 4 vectors of 3 doubles per molecule, the endpoints and 3 doubles per connection, and (fewer cells
+  // than molecules) 8 corners and J per cell.
+  const double cells = scene_has_cells(scene_) ? 72.0 * static_cast<double>(model_.global_molecules) : 0.0;
+  return 96.0 * static_cast<double>(model_.global_molecules) + 40.0 * static_cast<double>(model_.global_connections) +
+         cells;
 }
 
 void Output::write_snapshot_stage(const SolverState& state, const ForceModel& forces, bool final,
@@ -140,6 +144,18 @@ void Output::write_snapshot_stage(const SolverState& state, const ForceModel& fo
   frame.endpoints = connections().to_natural_ids(ends.data(), 2);
   if (wants(scene_, "connection_strain")) frame.connection_strain = connections().to_natural(strain.data(), 1);
   if (wants(scene_, "connection_force")) frame.connection_force = connections().to_natural(tension.data(), 1);
+  // Cells (the cell term's): their corners and volume ratio J, whatever the fields (the cells are the mesh
+  // ParaView shows J on); a scene without cells computes nothing here.
+  const CellField cells = forces.cells(x);
+  if (cells.global_count > 0) {
+    if (!cells_) cells_ = std::make_unique<NaturalOrder>(model_.comm, cells.id, cells.global_count);
+    frame.cells = cells.global_count;
+    frame.cell_nodes = cells.nodes;
+    frame.cell_offset = cells_->begin();
+    frame.cell_rows = cells_->count();
+    frame.cell_corners = cells_->to_natural_ids(cells.corners.data(), cells.nodes);
+    frame.volume_ratio = cells_->to_natural(cells.volume_ratio.data(), 1);
+  }
 
   char name[64];
   if (file_name) std::snprintf(name, sizeof name, "%s", file_name);
@@ -327,7 +343,8 @@ std::string describe(const Hdf5File& file) {
   out += "  written by:  " + number("ranks") + " ranks, tissue " + text("version") + "\n";
   out += "  datasets:   ";
   for (const char* d : {"/molecules/positions", "/molecules/displacements", "/molecules/velocities",
-                        "/molecules/forces", "/connections/endpoints", "/connections/strain", "/connections/force"})
+                        "/molecules/forces", "/connections/endpoints", "/connections/strain", "/connections/force",
+                        "/cells/corners", "/cells/volume_ratio"})
     if (file.exists(d)) {
       auto shape = file.shape(d);
       out += std::string(" ") + d + " [" + std::to_string(shape[0]) + " x " +

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 #include <string>
 
 #include "src/physics/named_faces.hpp"
@@ -267,6 +268,18 @@ double ForceModel::terms_critical_time_step() const {
 
 void ForceModel::add_force_scale(std::vector<double>& scale) const {
   for (const auto& t : terms_) t->add_force_scale(scale);
+}
+
+CellField ForceModel::cells(const double* x) const {
+  CellField out;
+  for (const auto& t : terms_) {
+    CellField c;
+    t->cells(x, c);
+    if (c.global_count == 0) continue;
+    if (out.global_count > 0) throw std::logic_error("two terms hold cells: the snapshots write one cell field");
+    out = std::move(c);
+  }
+  return out;
 }
 
 PetscErrorCode ForceModel::assemble_tangent(const double* x, Mat J) const {

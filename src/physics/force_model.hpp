@@ -39,6 +39,8 @@ public:
   double terms_critical_time_step() const;
   // Adds each term's force scale per owned molecule (N) to scale (the residual's round-off floor).
   void add_force_scale(std::vector<double>& scale) const;
+  // The cells of the term that has them (Term::cells; none: global_count 0), at x (ghosts up to date).
+  CellField cells(const double* x) const;
 
   const std::vector<std::uint8_t>& held() const { return held_; }   // 3 * owned: 1 = held component
   // The held components of owned molecules, ascending (few: faces only), so a step does not scan held().

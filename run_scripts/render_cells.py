@@ -8,12 +8,25 @@ import sys
 from paraview.simple import *  # noqa: F401,F403
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from pv_common import last_frame, title  # noqa: E402
+from pv_common import title  # noqa: E402
 
 xdmf, title_text, image, warp = sys.argv[1], sys.argv[2], sys.argv[3], float(sys.argv[4])
-view, calc = last_frame(xdmf, [1200, 800])
-cells = ExtractBlock(Input=calc)
-cells.Selectors = ["/Root/cells"]  # the hexahedra; the other block is the connections (polylines)
+# Xdmf3ReaderT keeps the XDMF's two grids apart (cells, connections) where Xdmf3ReaderS joins them as pieces.
+reader = Xdmf3ReaderT(FileName=[xdmf])
+times = reader.TimestepValues
+last = times[-1] if hasattr(times, "__len__") else times
+view = GetActiveViewOrCreate("RenderView")
+view.ViewSize = [1200, 800]
+view.Background = [1, 1, 1]
+try:
+    view.UseColorPaletteForBackground = 0
+except AttributeError:  # older ParaView
+    pass
+if last is not None:
+    view.ViewTime = last
+    GetAnimationScene().AnimationTime = last
+# the cells: the only grid with volume_ratio (the connections' grid has none, so the threshold drops it)
+cells = Threshold(Input=reader, Scalars=["CELLS", "volume_ratio"], LowerThreshold=0.0, UpperThreshold=1e30)
 merged = MergeBlocks(Input=cells)
 rest = WarpByVector(Input=merged, Vectors=["POINTS", "displacement"], ScaleFactor=-1.0)
 outline = Show(rest, view)

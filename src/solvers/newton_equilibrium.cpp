@@ -15,7 +15,6 @@
 #include <memory>
 #include <utility>
 
-#include "src/model/cell_law.hpp"
 #include "src/solvers/guards.hpp"
 #include "src/solvers/lattice_galerkin.hpp"
 #include "src/solvers/lattice_mg.hpp"
@@ -256,20 +255,6 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
   LatticeLevels hierarchy;
   if (!user_pc) PetscCall(setup_lattice_mg(model, forces.held(), pc, 1000, &mg_levels, &hierarchy));
   lattice_mg = mg_levels > 1;
-  // With the cell term near incompressibility, Jacobi smoothing leaves the volumetric modes to the Krylov
-  // method (13 / 24 / 54 iterations at nu = 0.25 / 0.45 / 0.49 on 21^3); symmetric SOR sweeps (local to each
-  // rank, so the V-cycle stays symmetric for CG) roughly halve the growth (11 / 14 / 27; docs/benchmarks.md).
-  // Scenes without the cell term keep Jacobi and their results; -mg_levels_pc_type overrides.
-  PetscBool user_smoother = PETSC_FALSE;
-  PetscCall(PetscOptionsHasName(nullptr, nullptr, "-mg_levels_pc_type", &user_smoother));
-  if (lattice_mg && !user_smoother && scene_has_cells(scene))
-    for (PetscInt k = 1; k < mg_levels; ++k) {
-      KSP smoother;
-      PC spc;
-      PetscCall(PCMGGetSmoother(pc, k, &smoother));
-      PetscCall(KSPGetPC(smoother, &spc));
-      PetscCall(PCSetType(spc, PCSOR));
-    }
   PetscBool user_lag = PETSC_FALSE;
   PetscCall(PetscOptionsHasName(nullptr, nullptr, "-snes_lag_preconditioner", &user_lag));
   // The coarse operators from the lattice structure (lattice_galerkin.hpp) when the tangent is a lattice stencil

@@ -100,11 +100,13 @@ std::string Output::snapshot_name(long step) {
 }
 
 double Output::stage_bytes() const {
-  // At most: 4 vectors of 3 doubles per molecule, the endpoints and 3 doubles per connection.
-  // Fibres add a direction and a stretch per molecule.
-  return (scene_has_fibres(scene_) ? 128.0 : 96.0) * static_cast<double>(model_.global_molecules) + 40.0 * static_cast<double>(model_.global_connections);
+  // At most: 4 vectors of 3 doubles per molecule, the endpoints and 3 doubles per connection, (fewer cells
+  // than molecules) 8 corners and J per cell, and with fibres a direction and a stretch per molecule.
+  const double cells = scene_has_cells(scene_) ? 72.0 * static_cast<double>(model_.global_molecules) : 0.0;
+  const double fibres = scene_has_fibres(scene_) ? 32.0 * static_cast<double>(model_.global_molecules) : 0.0;
+  return 96.0 * static_cast<double>(model_.global_molecules) + 40.0 * static_cast<double>(model_.global_connections) +
+         cells + fibres;
 }
-
 
 void Output::add_fibre_field(SnapshotFrame& frame, const ForceModel& forces, const double* x) {
   if (!scene_has_fibres(scene_)) return;
@@ -164,6 +166,18 @@ void Output::write_snapshot_stage(const SolverState& state, const ForceModel& fo
   frame.endpoints = connections().to_natural_ids(ends.data(), 2);
   if (wants(scene_, "connection_strain")) frame.connection_strain = connections().to_natural(strain.data(), 1);
   if (wants(scene_, "connection_force")) frame.connection_force = connections().to_natural(tension.data(), 1);
+  // Cells (the cell term's): their corners and volume ratio J, whatever the fields (the cells are the mesh
+  // ParaView shows J on); a scene without cells computes nothing here.
+  const CellField cells = forces.cells(x);
+  if (cells.global_count > 0) {
+    if (!cells_) cells_ = std::make_unique<NaturalOrder>(model_.comm, cells.id, cells.global_count);
+    frame.cells = cells.global_count;
+    frame.cell_nodes = cells.nodes;
+    frame.cell_offset = cells_->begin();
+    frame.cell_rows = cells_->count();
+    frame.cell_corners = cells_->to_natural_ids(cells.corners.data(), cells.nodes);
+    frame.volume_ratio = cells_->to_natural(cells.volume_ratio.data(), 1);
+  }
 
   char name[64];
   if (file_name) std::snprintf(name, sizeof name, "%s", file_name);
@@ -352,7 +366,8 @@ std::string describe(const Hdf5File& file) {
   out += "  datasets:   ";
   for (const char* d : {"/molecules/positions", "/molecules/displacements", "/molecules/velocities",
                         "/molecules/forces", "/molecules/fibre_direction", "/molecules/fibre_stretch",
-                        "/connections/endpoints", "/connections/strain", "/connections/force"})
+                        "/connections/endpoints", "/connections/strain", "/connections/force",
+                        "/cells/corners", "/cells/volume_ratio"})
     if (file.exists(d)) {
       auto shape = file.shape(d);
       out += std::string(" ") + d + " [" + std::to_string(shape[0]) + " x " +

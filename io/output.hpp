@@ -47,7 +47,7 @@ private:
                      const std::string& failure, long peak_max);
   const Scene& scene_;
   const LocalModel& model_;
-  std::unique_ptr<NaturalOrder> molecules_, connections_;
+  std::unique_ptr<NaturalOrder> molecules_, connections_, cells_;  // cells_: built on the first snapshot with cells
   std::vector<XdmfEntry> frames_;
   bool directory_made_ = false;
 };

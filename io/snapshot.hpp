@@ -2,6 +2,8 @@
 // partition. Layout:
 //   /molecules/positions, displacements, velocities, forces   [N x 3] double
 //   /connections/endpoints [C x 2] int64 (a < b), strain [C x 1], force [C x 1] double
+//   /cells/corners [M x nodes] int64 (molecule ids: hexahedra of 8 corners in VTK order, or tetrahedra of 4),
+//   /cells/volume_ratio [M x 1] double (J = det F): only when the scene has cells (the cell term)
 //   root attributes: kind = "snapshot", program = "tissue", version, title, step, time, molecules, connections,
 //   ranks (the writer's communicator size)
 // Only the fields a frame holds are written: a scene asks for them, and absent fields cost nothing.
@@ -36,6 +38,13 @@ struct SnapshotFrame {
   int64_t connection_offset = 0, connection_rows = 0;
   std::vector<int64_t> endpoints;                        // 2 * connection_rows, or empty
   std::vector<double> connection_strain, connection_force;  // connection_rows, or empty
+
+  // Cells (a third block, tiled like the others): cells = 0 writes no /cells group.
+  int64_t cells = 0;  // M
+  int cell_nodes = 0;  // 8 or 4 (the same on every rank)
+  int64_t cell_offset = 0, cell_rows = 0;
+  std::vector<int64_t> cell_corners;  // cell_nodes * cell_rows
+  std::vector<double> volume_ratio;   // cell_rows
 };
 
 // Collective over comm. Writes path atomically (path.tmp, renamed when complete). Throws std::invalid_argument

@@ -57,8 +57,32 @@ void write_xdmf(const std::string& path, const std::vector<XdmfEntry>& frames) {
   os << std::setprecision(17);
   os << "<?xml version=\"1.0\" ?>\n"
      << "<Xdmf Version=\"3.0\">\n"
-     << "  <Domain>\n"
-     << "    <Grid Name=\"tissue\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
+     << "  <Domain>\n";
+  bool any_cells = false;
+  for (const XdmfEntry& f : frames) any_cells = any_cells || f.cells > 0;
+  if (any_cells) {
+    os << "    <Grid Name=\"cells\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
+    for (const XdmfEntry& f : frames) {
+      if (f.cells <= 0) continue;
+      if (f.cell_nodes != 8 && f.cell_nodes != 4)
+        throw std::invalid_argument(path + ": " + f.h5_file + ": cells of " + std::to_string(f.cell_nodes) + " corners");
+      os << "      <Grid Name=\"cells_" << f.step << "\" GridType=\"Uniform\">\n"
+         << "        <Time Value=\"" << f.time << "\"/>\n"
+         << "        <Topology TopologyType=\"" << (f.cell_nodes == 8 ? "Hexahedron" : "Tetrahedron")
+         << "\" NumberOfElements=\"" << f.cells << "\">\n";
+      data_item(os, f.h5_file, "/cells/corners", f.cells, f.cell_nodes, true);
+      os << "        </Topology>\n"
+         << "        <Geometry GeometryType=\"XYZ\">\n";
+      data_item(os, f.h5_file, "/molecules/positions", f.molecules, 3, false);
+      os << "        </Geometry>\n";
+      if (f.displacements) attribute(os, "displacement", true, true, f.h5_file, "/molecules/displacements", f.molecules);
+      if (f.velocities) attribute(os, "velocity", true, true, f.h5_file, "/molecules/velocities", f.molecules);
+      if (f.volume_ratio) attribute(os, "volume_ratio", false, false, f.h5_file, "/cells/volume_ratio", f.cells);
+      os << "      </Grid>\n";
+    }
+    os << "    </Grid>\n";
+  }
+  os << "    <Grid Name=\"tissue\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
   for (const XdmfEntry& f : frames) {
     if (f.h5_file.empty() || f.h5_file.find(':') != std::string::npos)
       throw std::invalid_argument(path + ": snapshot file name '" + f.h5_file + "' is empty or holds ':'");

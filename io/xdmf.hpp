@@ -19,11 +19,16 @@ struct XdmfEntry {
   bool displacements = false, velocities = false, forces = false;  // /molecules/...
   bool connection_strain = false, connection_force = false;         // /connections/strain, /connections/force
   bool fibre_direction = false, fibre_stretch = false;              // /molecules/fibre_* (bodies with fibres)
+  int64_t cells = 0;                                               // /cells/corners rows (0: no cells)
+  int cell_nodes = 0;                                              // 8: hexahedra, 4: tetrahedra
+  bool volume_ratio = false;                                       // /cells/volume_ratio
 };
 
 // Not collective: call on one rank (rank 0). Writes <path>.tmp and renames it to path, so readers never see a
 // half-written index. Node attributes are named displacement, velocity, force; cell (connection) attributes
-// strain and connection_force. Throws std::runtime_error if the file cannot be written,
+// strain and connection_force. Frames with cells also get a second temporal grid, "cells", written first (meshio's
+// TimeSeriesReader reads the last one, the connections): hexahedra or tetrahedra on the same positions, with the
+// node attributes and the cell attribute volume_ratio. Throws std::runtime_error if the file cannot be written,
 // std::invalid_argument for an entry without its mesh (positions, endpoints).
 void write_xdmf(const std::string& path, const std::vector<XdmfEntry>& frames);
 

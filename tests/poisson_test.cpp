@@ -254,6 +254,21 @@ TEST(Poisson, CriticalTimeStepFromPWave) {
   }
 }
 
+// Relaxation (FIRE) reaches equilibrium near incompressibility within its default iteration cap: E and both
+// lateral nu to 1e-5 on flat cells at nu = 0.45, 0.49 and 0.499 (the time step shrinks with h / c_p; docs/poisson.md).
+TEST(Poisson, RelaxationConvergesNearHalf) {
+  for (double nu : {0.45, 0.49, 0.499}) {
+    Case c;
+    c.h = {1, 1, 0.5}, c.nu = nu, c.solver = "relaxation";
+    auto r = run(scene_text(c), PETSC_COMM_WORLD);
+    ASSERT_TRUE(r->report.converged) << nu;
+    ASSERT_TRUE(r->measured.youngs_modulus && r->measured.poisson_ratios) << nu;
+    EXPECT_NEAR(*r->measured.youngs_modulus / E, 1.0, 1e-5) << nu;
+    EXPECT_NEAR((*r->measured.poisson_ratios)[0], nu, 1e-5) << nu;
+    EXPECT_NEAR((*r->measured.poisson_ratios)[1], nu, 1e-5) << nu;
+  }
+}
+
 // No locking: a 20 x 2 x 2 cantilever (clamped at x-, a tip load) at nu = 0.499 deflects within 5 % of the
 // nu = 1/4 one (one volume constraint per cell, not per tetrahedron; measured 4.7 % more, shear deformation).
 TEST(Poisson, CantileverDoesNotLock) {

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 #include <string>
 
 #include "src/physics/named_faces.hpp"
@@ -275,6 +276,18 @@ void ForceModel::add_force_scale(std::vector<double>& scale) const {
   for (const auto& t : terms_) t->add_force_scale(scale);
 }
 
+CellField ForceModel::cells(const double* x) const {
+  CellField out;
+  for (const auto& t : terms_) {
+    CellField c;
+    t->cells(x, c);
+    if (c.global_count == 0) continue;
+    if (out.global_count > 0) throw std::logic_error("two terms hold cells: the snapshots write one cell field");
+    out = std::move(c);
+  }
+  return out;
+}
+
 PetscErrorCode ForceModel::assemble_tangent(const double* x, Mat J) const {
   PetscFunctionBeginUser;
   const int n = model_.owned;
@@ -346,21 +359,37 @@ PetscErrorCode ForceModel::assemble_tangent(const double* x, Mat J) const {
       }
     }
   }
-  PetscCall(MatSeqAIJRestoreArray(Ad, &dv));
-  if (Ao) PetscCall(MatSeqAIJRestoreArray(Ao, &ov));
-  PetscCall(MatRestoreRowIJ(Ad, 0, PETSC_FALSE, PETSC_FALSE, &rows, &dia, &dja, &done));
-  if (Ao) PetscCall(MatRestoreRowIJ(Ao, 0, PETSC_FALSE, PETSC_FALSE, &rows, &oia, &oja, &done));
-  PetscCall(PetscObjectStateIncrease(reinterpret_cast<PetscObject>(J)));  // J changed through its parts
+  // The terms' blocks (obstacles, contact, cells) are added on top, with the same held mask: blocks whose column
+  // is owned straight into the diagonal part's arrays (a binary search in the row's sorted columns; a cell
+  // term adds 64 blocks per cell, and MatSetValuesBlocked's per-entry path cost 3x the springs' assembly),
+  // the others (ghost columns) through MatSetValuesBlocked once the arrays are given back.
+  struct OffBlock {
+    PetscInt row, col;
+    double K[9];
+  };
+  std::vector<OffBlock> off;
   if (!terms_.empty()) {
-    // The terms' blocks (obstacles, contact) are added on top, with the same held mask.
     auto put = [&](int row, int col, const double K[9]) -> PetscErrorCode {
-      PetscFunctionBeginUser;
-      double block[9];
+      OffBlock b{model_.block[row], model_.block[col], {}};
       for (int r = 0; r < 3; ++r)
-        for (int s = 0; s < 3; ++s) block[3 * r + s] = held_[3 * row + r] || held_[3 * col + s] ? 0.0 : K[3 * r + s];
-      PetscInt br = model_.block[row], bc = model_.block[col];
-      PetscCall(MatSetValuesBlocked(J, 1, &br, 1, &bc, block, ADD_VALUES));
-      PetscFunctionReturn(0);
+        for (int s = 0; s < 3; ++s) b.K[3 * r + s] = held_[3 * row + r] || held_[3 * col + s] ? 0.0 : K[3 * r + s];
+      if (b.col < first || b.col >= last) {
+        off.push_back(b);
+        return 0;
+      }
+      const PetscInt c0 = 3 * (b.col - first);
+      double* at[3];
+      for (int r = 0; r < 3; ++r) {
+        const PetscInt *begin = dja + dia[3 * row + r], *end = dja + dia[3 * row + r + 1];
+        const PetscInt* q = std::lower_bound(begin, end, c0);
+        if (end - q < 3 || q[0] != c0 || q[2] != c0 + 2) {  // not in the pattern: MatSetValuesBlocked says so
+          off.push_back(b);
+          return 0;
+        }
+        at[r] = dv + (q - dja);  // the block's 3 columns are adjacent
+      }
+      for (int r = 0; r < 3; ++r) at[r][0] += b.K[3 * r], at[r][1] += b.K[3 * r + 1], at[r][2] += b.K[3 * r + 2];
+      return 0;
     };
     using Put = decltype(put);
     auto add = [](void* ctx, int row, int col, const double K[9]) -> PetscErrorCode {
@@ -368,6 +397,12 @@ PetscErrorCode ForceModel::assemble_tangent(const double* x, Mat J) const {
     };
     for (const auto& t : terms_) PetscCall(t->add_tangent(x, add, &put));
   }
+  PetscCall(MatSeqAIJRestoreArray(Ad, &dv));
+  if (Ao) PetscCall(MatSeqAIJRestoreArray(Ao, &ov));
+  PetscCall(MatRestoreRowIJ(Ad, 0, PETSC_FALSE, PETSC_FALSE, &rows, &dia, &dja, &done));
+  if (Ao) PetscCall(MatRestoreRowIJ(Ao, 0, PETSC_FALSE, PETSC_FALSE, &rows, &oia, &oja, &done));
+  PetscCall(PetscObjectStateIncrease(reinterpret_cast<PetscObject>(J)));  // J changed through its parts
+  for (const OffBlock& b : off) PetscCall(MatSetValuesBlocked(J, 1, &b.row, 1, &b.col, b.K, ADD_VALUES));
   PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
   PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
   PetscFunctionReturn(0);

@@ -42,6 +42,8 @@ public:
   // The fibre field of the terms that carry fibres (Term::fibre_field), 3 and 1 values per owned molecule; false
   // (and nothing written) when no term has fibres on this rank.
   bool fibre_field(const double* x, double* direction, double* stretch) const;
+  // The cells of the term that has them (Term::cells; none: global_count 0), at x (ghosts up to date).
+  CellField cells(const double* x) const;
 
   const std::vector<std::uint8_t>& held() const { return held_; }   // 3 * owned: 1 = held component
   // The held components of owned molecules, ascending (few: faces only), so a step does not scan held().

@@ -19,6 +19,16 @@
 
 namespace tissue {
 
+// The cells a term holds (the cell term's lattice cells), for the snapshots: this rank's share, each cell on exactly
+// one rank, with dense global ids so the writer can put them in id order.
+struct CellField {
+  int nodes = 0;                      // corners per cell: 8 (hexahedron, XDMF/VTK corner order) or 4 (tetrahedron)
+  std::int64_t global_count = 0;      // the cells of all ranks (the same on every rank)
+  std::vector<std::int64_t> id;       // this rank's cells: global ids in 0 .. global_count - 1
+  std::vector<std::int64_t> corners;  // nodes molecule ids (original) per cell
+  std::vector<double> volume_ratio;   // J = det F per cell
+};
+
 struct TermContext {
   const Scene& scene;
   const LocalModel& model;
@@ -60,6 +70,8 @@ public:
   // of the deformed fibre direction F a / |F a| (3 values, normalized; 0 where no cell has fibres) and of the
   // fibre stretch |F a| (0 there). Returns false when the term has no fibres on any molecule of this rank.
   virtual bool fibre_field(const double* x, double* direction, double* stretch) const { return false; }
+  // Terms made of cells: fills `out` with this rank's cells at x (local positions, ghosts up to date).
+  virtual void cells(const double* x, CellField& out) const {}
 
   // Terms with internal variables that follow the time steps (the viscoelastic history of an elastic term: springs
   // now, per-cell terms later). Until the first begin_step such a term adds nothing, so static and relaxation

@@ -242,6 +242,16 @@ public:
     std::unordered_map<std::int64_t, int> local;
     local.reserve(model.local);
     for (int i = 0; i < model.local; ++i) local.emplace(model.id[i], i);
+    // Dense cell ids for the snapshots: body by body, (i, j, k) of the cell's lowest corner in x-fastest order.
+    std::vector<std::int64_t> cell_offset(model.shape.bodies(), 0);
+    for (int b = 0; b < model.shape.bodies(); ++b) {
+      cell_offset[b] = global_cells_;
+      const CalibrationSpec& calibration =
+          b < static_cast<int>(scene.calibrations.size()) ? scene.calibrations[b] : scene.calibration;
+      if (!body_has_cells(specs[b], calibration)) continue;
+      const BoxGeometry& box = model.shape.body(b);
+      global_cells_ += static_cast<std::int64_t>(box.n[0] - 1) * (box.n[1] - 1) * (box.n[2] - 1);
+    }
     std::vector<std::int64_t> bases;
     for (int i = 0; i < model.owned; ++i) {
       const int b = model.body[i];
@@ -322,6 +332,7 @@ public:
       for (int w = 0; w < 3; ++w) md.alpha[w] = split.alpha[w] * E_s;
       body_[k] = b;
       owns_energy_.push_back(corner_[8 * k] < model.owned);
+      cell_id_.push_back(cell_offset[b] + ijk[0] + (box.n[0] - 1) * (ijk[1] + (box.n[1] - 1) * ijk[2]));
       const double h = std::min({box.h[0], box.h[1], box.h[2]});
       // 0.8 h / c_p: measured limits of dynamic runs are 0.85-1.1 h / c_p (docs/poisson.md), so this is a lower
       // bound within 1.4x of them.
@@ -507,6 +518,21 @@ public:
       for (int j = 0; j < 3; ++j) direction[3 * i + j] /= n > 0 ? n : 1.0;
     }
     return true;
+  void cells(const double* x, CellField& out) const override {
+    out.nodes = 8;
+    out.global_count = global_cells_;
+    // XDMF/VTK hexahedron order: the bottom face counter-clockwise, then the top face.
+    static const int order[8] = {0, 1, 3, 2, 4, 5, 7, 6};
+    for (int k = 0; k < cells_; ++k) {
+      if (!owns_energy_[k]) continue;  // each cell once: on the rank owning its lowest corner
+      const int* corner = &corner_[8 * k];
+      double F[9];
+      gradient(x, corner, geometry_[body_[k]], F);
+      out.id.push_back(cell_id_[k]);
+      for (int c : order) out.corners.push_back(m_.id[corner[c]]);
+      out.volume_ratio.push_back(F[0] * (F[4] * F[8] - F[5] * F[7]) - F[1] * (F[3] * F[8] - F[5] * F[6]) +
+                                 F[2] * (F[3] * F[7] - F[4] * F[6]));
+    }
   }
 
 private:
@@ -574,6 +600,8 @@ private:
   std::vector<Moduli> moduli_;
   std::vector<int> body_;
   std::vector<char> owns_energy_;
+  std::vector<std::int64_t> cell_id_;  // dense global id per cell (snapshots)
+  std::int64_t global_cells_ = 0;
   std::vector<Geometry> geometry_;
   double dt_ = std::numeric_limits<double>::infinity();
 };

@@ -376,13 +376,15 @@ ObstacleSpec read_obstacle(const Section& s) {
 
 OutputSpec read_output(const Section& s) {
   OutputSpec o;
-  s.allow({"directory", "snapshot_every", "checkpoint_every", "fields", "progress"});
+  s.allow({"directory", "snapshot_every", "checkpoint_every", "history_every", "fields", "progress"});
   o.directory = s.string("directory").value_or(o.directory);
   if (o.directory.empty()) s.fail("directory", "must not be empty");
   o.snapshot_every = s.integer("snapshot_every").value_or(o.snapshot_every);
   s.at_least("snapshot_every", o.snapshot_every, 0);
   o.checkpoint_every = s.integer("checkpoint_every").value_or(o.checkpoint_every);
   s.at_least("checkpoint_every", o.checkpoint_every, 0);
+  o.history_every = s.integer("history_every").value_or(o.history_every);
+  s.at_least("history_every", o.history_every, 1);
   if (auto f = s.strings("fields")) {
     std::set<std::string> seen;
     for (const auto& name : *f) {
@@ -538,14 +540,6 @@ Scene build_scene(const Value& root, const std::string& file) {
   if (top.has("output")) scene.output = read_output(top.table("output"));
   if (scene.solver.kind == "quasi-static" && !scene.solver.time_step)
     throw InputError(file, "solver.time_step", "missing: a quasi-static run needs its time step (s)");
-  // Checkpoints do not hold the quasi-static time line or the viscoelastic history yet: refused, not restarted
-  // into a different run.
-  bool viscoelastic = false;
-  for (const auto& b : scene.bodies) viscoelastic = viscoelastic || !b.viscoelastic.empty();
-  if (scene.output.checkpoint_every > 0 && (scene.solver.kind == "quasi-static" || viscoelastic))
-    throw InputError(file, "output.checkpoint_every",
-                     viscoelastic ? "checkpoints do not hold the viscoelastic history yet (give 0)"
-                                  : "a quasi-static run is not checkpointed yet (give 0)");
   if (top.has("partition")) {
     Section p = top.table("partition");
     p.allow({"method"});

@@ -136,12 +136,13 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
   if (!checkpoint.empty())
     agree(comm, [&] {
       read_checkpoint_state(checkpoint, model, out.molecules(), out.connections(), sim.state(),
-                            /*check_stiffness=*/!sim.refresh());
+                            /*check_stiffness=*/!sim.refresh(), &sim.forces());
+      out.continue_history(sim.state().step);
     });
   SolverHooks hooks;
   hooks.snapshot = [&](const SolverState& s) { out.snapshot(s, sim.forces()); };
   std::string last_checkpoint;
-  hooks.checkpoint = [&](const SolverState& s) { last_checkpoint = out.checkpoint(s); };
+  hooks.checkpoint = [&](const SolverState& s) { last_checkpoint = out.checkpoint(s, &sim.forces()); };
   hooks.record = [&](const SolverState& s) { out.history_row(s, sim.forces(), sim.test()); };
   sim.solve(hooks);
   const SolveReport& report = sim.report();

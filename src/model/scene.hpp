@@ -147,6 +147,7 @@ struct OutputSpec {
   std::string directory = "out";
   long snapshot_every = 0;    // 0: final state only
   long checkpoint_every = 0;  // 0: none
+  long history_every = 1;     // dynamic: a history.csv row every this many steps (and at the last step)
   std::vector<std::string> fields{"positions", "displacements", "forces"};  // snapshot datasets
   bool progress = true;       // the progress line on rank 0
 };

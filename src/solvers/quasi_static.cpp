@@ -64,7 +64,13 @@ SolveReport solve_quasi_static(const Scene& scene, const LocalModel& model, cons
   Progress progress("quasi-static", scene.output.progress, model.comm);
   const long total = static_cast<long>(std::ceil(end / dt - 1e-9));
   std::vector<Vec3> reactions(scene.fixes.size(), Vec3{0, 0, 0});
-  bool initial = state.step == 0 && state.time == 0.0;
+  bool initial = state.step == 0 && state.time == 0.0 && !state.restarted;
+  // A restart: the reactions the last step ended with (the next residual reference), from the checkpoint's state
+  // and committed history, the same numbers the uninterrupted run had.
+  if (state.restarted && !scene.fixes.empty()) {
+    forces.set_time(state.time);
+    reactions = forces.reactions(state.x.array(), state.v.data(), state.f.data());
+  }
   double worst = 0.0;
   // Below this the residual is the springs' round-off (a step with nothing loaded yet): already in equilibrium.
   const double floor = std::max(force_round_off(model, forces) / newton.tolerance(), DBL_MIN);
@@ -109,10 +115,18 @@ SolveReport solve_quasi_static(const Scene& scene, const LocalModel& model, cons
     if (hooks.snapshot && scene.output.snapshot_every > 0 && state.step > 0 &&
         state.step % scene.output.snapshot_every == 0 && state.time < end - slack)
       hooks.snapshot(state);
+    // Checkpoints (and a stop asked by a signal) at the step's end, after its history.csv row; a checkpoint
+    // rebuilds the preconditioner at the next tangent, as the restart does.
+    const long cadence = scene.output.checkpoint_every;
+    if (cadence > 0 && state.step > 0 && state.step % cadence == 0) newton.rebuild_preconditioner();
+    if (state.time < end - slack && step_boundary(scene, model, state, hooks, 1)) {
+      report.interrupted = true;
+      break;
+    }
   }
   report.residual = worst;
   report.tolerance_used = newton.tolerance();
-  report.converged = worst <= newton.tolerance() * 1.0000001;
+  report.converged = !report.interrupted && worst <= newton.tolerance() * 1.0000001;
   return report;
 }
 

@@ -10,6 +10,7 @@
 // Between commit_step and the next begin_step the history is frozen (reactions and measurements of the end state
 // see the committed forces).
 // Storage (only in scenes that ask): per connection the committed f_e and one h per Prony term.
+#include <algorithm>
 #include <cmath>
 
 #include "src/physics/term.hpp"
@@ -78,6 +79,26 @@ public:
       fe_[c] = fe;
     }
     stepping_ = false;
+  }
+
+  // Per connection: the committed elastic force, then its history forces.
+  int history_width() const override { return 1 + width_; }
+  void save_history(double* rows) const override {
+    const int n = m_.connections(), w = 1 + width_;
+    for (int c = 0; c < n; ++c) {
+      rows[w * c] = fe_[c];
+      std::copy(h_.begin() + static_cast<std::size_t>(c) * width_, h_.begin() + static_cast<std::size_t>(c + 1) * width_,
+                rows + w * c + 1);
+    }
+  }
+  void load_history(const double* rows) override {
+    const int n = m_.connections(), w = 1 + width_;
+    for (int c = 0; c < n; ++c) {
+      fe_[c] = rows[w * c];
+      std::copy(rows + w * c + 1, rows + w * (c + 1), h_.begin() + static_cast<std::size_t>(c) * width_);
+    }
+    // Committed and frozen, as the run that wrote them left them between two steps (a zero history adds zero).
+    active_ = true, stepping_ = false;
   }
 
   void add_stiffness_bound(std::vector<double>& ksum) const override {

@@ -197,7 +197,7 @@ void Output::history_row(const SolverState& state, const ForceModel& forces, con
       text = "step,time,force_x,force_y,force_z,elongation,kinetic_energy";
       for (std::size_t f = 0; f < reactions.size(); ++f)
         for (const char* axis : {"x", "y", "z"}) text += ",reaction" + std::to_string(f) + "_" + axis;
-      text += "\n";
+      text += ",lateral_strain\n";
     }
     text += std::to_string(step);
     number(time);
@@ -207,6 +207,8 @@ void Output::history_row(const SolverState& state, const ForceModel& forces, con
     number(m.kinetic_energy);
     for (const Vec3& r : reactions)
       for (double c : r) number(c);
+    if (m.lateral_strain) number(*m.lateral_strain);
+    else text += ",";
     text += "\n";
     FILE* file = std::fopen(path.c_str(), history_started_ ? "a" : "w");
     if (!file) throw OutputError(path + ": cannot open: " + std::strerror(errno));

@@ -483,6 +483,13 @@ void NewtonEquilibrium::record_load_steps() { impl_->record = true; }
 void NewtonEquilibrium::rebuild_preconditioner() {
   if (impl_->reuse.active && rebuild_next(impl_->snes, &impl_->reuse))
     throw SolverFailure(impl_->kind + ": a PETSc call failed");
+  // GAMG keeps the interpolation of its first set-up (PETSc's -pc_gamg_reuse_interpolation), which a restart
+  // cannot know: from here on it aggregates every tangent afresh, in the run that writes checkpoints and in the
+  // run restarted from one alike.
+  PetscBool gamg = PETSC_FALSE;
+  if (PetscObjectTypeCompare(reinterpret_cast<PetscObject>(impl_->pc), PCGAMG, &gamg) ||
+      (gamg && PCGAMGSetReuseInterpolation(impl_->pc, PETSC_FALSE)))
+    throw SolverFailure(impl_->kind + ": a PETSc call failed");
 }
 
 }  // namespace tissue

@@ -71,6 +71,7 @@ SolveReport solve_quasi_static(const Scene& scene, const LocalModel& model, cons
     forces.set_time(state.time);
     reactions = forces.reactions(state.x.array(), state.v.data(), state.f.data());
   }
+  if (state.restarted) newton.rebuild_preconditioner();  // as the run that wrote the checkpoint did there
   double worst = 0.0;
   // Below this the residual is the springs' round-off (a step with nothing loaded yet): already in equilibrium.
   const double floor = std::max(force_round_off(model, forces) / newton.tolerance(), DBL_MIN);

@@ -27,10 +27,11 @@ def columns(path, y):
     return [float(r[x]) for r in rows], [float(r[y]) for r in rows]
 
 
-label = ", ".join("%s = %.4g +- %s" % (k.split(".")[-2] if k.split(".")[-1].isdigit() else k.split(".")[-1], v,
-                                         "%.2g" % fit["standard_errors"][k] if fit["standard_errors"][k] is not None
-                                         else "?")
-                  for k, v in fit["parameters"].items())
+items = ["%s = %.4g +- %s" % (k.split(".")[-2] + "_" + k.split(".")[-1] if k.split(".")[-1].isdigit()
+                               else k.split(".")[-1], v,
+                               "%.2g" % fit["standard_errors"][k] if fit["standard_errors"][k] is not None else "?")
+         for k, v in fit["parameters"].items()]
+label = ",\n".join(", ".join(items[i:i + 2]) for i in range(0, len(items), 2))  # two values a line
 fig, axes = plt.subplots(len(ys), 1, figsize=(7, 3.2 + 1.3 * len(ys)), sharex=True, squeeze=False)
 for ax, y in zip(axes[:, 0], ys):
     mx, my = columns(fit["data"], y)

@@ -59,6 +59,9 @@ struct RegionSpec {
   double density = 0.0;         // kg/m^3
   // nu: the region's own, else its preset's (homogenized only), else the body's (docs/poisson.md).
   std::optional<double> poisson_ratio;
+  // [body.region.viscoelastic]: the region's own Prony series (box regions); empty: the body's acts. A connection
+  // belongs to the region whose box holds its rest midpoint (the last such region).
+  PronySpec viscoelastic;
 };
 
 struct BodySpec {
@@ -136,6 +139,10 @@ struct SolverSpec {
   std::optional<double> time_step;     // s (relaxation, dynamic); absent = from the critical time step
   long steps = 1000;                   // dynamic, quasi-static: total step count of the run
   std::optional<double> end_time;      // quasi-static: s, instead of steps
+  // quasi-static: each step is this many times the last (>= 1), up to max_time_step; a step that lands on a
+  // history breakpoint starts again from time_step (a load's change is the fast part of creep and relaxation).
+  double time_step_growth = 1.0;
+  std::optional<double> max_time_step;
   long max_iterations = 0;             // relaxation/static cap; 0 = a default that grows with the lattice
   long load_steps = 1;                 // static: load increments
   // A time_step above the critical one (explicit integration unstable) is refused unless this is true; then it

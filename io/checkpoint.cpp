@@ -14,6 +14,7 @@
 #include <type_traits>
 
 #include "io/hdf5_file.hpp"
+#include "partition/exchange.hpp"
 #include "partition/agreement.hpp"
 
 namespace tissue {
@@ -67,6 +68,37 @@ std::vector<double> connection_values(const LocalModel& m, Value value) {
 // Dynamic runs whose forces read velocities only (SolverState::v_half): optional, checked when present.
 constexpr const char* kHalfStepVelocities = "/molecules/half_step_velocities";
 
+// The viscoelastic history (ForceModel::history): present when the scene's terms have internal variables.
+constexpr const char* kHistory = "/connections/history";
+constexpr std::int64_t kMaxHistoryWidth = 1024;
+
+// Rows of a dataset in original order, one per local connection: `block` holds this rank's natural block
+// (order.begin() .. + order.count(), `width` values each); every local connection (ghost-ended ones too, which
+// another rank writes) gets its row from the rank whose block holds its id. Collective.
+std::vector<double> rows_of_local_connections(const LocalModel& m, const NaturalOrder& order,
+                                              const std::vector<double>& block, int width) {
+  const int n = m.connections(), size = m.size;
+  std::vector<int> owner(n), counts(size, 0);
+  for (int c = 0; c < n; ++c) ++counts[owner[c] = NaturalOrder::block_owner(m.global_connections, size, m.connection_id(c))];
+  std::vector<int> slot(size, 0);
+  for (int r = 1; r < size; ++r) slot[r] = slot[r - 1] + counts[r - 1];
+  std::vector<std::int64_t> ids(n);
+  std::vector<int> where(n);  // send slot of local connection c
+  for (int c = 0; c < n; ++c) ids[where[c] = slot[owner[c]]++] = m.connection_id(c);
+  ExchangePlan plan(m.comm, counts);
+  const std::vector<std::int64_t> asked = plan.forward(ids);
+  std::vector<double> answer(asked.size() * width);
+  for (std::size_t q = 0; q < asked.size(); ++q)
+    std::copy(block.begin() + (asked[q] - order.begin()) * width, block.begin() + (asked[q] - order.begin() + 1) * width,
+              answer.begin() + q * width);
+  std::vector<double> got(static_cast<std::size_t>(n) * width), rows(got.size());
+  plan.backward(answer.data(), got.data(), width);
+  for (int c = 0; c < n; ++c)
+    std::copy(got.begin() + static_cast<std::size_t>(where[c]) * width,
+              got.begin() + static_cast<std::size_t>(where[c] + 1) * width, rows.begin() + static_cast<std::size_t>(c) * width);
+  return rows;
+}
+
 // Hdf5File's messages start with the file's path; the InputError names it already.
 std::string without_path(const std::string& message, const std::string& path) {
   const std::string prefix = path + ": ";
@@ -77,13 +109,15 @@ std::string without_path(const std::string& message, const std::string& path) {
 
 std::string write_checkpoint(const std::string& directory, int keep, const Scene& scene, const LocalModel& model,
                              const NaturalOrder& molecules, const NaturalOrder& connections,
-                             const SolverState& state) {
+                             const SolverState& state, const ForceModel* forces) {
   char name[64];
   std::snprintf(name, sizeof name, "checkpoint_%010ld.h5", state.step);
   const std::string path = directory + "/" + name;
   {
     // The space the file needs, reserved first: a full disk fails here, cleanly (Hdf5File::create).
-    const std::int64_t bytes = (state.v_half.empty() ? 48 : 72) * model.global_molecules + 32 * model.global_connections +
+    const int history_width = forces ? forces->history_width() : 0;
+    const std::int64_t bytes = (state.v_half.empty() ? 48 : 72) * model.global_molecules +
+                               (32 + 8 * history_width) * model.global_connections +
                                static_cast<std::int64_t>(scene.text.size()) + (1 << 20);
     Hdf5File f = Hdf5File::create(path, model.comm, bytes);
     f.set_attribute("/", "kind", "checkpoint");
@@ -121,6 +155,16 @@ std::string write_checkpoint(const std::string& directory, int keep, const Scene
                   connections.to_natural(k.data(), 1), comm);
     write_checked(f, "/connections/rest_length", model.global_connections, 1, connections.begin(),
                   connections.to_natural(l0.data(), 1), comm);
+    if (history_width > 0) {  // the committed internal variables, in original connection order
+      const std::vector<double> all = forces->history();
+      std::vector<double> mine;
+      mine.reserve(model.written_here().size() * history_width);
+      for (int c : model.written_here())
+        mine.insert(mine.end(), all.begin() + static_cast<std::size_t>(c) * history_width,
+                    all.begin() + static_cast<std::size_t>(c + 1) * history_width);
+      write_checked(f, kHistory, model.global_connections, history_width, connections.begin(),
+                    connections.to_natural(mine.data(), history_width), comm);
+    }
     f.close();  // flushed and renamed: a checkpoint on disk under its name is always complete
   }
   // The new checkpoint (and its name in the directory) reach the disk before any older one is removed, so that
@@ -226,6 +270,13 @@ CheckpointHeader header_metadata(const Hdf5File& f, const std::string& path, std
   };
   for (const DatasetSpec& d : kDatasets) check(d);
   if (f.exists(kHalfStepVelocities)) check({kHalfStepVelocities, false, 3, true});
+  if (f.exists(kHistory)) {
+    auto shape = f.shape(kHistory);
+    if (shape.size() != 2 || shape[1] < 1 || shape[1] > kMaxHistoryWidth || shape[1] * h.connections > bytes / 8)
+      throw InputError(path, kHistory, "has a width that no scene gives or that does not fit in the file");
+    h.history_width = static_cast<int>(shape[1]);
+    check({kHistory, false, h.history_width, false});
+  }
   return h;
 }
 
@@ -305,6 +356,7 @@ CheckpointHeader read_checkpoint_header(const std::string& path, MPI_Comm comm) 
     verify("/connections/stiffness", h.connections, 1, double());
     verify("/connections/rest_length", h.connections, 1, double());
     if (f.exists(kHalfStepVelocities)) verify(kHalfStepVelocities, h.molecules, 3, double());
+    if (h.history_width > 0) verify(kHistory, h.connections, h.history_width, double());
     f.close();
   } catch (const InputError&) {
     throw;
@@ -315,7 +367,8 @@ CheckpointHeader read_checkpoint_header(const std::string& path, MPI_Comm comm) 
 }
 
 void read_checkpoint_state(const std::string& path, const LocalModel& model, const NaturalOrder& molecules,
-                           const NaturalOrder& connections, SolverState& state, bool check_stiffness) {
+                           const NaturalOrder& connections, SolverState& state, bool check_stiffness,
+                           const ForceModel* forces) {
   try {
     Hdf5File f = open_checkpoint(path, model.comm);
     auto load = [&](const char* name, std::int64_t rows, int width, const NaturalOrder& order, auto tag) {
@@ -376,6 +429,14 @@ void read_checkpoint_state(const std::string& path, const LocalModel& model, con
     if (f.exists(kHalfStepVelocities)) {
       auto half = load(kHalfStepVelocities, model.global_molecules, 3, molecules, double());
       state.v_half = molecules.from_natural(half.data(), 3);
+    }
+    if (const int width = forces ? forces->history_width() : 0) {
+      // The scene has internal variables: a checkpoint without them (or of another width) cannot continue it.
+      agree(model.comm, [&] {
+        if (!f.exists(kHistory)) throw InputError(path, kHistory, "dataset missing: the scene has a viscoelastic history");
+      });
+      auto block = load(kHistory, model.global_connections, width, connections, double());
+      forces->set_history(rows_of_local_connections(model, connections, block, width));
     }
     state.x.update_ghosts();
     agree(model.comm, [&] {  // local reads before the file's collective close

@@ -2,6 +2,7 @@
 // rank count. Layout of DIR/checkpoint_<step>.h5:
 //   /molecules/positions, /molecules/velocities          [N x 3]
 //   /connections/endpoints [C x 2] int64, /connections/stiffness, /connections/rest_length [C x 1]
+//   /connections/history [C x W] (scenes with internal variables: ForceModel::history, the viscoelastic history)
 //   root attributes: kind = "checkpoint", program, version, title, scene (the scene text after --set), ranks,
 //   step, time, time_step, solver_kind, divisor (C), calibration_updates, fire_dt, fire_alpha, fire_positive;
 //   every dataset carries a "checksum" attribute, verified on load.
@@ -20,13 +21,14 @@ struct CheckpointHeader {
   long step = 0;
   int ranks = 0;
   std::int64_t molecules = 0, connections = 0;
+  int history_width = 0;  // /connections/history's columns (0: absent)
 };
 
-// Collective. Writes DIR/checkpoint_<step>.h5 and removes older checkpoints beyond the newest `keep`.
-// Returns the path written.
+// Collective. Writes DIR/checkpoint_<step>.h5 and removes older checkpoints beyond the newest `keep`; with
+// `forces`, the internal variables of its terms too (/connections/history). Returns the path written.
 std::string write_checkpoint(const std::string& directory, int keep, const Scene& scene, const LocalModel& model,
                              const NaturalOrder& molecules, const NaturalOrder& connections,
-                             const SolverState& state);
+                             const SolverState& state, const ForceModel* forces = nullptr);
 
 // Collective. Reads and checks the header (kind, version, scene text). Bad files throw InputError naming the file
 // and the attribute or dataset.
@@ -34,8 +36,10 @@ CheckpointHeader read_checkpoint_header(const std::string& path, MPI_Comm comm);
 
 // Collective. Loads positions, velocities and solver state into `state`, after checking every dataset's shape,
 // checksum, finiteness and that endpoints, rest lengths and (unless the calibration follows the deformation and
-// is refreshed from the positions anyway) stiffness match the model rebuilt from the scene.
+// is refreshed from the positions anyway) stiffness match the model rebuilt from the scene. With `forces` whose
+// terms have internal variables, /connections/history must be there with their width, and is put back.
 void read_checkpoint_state(const std::string& path, const LocalModel& model, const NaturalOrder& molecules,
-                           const NaturalOrder& connections, SolverState& state, bool check_stiffness = true);
+                           const NaturalOrder& connections, SolverState& state, bool check_stiffness = true,
+                           const ForceModel* forces = nullptr);
 
 }  // namespace tissue

@@ -45,8 +45,8 @@ std::vector<std::string> split_csv_line(const std::string& line) {
 }
 
 // Columns x and y of a CSV with a header line; `key` names the [fit] key that named the file, for messages.
-void read_columns(const std::string& path, const std::string& x, const std::string& y, std::vector<double>& xs,
-                  std::vector<double>& ys, bool input_error) {
+void read_columns(const std::string& path, const std::string& x, const std::vector<std::string>& y,
+                  std::vector<double>& xs, std::vector<std::vector<double>>& ys, bool input_error) {
   auto fail = [&](const std::string& key, const std::string& problem) {
     if (input_error) throw InputError(path, key, problem);
     throw std::runtime_error(path + ": " + (key.empty() ? "" : key + ": ") + problem);
@@ -62,16 +62,18 @@ void read_columns(const std::string& path, const std::string& x, const std::stri
     fail(name, "no such column (the header has: " + line + ")");
     return -1;
   };
-  const int cx = column(x), cy = column(y);
+  std::vector<int> c{column(x)};
+  for (const auto& name : y) c.push_back(column(name));
+  const int width = static_cast<int>(c.size());
+  ys.assign(y.size(), {});
   long row = 1;
   while (std::getline(in, line)) {
     ++row;
     if (line.empty() || line == "\r") continue;
     const auto cells = split_csv_line(line);
-    double v[2];
-    const int c[2] = {cx, cy};
+    std::vector<double> v(width);
     bool skip = false;
-    for (int k = 0; k < 2; ++k) {
+    for (int k = 0; k < width; ++k) {
       const std::string& s = c[k] < static_cast<int>(cells.size()) ? cells[c[k]] : std::string();
       if (s.empty()) {  // history.csv leaves a cell empty where it does not apply (elongation of a free body)
         skip = true;
@@ -83,7 +85,8 @@ void read_columns(const std::string& path, const std::string& x, const std::stri
         fail(fmt::format("line {}", row), fmt::format("\"{}\" is not a finite number", s));
     }
     if (skip) continue;
-    xs.push_back(v[0]), ys.push_back(v[1]);
+    xs.push_back(v[0]);
+    for (int k = 1; k < width; ++k) ys[k - 1].push_back(v[k]);
   }
 }
 
@@ -113,7 +116,7 @@ const Value* find_key(const Value& root, const std::string& key) {
 // What history.csv has (../shared/interface.md): the fixed columns and one reaction triple per [[fix]].
 bool history_column(const std::string& name) {
   static const std::regex columns(
-      "step|time|force_[xyz]|elongation|kinetic_energy|reaction[0-9]+_[xyz]");
+      "step|time|force_[xyz]|elongation|kinetic_energy|reaction[0-9]+_[xyz]|lateral_strain");
   return std::regex_match(name, columns);
 }
 
@@ -142,7 +145,21 @@ FitInput read_fit_input(const std::string& path, const std::vector<std::string>&
     return std::string(it->second.as_string().str);
   };
   in.data_path = text("data");
-  in.x = text("x"), in.y = text("y");
+  in.x = text("x");
+  // y: one column name, or several fitted together (e.g. ["elongation", "lateral_strain"]).
+  {
+    const Value& y = fit.as_table().count("y") ? fit.as_table().at("y") : Value();
+    if (y.is_array()) {
+      for (const auto& v : y.as_array()) {
+        if (!v.is_string() || v.as_string().str.empty())
+          throw InputError(path, "fit.y", "must be a column name or a list of column names");
+        in.y.push_back(v.as_string().str);
+      }
+      if (in.y.empty()) throw InputError(path, "fit.y", "is an empty list");
+    } else {
+      in.y.push_back(text("y"));
+    }
+  }
   if (std::filesystem::path(in.data_path).is_relative())
     in.data_path = (std::filesystem::path(path).parent_path() / in.data_path).lexically_normal().string();
   if (in.data_path.empty() || std::filesystem::is_directory(in.data_path))
@@ -150,8 +167,12 @@ FitInput read_fit_input(const std::string& path, const std::vector<std::string>&
   if (!std::ifstream(in.data_path))
     throw InputError(path, "fit.data", "\"" + in.data_path + "\": cannot open: " + std::strerror(errno));
   if (!history_column(in.x)) throw InputError(path, "fit.x", "\"" + in.x + "\" is not a history.csv column");
-  if (!history_column(in.y)) throw InputError(path, "fit.y", "\"" + in.y + "\" is not a history.csv column");
-  if (in.x == in.y) throw InputError(path, "fit.y", "is the same column as fit.x");
+  for (std::size_t k = 0; k < in.y.size(); ++k) {
+    if (!history_column(in.y[k])) throw InputError(path, "fit.y", "\"" + in.y[k] + "\" is not a history.csv column");
+    if (in.y[k] == in.x) throw InputError(path, "fit.y", "\"" + in.y[k] + "\" is the same column as fit.x");
+    for (std::size_t l = 0; l < k; ++l)
+      if (in.y[l] == in.y[k]) throw InputError(path, "fit.y", "\"" + in.y[k] + "\" is listed twice");
+  }
 
   // The scene itself must be valid before any forward run.
   in.scene_text = toml::format(root, std::numeric_limits<std::size_t>::max());
@@ -219,8 +240,8 @@ std::string fitted_scene_text(const FitInput& input, const std::vector<double>& 
   return parse_scene(input.scene_text, input.file, fit_overrides(input, values)).text;
 }
 
-void read_history_columns(const std::string& path, const std::string& x, const std::string& y,
-                          std::vector<double>& xs, std::vector<double>& ys) {
+void read_history_columns(const std::string& path, const std::string& x, const std::vector<std::string>& y,
+                          std::vector<double>& xs, std::vector<std::vector<double>>& ys) {
   xs.clear(), ys.clear();
   read_columns(path, x, y, xs, ys, /*input_error=*/false);
 }

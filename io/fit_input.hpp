@@ -16,8 +16,10 @@ struct FitInput {
   std::string file;               // FIT.toml
   std::string scene_text;         // the scene after --set, without [fit]
   std::string data_path;          // the measured CSV
-  std::string x, y;               // its columns, and the history.csv columns they match
-  std::vector<double> data_x, data_y;  // the measured curve, x strictly increasing
+  std::string x;                  // its x column, and the history.csv column it matches
+  std::vector<std::string> y;     // its y columns (one, or several fitted together), history.csv columns too
+  std::vector<double> data_x;                  // the measured curve, x strictly increasing
+  std::vector<std::vector<double>> data_y;     // per y column, aligned with data_x
   std::vector<FitParameter> parameters;
 };
 
@@ -31,9 +33,9 @@ FitInput read_fit_input(const std::string& path, const std::vector<std::string>&
 std::string fitted_scene_text(const FitInput& input, const std::vector<double>& values);
 std::vector<std::string> fit_overrides(const FitInput& input, const std::vector<double>& values);
 
-// The columns (x, y) of a history.csv; empty vectors when the file has no rows. Throws std::runtime_error when
-// it cannot be read or lacks a column.
-void read_history_columns(const std::string& path, const std::string& x, const std::string& y,
-                          std::vector<double>& xs, std::vector<double>& ys);
+// The columns x and y[k] of a history.csv (rows with an empty cell skipped); empty vectors when the file has no
+// rows. Throws std::runtime_error when it cannot be read or lacks a column.
+void read_history_columns(const std::string& path, const std::string& x, const std::vector<std::string>& y,
+                          std::vector<double>& xs, std::vector<std::vector<double>>& ys);
 
 }  // namespace tissue

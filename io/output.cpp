@@ -9,6 +9,7 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "io/atomic_file.hpp"
 #include "io/checkpoint.hpp"
 #include "io/hdf5_file.hpp"
 #include "io/snapshot.hpp"
@@ -191,22 +192,35 @@ void Output::write_snapshot_stage(const SolverState& state, const ForceModel& fo
   });
 }
 
-std::string Output::checkpoint(const SolverState& state) {
+std::string Output::checkpoint(const SolverState& state, const ForceModel* forces) {
   char name[64];
   std::snprintf(name, sizeof name, "checkpoint_%010ld.h5", state.step);
   const std::string path = scene_.output.directory + "/" + name;
   StageDeadline deadline(model_.comm, path, stage_seconds(stage_bytes()), path + ".tmp");
   return agree(model_.comm, [&] {
     make_directory();
-    return write_checkpoint(scene_.output.directory, 2, scene_, model_, molecules(), connections(), state);
+    return write_checkpoint(scene_.output.directory, 2, scene_, model_, molecules(), connections(), state, forces);
   });
 }
 
 void Output::history_row(const SolverState& state, const ForceModel& forces, const TensionTest& test) {
   const Measurements m = measure(scene_, model_, test, state.x.array(), state.v.data());
-  std::vector<double> scratch(3 * model_.local);
-  const std::vector<Vec3> reactions = forces.reactions(state.x.array(), state.v.data(), scratch.data());
-  const Vec3 applied = forces.applied_total(state.time);
+  // Dynamic runs: the reactions of the step's own force evaluation (no second one per row). Static load steps:
+  // the step's fraction of the loads; their rows count the load steps, and `time` is that fraction (pseudo-time).
+  const SolverStyle* kind = find_solver(scene_.solver.kind);
+  const bool load_steps = !kind->time_line;
+  std::vector<Vec3> reactions;
+  if (kind->integrates_time) {
+    reactions = forces.last_reactions();
+  } else {
+    std::vector<double> scratch(3 * model_.local);
+    reactions = forces.reactions(state.x.array(), state.v.data(), scratch.data(), state.load_factor);
+  }
+  Vec3 applied = forces.applied_total(state.time);
+  if (load_steps)
+    for (double& c : applied) c *= state.load_factor;
+  const long step = load_steps ? history_rows_ + 1 : state.step;
+  const double time = load_steps ? state.load_factor : state.time;
   make_directory();  // collective (agreed): before rank 0 goes on alone
   const std::string path = scene_.output.directory + "/history.csv";
   agree(model_.comm, [&] {
@@ -221,16 +235,18 @@ void Output::history_row(const SolverState& state, const ForceModel& forces, con
       text = "step,time,force_x,force_y,force_z,elongation,kinetic_energy";
       for (std::size_t f = 0; f < reactions.size(); ++f)
         for (const char* axis : {"x", "y", "z"}) text += ",reaction" + std::to_string(f) + "_" + axis;
-      text += "\n";
+      text += ",lateral_strain\n";
     }
-    text += std::to_string(state.step);
-    number(state.time);
+    text += std::to_string(step);
+    number(time);
     for (double c : applied) number(c);
     if (m.elongation) number(*m.elongation);
     else text += ",";
     number(m.kinetic_energy);
     for (const Vec3& r : reactions)
       for (double c : r) number(c);
+    if (m.lateral_strain) number(*m.lateral_strain);
+    else text += ",";
     text += "\n";
     FILE* file = std::fopen(path.c_str(), history_started_ ? "a" : "w");
     if (!file) throw OutputError(path + ": cannot open: " + std::strerror(errno));
@@ -240,6 +256,33 @@ void Output::history_row(const SolverState& state, const ForceModel& forces, con
       throw OutputError(path + ": cannot write: " + std::strerror(written ? errno : error));
   });
   history_started_ = true;
+  ++history_rows_;
+}
+
+void Output::continue_history(long step) {
+  const std::string path = scene_.output.directory + "/history.csv";
+  int kept = agree(model_.comm, [&] {
+    if (model_.rank != 0) return 0;
+    FILE* file = std::fopen(path.c_str(), "r");
+    if (!file) return 0;  // a restart into another directory: the file starts anew
+    std::string text, line;
+    bool header = true;
+    for (int ch; (ch = std::fgetc(file)) != EOF;) {
+      line += static_cast<char>(ch);
+      if (ch != '\n') continue;
+      // The header, then the rows whose step (the first cell) is at most the checkpoint's; a row a crash cut
+      // short (no newline) is dropped.
+      if (header || std::strtol(line.c_str(), nullptr, 10) <= step) text += line;
+      header = false;
+      line.clear();
+    }
+    std::fclose(file);
+    if (text.empty()) return 0;
+    write_file_atomically(path, text);
+    return 1;
+  });
+  MPI_Bcast(&kept, 1, MPI_INT, 0, model_.comm);
+  history_started_ = kept != 0;
 }
 
 void Output::summary(const TensionTest& test, const Measurements& measured, const Measurements& initial,
@@ -367,7 +410,7 @@ std::string describe(const Hdf5File& file) {
   for (const char* d : {"/molecules/positions", "/molecules/displacements", "/molecules/velocities",
                         "/molecules/forces", "/molecules/fibre_direction", "/molecules/fibre_stretch",
                         "/connections/endpoints", "/connections/strain", "/connections/force",
-                        "/cells/corners", "/cells/volume_ratio"})
+                        "/connections/history", "/cells/corners", "/cells/volume_ratio"})
     if (file.exists(d)) {
       auto shape = file.shape(d);
       out += std::string(" ") + d + " [" + std::to_string(shape[0]) + " x " +

@@ -22,7 +22,8 @@ public:
   // `name` (e.g. "last_good.h5") overrides the file name.
   void snapshot(const SolverState& state, const ForceModel& forces, bool final = false, const char* name = nullptr);
   // Collective. DIR/checkpoint_<step>.h5 (the newest 2 kept); returns its path.
-  std::string checkpoint(const SolverState& state);
+  // With `forces`, the internal variables of its terms too (the viscoelastic history).
+  std::string checkpoint(const SolverState& state, const ForceModel* forces = nullptr);
   // The exchange plans to original order, built on first use (collective): a run that writes nothing pays
   // nothing for them (about 16 bytes per connection).
   const NaturalOrder& molecules();
@@ -34,10 +35,14 @@ public:
   // Collective; rank 0 appends the state's row to DIR/history.csv (the first call of a run writes the header
   // over any earlier file), flushed at once so that a crash keeps the rows so far.
   void history_row(const SolverState& state, const ForceModel& forces, const TensionTest& test);
+  // Collective; a restart from the checkpoint of `step`: DIR/history.csv, if there, keeps its header and its rows
+  // up to that step (rewritten atomically) and the run's rows follow them.
+  void continue_history(long step);
 
 private:
   void make_directory();
   bool history_started_ = false;
+  long history_rows_ = 0;  // rows this run wrote (static runs number their load steps with it)
   static std::string snapshot_name(long step);
   double stage_bytes() const;  // a bound on one file's size, for its StageDeadline
   void write_snapshot_stage(const SolverState& state, const ForceModel& forces, bool final, const char* name);

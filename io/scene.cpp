@@ -332,7 +332,7 @@ BodySpec read_body(const Section& s) {
   if (b.radius) s.positive("radius", *b.radius);
 
   for (const auto& r : s.tables("region")) {
-    r.allow({"lo", "hi", "material", "youngs_modulus", "density", "poisson_ratio", "fibres"});
+    r.allow({"lo", "hi", "material", "youngs_modulus", "density", "poisson_ratio", "fibres", "viscoelastic"});
     RegionSpec spec;
     r.require("lo");
     r.require("hi");
@@ -343,6 +343,7 @@ BodySpec read_body(const Section& s) {
         r.fail("hi", fmt::format("hi[{}] = {} is below lo[{}] = {}", a, spec.hi[a], a, spec.lo[a]));
     read_material(r, spec.material, spec.youngs_modulus, spec.density, &spec.poisson_ratio);
     if (r.has("fibres")) read_fibre_material(r, spec.material, spec.youngs_modulus, spec.fibres);
+    if (r.has("viscoelastic")) spec.viscoelastic = read_viscoelastic(r.table("viscoelastic"));
     b.regions.push_back(spec);
   }
   return b;
@@ -411,7 +412,7 @@ CalibrationSpec read_calibration(const Section& s, const BodySpec* body, int ind
 SolverSpec read_solver(const Section& s) {
   SolverSpec v;
   s.allow({"kind", "tolerance", "time_step", "steps", "end_time", "max_iterations", "load_steps",
-           "allow_unstable_time_step"});
+           "allow_unstable_time_step", "time_step_growth", "max_time_step"});
   v.kind = s.choice("kind", solver_names()).value_or(v.kind);
   v.tolerance = s.number("tolerance").value_or(v.tolerance);
   if (!(v.tolerance > 0 && v.tolerance < 1))
@@ -428,6 +429,13 @@ SolverSpec read_solver(const Section& s) {
   v.load_steps = s.integer("load_steps").value_or(v.load_steps);
   s.at_least("load_steps", v.load_steps, 1);
   v.allow_unstable_time_step = s.boolean("allow_unstable_time_step").value_or(false);
+  v.time_step_growth = s.number("time_step_growth").value_or(v.time_step_growth);
+  if (!(v.time_step_growth >= 1.0 && v.time_step_growth <= 10.0))
+    s.fail("time_step_growth", fmt::format("must be in [1, 10], got {}", v.time_step_growth));
+  v.max_time_step = s.number("max_time_step");
+  if (v.max_time_step) s.positive("max_time_step", *v.max_time_step);
+  if (v.max_time_step && v.time_step && *v.max_time_step < *v.time_step)
+    s.fail("max_time_step", fmt::format("{} is below time_step {}", *v.max_time_step, *v.time_step));
   return v;
 }
 
@@ -457,13 +465,15 @@ ObstacleSpec read_obstacle(const Section& s) {
 
 OutputSpec read_output(const Section& s) {
   OutputSpec o;
-  s.allow({"directory", "snapshot_every", "checkpoint_every", "fields", "progress"});
+  s.allow({"directory", "snapshot_every", "checkpoint_every", "history_every", "fields", "progress"});
   o.directory = s.string("directory").value_or(o.directory);
   if (o.directory.empty()) s.fail("directory", "must not be empty");
   o.snapshot_every = s.integer("snapshot_every").value_or(o.snapshot_every);
   s.at_least("snapshot_every", o.snapshot_every, 0);
   o.checkpoint_every = s.integer("checkpoint_every").value_or(o.checkpoint_every);
   s.at_least("checkpoint_every", o.checkpoint_every, 0);
+  o.history_every = s.integer("history_every").value_or(o.history_every);
+  s.at_least("history_every", o.history_every, 1);
   if (auto f = s.strings("fields")) {
     std::set<std::string> seen;
     for (const auto& name : *f) {
@@ -620,14 +630,9 @@ Scene build_scene(const Value& root, const std::string& file) {
   if (top.has("output")) scene.output = read_output(top.table("output"));
   if (scene.solver.kind == "quasi-static" && !scene.solver.time_step)
     throw InputError(file, "solver.time_step", "missing: a quasi-static run needs its time step (s)");
-  // Checkpoints do not hold the quasi-static time line or the viscoelastic history yet: refused, not restarted
-  // into a different run.
-  bool viscoelastic = false;
-  for (const auto& b : scene.bodies) viscoelastic = viscoelastic || !b.viscoelastic.empty();
-  if (scene.output.checkpoint_every > 0 && (scene.solver.kind == "quasi-static" || viscoelastic))
-    throw InputError(file, "output.checkpoint_every",
-                     viscoelastic ? "checkpoints do not hold the viscoelastic history yet (give 0)"
-                                  : "a quasi-static run is not checkpointed yet (give 0)");
+  if (scene.solver.kind != "quasi-static" && (scene.solver.time_step_growth != 1.0 || scene.solver.max_time_step))
+    throw InputError(file, scene.solver.max_time_step ? "solver.max_time_step" : "solver.time_step_growth",
+                     "only a quasi-static run grows its time step");
   if (top.has("partition")) {
     Section p = top.table("partition");
     p.allow({"method"});

@@ -136,12 +136,13 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
   if (!checkpoint.empty())
     agree(comm, [&] {
       read_checkpoint_state(checkpoint, model, out.molecules(), out.connections(), sim.state(),
-                            /*check_stiffness=*/!sim.refresh());
+                            /*check_stiffness=*/!sim.refresh(), &sim.forces());
+      out.continue_history(sim.state().step);
     });
   SolverHooks hooks;
   hooks.snapshot = [&](const SolverState& s) { out.snapshot(s, sim.forces()); };
   std::string last_checkpoint;
-  hooks.checkpoint = [&](const SolverState& s) { last_checkpoint = out.checkpoint(s); };
+  hooks.checkpoint = [&](const SolverState& s) { last_checkpoint = out.checkpoint(s, &sim.forces()); };
   hooks.record = [&](const SolverState& s) { out.history_row(s, sim.forces(), sim.test()); };
   sim.solve(hooks);
   const SolveReport& report = sim.report();
@@ -175,6 +176,13 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
 
 // `tissue fit`: the scene of the experiment plus [fit] (io/fit_input.hpp), fitted by src/driver/fit.hpp. Writes
 // DIR/fit.json, DIR/fitted.toml and, in DIR itself, the run of the fitted scene (history.csv, summary.json).
+// "elongation", or "elongation, lateral_strain" for several y columns (the progress line).
+std::string join_names(const std::vector<std::string>& names) {
+  std::string out;
+  for (const auto& n : names) out += (out.empty() ? "" : ", ") + n;
+  return out;
+}
+
 int fit(const std::string& fit_path, const std::vector<std::string>& overrides, const std::string& output) {
   const MPI_Comm comm = PETSC_COMM_WORLD;
   const bool root = rank_of(comm) == 0;
@@ -187,7 +195,7 @@ int fit(const std::string& fit_path, const std::vector<std::string>& overrides, 
   const std::string dir = scene.output.directory;
   if (root)
     std::printf("tissue fit: %zu parameters to the %zu points of %s (%s against %s)\n", input.parameters.size(),
-                input.data_x.size(), input.data_path.c_str(), input.y.c_str(), input.x.c_str());
+                input.data_x.size(), input.data_path.c_str(), join_names(input.y).c_str(), input.x.c_str());
 
   // 2. Forward runs, each the ordinary run on every rank, into DIR/forward; the optimizer (TAO POUNDERS).
   ForwardRun forward = [&](const std::vector<std::string>& set, const std::string& directory) {
@@ -232,7 +240,9 @@ int fit(const std::string& fit_path, const std::vector<std::string>& overrides, 
   j["identifiable"] = r.identifiable;
   j["notes"] = r.notes;
   j["data"] = input.data_path;
-  j["x"] = input.x, j["y"] = input.y;
+  j["x"] = input.x;
+  j["y"] = input.y.size() == 1 ? nlohmann::json(input.y[0]) : nlohmann::json(input.y);
+  for (std::size_t k = 0; k < input.y.size(); ++k) j["residual_norms"][input.y[k]] = r.column_norms[k];
   j["fitted_run_exit_code"] = last;
   j["wall_seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   agree(comm, [&] {

@@ -4,13 +4,15 @@
 A dynamic run of a tiny box (table2.toml with 4 x 4 x 4 molecules, 20 steps, a snapshot and a checkpoint every 5
 steps) under an LD_PRELOAD shim (tests/fault_inject.c) that fails one file system call as a full disk (ENOSPC),
 an exhausted quota (EDQUOT) or a failing device (EIO) does, on rank 0, rank 1 or every rank, while it writes a
-snapshot, a checkpoint, final.h5, summary.json or the XDMF index, at 1, 2 and 3 ranks. Every case must:
+snapshot, a checkpoint, final.h5, summary.json, the XDMF index or a row of history.csv, at 1, 2 and 3 ranks.
+Every case must:
   - end within 30 s with the documented exit code: 3 when the faulted rank writes that file, 0 when it does not
     (rank 1 writes neither summary.json nor the XDMF index);
   - print one line (tissue's; the shim's own "fault:" line and Open MPI's "mca_fbtl_posix_pwritev: error ..."
     line aside) naming the file and the system error (when MPI-IO lost errno, or a rank is stuck in a collective
     past the write's deadline, tissue asks the system by writing the file again: probe_write_error());
-  - leave no .tmp file, and every file written before the fault intact (bitwise the fault-free run's);
+  - leave no .tmp file, and every file written before the fault intact (bitwise the fault-free run's; the rows of
+    history.csv so far the start of the fault-free run's);
   - for the checkpoint and final.h5 cases: the newest checkpoint left restarts and ends in the fault-free run's
     final state, bitwise.
 Then: a failure injected on one rank in the middle of each collective stage that is not a write (the test hook
@@ -64,6 +66,8 @@ TARGETS = {
                 ["final.h5", "snapshot_00000015.h5", "checkpoint_0000000015.h5", "tissue.xdmf"]),
     # the second XDMF index (after snapshot 10) cannot be renamed into place: the first stays
     "xdmf": ("rename", "EIO", "tissue.xdmf", 1, ["snapshot_00000005.h5", "checkpoint_0000000005.h5", "tissue.xdmf"]),
+    # history.csv (rank 0 appends a row a step): the write of a row after the first 1000 bytes (about 4 rows)
+    "history": ("write", "ENOSPC", "history.csv", 1000, []),
     # the other calls, at 2 and 3 ranks: the fsync of a checkpoint before its rename (rank 0 alone syncs), the open
     # of a snapshot by MPI-IO (every rank opens it; Open MPI's MPI_File_open then hangs: the StageDeadline ends it)
     "checkpoint fsync": ("fsync", "EIO", "checkpoint_0000000010.h5", 0,
@@ -72,7 +76,7 @@ TARGETS = {
                       ["snapshot_00000005.h5", "checkpoint_0000000005.h5", "tissue.xdmf"]),
 }
 RANKS = {"checkpoint fsync": (2, 3), "snapshot open": (2, 3)}  # the others: 1, 2, 3
-NOT_RANK_1 = ("summary", "xdmf", "checkpoint fsync")  # files (or calls) rank 1 never writes (makes)
+NOT_RANK_1 = ("summary", "xdmf", "checkpoint fsync", "history")  # files (or calls) rank 1 never writes (makes)
 STRERROR = {"ENOSPC": "No space left on device", "EDQUOT": "Disk quota exceeded", "EIO": "Input/output error"}
 
 passed, failed, rows = 0, 0, []
@@ -206,6 +210,16 @@ def main():
                     problems.append(os.path.basename(h5) + " differs from the fault-free run's")
             except Exception as e:  # noqa: BLE001 - any unreadable file is a loss
                 problems.append("%s unreadable (%s)" % (os.path.basename(h5), e))
+        # The rows written before the fault are kept: history.csv (its whole lines) is a prefix of the fault-free
+        # run's.
+        history = os.path.join(out, "history.csv")
+        if os.path.exists(history):
+            text = open(history).read()
+            text = text[:text.rfind("\n") + 1]
+            if not text or not open(os.path.join(reference[np_], "history.csv")).read().startswith(text):
+                problems.append("history.csv is not the start of the fault-free run's")
+        elif expected == 3:
+            problems.append("lost history.csv")
         restarted = ""
         if expected == 3 and target in ("checkpoint", "final", "checkpoint fsync") and not problems:
             newest = sorted(glob.glob(os.path.join(out, "checkpoint_*.h5")))[-1]

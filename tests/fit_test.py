@@ -7,6 +7,12 @@ a. A standard-linear-solid creep curve (one Prony term, gamma = 1, tau = 2 s; qu
 b. The same curve with 1 % Gaussian noise (seeded): each fitted value within two standard errors of the truth.
 c. A parameter that does not change the curve (density, in a quasi-static run without inertia) fitted with the
    others: reported as not identifiable, naming it.
+e. A two-term Prony relaxation curve (a step strain held 20 s, the reaction against time, gamma = [1.5, 0.8],
+   tau = [0.4, 5] s) fitted back from gamma = [0.5, 0.5], tau = [1, 20] s, all four at 1 and 2 ranks: to 1e-3.
+   Two terms with nearly the same time constant (tau = [2, 2.02] s, their gammas fitted) are reported as not
+   separable (|correlation| > 0.999; at tau = [2, 2.1] s it is 0.997 and the fit still separates them).
+f. E and nu from a static tension test's elongation and lateral contraction fitted together (y = ["elongation",
+   "lateral_strain"], one history.csv row per load step), from E = 2 MPa, nu = 0.2 towards 1 MPa, 0.35: to 1e-4.
 d. Bad input: no [fit], a CSV without the column, x not increasing, a start value outside its bounds, a key that
    is not a number in the scene: exit 2, one stderr line naming the file, and no forward run (nothing written).
 
@@ -50,6 +56,58 @@ fields = []
 progress = false
 """
 
+# A stress-relaxation test: both ends clamped, the top moved by 1e-4 of its length at t = 0 and held.
+RELAXATION = """title = "two-term relaxation"
+[body]
+molecules = [3, 3, 4]
+size = [0.002, 0.002, 0.003]
+topology = "face-diagonals"
+youngs_modulus = 1.0e6
+[body.viscoelastic]
+gamma = [{gamma}]
+tau = [{tau}]
+[calibration]
+method = "homogenized"
+[[fix]]
+face = "z-"
+mode = "clamped"
+[[fix]]
+face = "z+"
+mode = "clamped"
+displacement = [0.0, 0.0, 3.0e-7]
+[solver]
+kind = "quasi-static"
+time_step = 0.2
+end_time = 20.0
+[output]
+fields = []
+progress = false
+"""
+
+# A static tension test with free lateral faces, four load steps: history.csv's rows are the load steps.
+TENSION = """title = "E and nu"
+[body]
+molecules = [3, 3, 5]
+size = [0.002, 0.002, 0.004]
+topology = "face-diagonals"
+youngs_modulus = {E}
+poisson_ratio = {nu}
+[calibration]
+method = "homogenized"
+[[fix]]
+face = "z-"
+mode = "roller"
+[[load]]
+face = "z+"
+force = [0.0, 0.0, 0.01]
+[solver]
+kind = "static"
+load_steps = 4
+[output]
+fields = []
+progress = false
+"""
+
 FIT = """
 [fit]
 data = "{data}"
@@ -69,15 +127,15 @@ def run(cmd):
     return p.returncode, p.stdout, p.stderr
 
 
-def history(path):
+def history(path, y="elongation"):
     with open(path) as f:
-        rows = [r for r in csv.DictReader(f) if r["elongation"] != ""]
-    return [float(r["time"]) for r in rows], [float(r["elongation"]) for r in rows]
+        rows = [r for r in csv.DictReader(f) if r[y] != ""]
+    return [float(r["time"]) for r in rows], [float(r[y]) for r in rows]
 
 
-def write_csv(path, xs, ys):
+def write_csv(path, xs, ys, y="elongation"):
     with open(path, "w") as f:
-        f.write("time,elongation\n")
+        f.write("time,%s\n" % y)
         for x, y in zip(xs, ys):
             f.write("%.17g,%.17g\n" % (x, y))
 
@@ -159,6 +217,87 @@ def main():
             r = json.load(f)
         check(not r["identifiable"] and "body.density" in r["notes"],
               "c. density reported as not identifiable: %s" % r["notes"])
+
+    # e. a two-term Prony relaxation curve, and two terms the curve cannot tell apart
+    def relaxation(name, gamma, tau):
+        path = os.path.join(out, name + ".toml")
+        with open(path, "w") as f:
+            f.write(RELAXATION.format(gamma="%r, %r" % gamma, tau="%r, %r" % tau))
+        return path
+
+    code, _, err = run([exe, "run", relaxation("relax_truth", (1.5, 0.8), (0.4, 5.0)), "--output",
+                        os.path.join(out, "relax_truth")])
+    check(code == 0, "e. the relaxation curve runs: " + err.strip()[-300:])
+    rx, ry = history(os.path.join(out, "relax_truth", "history.csv"), "reaction0_z")
+    write_csv(os.path.join(out, "relax.csv"), rx, ry, "reaction0_z")
+    check(abs(ry[0]) > 2.0 * abs(ry[-1]) > 0, "e. the reaction relaxes (%s -> %s)" % (ry[0], ry[-1]))
+    prony = "".join('"body.viscoelastic.%s" = [%r, %r]\n' % (k, lo, hi) for k, lo, hi in (
+        ("gamma.0", 0.01, 10.0), ("gamma.1", 0.01, 10.0), ("tau.0", 0.05, 2.0), ("tau.1", 2.0, 50.0)))
+    truth2 = {"body.viscoelastic.gamma.0": 1.5, "body.viscoelastic.gamma.1": 0.8, "body.viscoelastic.tau.0": 0.4,
+              "body.viscoelastic.tau.1": 5.0}
+    for ranks in (1, 2):
+        scene = relaxation("relax_fit%d" % ranks, (0.5, 0.5), (1.0, 20.0))
+        with open(scene, "a") as f:
+            f.write(FIT.format(data="relax.csv", parameters=prony).replace('y = "elongation"', 'y = "reaction0_z"'))
+        d = os.path.join(out, "relax_fit%d" % ranks)
+        code, _, err = run(mpi(exe, ranks, ["fit", scene, "--output", d]))
+        if not check(code == 0, "e. two-term fit on %d ranks exits 0: %s" % (ranks, err.strip()[-300:])):
+            continue
+        r = json.load(open(os.path.join(d, "fit.json")))
+        for key, value in truth2.items():
+            got = r["parameters"][key]
+            check(abs(got - value) <= 1e-3 * value, "e. %d ranks: %s = %.6g, truth %g (1e-3)" % (ranks, key, got, value))
+        check(r["identifiable"], "e. %d ranks: the two terms are separable: %s" % (ranks, r["notes"]))
+        print("      e. %d ranks: %d forward runs, |r| %.3e, %s" % (ranks, r["forward_runs"], r["residual_norm"],
+                                                                     r["parameters"]))
+    code, _, err = run([exe, "run", relaxation("close_truth", (1.0, 1.0), (2.0, 2.02)), "--output",
+                        os.path.join(out, "close_truth")])
+    cx, cy = history(os.path.join(out, "close_truth", "history.csv"), "reaction0_z")
+    write_csv(os.path.join(out, "close.csv"), cx, cy, "reaction0_z")
+    scene = relaxation("close_fit", (0.8, 1.2), (2.0, 2.02))
+    close = "".join('"body.viscoelastic.%s" = [%r, %r]\n' % (k, lo, hi) for k, lo, hi in (
+        ("gamma.0", 0.01, 10.0), ("gamma.1", 0.01, 10.0)))
+    with open(scene, "a") as f:
+        f.write(FIT.format(data="close.csv", parameters=close).replace('y = "elongation"', 'y = "reaction0_z"'))
+    d = os.path.join(out, "close_fit")
+    code, _, err = run([exe, "fit", scene, "--output", d])
+    if check(code == 0, "e. close time constants: fit exits 0: " + err.strip()[-300:]):
+        r = json.load(open(os.path.join(d, "fit.json")))
+        check(not r["identifiable"] and "cannot be separated" in r["notes"],
+              "e. gamma.0 and gamma.1 of tau = 2 s and 2.02 s reported as not separable: %s" % r["notes"])
+
+    # f. E and nu from elongation and lateral contraction, fitted together
+    with open(os.path.join(out, "tension_truth.toml"), "w") as f:
+        f.write(TENSION.format(E=1.0e6, nu=0.35))
+    code, _, err = run([exe, "run", os.path.join(out, "tension_truth.toml"), "--output", os.path.join(out, "tension")])
+    check(code == 0, "f. the tension test runs: " + err.strip()[-300:])
+    with open(os.path.join(out, "tension", "history.csv")) as f:
+        rows = list(csv.DictReader(f))
+    check(len(rows) == 4 and all(r["lateral_strain"] != "" for r in rows),
+          "f. one row per load step with the lateral strain (%d rows)" % len(rows))
+    with open(os.path.join(out, "tension.csv"), "w") as f:
+        f.write("time,elongation,lateral_strain\n")
+        for r in rows:
+            f.write("%s,%s,%s\n" % (r["time"], r["elongation"], r["lateral_strain"]))
+    summary = json.load(open(os.path.join(out, "tension", "summary.json")))
+    axial = float(rows[-1]["elongation"]) / summary["rest_length"]
+    check(abs(-float(rows[-1]["lateral_strain"]) / axial - summary["poisson_ratio_measured"]) <= 1e-12,
+          "f. lateral_strain / axial strain is the summary's poisson_ratio_measured")
+    scene = os.path.join(out, "tension_fit.toml")
+    with open(scene, "w") as f:
+        f.write(TENSION.format(E=2.0e6, nu=0.2) + FIT.format(
+            data="tension.csv", parameters='"body.youngs_modulus" = [1.0e5, 1.0e7]\n"body.poisson_ratio" = [0.0, 0.45]\n')
+            .replace('y = "elongation"', 'y = ["elongation", "lateral_strain"]'))
+    d = os.path.join(out, "tension_fit")
+    code, _, err = run(mpi(exe, 2, ["fit", scene, "--output", d]))
+    if check(code == 0, "f. E and nu fit exits 0: " + err.strip()[-300:]):
+        r = json.load(open(os.path.join(d, "fit.json")))
+        for key, value in (("body.youngs_modulus", 1.0e6), ("body.poisson_ratio", 0.35)):
+            got = r["parameters"][key]
+            check(abs(got - value) <= 1e-4 * value, "f. %s = %.8g, truth %g (1e-4)" % (key, got, value))
+        check(r["y"] == ["elongation", "lateral_strain"] and set(r["residual_norms"]) == set(r["y"]),
+              "f. fit.json names both y columns and their residual norms")
+        print("      f. %d forward runs, %s" % (r["forward_runs"], r["parameters"]))
 
     # d. bad input: exit 2, one line, nothing run
     with open(os.path.join(out, "backwards.csv"), "w") as f:

@@ -44,7 +44,7 @@ fields = []
 progress = false
 """
 COLUMNS = ["step", "time", "force_x", "force_y", "force_z", "elongation", "kinetic_energy",
-           "reaction0_x", "reaction0_y", "reaction0_z"]
+           "reaction0_x", "reaction0_y", "reaction0_z", "lateral_strain"]
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from checks import check, report  # noqa: E402

@@ -56,9 +56,12 @@ struct Problem {
   long inside = 0;      // of which inside the measured x range (the points that count)
   long runs = 0, failed = 0;
   std::vector<double> best_r, best_values;
-  // TAO sees r / y_scale (y_scale: the largest |measured y|), so that its tolerances mean the same for a curve in
-  // metres (1e-5) as for one in newtons: relative misfit. Reported norms and errors are in the data's units.
-  double y_scale = 1.0;
+  // TAO sees r / y_scale (y_scale: the largest |measured y| of the residual's column), so that its tolerances
+  // mean the same for a curve in metres (1e-5) as for one in newtons (relative misfit), and several y columns
+  // (an elongation and a lateral strain) weigh alike. Per residual entry; with one column, reported norms and
+  // errors are in the data's units.
+  std::vector<double> column_scale;  // per y column
+  std::vector<double> y_scale;       // per residual entry: its column's scale
   std::vector<double> last_p, last_r;
   bool last_ok = false;
   double best = std::numeric_limits<double>::infinity();
@@ -76,7 +79,9 @@ struct Problem {
     if (p == last_p && last_ok) return r = last_r, true;
     ++runs;
     int code = forward(fit_overrides(in, p), work);
-    std::vector<double> xs, ys;
+    std::vector<double> xs;
+    std::vector<std::vector<double>> ys;
+    const int columns = static_cast<int>(in.y.size());
     long n = -1;
     std::string error;
     if (code == 0 && is_root(comm)) {
@@ -88,17 +93,27 @@ struct Problem {
       }
     }
     MPI_Bcast(&n, 1, MPI_LONG, 0, comm);
-    bool ok = code == 0 && n > 0 && (m < 0 || n == m);
+    bool ok = code == 0 && n > 0 && (m < 0 || n * columns == m);
     if (ok) {
-      xs.resize(n), ys.resize(n);
+      xs.resize(n), ys.resize(columns);
       MPI_Bcast(xs.data(), static_cast<int>(n), MPI_DOUBLE, 0, comm);
-      MPI_Bcast(ys.data(), static_cast<int>(n), MPI_DOUBLE, 0, comm);
-      if (m < 0) m = n;
-      r.assign(n, 0.0);
+      for (auto& column : ys) {
+        column.resize(n);
+        MPI_Bcast(column.data(), static_cast<int>(n), MPI_DOUBLE, 0, comm);
+      }
+      if (m < 0) {
+        m = n * columns;
+        y_scale.resize(m);
+        for (long e = 0; e < m; ++e) y_scale[e] = column_scale[e / n];
+      }
+      // Column after column: r[k n + i] = simulated y_k - measured y_k at row i's x.
+      r.assign(n * columns, 0.0);
       long count = 0;
       for (long i = 0; i < n; ++i)
-        if (xs[i] >= in.data_x.front() && xs[i] <= in.data_x.back())
-          r[i] = ys[i] - interpolate(in.data_x, in.data_y, xs[i]), ++count;
+        if (xs[i] >= in.data_x.front() && xs[i] <= in.data_x.back()) {
+          for (int k = 0; k < columns; ++k) r[k * n + i] = ys[k][i] - interpolate(in.data_x, in.data_y[k], xs[i]);
+          count += columns;
+        }
       if (inside == 0) inside = count;
       for (double v : r) ok = ok && std::isfinite(v);
     }
@@ -146,7 +161,7 @@ PetscErrorCode tao_residual(Tao, Vec U, Vec R, void* ctx) {
   PetscInt len;
   PetscCall(VecGetLocalSize(R, &len));
   PetscCall(VecGetArray(R, &out));
-  for (PetscInt i = 0; i < len; ++i) out[i] = i < static_cast<PetscInt>(r.size()) ? r[i] / P->y_scale : 0.0;
+  for (PetscInt i = 0; i < len; ++i) out[i] = i < static_cast<PetscInt>(r.size()) ? r[i] / P->y_scale[i] : 0.0;
   PetscCall(VecRestoreArray(R, &out));
   PetscFunctionReturn(0);
 }
@@ -159,14 +174,17 @@ void check(PetscErrorCode ierr, const char* what) {
 
 FitResult fit_parameters(const FitInput& input, const ForwardRun& forward, const std::string& work, MPI_Comm comm,
                          bool progress) {
-  Problem P{input, forward, work, comm, progress, {}, -1, 0, 0, 0, {}, {}, std::numeric_limits<double>::infinity()};
+  Problem P{input, forward, work, comm, progress, {}, -1, 0, 0, 0, {}, {}, {}, {}, {}, {}, false,
+            std::numeric_limits<double>::infinity()};
   const int n = static_cast<int>(input.parameters.size());
   std::vector<double> u0(n);
   for (const auto& p : input.parameters) P.scales.emplace_back(p);
   for (int j = 0; j < n; ++j) u0[j] = P.scales[j].unit(input.parameters[j].start);
-  double y_largest = 0.0;
-  for (double y : input.data_y) y_largest = std::max(y_largest, std::fabs(y));
-  P.y_scale = y_largest > 0 ? y_largest : 1.0;
+  for (const auto& column : input.data_y) {
+    double y_largest = 0.0;
+    for (double y : column) y_largest = std::max(y_largest, std::fabs(y));
+    P.column_scale.push_back(y_largest > 0 ? y_largest : 1.0);
+  }
 
   // 1. The start: its run fixes the residual's length (a failure here is the scene's, not the optimizer's).
   std::vector<double> r0;
@@ -228,7 +246,12 @@ FitResult fit_parameters(const FitInput& input, const ForwardRun& forward, const
 
   // 3. Standard errors and correlations from the Jacobian at the best point, by forward differences in u (away
   //    from a bound), in the parameters' own units: Cov = s^2 (J^T J)^-1, s^2 = |r|^2 / (points - n).
+  // Several y columns: the weighted problem (each column over its scale, as TAO saw it), so that the standard
+  // errors do not mix units; with one column the weight cancels and this is the plain one.
+  const bool weighted = input.y.size() > 1;
   std::vector<double> r = P.best_r, ub(n);
+  if (weighted)
+    for (long i = 0; i < P.m; ++i) r[i] /= P.y_scale[i];
   for (int j = 0; j < n; ++j) ub[j] = P.scales[j].unit(best[j]);
   Eigen::MatrixXd J(P.m, n);
   for (int j = 0; j < n; ++j) {
@@ -242,7 +265,7 @@ FitResult fit_parameters(const FitInput& input, const ForwardRun& forward, const
       J.col(j).setZero();
       continue;
     }
-    for (long i = 0; i < P.m; ++i) J(i, j) = (rj[i] - r[i]) / dp;
+    for (long i = 0; i < P.m; ++i) J(i, j) = (rj[i] / (weighted ? P.y_scale[i] : 1.0) - r[i]) / dp;
   }
   out.values = best;
   out.forward_runs = P.runs, out.failed_runs = P.failed;
@@ -250,6 +273,12 @@ FitResult fit_parameters(const FitInput& input, const ForwardRun& forward, const
   double ss = 0;
   for (double v : r) ss += v * v;
   out.residual_norm = std::sqrt(ss);
+  const long rows = P.m / static_cast<long>(input.y.size());
+  for (std::size_t k = 0; k < input.y.size(); ++k) {
+    double column = 0;
+    for (long i = 0; i < rows; ++i) column += P.best_r[k * rows + i] * P.best_r[k * rows + i];
+    out.column_norms.push_back(std::sqrt(column));
+  }
   const long dof = P.inside - n;
   const double s2 = dof > 0 ? ss / static_cast<double>(dof) : 0.0;
   const Eigen::MatrixXd JtJ = J.transpose() * J;

@@ -29,7 +29,8 @@ struct FitResult {
   std::vector<double> values, standard_errors;  // per parameter
   std::vector<std::vector<double>> correlation;
   std::vector<bool> on_bound;
-  double residual_norm = 0.0;  // |r| at the fitted values
+  double residual_norm = 0.0;  // |r| at the fitted values (several y columns: of r, each column over its scale)
+  std::vector<double> column_norms;  // per y column: |r| of that column, in its units
   long residuals = 0;          // how many points r has
   long forward_runs = 0, failed_runs = 0;
   bool converged = false;      // TAO's reason is a convergence

@@ -113,6 +113,14 @@ Measurements measure(const Scene& scene, const LocalModel& model, const TensionT
     for (const auto& f : scene.fixes) free = free && !touches(f.face);
     for (const auto& l : scene.loads) free = free && !touches(l.face);
     free = free && test.load_face.empty();
+    const int lateral_axes[2] = {u, w};
+    if (free && std::fabs(test.direction[test.axis]) > 0.5) {
+      double mean = 0;
+      for (int l = 0; l < 2; ++l)
+        mean += 0.5 * (total[11 + 4 * l] / total[12 + 4 * l] - total[9 + 4 * l] / total[10 + 4 * l]) /
+                s.length(lateral_axes[l]);
+      m.lateral_strain = mean;
+    }
     if (free && dl != 0.0 && std::fabs(test.direction[test.axis]) > 0.5) {  // not for a shear load
       // Axial strain from the change of length (negative in compression), not from the displacement along the
       // load: a compressive load moves the loaded face toward the fixed one.

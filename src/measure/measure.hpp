@@ -17,6 +17,9 @@ struct Measurements {
   std::optional<double> poisson_ratio;     // lateral contraction / axial strain, when lateral faces are free
   // The same per lateral axis, (axis + 1) % 3 and (axis + 2) % 3: both differ on an anisotropic body.
   std::optional<std::array<double, 2>> poisson_ratios;
+  // The mean lateral strain of the same faces (the change of distance between the two faces of each lateral axis
+  // over that distance, averaged over both axes; negative in contraction): history.csv's lateral_strain.
+  std::optional<double> lateral_strain;
   // Simple shear: a clamped face and a tangential load on the face opposite: G = (F / A) / gamma, gamma the mean
   // displacement along F of the loaded face relative to the clamped one over their distance.
   std::optional<double> shear_modulus;

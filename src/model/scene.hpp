@@ -75,6 +75,9 @@ struct RegionSpec {
   std::optional<double> poisson_ratio;
   // The region's own [body.region.fibres], else the body's (a region inherits the body's fibres as it does nu).
   std::optional<FibreSpec> fibres;
+  // [body.region.viscoelastic]: the region's own Prony series (box regions); empty: the body's acts. A connection
+  // belongs to the region whose box holds its rest midpoint (the last such region).
+  PronySpec viscoelastic;
 };
 
 struct BodySpec {
@@ -159,6 +162,10 @@ struct SolverSpec {
   std::optional<double> time_step;     // s (relaxation, dynamic); absent = from the critical time step
   long steps = 1000;                   // dynamic, quasi-static: total step count of the run
   std::optional<double> end_time;      // quasi-static: s, instead of steps
+  // quasi-static: each step is this many times the last (>= 1), up to max_time_step; a step that lands on a
+  // history breakpoint starts again from time_step (a load's change is the fast part of creep and relaxation).
+  double time_step_growth = 1.0;
+  std::optional<double> max_time_step;
   long max_iterations = 0;             // relaxation/static cap; 0 = a default that grows with the lattice
   long load_steps = 1;                 // static: load increments
   // A time_step above the critical one (explicit integration unstable) is refused unless this is true; then it
@@ -170,6 +177,7 @@ struct OutputSpec {
   std::string directory = "out";
   long snapshot_every = 0;    // 0: final state only
   long checkpoint_every = 0;  // 0: none
+  long history_every = 1;     // dynamic: a history.csv row every this many steps (and at the last step)
   std::vector<std::string> fields{"positions", "displacements", "forces"};  // snapshot datasets
   bool progress = true;       // the progress line on rank 0
 };

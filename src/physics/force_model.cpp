@@ -162,7 +162,8 @@ void ForceModel::forces(const double* x, const double* v, double* f, double load
   connection_forces(x, f);
   for (const auto& a : applied_) f[a.component] += load_factor * load_scale_[a.load] * a.value;
   for (const auto& t : terms_) t->add_forces(x, v, time_, f);  // one call per term, none per connection
-  for (int i : held_owned_) f[i] = 0.0;
+  held_force_.resize(held_owned_.size());
+  for (std::size_t q = 0; q < held_owned_.size(); ++q) held_force_[q] = f[held_owned_[q]], f[held_owned_[q]] = 0.0;
 }
 
 double ForceModel::potential_energy(const double* x, double load_factor) const {
@@ -195,14 +196,23 @@ void ForceModel::place_held(double t, double* x) const {
   }
 }
 
-std::vector<Vec3> ForceModel::reactions(const double* x, const double* v, double* f) const {
+std::vector<Vec3> ForceModel::reactions(const double* x, const double* v, double* f, double load_factor) const {
   connection_forces(x, f);
-  for (const auto& a : applied_) f[a.component] += load_scale_[a.load] * a.value;
+  for (const auto& a : applied_) f[a.component] += load_factor * load_scale_[a.load] * a.value;
   for (const auto& t : terms_) t->add_forces(x, v, time_, f);
   std::vector<double> local(3 * scene_.fixes.size(), 0.0), global(local.size(), 0.0);
   for (std::size_t q = 0; q < held_owned_.size(); ++q) local[3 * held_fix_[q] + held_owned_[q] % 3] -= f[held_owned_[q]];
   MPI_Allreduce(local.data(), global.data(), static_cast<int>(local.size()), MPI_DOUBLE, MPI_SUM, model_.comm);
   for (int i : held_owned_) f[i] = 0.0;
+  std::vector<Vec3> r(scene_.fixes.size());
+  for (std::size_t k = 0; k < r.size(); ++k) r[k] = {global[3 * k], global[3 * k + 1], global[3 * k + 2]};
+  return r;
+}
+
+std::vector<Vec3> ForceModel::last_reactions() const {
+  std::vector<double> local(3 * scene_.fixes.size(), 0.0), global(local.size(), 0.0);
+  for (std::size_t q = 0; q < held_force_.size(); ++q) local[3 * held_fix_[q] + held_owned_[q] % 3] -= held_force_[q];
+  MPI_Allreduce(local.data(), global.data(), static_cast<int>(local.size()), MPI_DOUBLE, MPI_SUM, model_.comm);
   std::vector<Vec3> r(scene_.fixes.size());
   for (std::size_t k = 0; k < r.size(); ++k) r[k] = {global[3 * k], global[3 * k + 1], global[3 * k + 2]};
   return r;
@@ -229,6 +239,44 @@ void ForceModel::begin_step(double dt) const {
 
 void ForceModel::commit_step(const double* x) const {
   for (const auto& t : terms_) t->commit_step(x);
+}
+
+int ForceModel::history_width() const {
+  int w = 0;
+  for (const auto& t : terms_) w += t->history_width();
+  return w;
+}
+
+std::vector<double> ForceModel::history() const {
+  const int n = model_.connections(), width = history_width();
+  std::vector<double> rows(static_cast<std::size_t>(n) * width), part;
+  int column = 0;
+  for (const auto& t : terms_)
+    if (const int w = t->history_width()) {
+      part.resize(static_cast<std::size_t>(n) * w);
+      t->save_history(part.data());
+      for (int c = 0; c < n; ++c)
+        std::copy(part.begin() + static_cast<std::size_t>(c) * w, part.begin() + static_cast<std::size_t>(c + 1) * w,
+                  rows.begin() + static_cast<std::size_t>(c) * width + column);
+      column += w;
+    }
+  return rows;
+}
+
+void ForceModel::set_history(const std::vector<double>& rows) const {
+  const int n = model_.connections(), width = history_width();
+  std::vector<double> part;
+  int column = 0;
+  for (const auto& t : terms_)
+    if (const int w = t->history_width()) {
+      part.resize(static_cast<std::size_t>(n) * w);
+      for (int c = 0; c < n; ++c)
+        std::copy(rows.begin() + static_cast<std::size_t>(c) * width + column,
+                  rows.begin() + static_cast<std::size_t>(c) * width + column + w,
+                  part.begin() + static_cast<std::size_t>(c) * w);
+      t->load_history(part.data());
+      column += w;
+    }
 }
 
 double ForceModel::largest_stiffness_rate() const {

@@ -69,7 +69,11 @@ public:
   bool moves_held() const { return moves_held_; }
   // Collective: the total force each [[fix]] exerts on the body at x (scene order; a component held by several
   // fixes counts for the first), i.e. minus the other forces on its held components.
-  std::vector<Vec3> reactions(const double* x, const double* v, double* scratch) const;
+  // load_factor scales the loads as in forces() (the static solver's load steps).
+  std::vector<Vec3> reactions(const double* x, const double* v, double* scratch, double load_factor = 1.0) const;
+  // Collective: the same, from the last forces() call's forces on the held components (kept as it zeroes them),
+  // with no new evaluation: what a dynamic run's history.csv row reads at each step.
+  std::vector<Vec3> last_reactions() const;
   // The applied loads' total at time t (N), the [[load]] forces times their history (or cyclic) factors.
   Vec3 applied_total(double t) const;
   // Terms with internal variables that follow time (viscoelastic history, src/physics/term.hpp): the solver
@@ -77,6 +81,11 @@ public:
   bool has_history() const;
   void begin_step(double dt) const;
   void commit_step(const double* x) const;
+  // Checkpoints: the terms' internal variables per local connection, history_width() values a connection (each
+  // history term's columns in the terms' order); set_history puts saved ones back (Term::load_history).
+  int history_width() const;
+  std::vector<double> history() const;
+  void set_history(const std::vector<double>& rows) const;
   // The terms built for this scene, by name (the connection forces and constant loads are not listed).
   std::vector<std::string> term_names() const;
   // Every listed term keeps the total energy from growing (TermStyle::energy_never_grows; true with none).
@@ -103,6 +112,7 @@ private:
   mutable double time_ = 0.0;
   const Scene& scene_;
   std::vector<int> held_fix_;            // parallel to held_owned_: the fix that holds the component
+  mutable std::vector<double> held_force_;  // parallel to held_owned_: the last forces() call's force there
   bool moves_held_ = false;              // some fix has a displacement
   mutable std::vector<double> load_scale_;  // per [[load]]: its history factor at time_ (1 without history)
   // The tangent's block-row pattern and CSR storage (src/physics/tangent.hpp), built by create_tangent.

@@ -80,6 +80,11 @@ public:
   virtual bool has_history() const { return false; }
   virtual void begin_step(double dt) {}
   virtual void commit_step(const double* x) {}
+  // Checkpoints: the committed internal variables, history_width() values per local connection c (row c of
+  // connections() rows). load_history puts saved ones back; the history then acts as after a committed step.
+  virtual int history_width() const { return 0; }
+  virtual void save_history(double* rows) const {}
+  virtual void load_history(const double* rows) {}
 };
 
 using TermFactory = std::unique_ptr<Term> (*)(const TermContext&);

@@ -71,10 +71,13 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
   // Whether nothing reads the state at whole step s (the guard's reductions, the signal check, snapshots and
   // checkpoints all come at multiples of their cadences): then the half kick that ends step s, the one that
   // starts step s + 1 and its drift are one pass over the molecules instead of two, with the same arithmetic.
+  const long rows = hooks.record ? scene.output.history_every : 0;  // history.csv's cadence
   auto unobserved = [&](long s) {
     const long snap = hooks.snapshot ? scene.output.snapshot_every : 0, ckpt = scene.output.checkpoint_every;
-    return s < total && s % kReduceEvery != 0 && !(snap > 0 && s % snap == 0) && !(ckpt > 0 && s % ckpt == 0);
+    return s < total && s % kReduceEvery != 0 && !(snap > 0 && s % snap == 0) && !(ckpt > 0 && s % ckpt == 0) &&
+           !(rows > 0 && s % rows == 0);
   };
+  if (rows > 0 && !state.restarted) hooks.record(state);  // history.csv's first row: the state at t = 0
   const bool history = forces.has_history();
   bool drifted = false;  // the last pass already did this step's half kick and drift
   while (state.step < total) {
@@ -126,6 +129,7 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
     guard.dynamic_step(0.5 * kinetic);
     if (state.step == total) guard.full_check();
     progress.update(state.step, -1, 0, total);
+    if (rows > 0 && (state.step % rows == 0 || state.step == total)) hooks.record(state);
     if (hooks.snapshot && scene.output.snapshot_every > 0 && state.step % scene.output.snapshot_every == 0 &&
         state.step < total)
       hooks.snapshot(state);

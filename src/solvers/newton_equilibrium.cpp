@@ -229,6 +229,7 @@ struct NewtonEquilibrium::Impl {
   std::unique_ptr<LatticeGalerkin> galerkin;
   double reference = 1.0, tolerance = 0.0;
   Reuse reuse;
+  bool record = false;  // record_load_steps()
 };
 
 PetscErrorCode NewtonEquilibrium::Impl::setup() {
@@ -359,6 +360,11 @@ PetscErrorCode NewtonEquilibrium::Impl::solve(long steps) {
       PetscReal norm;
       PetscCall(SNESGetFunctionNorm(snes, &norm));
       report.residual_history.push_back(norm / reference);
+      state.load_factor = done;
+      if (record && ctx.hooks->record) {  // history.csv: the load step's equilibrium
+        PetscCall(load_positions(&ctx, X));
+        ctx.hooks->record(state);
+      }
       continue;
     }
     PetscCall(VecCopy(saved, X));
@@ -471,5 +477,19 @@ void NewtonEquilibrium::set_force_reference(double reference) {
 }
 
 double NewtonEquilibrium::tolerance() const { return impl_->tolerance; }
+
+void NewtonEquilibrium::record_load_steps() { impl_->record = true; }
+
+void NewtonEquilibrium::rebuild_preconditioner() {
+  if (impl_->reuse.active && rebuild_next(impl_->snes, &impl_->reuse))
+    throw SolverFailure(impl_->kind + ": a PETSc call failed");
+  // GAMG keeps the interpolation of its first set-up (PETSc's -pc_gamg_reuse_interpolation), which a restart
+  // cannot know: from here on it aggregates every tangent afresh, in the run that writes checkpoints and in the
+  // run restarted from one alike.
+  PetscBool gamg = PETSC_FALSE;
+  if (PetscObjectTypeCompare(reinterpret_cast<PetscObject>(impl_->pc), PCGAMG, &gamg) ||
+      (gamg && PCGAMGSetReuseInterpolation(impl_->pc, PETSC_FALSE)))
+    throw SolverFailure(impl_->kind + ": a PETSc call failed");
+}
 
 }  // namespace tissue

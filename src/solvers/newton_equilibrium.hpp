@@ -26,6 +26,12 @@ public:
   // Newton stops when the force residual is below tolerance() times this (N); set up with the applied forces.
   void set_force_reference(double reference);
   double tolerance() const;
+  // The next tangent rebuilds the reused preconditioner (GAMG: every tangent from now on). At a checkpoint and
+  // at the start of a restart: both runs then build it at the same states, so the continued run and the
+  // uninterrupted one solve with the same preconditioners.
+  void rebuild_preconditioner();
+  // Calls hooks.record after every converged load step, with the state's load_factor set (the static solver).
+  void record_load_steps();
 
 private:
   struct Impl;

@@ -54,7 +54,13 @@ SolveReport solve_quasi_static(const Scene& scene, const LocalModel& model, cons
   report.kind = "quasi-static";
   const double dt = *scene.solver.time_step;  // the scene reader requires it
   const double end = scene.solver.end_time ? *scene.solver.end_time : dt * static_cast<double>(scene.solver.steps);
-  report.time_step = state.time_step = dt;
+  // The step grows by solver.time_step_growth after every step, up to max_time_step, and starts from dt again
+  // after a breakpoint; state.time_step is the next step's (a checkpoint keeps it).
+  const double growth = scene.solver.time_step_growth;
+  const double largest = scene.solver.max_time_step ? *scene.solver.max_time_step : dt * 1e300;
+  double h = state.restarted && state.time_step > 0 ? state.time_step : dt;
+  report.time_step = dt;
+  state.time_step = h;
   const double slack = 1e-9 * dt;  // a step within this of a breakpoint or the end lands on it
   const std::vector<double> marks = breakpoints(scene);
   const bool history = forces.has_history();
@@ -64,18 +70,27 @@ SolveReport solve_quasi_static(const Scene& scene, const LocalModel& model, cons
   Progress progress("quasi-static", scene.output.progress, model.comm);
   const long total = static_cast<long>(std::ceil(end / dt - 1e-9));
   std::vector<Vec3> reactions(scene.fixes.size(), Vec3{0, 0, 0});
-  bool initial = state.step == 0 && state.time == 0.0;
+  bool initial = state.step == 0 && state.time == 0.0 && !state.restarted;
+  // A restart: the reactions the last step ended with (the next residual reference), from the checkpoint's state
+  // and committed history, the same numbers the uninterrupted run had.
+  if (state.restarted && !scene.fixes.empty()) {
+    forces.set_time(state.time);
+    reactions = forces.reactions(state.x.array(), state.v.data(), state.f.data());
+  }
+  if (state.restarted) newton.rebuild_preconditioner();  // as the run that wrote the checkpoint did there
   double worst = 0.0;
   // Below this the residual is the springs' round-off (a step with nothing loaded yet): already in equilibrium.
   const double floor = std::max(force_round_off(model, forces) / newton.tolerance(), DBL_MIN);
   while (initial || state.time < end - slack) {
-    double next = initial ? 0.0 : std::min(state.time + dt, end);
+    double next = initial ? 0.0 : std::min(state.time + h, end);
     for (double m : marks)
       if (m > state.time + slack && m < next - slack) {
         next = m;
         break;
       }
     if (std::fabs(next - end) <= slack) next = end;
+    bool landed = false;  // the step ends on a breakpoint: the next one starts from time_step again
+    for (double m : marks) landed = landed || std::fabs(m - next) <= slack;
     forces.set_time(next);
     if (history) forces.begin_step(next - state.time);
     // The holds move to where they are at `next`; the Newton solve starts from the last equilibrium.
@@ -103,16 +118,26 @@ SolveReport solve_quasi_static(const Scene& scene, const LocalModel& model, cons
     if (history) forces.commit_step(state.x.array());
     state.time = next;
     if (!initial) ++state.step;
+    if (!initial) h = landed ? dt : std::min(h * growth, largest);
+    state.time_step = h;
     initial = false;
     if (hooks.record) hooks.record(state);
     progress.update(state.step, residual, newton.tolerance(), total);
     if (hooks.snapshot && scene.output.snapshot_every > 0 && state.step > 0 &&
         state.step % scene.output.snapshot_every == 0 && state.time < end - slack)
       hooks.snapshot(state);
+    // Checkpoints (and a stop asked by a signal) at the step's end, after its history.csv row; a checkpoint
+    // rebuilds the preconditioner at the next tangent, as the restart does.
+    const long cadence = scene.output.checkpoint_every;
+    if (cadence > 0 && state.step > 0 && state.step % cadence == 0) newton.rebuild_preconditioner();
+    if (state.time < end - slack && step_boundary(scene, model, state, hooks, 1)) {
+      report.interrupted = true;
+      break;
+    }
   }
   report.residual = worst;
   report.tolerance_used = newton.tolerance();
-  report.converged = worst <= newton.tolerance() * 1.0000001;
+  report.converged = !report.interrupted && worst <= newton.tolerance() * 1.0000001;
   return report;
 }
 

@@ -49,6 +49,7 @@ struct SolverState {
   double fire_dt = 0.0, fire_alpha = 0.0;  // relaxation: FIRE's adaptive step and mixing
   long fire_positive = 0;                  // relaxation: steps since the power was last negative
   bool restarted = false;                  // loaded from a checkpoint
+  double load_factor = 1.0;  // static: the fraction of the loads the last converged load step reached
   // Dynamic runs whose forces read velocities (viscosity): the half-step velocities (owned) that the last force
   // evaluation read; empty otherwise. A checkpoint keeps them: velocity Verlet's forces at step n read
   // v(n - 1/2), not the whole-step v(n) that the checkpoint's velocities hold.
@@ -83,8 +84,8 @@ struct SolverHooks {
   // Writes a checkpoint of the state (collective); called every output.checkpoint_every steps and when a stop
   // is requested.
   std::function<void(const SolverState&)> checkpoint;
-  // Solvers that step in time (quasi-static): called after every step, the t = 0 step included, with the state
-  // at the step's end (DIR/history.csv). Collective.
+  // DIR/history.csv's rows (collective), with the state at a step's end: quasi-static after every step, the
+  // t = 0 step included; dynamic at step 0 and every output.history_every steps; static after every load step.
   std::function<void(const SolverState&)> record;
 };
 

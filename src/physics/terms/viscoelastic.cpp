@@ -9,7 +9,9 @@
 // Before the first begin_step (static, relaxation) the term adds nothing: those solves find the relaxed state.
 // Between commit_step and the next begin_step the history is frozen (reactions and measurements of the end state
 // see the committed forces).
-// Storage (only in scenes that ask): per connection the committed f_e and one h per Prony term.
+// Storage (only in scenes that ask): per connection the committed f_e and one h per Prony term; with Prony
+// series per [[body.region]], each connection's table too.
+#include <algorithm>
 #include <cmath>
 
 #include "src/physics/term.hpp"
@@ -21,13 +23,42 @@ namespace {
 class ViscoelasticSprings final : public Term {
 public:
   ViscoelasticSprings(const Scene& scene, const LocalModel& m) : m_(m) {
-    for (const auto& b : scene.bodies) width_ = std::max(width_, static_cast<int>(b.viscoelastic.gamma.size()));
-    const int nb = static_cast<int>(scene.bodies.size());
-    gamma_.assign(nb * width_, 0.0), tau_.assign(nb * width_, 1.0);
-    for (int b = 0; b < nb; ++b)
-      for (std::size_t i = 0; i < scene.bodies[b].viscoelastic.gamma.size(); ++i)
-        gamma_[b * width_ + i] = scene.bodies[b].viscoelastic.gamma[i], tau_[b * width_ + i] = scene.bodies[b].viscoelastic.tau[i];
-    decay_.assign(gamma_.size(), 1.0), weight_.assign(gamma_.size(), 0.0), tangent_factor_.assign(nb, 0.0);
+    // The Prony tables: one per body, then one per region with its own ([[body.region]] viscoelastic).
+    std::vector<const PronySpec*> tables;
+    for (const auto& b : scene.bodies) tables.push_back(&b.viscoelastic);
+    std::vector<std::vector<int>> region_table(scene.bodies.size());  // per body and region: its table or -1
+    for (std::size_t b = 0; b < scene.bodies.size(); ++b)
+      for (const auto& r : scene.bodies[b].regions) {
+        region_table[b].push_back(r.viscoelastic.empty() ? -1 : static_cast<int>(tables.size()));
+        if (!r.viscoelastic.empty()) tables.push_back(&r.viscoelastic);
+      }
+    for (const PronySpec* t : tables) width_ = std::max(width_, static_cast<int>(t->gamma.size()));
+    const int nt = static_cast<int>(tables.size());
+    gamma_.assign(nt * width_, 0.0), tau_.assign(nt * width_, 1.0);
+    for (int t = 0; t < nt; ++t)
+      for (std::size_t i = 0; i < tables[t]->gamma.size(); ++i)
+        gamma_[t * width_ + i] = tables[t]->gamma[i], tau_[t * width_ + i] = tables[t]->tau[i];
+    decay_.assign(gamma_.size(), 1.0), weight_.assign(gamma_.size(), 0.0), tangent_factor_.assign(nt, 0.0);
+    // Each connection's table, stored (2 bytes a connection) only when some region has its own: the region
+    // whose box (the body's frame) holds the connection's rest midpoint, the last such one.
+    if (nt > static_cast<int>(scene.bodies.size())) {
+      table_.resize(m.connections());
+      for (int c = 0; c < m.connections(); ++c) {
+        const int b = m.body[m.end_a[c]];
+        const BodySpec& body = scene.bodies[b];
+        int t = b;
+        for (std::size_t r = 0; r < body.regions.size(); ++r) {
+          if (region_table[b][r] < 0) continue;
+          bool inside = true;
+          for (int d = 0; d < 3; ++d) {
+            const double mid = 0.5 * (m.rest[3 * m.end_a[c] + d] + m.rest[3 * m.end_b[c] + d]) - body.offset[d];
+            inside = inside && mid >= body.regions[r].lo[d] && mid <= body.regions[r].hi[d];
+          }
+          if (inside) t = region_table[b][r];
+        }
+        table_[c] = static_cast<std::uint16_t>(t);
+      }
+    }
     fe_.assign(m.connections(), 0.0);
     h_.assign(static_cast<std::size_t>(m.connections()) * width_, 0.0);
   }
@@ -71,8 +102,8 @@ public:
     for (int c = 0; c < n; ++c) {
       double d[3], len;
       const double fe = m_.k(c) * (length(x, c, d, len) - m_.l0(c));
-      const double* g = weight_.data() + m_.body[m_.end_a[c]] * width_;
-      const double* e = decay_.data() + m_.body[m_.end_a[c]] * width_;
+      const double* g = weight_.data() + table(c) * width_;
+      const double* e = decay_.data() + table(c) * width_;
       double* h = h_.data() + static_cast<std::size_t>(c) * width_;
       for (int i = 0; i < width_; ++i) h[i] = e[i] * h[i] + g[i] * (fe - fe_[c]);
       fe_[c] = fe;
@@ -80,11 +111,31 @@ public:
     stepping_ = false;
   }
 
+  // Per connection: the committed elastic force, then its history forces.
+  int history_width() const override { return 1 + width_; }
+  void save_history(double* rows) const override {
+    const int n = m_.connections(), w = 1 + width_;
+    for (int c = 0; c < n; ++c) {
+      rows[w * c] = fe_[c];
+      std::copy(h_.begin() + static_cast<std::size_t>(c) * width_, h_.begin() + static_cast<std::size_t>(c + 1) * width_,
+                rows + w * c + 1);
+    }
+  }
+  void load_history(const double* rows) override {
+    const int n = m_.connections(), w = 1 + width_;
+    for (int c = 0; c < n; ++c) {
+      fe_[c] = rows[w * c];
+      std::copy(rows + w * c + 1, rows + w * (c + 1), h_.begin() + static_cast<std::size_t>(c) * width_);
+    }
+    // Committed and frozen, as the run that wrote them left them between two steps (a zero history adds zero).
+    active_ = true, stepping_ = false;
+  }
+
   void add_stiffness_bound(std::vector<double>& ksum) const override {
     // The explicit step follows the instantaneous modulus, E (1 + sum gamma).
     const int n = m_.connections();
     for (int c = 0; c < n; ++c) {
-      const double* g = gamma_.data() + m_.body[m_.end_a[c]] * width_;
+      const double* g = gamma_.data() + table(c) * width_;
       double sum = 0;
       for (int i = 0; i < width_; ++i) sum += g[i];
       ksum[m_.end_a[c]] += m_.k(c) * sum, ksum[m_.end_b[c]] += m_.k(c) * sum;
@@ -98,7 +149,7 @@ public:
     for (int c = 0; c < n; ++c) {
       double d[3], len;
       const double H = trial(x, c, d, len);
-      const double kv = stepping_ ? tangent_factor_[m_.body[m_.end_a[c]]] * m_.k(c) : 0.0, geo = H / len;
+      const double kv = stepping_ ? tangent_factor_[table(c)] * m_.k(c) : 0.0, geo = H / len;
       // d(H n)/dx_b = kv n n^T + (H / l)(I - n n^T): the history's material part and its geometric part.
       double K[9];
       for (int r = 0; r < 3; ++r)
@@ -132,8 +183,8 @@ private:
   // The summed history force of connection c at x within the current step (not committed).
   double trial(const double* x, int c, double d[3], double& len) const {
     const double fe = m_.k(c) * (length(x, c, d, len) - m_.l0(c));
-    const double* g = weight_.data() + m_.body[m_.end_a[c]] * width_;
-    const double* e = decay_.data() + m_.body[m_.end_a[c]] * width_;
+    const double* g = weight_.data() + table(c) * width_;
+    const double* e = decay_.data() + table(c) * width_;
     const double* h = h_.data() + static_cast<std::size_t>(c) * width_;
     double H = 0;
     if (stepping_)
@@ -143,19 +194,26 @@ private:
     return H;
   }
 
+  // Connection c's Prony table: its region's, else its body's.
+  int table(int c) const { return table_.empty() ? m_.body[m_.end_a[c]] : table_[c]; }
+
   const LocalModel& m_;
+  std::vector<std::uint16_t> table_;       // per connection, when some region has its own table
   int width_ = 0;                          // Prony terms (the most of any body; absent ones have gamma 0)
-  std::vector<double> gamma_, tau_;        // per body and term
-  std::vector<double> decay_, weight_;     // per body and term: exp(-dt/tau), gamma beta of the current step
-  std::vector<double> tangent_factor_;     // per body: sum gamma beta
+  std::vector<double> gamma_, tau_;        // per table (bodies, then regions with their own) and term
+  std::vector<double> decay_, weight_;     // per table and term: exp(-dt/tau), gamma beta of the current step
+  std::vector<double> tangent_factor_;     // per table: sum gamma beta
   std::vector<double> fe_, h_;             // per connection: committed elastic force, history per term
   bool active_ = false;    // a step has begun once: the history acts
   bool stepping_ = false;  // within a step (begin_step .. commit_step): the history follows x; else frozen
 };
 
 bool listed(const Scene& s) {
-  for (const auto& b : s.bodies)
+  for (const auto& b : s.bodies) {
     if (!b.viscoelastic.empty()) return true;
+    for (const auto& r : b.regions)
+      if (!r.viscoelastic.empty()) return true;
+  }
   return false;
 }
 

@@ -518,6 +518,8 @@ public:
       for (int j = 0; j < 3; ++j) direction[3 * i + j] /= n > 0 ? n : 1.0;
     }
     return true;
+  }
+
   void cells(const double* x, CellField& out) const override {
     out.nodes = 8;
     out.global_count = global_cells_;

@@ -43,11 +43,23 @@ void attribute(std::ostream& os, const char* name, bool vector, bool node, const
   os << "        </Attribute>\n";
 }
 
-// Bodies with fibres: the deformed fibre direction (glyphs) and stretch (colour) per molecule.
+// Bodies with fibres: the deformed fibre direction (glyphs) and stretch (colour) per molecule (node attributes
+// of both grids).
 void write_fibre_attributes(std::ostream& os, const XdmfEntry& f) {
   if (f.fibre_direction)
     attribute(os, "fibre_direction", true, true, f.h5_file, "/molecules/fibre_direction", f.molecules);
   if (f.fibre_stretch) attribute(os, "fibre_stretch", false, true, f.h5_file, "/molecules/fibre_stretch", f.molecules);
+}
+
+// The positions and the node attributes: the same in both grids (they share /molecules).
+void geometry_and_nodes(std::ostream& os, const XdmfEntry& f) {
+  os << "        <Geometry GeometryType=\"XYZ\">\n";
+  data_item(os, f.h5_file, "/molecules/positions", f.molecules, 3, false);
+  os << "        </Geometry>\n";
+  if (f.displacements) attribute(os, "displacement", true, true, f.h5_file, "/molecules/displacements", f.molecules);
+  if (f.velocities) attribute(os, "velocity", true, true, f.h5_file, "/molecules/velocities", f.molecules);
+  if (f.forces) attribute(os, "force", true, true, f.h5_file, "/molecules/forces", f.molecules);
+  write_fibre_attributes(os, f);
 }
 
 }  // namespace
@@ -71,12 +83,8 @@ void write_xdmf(const std::string& path, const std::vector<XdmfEntry>& frames) {
          << "        <Topology TopologyType=\"" << (f.cell_nodes == 8 ? "Hexahedron" : "Tetrahedron")
          << "\" NumberOfElements=\"" << f.cells << "\">\n";
       data_item(os, f.h5_file, "/cells/corners", f.cells, f.cell_nodes, true);
-      os << "        </Topology>\n"
-         << "        <Geometry GeometryType=\"XYZ\">\n";
-      data_item(os, f.h5_file, "/molecules/positions", f.molecules, 3, false);
-      os << "        </Geometry>\n";
-      if (f.displacements) attribute(os, "displacement", true, true, f.h5_file, "/molecules/displacements", f.molecules);
-      if (f.velocities) attribute(os, "velocity", true, true, f.h5_file, "/molecules/velocities", f.molecules);
+      os << "        </Topology>\n";
+      geometry_and_nodes(os, f);
       if (f.volume_ratio) attribute(os, "volume_ratio", false, false, f.h5_file, "/cells/volume_ratio", f.cells);
       os << "      </Grid>\n";
     }
@@ -95,17 +103,11 @@ void write_xdmf(const std::string& path, const std::vector<XdmfEntry>& frames) {
        << "        <Topology TopologyType=\"Polyline\" NodesPerElement=\"2\" NumberOfElements=\"" << f.connections
        << "\">\n";
     data_item(os, f.h5_file, "/connections/endpoints", f.connections, 2, true);
-    os << "        </Topology>\n"
-       << "        <Geometry GeometryType=\"XYZ\">\n";
-    data_item(os, f.h5_file, "/molecules/positions", f.molecules, 3, false);
-    os << "        </Geometry>\n";
-    if (f.displacements) attribute(os, "displacement", true, true, f.h5_file, "/molecules/displacements", f.molecules);
-    if (f.velocities) attribute(os, "velocity", true, true, f.h5_file, "/molecules/velocities", f.molecules);
-    if (f.forces) attribute(os, "force", true, true, f.h5_file, "/molecules/forces", f.molecules);
+    os << "        </Topology>\n";
+    geometry_and_nodes(os, f);
     if (f.connection_strain) attribute(os, "strain", false, false, f.h5_file, "/connections/strain", f.connections);
     if (f.connection_force)
       attribute(os, "connection_force", false, false, f.h5_file, "/connections/force", f.connections);
-    write_fibre_attributes(os, f);
     os << "      </Grid>\n";
   }
   os << "    </Grid>\n"

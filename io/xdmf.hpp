@@ -28,7 +28,7 @@ struct XdmfEntry {
 // half-written index. Node attributes are named displacement, velocity, force; cell (connection) attributes
 // strain and connection_force. Frames with cells also get a second temporal grid, "cells", written first (meshio's
 // TimeSeriesReader reads the last one, the connections): hexahedra or tetrahedra on the same positions, with the
-// node attributes and the cell attribute volume_ratio. Throws std::runtime_error if the file cannot be written,
+// same node attributes and the cell attribute volume_ratio. Throws std::runtime_error if the file cannot be written,
 // std::invalid_argument for an entry without its mesh (positions, endpoints).
 void write_xdmf(const std::string& path, const std::vector<XdmfEntry>& frames);
 

@@ -361,11 +361,25 @@ public:
   }
 
   void add_forces(const double* x, const double*, double, double* f) override {
+    // The explicit solvers' inner loop: g_a = (s_x / 4h_x, s_y / 4h_y, s_z / 4h_z) is used through its signs, so
+    // F is sums of corner differences along each axis and a corner's force is a signed sum of Q = V0 P / (4 h)'s
+    // columns (about 3x fewer operations than the general products; gradient() and the tangent keep them).
+    const double* X = m_.rest.data();
     for (int k = 0; k < cells_; ++k) {
       const int* corner = &corner_[8 * k];
       const Geometry& geo = geometry_[body_[k]];
+      double u[8][3];
+      for (int c = 0; c < 8; ++c) {
+        const int j = 3 * corner[c];
+        u[c][0] = x[j] - X[j], u[c][1] = x[j + 1] - X[j + 1], u[c][2] = x[j + 2] - X[j + 2];
+      }
       double F[9], P[9];
-      gradient(x, corner, geo, F);
+      for (int i = 0; i < 3; ++i) {
+        F[3 * i] = ((u[1][i] - u[0][i]) + (u[3][i] - u[2][i]) + (u[5][i] - u[4][i]) + (u[7][i] - u[6][i])) * geo.g[1][0];
+        F[3 * i + 1] = ((u[2][i] - u[0][i]) + (u[3][i] - u[1][i]) + (u[6][i] - u[4][i]) + (u[7][i] - u[5][i])) * geo.g[2][1];
+        F[3 * i + 2] = ((u[4][i] - u[0][i]) + (u[5][i] - u[1][i]) + (u[6][i] - u[2][i]) + (u[7][i] - u[3][i])) * geo.g[4][2];
+      }
+      F[0] += 1.0, F[4] += 1.0, F[8] += 1.0;
       if (!stress(F, moduli_[k], fibres(k), fibre_count(k), P) || !add_history(F, k, P)) {
         // An inverted cell: its energy is infinite; NaN forces make every solver's guard stop or cut back.
         for (int c = 0; c < 8; ++c)
@@ -373,11 +387,14 @@ public:
             for (int i = 0; i < 3; ++i) f[3 * corner[c] + i] = std::numeric_limits<double>::quiet_NaN();
         continue;
       }
-      for (int c = 0; c < 8; ++c) {
-        if (corner[c] >= m_.owned) continue;
-        const double* g = geo.g[c];
-        for (int i = 0; i < 3; ++i)
-          f[3 * corner[c] + i] -= geo.volume * (P[3 * i] * g[0] + P[3 * i + 1] * g[1] + P[3 * i + 2] * g[2]);
+      for (int i = 0; i < 3; ++i) {
+        // corner c's force f_c[i] = -V0 sum_j P_ij g_c[j] = -(s_x q0 + s_y q1 + s_z q2)
+        const double q0 = geo.volume * P[3 * i] * geo.g[1][0], q1 = geo.volume * P[3 * i + 1] * geo.g[2][1],
+                     q2 = geo.volume * P[3 * i + 2] * geo.g[4][2];
+        const double lo = q0 + q1, hi = q1 - q0;  // corners (-x, -y) and (+x, -y); their opposites negate them
+        const double add[8] = {lo + q2, hi + q2, -hi + q2, -lo + q2, lo - q2, hi - q2, -hi - q2, -lo - q2};
+        for (int c = 0; c < 8; ++c)
+          if (corner[c] < m_.owned) f[3 * corner[c] + i] += add[c];
       }
     }
   }

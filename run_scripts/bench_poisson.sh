@@ -1,0 +1,78 @@
+#!/usr/bin/env bash
+# The cell term's cost (issue 15, docs/poisson.md), in one run on one rank, on an N^3 face-diagonal block
+# (N = 100: 10^6 molecules), E = 10 MPa, homogenized:
+#  1. explicit speed: dynamic steps/s with the cell term (poisson_ratio = 0.45) against springs only (no
+#     poisson_ratio: nu = 1/4, no cell term). steps/s = (S1 - S0) / (cpu(S1 steps) - cpu(S0 steps)), so set-up and
+#     output cancel; cpu = user + system seconds; target: ratio >= 0.5.
+#  2. static solve (clamped base, traction on top, strain 1e-4, tolerance 1e-8): solver.seconds and Newton /
+#     Krylov counts at nu = 0.45 against nu = 0.25; target: time ratio <= 1.5.
+# Prints a markdown table (docs/benchmarks.md). 10^6 molecules take minutes and several GB: run it once, on a
+# quiet machine.
+#   bash run_scripts/bench_poisson.sh [build/tissue]          # N=100 S0=20 S1=120 STATIC=1 by default
+set -euo pipefail
+cd "$(dirname "$0")/.."
+TISSUE=${1:-build/tissue}
+N=${N:-100}
+S0=${S0:-20}
+S1=${S1:-120}
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+DIR=$(mktemp -d)
+trap 'rm -rf "$DIR"' EXIT
+H=0.001
+AREA=$(python3 -c "print((($N - 1) * $H) ** 2)")
+scene() {  # scene KIND -> the common scene text for dynamic or static
+  cat <<TOML
+title = "bench_poisson $1"
+[body]
+molecules = [$N, $N, $N]
+spacing = [$H, $H, $H]
+topology = "face-diagonals"
+youngs_modulus = 1.0e7
+density = 1000.0
+[calibration]
+method = "homogenized"
+[[fix]]
+face = "z-"
+[[load]]
+face = "z+"
+force = [0.0, 0.0, $(python3 -c "print(1.0e7 * 1e-4 * $AREA)")]
+[solver]
+kind = "$1"
+tolerance = 1e-8
+[output]
+directory = "$DIR/out"
+fields = []
+progress = false
+TOML
+}
+scene dynamic > "$DIR/dynamic.toml"
+scene static > "$DIR/static.toml"
+
+cpu() {  # cpu seconds of one run: $1 steps, then --set arguments
+  local steps=$1
+  shift
+  /usr/bin/time -f "%U %S" -o "$DIR/time" "$TISSUE" run "$DIR/dynamic.toml" --set solver.steps="$steps" "$@" \
+    > "$DIR/log" 2>&1 || { tail -3 "$DIR/log" >&2; exit 1; }
+  awk '{print $1 + $2}' "$DIR/time"
+}
+rate() {  # steps/s: --set arguments
+  local a b
+  a=$(cpu "$S0" "$@")
+  b=$(cpu "$S1" "$@")
+  python3 -c "print(($S1 - $S0) / ($b - $a))"
+}
+static() {  # "seconds newton krylov" of the static solve: --set arguments
+  "$TISSUE" run "$DIR/static.toml" "$@" > "$DIR/log" 2>&1 || { tail -3 "$DIR/log" >&2; exit 1; }
+  python3 -c "import json; s = json.load(open('$DIR/out/summary.json'))['solver']; \
+print(s['seconds'], s['iterations'], s['linear_iterations'])"
+}
+
+echo "| $N^3 molecules, 1 rank | springs only / nu = 0.25 | cell term, nu = 0.45 | ratio | target |"
+echo "|---|---|---|---|---|"
+springs=$(rate)
+cells=$(rate --set body.poisson_ratio=0.45)
+python3 -c "print(f'| dynamic steps/s | {$springs:.3g} | {$cells:.3g} | {$cells / $springs:.2f} | >= 0.5 |')"
+[ "${STATIC:-1}" = 1 ] || exit 0  # STATIC=0: the explicit part only
+read -r s25 n25 k25 <<< "$(static --set body.poisson_ratio=0.25)"
+read -r s45 n45 k45 <<< "$(static --set body.poisson_ratio=0.45)"
+python3 -c "print(f'| static solve s (Newton / Krylov) | {$s25:.1f} ($n25 / $k25) | {$s45:.1f} ($n45 / $k45) | {$s45 / $s25:.2f} | <= 1.5 |')"

@@ -22,7 +22,7 @@ import subprocess
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from checks import check, report  # noqa: E402
+from checks import check, report, tissue  # noqa: E402
 
 SCENE = """
 title = "SLS creep, growing time step"
@@ -52,11 +52,6 @@ fields = []
 progress = false
 """
 GAMMA, TAU = 2.0, 1.0
-
-
-def tissue(build, ranks, *args):
-    cmd = ["mpirun", "--oversubscribe", "-np", str(ranks), os.path.join(build, "tissue")] + list(args)
-    return subprocess.run(cmd, capture_output=True, text=True, timeout=300)
 
 
 def rows(out):

@@ -22,7 +22,7 @@ import subprocess
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from checks import check, report  # noqa: E402
+from checks import check, report, tissue  # noqa: E402
 
 SCENE = """
 title = "Prony per region"
@@ -63,11 +63,6 @@ progress = false
 
 def G(t, gamma, tau):
     return 1.0 + sum(g * math.exp(-t / s) for g, s in zip(gamma, tau))
-
-
-def tissue(build, ranks, *args):
-    cmd = ["mpirun", "--oversubscribe", "-np", str(ranks), os.path.join(build, "tissue")] + list(args)
-    return subprocess.run(cmd, capture_output=True, text=True, timeout=300)
 
 
 def main():

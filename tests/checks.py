@@ -1,5 +1,8 @@
 """The python tests' tally: check() counts a passed or failed assertion (printing the failed ones) and returns it, report()
-prints 'N passed, M failed' and gives the exit code."""
+prints 'N passed, M failed' and gives the exit code; tissue() runs build/tissue under mpirun."""
+import os
+import subprocess
+
 counts = {"passed": 0, "failed": 0}
 
 
@@ -15,3 +18,9 @@ def check(ok, what):
 def report():
     print(f"{counts['passed']} passed, {counts['failed']} failed")
     return 1 if counts["failed"] else 0
+
+
+def tissue(build, ranks, *args, timeout=300):
+    """`mpirun -np RANKS BUILD/tissue ARGS...`, its CompletedProcess (text output captured)."""
+    cmd = ["mpirun", "--oversubscribe", "-np", str(ranks), os.path.join(build, "tissue")] + list(args)
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)

@@ -30,7 +30,7 @@ except ImportError:  # CMake may have found a python without Debian's h5py
     raise
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from checks import check, report  # noqa: E402
+from checks import check, report, tissue  # noqa: E402
 
 QUASI_STATIC = """
 title = "creep restart, quasi-static"
@@ -92,11 +92,6 @@ progress = false
 """
 
 STATE_KEYS = ["elongation", "center_of_mass", "reactions", "time", "steps", "kinetic_energy"]
-
-
-def tissue(build, ranks, *args):
-    cmd = ["mpirun", "--oversubscribe", "-np", str(ranks), os.path.join(build, "tissue")] + list(args)
-    return subprocess.run(cmd, capture_output=True, text=True, timeout=300)
 
 
 def rows(out):

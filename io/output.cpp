@@ -102,7 +102,8 @@ std::string Output::snapshot_name(long step) {
 double Output::stage_bytes() const {
   // At most: 4 vectors of 3 doubles per molecule, the endpoints and 3 doubles per connection.
   // Fibres add a direction and a stretch per molecule.
-  return (scene_has_fibres(scene_) ? 128.0 : 96.0) * static_cast<double>(model_.global_molecules) + 40.0 * static_cast<double>(model_.global_connections);
+  return (scene_has_fibres(scene_) ? 128.0 : 96.0) * static_cast<double>(model_.global_molecules) +
+         40.0 * static_cast<double>(model_.global_connections);
 }
 
 

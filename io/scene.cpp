@@ -291,8 +291,8 @@ BodySpec read_body(const Section& s) {
     s.fail("shape", fmt::format("unknown value \"{}\" (one of: box, mesh)", b.shape));
   if (b.shape == "mesh") return read_mesh_body(s, b);
   s.allow({"shape", "molecules", "spacing", "size", "topology", "material", "youngs_modulus", "density", "offset",
-           "region", "radius", "calibration", "seed", "poisson_ratio", "viscoelastic", "fibres"});  // calibration: read by
-                                                                                          // build_scene
+           "region", "radius", "calibration", "seed", "poisson_ratio", "viscoelastic",
+           "fibres"});  // calibration: read by build_scene
 
   s.require("molecules", "3 integers, molecules along x, y, z");
   b.molecules = *s.int3("molecules");

@@ -142,7 +142,8 @@ std::string scene_text(const Case& c) {
     fix("z-", "roller");
   }
   std::snprintf(buf, sizeof buf,
-                "[solver]\nkind = \"static\"\ntolerance = 1e-9\n%s[output]\ndirectory = \"/tmp/tissue_anisotropy_test\"\n"
+                "[solver]\nkind = \"static\"\ntolerance = 1e-9\n%s[output]\n"
+                "directory = \"/tmp/tissue_anisotropy_test\"\n"
                 "progress = false\n",
                 c.solver_extra.c_str());
   s += buf;

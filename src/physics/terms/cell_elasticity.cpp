@@ -422,7 +422,8 @@ public:
       for (int kl = 0; kl < 9; ++kl) {
         Dual Fd[9], Pd[9];
         for (int q = 0; q < 9; ++q) Fd[q] = Dual(F[q], q == kl ? 1.0 : 0.0);
-        if (!stress(Fd, moduli_[k], fibres(k), fibre_count(k), Pd) || !add_history(Fd, k, Pd)) return 0;  // inverted: the residual is NaN already
+        // Inverted: the residual is NaN already.
+        if (!stress(Fd, moduli_[k], fibres(k), fibre_count(k), Pd) || !add_history(Fd, k, Pd)) return 0;
         for (int q = 0; q < 9; ++q) D[kl][q] = Pd[q].d;
       }
       // Dg[kl][a][i] = sum_j D[kl][ij] g_a[j]
@@ -571,7 +572,8 @@ private:
       const double* w = weight_.data() + body_[k] * width_;
       const double* e = decay_.data() + body_[k] * width_;
       for (int i = 0; i < width_; ++i)
-        for (int q = 0; q < 9; ++q) H[q] = H[q] + T(e[i] * h_[(c * width_ + i) * 9 + q]) + T(w[i]) * (S[q] - T(s_old_[9 * c + q]));
+        for (int q = 0; q < 9; ++q)
+          H[q] = H[q] + T(e[i] * h_[(c * width_ + i) * 9 + q]) + T(w[i]) * (S[q] - T(s_old_[9 * c + q]));
     } else {
       for (int i = 0; i < width_; ++i)
         for (int q = 0; q < 9; ++q) H[q] = H[q] + T(h_[(c * width_ + i) * 9 + q]);

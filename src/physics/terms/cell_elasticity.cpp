@@ -18,7 +18,9 @@
 // cells in the same order on any partition: results are bit for bit those of one rank. A cell's energy is
 // counted by the rank owning its lowest corner.
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <map>
 #include <stdexcept>
 #include <unordered_map>
 
@@ -270,9 +272,11 @@ public:
     std::sort(bases.begin(), bases.end());
     bases.erase(std::unique(bases.begin(), bases.end()), bases.end());
     cells_ = static_cast<int>(bases.size());
-    corner_.resize(8 * bases.size());
-    moduli_.resize(bases.size());
-    body_.resize(bases.size());
+    base_.resize(bases.size());
+    pattern_.resize(bases.size());
+    std::map<std::array<int, 8>, int> patterns;  // corner offsets from corner 0 -> index in patterns_
+    kind_.resize(bases.size());
+    std::map<std::array<double, 6>, int> kinds;  // (mu, kappa, alpha, body) -> its index in kinds_
     for (int k = 0; k < cells_; ++k) {
       const std::int64_t base = bases[k];
       auto it = local.find(base);
@@ -282,13 +286,14 @@ public:
       const auto ijk = box.index(base);
       double E_s = 0, mu = 0, kappa = 0, modulus = 0, density = 0;
       std::vector<Fibre> families;
+      int corner[8];
       for (int c = 0; c < 8; ++c) {
         const std::int64_t g = box.id(ijk[0] + (c & 1), ijk[1] + ((c >> 1) & 1), ijk[2] + ((c >> 2) & 1));
         auto at = local.find(g);
         if (at == local.end())
           throw std::runtime_error("cell term: the ghost layer lacks a cell corner (the cell term needs a box lattice "
                                    "built by partition/lattice_model.cpp)");
-        corner_[8 * k + c] = at->second;
+        corner[c] = at->second;
         const MoleculeMaterial mat = molecule_material(specs[b], box, g);
         const CellModuli cm = cell_moduli(mat.youngs_modulus, mat.poisson_ratio, mat.fibres);
         E_s += cm.spring_modulus / 8, mu += cm.mu_c / 8, kappa += cm.kappa_c / 8;
@@ -327,11 +332,26 @@ public:
         fibre_begin_.push_back(static_cast<int>(fibres_.size()));
       }
       const CellSprings split = cell_springs(box.h, box.topology);
-      Moduli& md = moduli_[k];
-      md.mu = mu, md.kappa = kappa;
-      for (int w = 0; w < 3; ++w) md.alpha[w] = split.alpha[w] * E_s;
-      body_[k] = b;
-      owns_energy_.push_back(corner_[8 * k] < model.owned);
+      Kind kind;
+      kind.moduli.mu = mu, kind.moduli.kappa = kappa;
+      for (int w = 0; w < 3; ++w) kind.moduli.alpha[w] = split.alpha[w] * E_s;
+      kind.body = b;
+      // Cells share their moduli (one per material and body): an index per cell instead of 48 bytes keeps the
+      // explicit loop's memory traffic down.
+      const std::array<double, 6> key{mu, kappa, kind.moduli.alpha[0], kind.moduli.alpha[1], kind.moduli.alpha[2],
+                                      static_cast<double>(b)};
+      auto found = kinds.emplace(key, static_cast<int>(kinds_.size()));
+      if (found.second) kinds_.push_back(kind);
+      kind_[k] = found.first->second;
+      // Corners as corner 0 plus one of few offset patterns (one for most cells of a rank): 8 bytes per cell
+      // instead of 32 in the explicit loop's stream.
+      std::array<int, 8> offsets;
+      for (int c = 0; c < 8; ++c) offsets[c] = corner[c] - corner[0];
+      auto pattern = patterns.emplace(offsets, static_cast<int>(patterns_.size()));
+      if (pattern.second) patterns_.push_back(offsets);
+      base_[k] = corner[0];
+      pattern_[k] = pattern.first->second;
+      owns_energy_.push_back(corner[0] < model.owned);
       cell_id_.push_back(cell_offset[b] + ijk[0] + (box.n[0] - 1) * (ijk[1] + (box.n[1] - 1) * ijk[2]));
       const double h = std::min({box.h[0], box.h[1], box.h[2]});
       // 0.8 h / c_p: measured limits of dynamic runs are 0.85-1.1 h / c_p (docs/poisson.md), so this is a lower
@@ -366,8 +386,10 @@ public:
     // columns (about 3x fewer operations than the general products; gradient() and the tangent keep them).
     const double* X = m_.rest.data();
     for (int k = 0; k < cells_; ++k) {
-      const int* corner = &corner_[8 * k];
-      const Geometry& geo = geometry_[body_[k]];
+      int corner[8];
+      corners(k, corner);
+      const Kind& kind = kinds_[kind_[k]];
+      const Geometry& geo = geometry_[kind.body];
       double u[8][3];
       for (int c = 0; c < 8; ++c) {
         const int j = 3 * corner[c];
@@ -380,7 +402,7 @@ public:
         F[3 * i + 2] = ((u[4][i] - u[0][i]) + (u[5][i] - u[1][i]) + (u[6][i] - u[2][i]) + (u[7][i] - u[3][i])) * geo.g[4][2];
       }
       F[0] += 1.0, F[4] += 1.0, F[8] += 1.0;
-      if (!stress(F, moduli_[k], fibres(k), fibre_count(k), P) || !add_history(F, k, P)) {
+      if (!stress(F, kind.moduli, fibres(k), fibre_count(k), P) || !add_history(F, k, P)) {
         // An inverted cell: its energy is infinite; NaN forces make every solver's guard stop or cut back.
         for (int c = 0; c < 8; ++c)
           if (corner[c] < m_.owned)
@@ -403,18 +425,21 @@ public:
     double e = 0;
     for (int k = 0; k < cells_; ++k) {
       if (!owns_energy_[k]) continue;
-      const Geometry& geo = geometry_[body_[k]];
+      const Geometry& geo = geometry_[kinds_[kind_[k]].body];
       double F[9];
-      gradient(x, &corner_[8 * k], geo, F);
-      e += geo.volume * energy_density(F, moduli_[k], fibres(k), fibre_count(k));
+      int corner[8];
+      corners(k, corner);
+      gradient(x, corner, geo, F);
+      e += geo.volume * energy_density(F, kinds_[kind_[k]].moduli, fibres(k), fibre_count(k));
     }
     return e;
   }
 
   PetscErrorCode add_tangent(const double* x, BlockAdd add, void* ctx) const override {
     for (int k = 0; k < cells_; ++k) {
-      const int* corner = &corner_[8 * k];
-      const Geometry& geo = geometry_[body_[k]];
+      int corner[8];
+      corners(k, corner);
+      const Geometry& geo = geometry_[kinds_[kind_[k]].body];
       double F[9];
       gradient(x, corner, geo, F);
       // dP/dF_kl, one direction at a time: D[kl][ij].
@@ -423,7 +448,7 @@ public:
         Dual Fd[9], Pd[9];
         for (int q = 0; q < 9; ++q) Fd[q] = Dual(F[q], q == kl ? 1.0 : 0.0);
         // Inverted: the residual is NaN already.
-        if (!stress(Fd, moduli_[k], fibres(k), fibre_count(k), Pd) || !add_history(Fd, k, Pd)) return 0;
+        if (!stress(Fd, kinds_[kind_[k]].moduli, fibres(k), fibre_count(k), Pd) || !add_history(Fd, k, Pd)) return 0;
         for (int q = 0; q < 9; ++q) D[kl][q] = Pd[q].d;
       }
       // Dg[kl][a][i] = sum_j D[kl][ij] g_a[j]
@@ -450,10 +475,13 @@ public:
   }
 
   void add_couplings(std::vector<std::vector<int>>& extra) const override {
-    for (int k = 0; k < cells_; ++k)
+    for (int k = 0; k < cells_; ++k) {
+      int corner[8];
+      corners(k, corner);
       for (int a = 0; a < 8; ++a)
-        if (corner_[8 * k + a] < m_.owned)
-          for (int b = 0; b < 8; ++b) extra[corner_[8 * k + a]].push_back(corner_[8 * k + b]);
+        if (corner[a] < m_.owned)
+          for (int b = 0; b < 8; ++b) extra[corner[a]].push_back(corner[b]);
+    }
   }
 
   double critical_time_step() const override { return dt_; }
@@ -461,14 +489,16 @@ public:
   void add_force_scale(std::vector<double>& scale) const override {
     // A corner's force at unit strain: V0 |g| times the cell's moduli.
     for (int k = 0; k < cells_; ++k) {
-      const Moduli& md = moduli_[k];
-      const Geometry& geo = geometry_[body_[k]];
+      const Moduli& md = kinds_[kind_[k]].moduli;
+      const Geometry& geo = geometry_[kinds_[kind_[k]].body];
       double modulus = md.kappa + 2 * md.mu + 2 * (md.alpha[0] + md.alpha[1] + md.alpha[2]);
       for (int q = 0; q < fibre_count(k); ++q)
         modulus += std::abs(fibres(k)[q].E_f) + 2 * std::abs(fibres(k)[q].dG) + 2 * std::abs(fibres(k)[q].alpha);
+      int corner[8];
+      corners(k, corner);
       for (int a = 0; a < 8; ++a) {
         const double* g = geo.g[a];
-        scale[corner_[8 * k + a]] += geo.volume * modulus * std::sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+        scale[corner[a]] += geo.volume * modulus * std::sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
       }
     }
   }
@@ -491,10 +521,12 @@ public:
       const int c = history_[k];
       if (c < 0) continue;
       double F[9], S[9];
-      gradient(x, &corner_[8 * k], geometry_[body_[k]], F);
+      int corner[8];
+      corners(k, corner);
+      gradient(x, corner, geometry_[kinds_[kind_[k]].body], F);
       if (!fibre_pk2(F, fibres(k), fibre_count(k), S)) continue;
-      const double* w = weight_.data() + body_[k] * width_;
-      const double* e = decay_.data() + body_[k] * width_;
+      const double* w = weight_.data() + kinds_[kind_[k]].body * width_;
+      const double* e = decay_.data() + kinds_[kind_[k]].body * width_;
       double* so = &s_old_[9 * static_cast<std::size_t>(c)];
       for (int i = 0; i < width_; ++i) {
         double* h = &h_[(static_cast<std::size_t>(c) * width_ + i) * 9];
@@ -517,11 +549,13 @@ public:
       for (int q = 1; q < fibre_count(k); ++q)
         if (fibres(k)[q].E_f > f->E_f) f = fibres(k) + q;
       double F[9], Fa[3];
-      gradient(x, &corner_[8 * k], geometry_[body_[k]], F);
+      int corner[8];
+      corners(k, corner);
+      gradient(x, corner, geometry_[kinds_[kind_[k]].body], F);
       for (int i = 0; i < 3; ++i) Fa[i] = F[3 * i] * f->a[0] + F[3 * i + 1] * f->a[1] + F[3 * i + 2] * f->a[2];
       const double l = std::sqrt(Fa[0] * Fa[0] + Fa[1] * Fa[1] + Fa[2] * Fa[2]);
       for (int c = 0; c < 8; ++c) {
-        const int i = corner_[8 * k + c];
+        const int i = corner[c];
         if (i >= m_.owned) continue;
         for (int d = 0; d < 3; ++d) direction[3 * i + d] += Fa[d] / l;
         stretch[i] += l;
@@ -545,9 +579,10 @@ public:
     static const int order[8] = {0, 1, 3, 2, 4, 5, 7, 6};
     for (int k = 0; k < cells_; ++k) {
       if (!owns_energy_[k]) continue;  // each cell once: on the rank owning its lowest corner
-      const int* corner = &corner_[8 * k];
+      int corner[8];
+      corners(k, corner);
       double F[9];
-      gradient(x, corner, geometry_[body_[k]], F);
+      gradient(x, corner, geometry_[kinds_[kind_[k]].body], F);
       out.id.push_back(cell_id_[k]);
       for (int c : order) out.corners.push_back(m_.id[corner[c]]);
       out.volume_ratio.push_back(F[0] * (F[4] * F[8] - F[5] * F[7]) - F[1] * (F[3] * F[8] - F[5] * F[6]) +
@@ -569,8 +604,8 @@ private:
     if (stepping_) {
       T S[9];
       if (!fibre_pk2(F, fibres(k), fibre_count(k), S)) return false;
-      const double* w = weight_.data() + body_[k] * width_;
-      const double* e = decay_.data() + body_[k] * width_;
+      const double* w = weight_.data() + kinds_[kind_[k]].body * width_;
+      const double* e = decay_.data() + kinds_[kind_[k]].body * width_;
       for (int i = 0; i < width_; ++i)
         for (int q = 0; q < 9; ++q)
           H[q] = H[q] + T(e[i] * h_[(c * width_ + i) * 9 + q]) + T(w[i]) * (S[q] - T(s_old_[9 * c + q]));
@@ -617,9 +652,19 @@ private:
   std::vector<double> gamma_, tau_, decay_, weight_;  // per body and Prony term
   std::vector<double> s_old_, h_;                     // per history cell: committed S_f (9), h per term (9 each)
   bool active_ = false, stepping_ = false;
-  std::vector<int> corner_;  // 8 local indices per cell, corner c = (c & 1, c >> 1 & 1, c >> 2 & 1)
-  std::vector<Moduli> moduli_;
-  std::vector<int> body_;
+  // A cell's 8 local corner indices (corner c = (c & 1, c >> 1 & 1, c >> 2 & 1)): base_ + patterns_[pattern_].
+  std::vector<int> base_, pattern_;
+  std::vector<std::array<int, 8>> patterns_;
+  void corners(int k, int corner[8]) const {
+    const std::array<int, 8>& p = patterns_[pattern_[k]];
+    for (int c = 0; c < 8; ++c) corner[c] = base_[k] + p[c];
+  }
+  struct Kind {
+    Moduli moduli;
+    int body = 0;
+  };
+  std::vector<Kind> kinds_;  // the distinct (moduli, body) of the cells
+  std::vector<int> kind_;    // per cell: its index in kinds_
   std::vector<char> owns_energy_;
   std::vector<std::int64_t> cell_id_;  // dense global id per cell (snapshots)
   std::int64_t global_cells_ = 0;

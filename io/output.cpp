@@ -1,6 +1,8 @@
 #include "io/output.hpp"
 
+#include <fcntl.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -248,12 +250,21 @@ void Output::history_row(const SolverState& state, const ForceModel& forces, con
     if (m.lateral_strain) number(*m.lateral_strain);
     else text += ",";
     text += "\n";
-    FILE* file = std::fopen(path.c_str(), history_started_ ? "a" : "w");
-    if (!file) throw OutputError(path + ": cannot open: " + std::strerror(errno));
-    const bool written = std::fwrite(text.data(), 1, text.size(), file) == text.size() && std::fflush(file) == 0;
-    const int error = errno;
-    if (std::fclose(file) != 0 || !written)
-      throw OutputError(path + ": cannot write: " + std::strerror(written ? errno : error));
+    // The row in write() calls of its own (no stdio buffer): in the file when this returns, and a failed write is
+    // this call's, named with its error.
+    const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | (history_started_ ? O_APPEND : O_TRUNC), 0644);
+    if (fd < 0) throw OutputError(path + ": cannot open: " + std::strerror(errno));
+    for (std::size_t done = 0; done < text.size();) {
+      const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) {
+        const int error = n < 0 ? errno : EIO;
+        ::close(fd);
+        throw OutputError(path + ": cannot write: " + std::strerror(error));
+      }
+      done += static_cast<std::size_t>(n);
+    }
+    if (::close(fd) != 0) throw OutputError(path + ": cannot write: " + std::strerror(errno));
   });
   history_started_ = true;
   ++history_rows_;

@@ -85,6 +85,9 @@ void expect_same(const Built& bx, const Built& by) {
     EXPECT_EQ(p.total_area, q.total_area);
     EXPECT_EQ(p.centroid, q.centroid);
     EXPECT_EQ(p.axis, q.axis);
+    EXPECT_EQ(p.side, q.side);
+    EXPECT_EQ(p.plane, q.plane);
+    EXPECT_EQ(p.lattice, q.lattice);
     EXPECT_EQ(p.anchor, q.anchor);
     EXPECT_EQ(p.anchor2, q.anchor2);
     EXPECT_EQ(p.anchor2_component, q.anchor2_component);

@@ -78,6 +78,11 @@ Body build_body(const Scene& scene, const MeshReader& read_mesh) {
     }
     for (auto& f : b.faces) f.body = static_cast<int>(i), all.faces.push_back(f);
   }
+  for (std::size_t i = 0; i < specs.size(); ++i)  // a box's faces: its lattice planes
+    if (!all.parts[i].unstructured())
+      for (auto& f : lattice_faces(all.parts[i], static_cast<int>(i))) all.faces.push_back(std::move(f));
+  std::stable_sort(all.faces.begin(), all.faces.end(),
+                   [](const NamedFace& x, const NamedFace& y) { return x.body < y.body; });
   check_face_names(scene, all);
   return all;
 }

@@ -175,12 +175,12 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationIn
       const BodySpec& spec = specs[i];
       if (explicit_spec(spec)) {
         const std::string key = nbodies > 1 ? "body[" + std::to_string(i) + "]" : "body";
-        if (spec.shape == "mesh" && !read_mesh) throw std::logic_error("build_explicit_model: a mesh body and no mesh reader");
+        if (spec.shape == BodySpec::Shape::mesh && !read_mesh) throw std::logic_error("build_explicit_model: a mesh body and no mesh reader");
         TetMesh& mesh = read[i].mesh;
-        if (spec.shape == "mesh" && spec.topology == "random")
+        if (spec.shape == BodySpec::Shape::mesh && spec.random)
           mesh = random_in_mesh(read_mesh(spec), spec, scene.file, key);
         else
-          mesh = spec.shape == "mesh" ? read_mesh(spec) : random_cloud(spec);
+          mesh = spec.shape == BodySpec::Shape::mesh ? read_mesh(spec) : random_cloud(spec);
         read[i].molecules = mesh_molecules(spec, mesh, first, scene.file, key);
         mesh.nodes = {}, mesh.tet_region = {}, mesh.surfaces = {};
         count[i] = static_cast<std::int64_t>(read[i].molecules.points.size());
@@ -386,7 +386,7 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationIn
   std::vector<int> part(hi - lo, 0);
   if (m.size > 1) {
     if (n < m.size) throw std::runtime_error("the body has fewer molecules than ranks");
-    if (scene.partition.method == "ptscotch") {
+    if (scene.partition.method == PartitionSpec::Method::ptscotch) {
       part = ptscotch_block(lo, hi, n, row, comm, m.partition);
     } else {
       // The graph on rank 0 as 4-byte ints, for the METIS call alone.

@@ -29,7 +29,7 @@ Built reference(const Scene& scene, MPI_Comm comm) {
   Built b;
   b.model = distribute(body, part, stats, comm, b.inputs);
   LocalModel& m = b.model;
-  if (scene.partition.method == "ptscotch") {  // counted by build_local_model on the production path
+  if (scene.partition.method == PartitionSpec::Method::ptscotch) {  // counted by build_local_model on the production path
     long cut = 0;
     for (int c : m.written_here()) cut += m.end_b[c] >= m.owned;
     MPI_Allreduce(&cut, &m.partition.edge_cut, 1, MPI_LONG, MPI_SUM, comm);

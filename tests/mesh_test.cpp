@@ -477,8 +477,9 @@ TEST(RandomInMesh, RefusesABodyInPieces) {
     }
   }
   BodySpec spec;
-  spec.shape = "mesh";
+  spec.shape = BodySpec::Shape::mesh;
   spec.topology = "random";
+  spec.random = true;
   spec.interior_molecules = 16;
   try {
     random_in_mesh(two, spec, "scene.toml", "body");

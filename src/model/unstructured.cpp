@@ -201,7 +201,7 @@ void check_face_names(const Scene& scene, const Body& body) {
     const BodySpec& spec = scene.bodies.empty() ? scene.body : scene.bodies[bi];
     throw InputError(scene.file, fmt::format("{}[{}].face", what, i),
                      fmt::format("no physical surface \"{}\" in {} (it has: {})", face,
-                                 spec.shape == "mesh" ? spec.file : std::string("the random box"), names_of(names)));
+                                 spec.shape == BodySpec::Shape::mesh ? spec.file : std::string("the random box"), names_of(names)));
   };
   for (std::size_t i = 0; i < scene.fixes.size(); ++i) {
     const FixSpec& fix = scene.fixes[i];

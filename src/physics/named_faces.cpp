@@ -18,7 +18,7 @@ void add_named_face_load(const LoadSpec& load, const NamedFace& face, const Loca
   for (int i = 0; i < model.owned; ++i) {
     if (model.body[i] != load.body || !face.contains(model.id[i])) continue;
     // traction: each molecule's share is its tributary area on the face; equal: the same share for all.
-    const double share = load.distribution == "equal" ? 1.0 / count : face.area_of(model.id[i]) / face.total_area;
+    const double share = load.distribution == LoadSpec::Distribution::equal ? 1.0 / count : face.area_of(model.id[i]) / face.total_area;
     for (int d = 0; d < 3; ++d) out[3 * i + d] += share * load.force[d];
   }
 }

@@ -163,7 +163,7 @@ public:
         E_s += cm.spring_modulus / 8, mu += cm.mu_c / 8, kappa += cm.kappa_c / 8;
         modulus += p_wave_modulus(mat.youngs_modulus, mat.poisson_ratio) / 8, density += mat.density / 8;
       }
-      const CellSprings split = cell_springs(box.h, box.topology);
+      const CellSprings split = cell_springs(box.h, find_topology(box.topology)->cells);
       Moduli& md = moduli_[k];
       md.mu = mu, md.kappa = kappa;
       for (int w = 0; w < 3; ++w) md.alpha[w] = split.alpha[w] * E_s;

@@ -319,7 +319,7 @@ void Output::write_summary(const TensionTest& test, const Measurements& measured
       test.body < static_cast<int>(scene_.bodies.size()) ? scene_.bodies[test.body].youngs_modulus
                                                           : scene_.body.youngs_modulus;
   // What the solver kind reports (an unknown kind: a failure before any solve, reported as the scene's).
-  const SolverStyle* kind = find_solver(report.kind.empty() ? scene_.solver.kind : report.kind);
+  const SolverStyle* kind = report.kind ? report.kind : find_solver(scene_.solver.kind);
   const bool dynamic = kind->integrates_time;
   json s;
   s["title"] = scene_.title;
@@ -358,7 +358,7 @@ void Output::write_summary(const TensionTest& test, const Measurements& measured
       bodies.push_back({{"method", c.method}, {"divisor", divisor(c)}});
     s["calibration"]["bodies"] = bodies;
   }
-  s["solver"] = {{"kind", report.kind},
+  s["solver"] = {{"kind", kind_name(report)},
                  {"iterations", report.iterations},
                  {"linear_iterations", kind->newton ? json(report.linear_iterations) : json(nullptr)},
                  {"residual", dynamic ? json(nullptr) : json(report.residual)},

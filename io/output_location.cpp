@@ -14,6 +14,7 @@
 
 #include "partition/agreement.hpp"
 #include "src/model/topology.hpp"
+#include "src/solvers/solver.hpp"
 
 namespace tissue {
 
@@ -38,8 +39,9 @@ OutputEstimate estimate_output(const Scene& scene) {
   OutputEstimate e;
   double connections = 0;
   for (const BodySpec& b : scene.bodies.empty() ? std::vector<BodySpec>{scene.body} : scene.bodies) {
-    std::int64_t n = b.shape == "mesh" ? b.interior_molecules : b.molecules[0] * b.molecules[1] * b.molecules[2];
-    if (b.topology == "random" && b.shape != "mesh") n = std::max<std::int64_t>(n, b.interior_molecules);
+    const bool mesh = b.shape == BodySpec::Shape::mesh;
+    std::int64_t n = mesh ? b.interior_molecules : b.molecules[0] * b.molecules[1] * b.molecules[2];
+    if (b.random && !mesh) n = std::max<std::int64_t>(n, b.interior_molecules);
     e.molecules += n;
     connections += connections_per_molecule(b.topology) * static_cast<double>(n);
   }
@@ -58,7 +60,8 @@ OutputEstimate estimate_output(const Scene& scene) {
   const bool checkpoints = scene.output.checkpoint_every > 0;
   e.first_bytes = std::max(e.snapshot_bytes, checkpoints ? e.checkpoint_bytes : 0);
   std::int64_t snapshots = 1;  // final.h5
-  if (scene.output.snapshot_every > 0 && scene.solver.kind == "dynamic")
+  const SolverStyle* kind = find_solver(scene.solver.kind);  // steps with snapshots: a time line
+  if (scene.output.snapshot_every > 0 && kind && kind->time_line)
     snapshots += scene.solver.steps / scene.output.snapshot_every + 1;
   // Two checkpoints are kept, and a third is written before the oldest goes.
   e.run_bytes = snapshots * e.snapshot_bytes + (checkpoints ? 3 * e.checkpoint_bytes : 0) + 65536;

@@ -73,7 +73,7 @@ void read_material(const Section& s, std::string& material, double& E, double& d
 // the preset's when homogenized honours it; an explicit nu with another method is refused (naming
 // calibration.method), a preset's is ignored with a note (src/calibration/calibration.cpp prints it).
 void apply_poisson(const Section& body_table, BodySpec& b, const CalibrationSpec& c) {
-  const bool homogenized = c.method == "homogenized";
+  const bool homogenized = c.honours_poisson;  // homogenized
   bool given = b.poisson_ratio.has_value();
   for (const auto& r : b.regions) given = given || r.poisson_ratio.has_value();
   b.poisson_ratio_given = given;
@@ -82,9 +82,15 @@ void apply_poisson(const Section& body_table, BodySpec& b, const CalibrationSpec
                      fmt::format("{} cannot honour a poisson_ratio (nu = 1/4 is built in: central springs); use "
                                  "method = \"homogenized\" or remove poisson_ratio", c.method));
   if (!homogenized) return;
-  if (given && b.topology != "face-diagonals" && b.topology != "body-diagonals")
-    body_table.fail("poisson_ratio", fmt::format("needs topology \"face-diagonals\" or \"body-diagonals\" (the body "
-                                                 "has \"{}\")", b.topology));
+  const TopologyStyle* lattice = b.unstructured() ? nullptr : find_topology(b.topology);
+  const bool carries = lattice && lattice->carries_poisson();
+  if (given && !carries) {
+    std::vector<std::string> names;
+    for (const auto& t : topology_styles())
+      if (t.carries_poisson()) names.push_back(fmt::format("\"{}\"", t.name));
+    body_table.fail("poisson_ratio", fmt::format("needs topology {} (the body has \"{}\")", join(names, " or "),
+                                                 b.topology));
+  }
   auto preset_nu = [](const std::string& material) -> std::optional<double> {
     const TissuePreset* p = material == "custom" ? nullptr : find_tissue(material);
     return p ? std::optional<double>(p->poisson_ratio) : std::nullopt;
@@ -102,7 +108,7 @@ void apply_poisson(const Section& body_table, BodySpec& b, const CalibrationSpec
     for (auto& r : b.regions) r.poisson_ratio.reset();
   }
   if (b.poisson_ratio || !b.regions.empty()) {
-    if (b.topology != "face-diagonals" && b.topology != "body-diagonals") {
+    if (!carries) {
       b.poisson_ratio.reset();  // a preset's nu on a topology that cannot carry it: 1/4 as before
       for (auto& r : b.regions) r.poisson_ratio.reset();
     }
@@ -258,11 +264,12 @@ BodySpec read_mesh_body(const Section& s, BodySpec b) {
   // topology = "random": the mesh's boundary nodes and interior_molecules points at random inside it, Delaunay
   // (src/model/mesh_cloud.hpp); "mesh": the mesh's own tetrahedra.
   b.topology = s.choice("topology", {"mesh", "random"}).value_or("mesh");
+  b.random = b.topology == "random";
   if (s.has("viscoelastic")) b.viscoelastic = read_viscoelastic(s.table("viscoelastic"));
   for (const char* k : {"seed", "interior_molecules"})
-    if (s.has(k) && b.topology != "random") s.fail(k, "only topology = \"random\" has it");
+    if (s.has(k) && !b.random) s.fail(k, "only topology = \"random\" has it");
   b.seed = s.integer("seed").value_or(b.seed);
-  if (b.topology == "random") {
+  if (b.random) {
     s.require("interior_molecules", "the number of molecules to sample inside the mesh's volume");
     b.interior_molecules = *s.integer("interior_molecules");
     s.at_least("interior_molecules", b.interior_molecules, 1);
@@ -286,10 +293,10 @@ BodySpec read_mesh_body(const Section& s, BodySpec b) {
 
 BodySpec read_body(const Section& s) {
   BodySpec b;
-  b.shape = s.string("shape").value_or("box");
-  if (b.shape != "box" && b.shape != "mesh")
-    s.fail("shape", fmt::format("unknown value \"{}\" (one of: box, mesh)", b.shape));
-  if (b.shape == "mesh") return read_mesh_body(s, b);
+  const std::string shape = s.string("shape").value_or("box");
+  if (shape != "box" && shape != "mesh") s.fail("shape", fmt::format("unknown value \"{}\" (one of: box, mesh)", shape));
+  b.shape = shape == "mesh" ? BodySpec::Shape::mesh : BodySpec::Shape::box;
+  if (b.shape == BodySpec::Shape::mesh) return read_mesh_body(s, b);
   s.allow({"shape", "molecules", "spacing", "size", "topology", "material", "youngs_modulus", "density", "offset",
            "region", "radius", "calibration", "seed", "poisson_ratio", "viscoelastic",
            "fibres"});  // calibration: read by build_scene
@@ -320,10 +327,11 @@ BodySpec read_body(const Section& s) {
   std::vector<std::string> topologies = topology_names();
   topologies.push_back("random");  // explicit: src/model/random_cloud.hpp
   b.topology = s.choice("topology", topologies).value_or(b.topology);
+  b.random = b.topology == "random";
   if (s.has("viscoelastic")) b.viscoelastic = read_viscoelastic(s.table("viscoelastic"));
-  if (s.has("seed") && b.topology != "random") s.fail("seed", "only topology = \"random\" has a seed");
+  if (s.has("seed") && !b.random) s.fail("seed", "only topology = \"random\" has a seed");
   b.seed = s.integer("seed").value_or(b.seed);
-  if (b.topology == "random" && !s.tables("region").empty())
+  if (b.random && !s.tables("region").empty())
     s.fail("region", "a random box has no regions yet (give the body one material)");
   read_material(s, b.material, b.youngs_modulus, b.density, &b.poisson_ratio);
   if (s.has("fibres")) read_fibre_material(s, b.material, b.youngs_modulus, b.fibres);
@@ -350,8 +358,9 @@ BodySpec read_body(const Section& s) {
 }
 
 // The connection classes a topology uses, from a one-cell body (exact for any registered topology).
-std::set<std::string> classes_of(const std::string& topology) {
-  if (topology == "mesh" || topology == "random") return {"edge"};  // tetrahedron edges, one class
+std::set<std::string> classes_of(const BodySpec& body) {
+  if (body.unstructured()) return {"edge"};  // tetrahedron edges, one class
+  const std::string& topology = body.topology;
   Body cell;
   cell.n = {2, 2, 2};
   cell.h = {1.0, 1.0, 1.0};
@@ -389,6 +398,7 @@ CalibrationSpec read_calibration(const Section& s, const BodySpec* body, int ind
     }
   }
   const CalibrationStyle& style = *find_calibration(c.method);
+  c.honours_poisson = style.honours_poisson;
   if (style.wrap_solver && nbodies > 1)
     s.fail("method", fmt::format("{} fits C by a tension test of the whole scene: not available with several "
                                  "bodies ({} here); find C with the body alone in a one-body scene, then give it "
@@ -396,7 +406,7 @@ CalibrationSpec read_calibration(const Section& s, const BodySpec* body, int ind
   if (!body) return c;
   if (c.method == "manual") {
     s.require("stiffness", "method = \"manual\" needs stiffness = { edge = ..., ... } in N/m");
-    for (const auto& cls : classes_of(body->topology))
+    for (const auto& cls : classes_of(*body))
       if (!c.stiffness.count(cls))
         s.table("stiffness")
             .fail(cls, fmt::format("missing: topology \"{}\" has {} connections", body->topology, cls));
@@ -442,8 +452,8 @@ SolverSpec read_solver(const Section& s) {
 ObstacleSpec read_obstacle(const Section& s) {
   ObstacleSpec o;
   s.require("kind", "plane or sphere");
-  o.kind = *s.choice("kind", {"plane", "sphere"});
-  if (o.kind == "plane") {
+  o.kind = *s.choice("kind", {"plane", "sphere"}) == "plane" ? ObstacleSpec::Kind::plane : ObstacleSpec::Kind::sphere;
+  if (o.kind == ObstacleSpec::Kind::plane) {
     s.allow({"kind", "point", "normal", "stiffness"});
     s.require("point");
     s.require("normal");
@@ -538,7 +548,7 @@ Scene build_scene(const Value& root, const std::string& file) {
   // A face: x- .. z+ on a box, a physical surface's name on a mesh (checked against the file with the body).
   auto face_of = [&](const Section& t) {
     const int b = static_cast<int>(t.integer("body").value_or(0));
-    if (scene.bodies[b].shape != "mesh") return *t.choice("face", face_names);
+    if (scene.bodies[b].shape != BodySpec::Shape::mesh) return *t.choice("face", face_names);
     auto name = t.string("face");
     if (name->empty()) t.fail("face", "empty: give the name of a physical surface of the mesh");
     return *name;
@@ -570,7 +580,8 @@ Scene build_scene(const Value& root, const std::string& file) {
     l.require("force", "[Fx, Fy, Fz] in N, the total over the face");
     spec.force = *l.vec3("force");
     if (spec.force[0] == 0 && spec.force[1] == 0 && spec.force[2] == 0) l.fail("force", "must not be zero");
-    spec.distribution = l.choice("distribution", {"traction", "equal"}).value_or(spec.distribution);
+    if (l.choice("distribution", {"traction", "equal"}).value_or("traction") == "equal")
+      spec.distribution = LoadSpec::Distribution::equal;
     spec.period = l.number("period").value_or(0.0);
     if (l.has("period")) l.positive("period", spec.period);
     spec.history = read_history(l);
@@ -615,24 +626,31 @@ Scene build_scene(const Value& root, const std::string& file) {
                        "a cyclic load needs solver.kind = " + join(in_time, " or "));
   // Loads and holds in time, and the Prony history, need a solver that follows time; a prescribed displacement
   // moves held molecules, which only the quasi-static solver does for now.
-  if (scene.solver.kind != "quasi-static") {
+  if (!solver.moves_holds) {
+    std::vector<std::string> moving, histories;  // the kinds that move holds; that follow loads in time
+    for (const auto& k : solver_styles()) {
+      if (k.moves_holds) moving.emplace_back(fmt::format("\"{}\"", k.name));
+      if (k.moves_holds || k.integrates_time) histories.emplace_back(fmt::format("\"{}\"", k.name));
+    }
     for (std::size_t i = 0; i < scene.fixes.size(); ++i) {
       const FixSpec& f = scene.fixes[i];
       if (f.displacement != Vec3{0.0, 0.0, 0.0} || !f.history.empty())
         throw InputError(file, fmt::format("fix[{}].{}", i, f.history.empty() ? "displacement" : "history"),
-                         "a moving hold needs solver.kind = \"quasi-static\"");
+                         "a moving hold needs solver.kind = " + join(moving, " or "));
     }
     for (std::size_t i = 0; i < scene.loads.size(); ++i)
       if (!scene.loads[i].history.empty() && !solver.integrates_time)
         throw InputError(file, fmt::format("load[{}].history", i),
-                         "a load history needs solver.kind = \"quasi-static\" or \"dynamic\"");
+                         "a load history needs solver.kind = " + join(histories, " or "));
   }
   if (top.has("output")) scene.output = read_output(top.table("output"));
-  if (scene.solver.kind == "quasi-static" && !scene.solver.time_step)
-    throw InputError(file, "solver.time_step", "missing: a quasi-static run needs its time step (s)");
-  if (scene.solver.kind != "quasi-static" && (scene.solver.time_step_growth != 1.0 || scene.solver.max_time_step))
+  if (solver.needs_time_step && !scene.solver.time_step)
+    throw InputError(file, "solver.time_step", fmt::format("missing: a {} run needs its time step (s)", solver.name));
+  if (!solver.needs_time_step && (scene.solver.time_step_growth != 1.0 || scene.solver.max_time_step))
     throw InputError(file, scene.solver.max_time_step ? "solver.max_time_step" : "solver.time_step_growth",
                      "only a quasi-static run grows its time step");
+  if (scene.output.checkpoint_every > 0 && !solver.checkpointed)
+    throw InputError(file, "output.checkpoint_every", fmt::format("a {} run is not checkpointed yet (give 0)", solver.name));
   // The fibres' viscoelastic history lives per cell (src/physics/terms/cell_elasticity.cpp); checkpoints hold the
   // connections' history only, so a restart would lose it.
   if (scene.output.checkpoint_every > 0)
@@ -643,7 +661,8 @@ Scene build_scene(const Value& root, const std::string& file) {
   if (top.has("partition")) {
     Section p = top.table("partition");
     p.allow({"method"});
-    scene.partition.method = p.choice("method", {"metis", "ptscotch"}).value_or(scene.partition.method);
+    if (p.choice("method", {"metis", "ptscotch"}).value_or("metis") == "ptscotch")
+      scene.partition.method = PartitionSpec::Method::ptscotch;
   }
   return scene;
 }
@@ -658,7 +677,7 @@ Scene parse_scene(const std::string& text, const std::string& name, const std::v
   // keeps the absolute path.
   Value& body = root.as_table().at("body");
   for (std::size_t i = 0; i < scene.bodies.size(); ++i)
-    if (scene.bodies[i].shape == "mesh")
+    if (scene.bodies[i].shape == BodySpec::Shape::mesh)
       (body.is_array() ? body.as_array()[i] : body).as_table()["file"] =
           std::filesystem::absolute(scene.bodies[i].file).string();
   // 17 significant digits and no width limit: parse_scene(text) gives back the same Scene. toml11 splits a basic

@@ -98,7 +98,8 @@ void broadcast_faces(std::vector<NamedFace>& faces, MPI_Comm comm, int rank) {
       const std::uint64_t name = f.name.size(), ids = f.molecules.size();
       put(&f.body, sizeof f.body), put(&name, 8), put(f.name.data(), name), put(&ids, 8);
       put(f.molecules.data(), ids * 8), put(f.area.data(), ids * 8);
-      put(&f.total_area, 8), put(f.centroid.data(), 24), put(&f.axis, sizeof f.axis);
+      put(&f.total_area, 8), put(f.centroid.data(), 24), put(&f.axis, sizeof f.axis), put(&f.side, sizeof f.side);
+      put(&f.plane, 8);
       put(&f.anchor, 8), put(&f.anchor2, 8), put(&f.anchor2_component, sizeof f.anchor2_component);
     }
   }
@@ -117,7 +118,8 @@ void broadcast_faces(std::vector<NamedFace>& faces, MPI_Comm comm, int rank) {
     get(&f.body, sizeof f.body), get(&name, 8), f.name.assign(p, name), p += name, get(&ids, 8);
     f.molecules.resize(ids), f.area.resize(ids);
     get(f.molecules.data(), ids * 8), get(f.area.data(), ids * 8);
-    get(&f.total_area, 8), get(f.centroid.data(), 24), get(&f.axis, sizeof f.axis);
+    get(&f.total_area, 8), get(f.centroid.data(), 24), get(&f.axis, sizeof f.axis), get(&f.side, sizeof f.side);
+    get(&f.plane, 8);
     get(&f.anchor, 8), get(&f.anchor2, 8), get(&f.anchor2_component, sizeof f.anchor2_component);
   }
 }
@@ -173,12 +175,12 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationIn
       const BodySpec& spec = specs[i];
       if (explicit_spec(spec)) {
         const std::string key = nbodies > 1 ? "body[" + std::to_string(i) + "]" : "body";
-        if (spec.shape == "mesh" && !read_mesh) throw std::logic_error("build_explicit_model: a mesh body and no mesh reader");
+        if (spec.shape == BodySpec::Shape::mesh && !read_mesh) throw std::logic_error("build_explicit_model: a mesh body and no mesh reader");
         TetMesh& mesh = read[i].mesh;
-        if (spec.shape == "mesh" && spec.topology == "random")
+        if (spec.shape == BodySpec::Shape::mesh && spec.random)
           mesh = random_in_mesh(read_mesh(spec), spec, scene.file, key);
         else
-          mesh = spec.shape == "mesh" ? read_mesh(spec) : random_cloud(spec);
+          mesh = spec.shape == BodySpec::Shape::mesh ? read_mesh(spec) : random_cloud(spec);
         read[i].molecules = mesh_molecules(spec, mesh, first, scene.file, key);
         mesh.nodes = {}, mesh.tet_region = {}, mesh.surfaces = {};
         count[i] = static_cast<std::int64_t>(read[i].molecules.points.size());
@@ -212,7 +214,15 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationIn
     m.shape.parts[i].first = first;
     first += count[i];
   }
-  m.shape.faces = std::move(faces);
+  // The boxes' lattice faces (made again: a box after an explicit body starts where that body's count ends),
+  // then the explicit bodies', ordered by body.
+  m.shape.faces.clear();
+  for (int i = 0; i < nbodies; ++i)
+    if (!explicit_spec(specs[i]))
+      for (auto& f : lattice_faces(m.shape.parts[i], i)) m.shape.faces.push_back(std::move(f));
+  for (auto& f : faces) m.shape.faces.push_back(std::move(f));
+  std::stable_sort(m.shape.faces.begin(), m.shape.faces.end(),
+                   [](const NamedFace& x, const NamedFace& y) { return x.body < y.body; });
   check_face_names(scene, m.shape);
   const std::int64_t n = first;
   m.global_molecules = n;
@@ -376,7 +386,7 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationIn
   std::vector<int> part(hi - lo, 0);
   if (m.size > 1) {
     if (n < m.size) throw std::runtime_error("the body has fewer molecules than ranks");
-    if (scene.partition.method == "ptscotch") {
+    if (scene.partition.method == PartitionSpec::Method::ptscotch) {
       part = ptscotch_block(lo, hi, n, row, comm, m.partition);
     } else {
       // The graph on rank 0 as 4-byte ints, for the METIS call alone.

@@ -43,7 +43,7 @@ LocalModel build_local_model(const Scene& scene, MPI_Comm comm, CalibrationInput
   const bool is_explicit = std::any_of(specs.begin(), specs.end(), [](const BodySpec& b) { return b.unstructured(); }) ||
                            scene.body.unstructured();
   LocalModel m = is_explicit ? build_explicit_model(scene, comm, inputs, read_mesh) : build_lattice_model(scene, comm, inputs);
-  if (scene.partition.method == "ptscotch") {
+  if (scene.partition.method == PartitionSpec::Method::ptscotch) {
     // PT-Scotch's blocks cannot see their neighbours' parts: count the cut connections here, each once (by the
     // rank writing it, which owns end a; it is cut when end b is a ghost).
     long cut = 0;

@@ -69,8 +69,9 @@ std::vector<int> partition_graph_on_rank0(std::vector<int>&& xadj, std::vector<i
 }
 
 
-std::vector<int> partition_lattice(const Body& shape, MPI_Comm comm, PartitionStats& stats, const std::string& method) {
-  if (method == "ptscotch") {  // each rank hands over its block's rows, from the stencils: nobody builds the graph
+std::vector<int> partition_lattice(const Body& shape, MPI_Comm comm, PartitionStats& stats,
+                                   PartitionSpec::Method method) {
+  if (method == PartitionSpec::Method::ptscotch) {  // each rank hands over its block's rows, from the stencils: nobody builds the graph
     int rank, size;
     MPI_Comm_rank(comm, &rank);
     MPI_Comm_size(comm, &size);

@@ -33,8 +33,9 @@ std::vector<int> partition_graph_on_rank0(std::vector<int>&& xadj, std::vector<i
 // (partition/lattice_blocks.hpp), so rank 0 holds a few bytes a molecule. Returns the parts of this rank's block of the natural order
 // (NaturalOrder::block_begin): no rank holds the whole partition.
 std::vector<int> partition_lattice(const Body& shape, MPI_Comm comm, PartitionStats& stats);
-// The same by partition.method: "metis" (above) or "ptscotch" (every rank its block's rows; the edge cut is left
+// The same by partition.method: metis (above) or ptscotch (every rank its block's rows; the edge cut is left
 // 0 for the caller to count).
-std::vector<int> partition_lattice(const Body& shape, MPI_Comm comm, PartitionStats& stats, const std::string& method);
+std::vector<int> partition_lattice(const Body& shape, MPI_Comm comm, PartitionStats& stats,
+                                   PartitionSpec::Method method);
 
 }  // namespace tissue

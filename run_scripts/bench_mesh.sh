@@ -5,20 +5,11 @@
 # partition quality. Writes docs/mesh_benchmark.csv and docs/mesh_benchmark.md.
 #   bash run_scripts/bench_mesh.sh [H]      # H: gmsh's element size (default 0.000245 m: about 103,000 molecules)
 set -euo pipefail
-ROOT="$(cd "$(dirname "$0")/.." && pwd)"
+source "$(dirname "$0")/mesh_common.sh"  # ROOT (the working directory), MPI as root, cartilage_mesh
 H="${1:-0.000245}"
-cd "$ROOT"
 [ -x build/tissue ] || bash run_scripts/build.sh tissue
-command -v gmsh > /dev/null || bash run_scripts/install_deps.sh
-export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 out="$ROOT/out/bench_mesh"
-mkdir -p "$out"
-mesh="$out/cartilage_h$H.msh"
-if [ ! -s "$mesh" ]; then
-  echo "meshing (h = $H) ..."
-  nice gmsh -3 -format msh41 -setnumber h "$H" run_scripts/scenes/cartilage_layer.geo -o "$mesh.tmp" > "$out/gmsh.log" 2>&1
-  mv "$mesh.tmp" "$mesh"
-fi
+mesh="$(cartilage_mesh "$out" "$H")"
 run() {  # NP METHOD
   local dir="$out/np$1_$2"
   rm -rf "$dir"

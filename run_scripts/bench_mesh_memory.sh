@@ -8,21 +8,13 @@
 #   bash run_scripts/bench_mesh_memory.sh [H] [SCENES]   # H: element size (default 0.000172 m: ~300,000 molecules)
 #   TISSUE=path/to/tissue bash run_scripts/bench_mesh_memory.sh     # another binary (an older build, to compare)
 set -euo pipefail
-ROOT="$(cd "$(dirname "$0")/.." && pwd)"
+source "$(dirname "$0")/mesh_common.sh"  # ROOT (the working directory), MPI as root, cartilage_mesh
 H="${1:-0.000172}"
 SCENES="${2:-build static}"
 TISSUE="${TISSUE:-$ROOT/build/tissue}"
-cd "$ROOT"
 [ -x "$TISSUE" ] || bash run_scripts/build.sh tissue
-export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 out="$ROOT/out/bench_memory"
-mkdir -p "$out"
-mesh="$out/cartilage_h$H.msh"
-if [ ! -s "$mesh" ]; then
-  echo "meshing (h = $H) ..."
-  nice gmsh -3 -format msh41 -setnumber h "$H" run_scripts/scenes/cartilage_layer.geo -o "$mesh.tmp" > "$out/gmsh.log" 2>&1
-  mv "$mesh.tmp" "$mesh"
-fi
+mesh="$(cartilage_mesh "$out" "$H")"
 tag="$(basename "$(dirname "$(dirname "$TISSUE")")")"
 for scene in $SCENES; do
   case "$scene" in

@@ -165,9 +165,9 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
                   sc.title.c_str(), sc.bodies[test.body].youngs_modulus, *measured.youngs_modulus,
                   100.0 * (*measured.youngs_modulus - sc.bodies[test.body].youngs_modulus) /
                       sc.bodies[test.body].youngs_modulus,
-                  *measured.elongation, report.kind.c_str(), report.iterations, report.residual);
+                  *measured.elongation, kind_name(report), report.iterations, report.residual);
     else
-      std::printf("%s\n  %s: %ld steps, kinetic energy %.6e J\n", sc.title.c_str(), report.kind.c_str(),
+      std::printf("%s\n  %s: %ld steps, kinetic energy %.6e J\n", sc.title.c_str(), kind_name(report),
                   report.iterations, measured.kinetic_energy);
     if (sim.failed()) std::fprintf(stderr, "tissue: %s\n", sim.failure().c_str());
   }

@@ -29,7 +29,7 @@ Built reference(const Scene& scene, MPI_Comm comm) {
   Built b;
   b.model = distribute(body, part, stats, comm, b.inputs);
   LocalModel& m = b.model;
-  if (scene.partition.method == "ptscotch") {  // counted by build_local_model on the production path
+  if (scene.partition.method == PartitionSpec::Method::ptscotch) {  // counted by build_local_model on the production path
     long cut = 0;
     for (int c : m.written_here()) cut += m.end_b[c] >= m.owned;
     MPI_Allreduce(&cut, &m.partition.edge_cut, 1, MPI_LONG, MPI_SUM, comm);
@@ -85,6 +85,9 @@ void expect_same(const Built& bx, const Built& by) {
     EXPECT_EQ(p.total_area, q.total_area);
     EXPECT_EQ(p.centroid, q.centroid);
     EXPECT_EQ(p.axis, q.axis);
+    EXPECT_EQ(p.side, q.side);
+    EXPECT_EQ(p.plane, q.plane);
+    EXPECT_EQ(p.lattice, q.lattice);
     EXPECT_EQ(p.anchor, q.anchor);
     EXPECT_EQ(p.anchor2, q.anchor2);
     EXPECT_EQ(p.anchor2_component, q.anchor2_component);

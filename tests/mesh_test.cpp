@@ -255,6 +255,81 @@ TEST(Mesh, ReactionsBalanceTheLoad) {
   }
 }
 
+// A box's six faces are lattice planes made with the box (lattice_faces: nothing per molecule); holds, loads and
+// Eq. 3 read them as they read a mesh's faces. Reference: the same box handed in as a mesh (its Kuhn tetrahedra,
+// each cell face split into two triangles), whose faces make_face builds from their triangles: the same molecules,
+// the same total area, centroid, plane, axis, side and first roller anchor, and each molecule inside a face the
+// same tributary area (six triangles of h_u h_v / 2, a third each).
+TEST(Box, LatticeFacesAreTheFacesOfTheBoxAsAMesh) {
+  BodySpec spec;
+  spec.molecules = {4, 3, 5};
+  spec.spacing = {0.5, 0.25, 0.2};
+  spec.offset = {1.0, -2.0, 0.5};
+  spec.topology = "tetrahedral";
+  spec.youngs_modulus = 1.0e5;
+  Scene scene;
+  scene.file = "test";
+  scene.body = spec;
+  scene.bodies = {spec};
+  const Body box = build_body(scene);
+  ASSERT_FALSE(box.tetrahedra.empty());
+  TetMesh mesh;
+  for (std::int64_t id = 0; id < box.molecules(); ++id) {  // the mesh's own frame: build_unstructured adds the offset
+    Vec3 x = box.rest_position(id);
+    for (int d = 0; d < 3; ++d) x[d] -= spec.offset[d];
+    mesh.nodes.push_back(x);
+  }
+  for (auto t : box.tetrahedra) {
+    if (signed_volume(mesh.nodes[t[0]], mesh.nodes[t[1]], mesh.nodes[t[2]], mesh.nodes[t[3]]) < 0) std::swap(t[0], t[1]);
+    mesh.tets.push_back(t);
+  }
+  const auto& n = spec.molecules;
+  for (int axis = 0; axis < 3; ++axis)
+    for (int side = 0; side < 2; ++side) {
+      TetMesh::Surface s;
+      s.name = std::string(1, static_cast<char>('x' + axis)) + (side ? "+" : "-");
+      const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+      for (long a = 0; a + 1 < n[u]; ++a)
+        for (long b = 0; b + 1 < n[v]; ++b) {
+          std::array<std::int64_t, 4> q;
+          for (int c = 0; c < 4; ++c) {
+            std::array<long, 3> ijk{};
+            ijk[axis] = side ? n[axis] - 1 : 0, ijk[u] = a + (c == 1 || c == 2), ijk[v] = b + (c >= 2);
+            q[c] = box.id(ijk[0], ijk[1], ijk[2]);
+          }
+          s.triangles.push_back({q[0], q[1], q[2]});
+          s.triangles.push_back({q[0], q[2], q[3]});
+        }
+      mesh.surfaces.push_back(s);
+    }
+  const Body as_mesh = build_unstructured(spec, mesh, 0, "test", "body");
+  const std::vector<NamedFace> lattice = lattice_faces(body_geometry(spec, 0), 0);
+  ASSERT_EQ(lattice.size(), 6u);
+  for (const NamedFace& f : lattice) {
+    const NamedFace* ref = as_mesh.named_face(0, f.name);
+    ASSERT_NE(ref, nullptr) << f.name;
+    EXPECT_TRUE(f.lattice);
+    EXPECT_EQ(f.axis, ref->axis) << f.name;
+    EXPECT_EQ(f.side, ref->side) << f.name;
+    EXPECT_EQ(f.count(), ref->count()) << f.name;
+    EXPECT_EQ(f.anchor, ref->anchor) << f.name;
+    EXPECT_NEAR(f.total_area, ref->total_area, 1e-12) << f.name;
+    EXPECT_NEAR(f.plane + spec.offset[f.axis], ref->plane, 1e-12) << f.name;  // a box's plane: in its own frame
+    for (int d = 0; d < 3; ++d) EXPECT_NEAR(f.centroid[d], ref->centroid[d], 1e-12) << f.name;
+    double sum = 0;
+    for (std::int64_t id = 0; id < box.molecules(); ++id) {
+      ASSERT_EQ(f.contains(id), ref->contains(id)) << f.name << " molecule " << id;
+      if (!f.contains(id)) continue;
+      sum += f.area_of(id);
+      const auto ijk = box.index(id);
+      const int u = (f.axis + 1) % 3, v = (f.axis + 2) % 3;
+      if (ijk[u] > 0 && ijk[u] < n[u] - 1 && ijk[v] > 0 && ijk[v] < n[v] - 1)
+        EXPECT_NEAR(f.area_of(id), ref->area_of(id), 1e-14) << f.name << " molecule " << id;
+    }
+    EXPECT_NEAR(sum, f.total_area, 1e-14) << f.name;
+  }
+}
+
 // The random box fills its box: volume, faces as planes of the box's area, mass = density * volume, Eq. 3's l0
 // and A the box's length and cross-section.
 TEST(Random, FillsTheBox) {
@@ -402,8 +477,9 @@ TEST(RandomInMesh, RefusesABodyInPieces) {
     }
   }
   BodySpec spec;
-  spec.shape = "mesh";
+  spec.shape = BodySpec::Shape::mesh;
   spec.topology = "random";
+  spec.random = true;
   spec.interior_molecules = 16;
   try {
     random_in_mesh(two, spec, "scene.toml", "body");

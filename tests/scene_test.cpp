@@ -188,7 +188,7 @@ TEST(Scene, FullSceneEveryField) {
   Scene s = parse_scene(full, "full.toml");
   EXPECT_EQ(s.file, "full.toml");
   EXPECT_EQ(s.title, "Table 2: 10 x 10 x 10 box, face diagonals");
-  EXPECT_EQ(s.body.shape, "box");
+  EXPECT_EQ(s.body.shape, BodySpec::Shape::box);
   EXPECT_EQ(s.body.molecules, (std::array<long, 3>{10, 11, 12}));
   expect_vec(s.body.spacing, {0.111111, 0.111111, 0.0955556});
   EXPECT_EQ(s.body.topology, "body-diagonals");
@@ -223,10 +223,10 @@ TEST(Scene, FullSceneEveryField) {
   ASSERT_EQ(s.loads.size(), 2u);
   EXPECT_EQ(s.loads[0].face, "z-");
   expect_vec(s.loads[0].force, {0, 0, -1000});
-  EXPECT_EQ(s.loads[0].distribution, "traction");
+  EXPECT_EQ(s.loads[0].distribution, LoadSpec::Distribution::traction);
   EXPECT_EQ(s.loads[1].face, "y+");
   expect_vec(s.loads[1].force, {1, 2, 3});
-  EXPECT_EQ(s.loads[1].distribution, "equal");
+  EXPECT_EQ(s.loads[1].distribution, LoadSpec::Distribution::equal);
 
   ASSERT_TRUE(s.physics.gravity);
   expect_vec(*s.physics.gravity, {0, 0, -9.81});
@@ -243,11 +243,11 @@ TEST(Scene, FullSceneEveryField) {
   EXPECT_TRUE(s.solver.allow_unstable_time_step);
 
   ASSERT_EQ(s.obstacles.size(), 2u);
-  EXPECT_EQ(s.obstacles[0].kind, "plane");
+  EXPECT_EQ(s.obstacles[0].kind, ObstacleSpec::Kind::plane);
   expect_vec(s.obstacles[0].point, {0, 0, -0.01});
   expect_vec(s.obstacles[0].normal, {0, 0, 1});
   EXPECT_DOUBLE_EQ(s.obstacles[0].stiffness, 0.0);
-  EXPECT_EQ(s.obstacles[1].kind, "sphere");
+  EXPECT_EQ(s.obstacles[1].kind, ObstacleSpec::Kind::sphere);
   expect_vec(s.obstacles[1].center, {0.5, 0.5, 2});
   EXPECT_DOUBLE_EQ(s.obstacles[1].radius, 0.25);
   EXPECT_DOUBLE_EQ(s.obstacles[1].stiffness, 1e3);
@@ -262,7 +262,7 @@ TEST(Scene, FullSceneEveryField) {
 TEST(Scene, Defaults) {
   Scene s = parse_scene(base, "base.toml");
   EXPECT_EQ(s.title, "");
-  EXPECT_EQ(s.body.shape, "box");
+  EXPECT_EQ(s.body.shape, BodySpec::Shape::box);
   EXPECT_EQ(s.body.topology, "face-diagonals");
   EXPECT_EQ(s.body.material, "custom");
   EXPECT_DOUBLE_EQ(s.body.density, 1000.0);

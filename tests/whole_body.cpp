@@ -44,11 +44,11 @@ Body build_one(const BodySpec& spec, std::int64_t first) {
 Body build_any(const Scene& scene, const MeshReader& read_mesh, const BodySpec& spec, std::size_t index,
                std::size_t count, std::int64_t first) {
   const std::string key = count > 1 ? "body[" + std::to_string(index) + "]" : "body";
-  if (spec.shape == "mesh" && !read_mesh) throw std::logic_error("build_body: a mesh body and no mesh reader");
-  if (spec.shape == "mesh" && spec.topology == "random")
+  if (spec.shape == BodySpec::Shape::mesh && !read_mesh) throw std::logic_error("build_body: a mesh body and no mesh reader");
+  if (spec.shape == BodySpec::Shape::mesh && spec.random)
     return build_unstructured(spec, random_in_mesh(read_mesh(spec), spec, scene.file, key), first, scene.file, key);
-  if (spec.shape == "mesh") return build_unstructured(spec, read_mesh(spec), first, scene.file, key);
-  if (spec.topology == "random") return build_unstructured(spec, random_cloud(spec), first, scene.file, key);
+  if (spec.shape == BodySpec::Shape::mesh) return build_unstructured(spec, read_mesh(spec), first, scene.file, key);
+  if (spec.random) return build_unstructured(spec, random_cloud(spec), first, scene.file, key);
   return build_one(spec, first);
 }
 
@@ -78,6 +78,11 @@ Body build_body(const Scene& scene, const MeshReader& read_mesh) {
     }
     for (auto& f : b.faces) f.body = static_cast<int>(i), all.faces.push_back(f);
   }
+  for (std::size_t i = 0; i < specs.size(); ++i)  // a box's faces: its lattice planes
+    if (!all.parts[i].unstructured())
+      for (auto& f : lattice_faces(all.parts[i], static_cast<int>(i))) all.faces.push_back(std::move(f));
+  std::stable_sort(all.faces.begin(), all.faces.end(),
+                   [](const NamedFace& x, const NamedFace& y) { return x.body < y.body; });
   check_face_names(scene, all);
   return all;
 }
@@ -110,8 +115,8 @@ std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionS
 }
 
 std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionStats& stats,
-                                     const std::string& method) {
-  return method == "ptscotch" ? partition_ptscotch(body, comm, stats) : partition_molecules(body, comm, stats);
+                                     PartitionSpec::Method method) {
+  return method == PartitionSpec::Method::ptscotch ? partition_ptscotch(body, comm, stats) : partition_molecules(body, comm, stats);
 }
 
 std::vector<int> partition_ptscotch(const Body& body, MPI_Comm comm, PartitionStats& stats) {

@@ -20,9 +20,10 @@ namespace tissue {
 Body build_body(const Scene& scene, const MeshReader& read_mesh = {});
 
 // part[m] = the rank that owns molecule m, on every rank: METIS on the whole connection graph (one part without
-// METIS), or by `method` ("metis" or "ptscotch": PT-Scotch on even blocks of rows taken from the whole list).
+// METIS), or by `method` (metis, or ptscotch: PT-Scotch on even blocks of rows taken from the whole list).
 std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionStats& stats);
-std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionStats& stats, const std::string& method);
+std::vector<int> partition_molecules(const Body& body, MPI_Comm comm, PartitionStats& stats,
+                                     PartitionSpec::Method method);
 std::vector<int> partition_ptscotch(const Body& body, MPI_Comm comm, PartitionStats& stats);
 
 // Collective. This rank's LocalModel from the whole body and the partition, and what calibration reads of it.

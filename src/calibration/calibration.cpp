@@ -103,7 +103,7 @@ void note_ignored_poisson(const Scene& scene, const LocalModel& model) {
   const std::vector<BodySpec> specs = scene.bodies.empty() ? std::vector<BodySpec>{scene.body} : scene.bodies;
   for (std::size_t b = 0; b < specs.size(); ++b) {
     const CalibrationSpec& c = b < scene.calibrations.size() ? scene.calibrations[b] : scene.calibration;
-    if (c.method == "homogenized") continue;
+    if (c.honours_poisson) continue;
     std::string material = specs[b].material;
     for (const auto& r : specs[b].regions)
       if (material == "custom") material = r.material;

@@ -58,6 +58,7 @@ struct CalibrationStyle {
   CalibrationSolver wrap_solver = nullptr;   // not null: the method wraps the solver (one-body scenes)
   CalibrationNeeds needs = CalibrationNeeds::any_topology;
   bool reads_divisor = false;                // calibration.divisor is C as given (the summary reports it)
+  bool honours_poisson = false;              // builds the body's Poisson ratio (else nu = 1/4: central springs)
   // The stiffness stays as calibrated for the whole solve: the connections may be stored by type.
   bool stiffness_final() const { return !updater && !wrap_solver; }
 };

@@ -55,7 +55,7 @@ void calibrate_homogenized(const CalibrationContext& ctx, std::vector<double>& k
     throw InputError(ctx.scene.file, "calibration.method",
                      "homogenized needs a box lattice topology (rectangular, face-diagonals or body-diagonals), "
                      "not \"" + topology + "\"");
-  const CellSprings cell = cell_springs(shape.h, topology);
+  const CellSprings cell = cell_springs(shape.h, lattice->cells);
   // The springs' modulus E_s per molecule: E itself unless the molecule has a Poisson ratio (cell_law.hpp).
   const std::vector<BodySpec> specs = ctx.scene.bodies.empty() ? std::vector<BodySpec>{ctx.scene.body} : ctx.scene.bodies;
   std::vector<double> spring_modulus;
@@ -94,6 +94,7 @@ void calibrate_homogenized(const CalibrationContext& ctx, std::vector<double>& k
 
 TISSUE_CALIBRATION(homogenized, {"homogenized", calibrate_homogenized,
                                  "per-cell springs (and a cell term for nu != 1/4 or flat cells) exact for an isotropic E, nu", nullptr,
-                                 nullptr, CalibrationNeeds::lattice_cells});
+                                 nullptr, CalibrationNeeds::lattice_cells, /*reads_divisor=*/false,
+                                 /*honours_poisson=*/true});
 
 }  // namespace tissue

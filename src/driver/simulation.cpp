@@ -51,12 +51,12 @@ void Simulation::solve(SolverHooks hooks) {
       outcome_ = Outcome::interrupted;
     } else if (!report_.converged) {
       outcome_ = Outcome::not_converged;
-      failure_ = report_.kind + ": not converged after " + std::to_string(report_.iterations) +
+      failure_ = std::string(kind_name(report_)) + ": not converged after " + std::to_string(report_.iterations) +
                  " iterations (relative residual " + std::to_string(report_.residual) + ")";
     }
   } catch (const SolverFailure& e) {
     outcome_ = Outcome::solver_failure, failure_ = e.what(), failed_state_ = e.state();
-    report_.kind = scene_.solver.kind;
+    report_.kind = find_solver(scene_.solver.kind);
   }
 }
 

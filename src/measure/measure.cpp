@@ -8,49 +8,46 @@ namespace tissue {
 
 namespace {
 
-// Confined compression: a box's four lateral faces (of the test's body) all held in their normal.
-bool confined(const Scene& scene, const TensionTest& test) {
-  if (!test.load_face.empty()) return false;
+// Confined compression: four faces of the test's body normal to the other two axes, all held (the reader allows
+// one fix per face).
+bool confined(const Scene& scene, const Body& s, const TensionTest& test) {
   int held = 0;
   for (const auto& f : scene.fixes) {
-    int a, side;
-    if (f.body == test.body && parse_face(f.face, a, side) && a != test.axis) ++held;
+    const NamedFace* face = f.body == test.body ? s.named_face(f.body, f.face) : nullptr;
+    if (face && face->side >= 0 && face->axis != test.axis) ++held;
   }
-  return held == 4;  // at most one fix per face (the reader checks)
+  return held == 4;
 }
 
-// Simple shear on a box: a clamped face and, on the face opposite, a load along the face (other loads, such as
-// the complementary tractions on the side faces, may be present). Collective when the scene is one.
+// Simple shear: a clamped face and, on the face opposite, a load along the face (other loads, such as the
+// complementary tractions on the side faces, may be present). Collective when the scene is one.
 std::optional<double> shear_modulus(const Scene& scene, const LocalModel& model, const double* x) {
   const Body& s = model.shape;
   for (const auto& load : scene.loads) {
-    int axis, side;
-    if (load.period > 0 || !parse_face(load.face, axis, side) || s.body(load.body).unstructured()) continue;
+    const NamedFace* lf = s.named_face(load.body, load.face);
+    if (load.period > 0 || !lf || lf->side < 0) continue;
+    const int axis = lf->axis;
     const Vec3& F = load.force;
     const double norm = std::sqrt(F[0] * F[0] + F[1] * F[1] + F[2] * F[2]);
     if (!(norm > 0) || std::fabs(F[axis]) > 1e-12 * norm) continue;
-    bool clamped = false;
+    const NamedFace* ff = nullptr;
     for (const auto& fix : scene.fixes) {
-      int a, fs;
-      if (fix.body == load.body && fix.mode == FixSpec::Mode::clamped && parse_face(fix.face, a, fs) && a == axis &&
-          fs != side)
-        clamped = true;
+      const NamedFace* f = fix.body == load.body ? s.named_face(fix.body, fix.face) : nullptr;
+      if (f && fix.mode == FixSpec::Mode::clamped && f->side >= 0 && f->axis == axis && f->side != lf->side) ff = f;
     }
-    if (!clamped) continue;
-    const BoxGeometry& box = s.body(load.body);
+    if (!ff) continue;
     std::array<double, 4> sum{}, total{};  // loaded face: sum along F, count; clamped face: the same
     for (int i = 0; i < model.owned; ++i) {
       if (model.body[i] != load.body) continue;
       double along = 0;
       for (int d = 0; d < 3; ++d) along += (x[3 * i + d] - model.rest[3 * i + d]) * F[d] / norm;
-      if (box.on_face(model.id[i], axis, side)) sum[0] += along, sum[1] += 1;
-      if (box.on_face(model.id[i], axis, 1 - side)) sum[2] += along, sum[3] += 1;
+      if (lf->contains(model.id[i])) sum[0] += along, sum[1] += 1;
+      if (ff->contains(model.id[i])) sum[2] += along, sum[3] += 1;
     }
     MPI_Allreduce(sum.data(), total.data(), 4, MPI_DOUBLE, MPI_SUM, model.comm);
-    const double gamma = (total[0] / total[1] - total[2] / total[3]) / box.length(axis);
-    const double area = box.length((axis + 1) % 3) * box.length((axis + 2) % 3);
+    const double gamma = (total[0] / total[1] - total[2] / total[3]) / std::fabs(lf->plane - ff->plane);
     if (gamma == 0.0) return std::nullopt;
-    return norm / area / gamma;
+    return norm / lf->total_area / gamma;
   }
   return std::nullopt;
 }
@@ -64,9 +61,23 @@ Measurements measure(const Scene& scene, const LocalModel& model, const TensionT
   // [9..16] lateral faces (u-, u+, v-, v+: sum of displacement along the axis, count).
   std::array<double, 17> sum{};
   const int u = (test.axis + 1) % 3, w = (test.axis + 2) % 3;
-  // Explicit topologies: the test's named faces (no Poisson ratio: their lateral faces have no lattice planes).
-  const NamedFace* load_face = test.load_face.empty() ? nullptr : s.named_face(test.body, test.load_face);
-  const NamedFace* fixed_face = test.fixed_face.empty() ? nullptr : s.named_face(test.body, test.fixed_face);
+  const NamedFace* load_face = test.valid ? &s.faces[test.load_face] : nullptr;
+  const NamedFace* fixed_face = test.valid ? &s.faces[test.fixed_face] : nullptr;
+  // The Poisson ratio reads the four lateral faces (u-, u+, w-, w+) when they are lattice planes free of holds
+  // and loads (a random box's lateral molecules are jittered within their faces, a mesh may have none).
+  std::array<const NamedFace*, 4> lateral{};
+  bool free = test.valid && std::fabs(test.direction[test.axis]) > 0.5;  // not for a shear load
+  const int axes[2] = {u, w};
+  for (const auto& f : s.faces)
+    if (test.valid && f.body == test.body && f.lattice && f.axis != test.axis)
+      lateral[2 * (f.axis == w) + f.side] = &f;
+  for (const NamedFace* f : lateral) free = free && f;
+  auto touches = [&](int body, const std::string& name) {  // a hold or load on a face not normal to the axis
+    const NamedFace* f = s.named_face(body, name);
+    return !f || f->side < 0 || f->axis != test.axis;
+  };
+  for (const auto& f : scene.fixes) free = free && !touches(f.body, f.face);
+  for (const auto& l : scene.loads) free = free && !touches(l.body, l.face);
   for (int i = 0; i < model.owned; ++i) {
     const std::int64_t g = model.id[i];
     const double* xi = x + 3 * i;
@@ -78,18 +89,13 @@ Measurements measure(const Scene& scene, const LocalModel& model, const TensionT
     if (!test.valid || model.body[i] != test.body) continue;
     double along = 0;
     for (int d = 0; d < 3; ++d) along += (xi[d] - x0[d]) * test.direction[d];
-    if (load_face || fixed_face) {
-      if (load_face && load_face->contains(g)) sum[5] += along, sum[6] += 1;
-      if (fixed_face && fixed_face->contains(g)) sum[7] += along, sum[8] += 1;
-      continue;
-    }
-    if (s.on_face(g, test.axis, test.load_side)) sum[5] += along, sum[6] += 1;
-    if (s.on_face(g, test.axis, test.fixed_side)) sum[7] += along, sum[8] += 1;
-    const int lateral[2] = {u, w};
+    if (load_face->contains(g)) sum[5] += along, sum[6] += 1;
+    if (fixed_face->contains(g)) sum[7] += along, sum[8] += 1;
+    if (!free) continue;
     for (int l = 0; l < 2; ++l)
       for (int side = 0; side < 2; ++side)
-        if (s.on_face(g, lateral[l], side)) {
-          sum[9 + 4 * l + 2 * side] += xi[lateral[l]] - x0[lateral[l]];
+        if (lateral[2 * l + side]->contains(g)) {
+          sum[9 + 4 * l + 2 * side] += xi[axes[l]] - x0[axes[l]];
           sum[10 + 4 * l + 2 * side] += 1;
         }
   }
@@ -104,42 +110,31 @@ Measurements measure(const Scene& scene, const LocalModel& model, const TensionT
     const double dl = total[5] / total[6] - total[7] / total[8];
     m.elongation = dl;
     if (dl != 0.0) m.youngs_modulus = test.force * test.rest_length / (dl * test.cross_section);
-    // The Poisson ratio needs the four lateral faces free of holds and loads.
-    bool free = true;
-    auto touches = [&](const std::string& face) {
-      int a, side;
-      return !parse_face(face, a, side) || a != test.axis;
-    };
-    for (const auto& f : scene.fixes) free = free && !touches(f.face);
-    for (const auto& l : scene.loads) free = free && !touches(l.face);
-    free = free && test.load_face.empty();
-    const int lateral_axes[2] = {u, w};
-    if (free && std::fabs(test.direction[test.axis]) > 0.5) {
+    auto lateral_length = [&](int l) { return std::fabs(lateral[2 * l + 1]->plane - lateral[2 * l]->plane); };
+    if (free) {  // history.csv's lateral_strain: the mean strain of the two lateral axes
       double mean = 0;
       for (int l = 0; l < 2; ++l)
-        mean += 0.5 * (total[11 + 4 * l] / total[12 + 4 * l] - total[9 + 4 * l] / total[10 + 4 * l]) /
-                s.length(lateral_axes[l]);
+        mean += 0.5 * (total[11 + 4 * l] / total[12 + 4 * l] - total[9 + 4 * l] / total[10 + 4 * l]) / lateral_length(l);
       m.lateral_strain = mean;
     }
-    if (free && dl != 0.0 && std::fabs(test.direction[test.axis]) > 0.5) {  // not for a shear load
+    if (free && dl != 0.0) {
       // Axial strain from the change of length (negative in compression), not from the displacement along the
       // load: a compressive load moves the loaded face toward the fixed one.
       const double outward = test.direction[test.axis] * (test.load_side == 1 ? 1.0 : -1.0);
       const double axial = (outward > 0 ? 1.0 : -1.0) * dl / test.rest_length;
-      double lateral = 0;
-      const int axes[2] = {u, w};
+      double contraction = 0;
       for (int l = 0; l < 2; ++l)
-        lateral += 0.5 * (total[11 + 4 * l] / total[12 + 4 * l] - total[9 + 4 * l] / total[10 + 4 * l]) /
-                   s.length(axes[l]);
-      m.poisson_ratio = -lateral / axial;
+        contraction += 0.5 * (total[11 + 4 * l] / total[12 + 4 * l] - total[9 + 4 * l] / total[10 + 4 * l]) /
+                       lateral_length(l);
+      m.poisson_ratio = -contraction / axial;
       std::array<double, 2> each{};
       for (int l = 0; l < 2; ++l)
         each[l] = -(total[11 + 4 * l] / total[12 + 4 * l] - total[9 + 4 * l] / total[10 + 4 * l]) /
-                  s.length(axes[l]) / axial;
+                  lateral_length(l) / axial;
       if (u > w) std::swap(each[0], each[1]);  // x, y, z order (../shared/interface.md)
       m.poisson_ratios = each;
     }
-    if (confined(scene, test) && m.youngs_modulus) m.aggregate_modulus = m.youngs_modulus, m.youngs_modulus.reset();
+    if (confined(scene, s, test) && m.youngs_modulus) m.aggregate_modulus = m.youngs_modulus, m.youngs_modulus.reset();
   }
   m.shear_modulus = shear_modulus(scene, model, x);
   return m;

@@ -38,7 +38,7 @@ struct BoxGeometry {
   // Explicit topologies (shape = "mesh", topology = "random"; src/model/unstructured.hpp): `count` molecules with
   // their rest positions in Body::points and their faces in Body::faces; n, h are then only a nominal size.
   std::int64_t count = 0;
-  double total_volume = 0.0;  // m^3, explicit topologies: the sum of the tetrahedra
+  double total_volume = 0.0;  // m^3: explicit topologies the sum of the tetrahedra, a box its hull (body_geometry)
   bool unstructured() const { return count > 0; }
 
   std::int64_t molecules() const { return count > 0 ? count : static_cast<std::int64_t>(n[0]) * n[1] * n[2]; }
@@ -85,24 +85,46 @@ struct BoxGeometry {
   double length(int axis) const { return (n[axis] - 1) * h[axis]; }  // the body's extent along an axis
 };
 
-// A named face of an explicit topology (a mesh's physical surface, or x-..z+ of a random box): the molecules on
-// it and the area each stands for (a third of each surface triangle it is a corner of).
+// A named face: the molecules a [[fix]] or [[load]] names and the area each stands for. Holds, loads, Eq. 3 and
+// the measurements read faces only through this. A box's six faces x- .. z+ are lattice planes, made with the
+// box (lattice_faces): their molecules are implicit, nothing per molecule. An explicit topology's faces (a mesh's
+// physical surfaces, x- .. z+ of a random box) list their molecules, each with a third of every surface triangle
+// it is a corner of.
 struct NamedFace {
   int body = 0;
   std::string name;
-  std::vector<std::int64_t> molecules;  // global ids, sorted
-  std::vector<double> area;             // m^2, per molecule
+  std::vector<std::int64_t> molecules;  // explicit faces: global ids, sorted
+  std::vector<double> area;             // explicit faces: m^2, per molecule
   double total_area = 0.0;
   Vec3 centroid{};                      // area-weighted centroid of the triangles
   int axis = -1;  // the axis the face is normal to, when it is a plane normal to an axis (rollers need one)
+  // A plane named x- .. z+ (a box's face, a random box's): 0 at the low end of `axis`, 1 at the high end; -1
+  // otherwise. Eq. 3 pairs such a face with the one opposite only.
+  int side = -1;
+  // The plane's coordinate along `axis`, in the body's own frame (a box's: 0 or (n - 1) h exactly, so that the
+  // distance of two faces is the box's length to the bit).
+  double plane = 0.0;
   // Roller holds beyond the normal component: both in-plane components of `anchor`, and component
   // `anchor2_component` of `anchor2` (stops the rotation about the normal); -1 when not a plane.
   std::int64_t anchor = -1, anchor2 = -1;
   int anchor2_component = -1;
+  bool lattice = false;  // a box's face: its molecules are the lattice plane of `box` (whole layers of molecules)
+  BoxGeometry box;       // lattice faces only
 
-  std::ptrdiff_t find(std::int64_t id) const;  // index in molecules, or -1
-  bool contains(std::int64_t id) const { return find(id) >= 0; }
+  std::ptrdiff_t find(std::int64_t id) const;  // explicit faces: index in molecules, or -1
+  // Whether molecule `id` of this face's body lies on the face, and the area it stands for there.
+  bool contains(std::int64_t id) const {
+    return lattice ? box.on_face(id, axis, side) : find(id) >= 0;
+  }
+  double area_of(std::int64_t id) const { return lattice ? box.face_area(id, axis) : area[find(id)]; }
+  double count() const {  // molecules on the face
+    return lattice ? static_cast<double>(box.n[(axis + 1) % 3]) * box.n[(axis + 2) % 3]
+                   : static_cast<double>(molecules.size());
+  }
 };
+
+// The six faces x- .. z+ of box body `b` (lattice planes, O(1) each).
+std::vector<NamedFace> lattice_faces(const BoxGeometry& box, int b);
 
 // All the bodies of a scene in one global numbering (body 0's molecules, then body 1's, ...). The inherited
 // geometry is body 0's, so single-body code reads it as before; the per-molecule queries below look up the body
@@ -114,7 +136,7 @@ struct Body : BoxGeometry {
   std::vector<double> youngs_modulus;   // per molecule, Pa
   std::vector<double> mass;             // per molecule, kg
   // Explicit topologies: rest positions of every molecule (global ids; box bodies' entries filled too), empty
-  // when all bodies are boxes. Not copied into LocalModel::shape (O(N)); `faces` are (O(surface)).
+  // when all bodies are boxes. Not copied into LocalModel::shape (O(N)); `faces` are (O(surface)), ordered by body.
   std::vector<Vec3> points;
   std::vector<NamedFace> faces;
 
@@ -142,7 +164,7 @@ struct Body : BoxGeometry {
   static double point_distance(const Vec3& x, const Vec3& y) {
     return std::sqrt((y[0] - x[0]) * (y[0] - x[0]) + (y[1] - x[1]) * (y[1] - x[1]) + (y[2] - x[2]) * (y[2] - x[2]));
   }
-  // The face `name` of body b of an explicit topology, or nullptr.
+  // The face `name` of body b (a box's x- .. z+, an explicit topology's named faces), or nullptr.
   const NamedFace* named_face(int b, const std::string& name) const {
     for (const auto& f : faces)
       if (f.body == b && f.name == name) return &f;

@@ -15,17 +15,17 @@ namespace tissue {
 // X_a <= mu is the isotropic range. Beyond it the diagonals get a share w < 1 and the cell the missing shear
 // alpha = (1 - w) mu per plane as virtual 45-degree diagonals (C_aaaa = C_bbbb = C_aabb = C_abab = alpha); the
 // edges fill C_aaaa to 3 mu: edge = mu - w X_a, positive for w < mu / max X_a.
-CellSprings cell_springs(const Vec3& h, const std::string& topology) {
+CellSprings cell_springs(const Vec3& h, CellFamilies families) {
   CellSprings s;
   const double V = h[0] * h[1] * h[2];
   const double h2[3] = {h[0] * h[0], h[1] * h[1], h[2] * h[2]};
-  if (topology == "rectangular") {
+  if (families == CellFamilies::edges) {
     for (int a = 0; a < 3; ++a) s.edge[a] = V / (4.0 * h2[a]);
     return s;
   }
   const double mu = 0.4;
   const double Lb2 = h2[0] + h2[1] + h2[2];
-  if (topology == "body-diagonals") {
+  if (families == CellFamilies::body_diagonals) {
     const double t = 0.5;
     const double most = std::max({h2[0] * h2[1], h2[0] * h2[2], h2[1] * h2[2]});
     s.body = t * mu * V * Lb2 / (4.0 * most);
@@ -152,13 +152,14 @@ double ti_stiffest_modulus(const TiStiffness& c) {
 }
 
 bool body_has_cells(const BodySpec& body, const CalibrationSpec& calibration) {
-  if (calibration.method != "homogenized" || body.unstructured()) return false;
-  if (body.topology != "face-diagonals" && body.topology != "body-diagonals") return false;
+  if (!calibration.honours_poisson || body.unstructured()) return false;
+  const TopologyStyle* lattice = find_topology(body.topology);
+  if (!lattice || !lattice->carries_poisson()) return false;
   if (body.has_fibres()) return true;
   if (body.poisson_ratio && *body.poisson_ratio != 0.25) return true;
   for (const auto& r : body.regions)
     if (r.poisson_ratio && *r.poisson_ratio != 0.25) return true;
-  return cell_springs(body.spacing, body.topology).share < 1.0;
+  return cell_springs(body.spacing, lattice->cells).share < 1.0;
 }
 
 bool scene_has_cells(const Scene& scene) {

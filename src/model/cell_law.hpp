@@ -17,6 +17,7 @@
 #include <string>
 
 #include "src/model/scene.hpp"
+#include "src/model/topology.hpp"
 
 namespace tissue {
 
@@ -29,7 +30,7 @@ struct CellSprings {
   double alpha[3] = {0, 0, 0};  // Pa per unit E_s: the cell's virtual diagonals in the plane normal to axis w
   double share = 1.0;           // w: the diagonals' share of their isotropic value (1: cubic-like cells)
 };
-CellSprings cell_springs(const Vec3& h, const std::string& topology);
+CellSprings cell_springs(const Vec3& h, CellFamilies families);
 
 // The isotropic split of (E, nu) (nu NaN: absent, i.e. nu = 1/4 with E_s = E bit for bit and nothing in the cell).
 struct CellModuli {

@@ -81,7 +81,7 @@ struct RegionSpec {
 };
 
 struct BodySpec {
-  std::string shape = "box";
+  enum class Shape { box, mesh } shape = Shape::box;  // read from the scene's "box" | "mesh"
   std::array<long, 3> molecules{2, 2, 2};
   Vec3 spacing{1.0, 1.0, 1.0};  // m; from size / (molecules - 1) when the scene gives size
   std::string topology = "face-diagonals";
@@ -101,7 +101,9 @@ struct BodySpec {
   long seed = 1;
   long interior_molecules = 0;  // shape = "mesh", topology = "random": points sampled inside the mesh's volume
   double mesh_size = 0.0;       // m; shape = "mesh" from a .geo: the largest element Gmsh makes (0: the .geo's own)
-  bool unstructured() const { return shape == "mesh" || topology == "random"; }
+  bool random = false;          // topology = "random" (in the box, or in the mesh's volume), resolved by the reader
+  // An explicit topology (a mesh's own tetrahedra, a random cloud), not a box lattice's stencil.
+  bool unstructured() const { return shape == Shape::mesh || random; }
   PronySpec viscoelastic;  // [body.viscoelastic]; empty: elastic
   std::optional<FibreSpec> fibres;  // [body.fibres]; absent: isotropic, nothing built for it
   bool has_fibres() const {
@@ -119,6 +121,7 @@ struct CalibrationSpec {
   double tolerance = 1e-6;                    // iterative: relative error in E at which C is accepted
   long max_updates = 50;                      // iterative: outer updates of C before failing
   std::string key = "calibration";            // the table it was read from, for messages ("body[1].calibration")
+  bool honours_poisson = false;               // the method's style honours a Poisson ratio (resolved by the reader)
 };
 
 struct FixSpec {
@@ -134,7 +137,8 @@ struct FixSpec {
 struct LoadSpec {
   std::string face;
   Vec3 force{0.0, 0.0, 0.0};          // N, total over the face
-  std::string distribution = "traction";  // traction | equal
+  // traction: each molecule's share is its tributary area on the face; equal: the same share for all.
+  enum class Distribution { traction, equal } distribution = Distribution::traction;
   int body = 0;                       // which body's face
   double period = 0.0;                // s; > 0: cyclic, the force scaled by sin(2 pi t / period) (dynamic)
   TimeHistory history;                // the force's factor in time (empty: 1)
@@ -149,7 +153,7 @@ struct PhysicsSpec {  // absent means off
 };
 
 struct ObstacleSpec {
-  std::string kind = "plane";  // plane | sphere
+  enum class Kind { plane, sphere } kind = Kind::plane;  // read from "plane" | "sphere"
   Vec3 point{}, normal{0, 0, 1};
   Vec3 center{};
   double radius = 0.0;
@@ -183,7 +187,8 @@ struct OutputSpec {
 };
 
 struct PartitionSpec {
-  std::string method = "metis";  // metis (rank 0 alone) | ptscotch (every rank, PETSc MatPartitioning)
+  // metis (rank 0 alone) | ptscotch (every rank, PETSc MatPartitioning); read from the scene's name
+  enum class Method { metis, ptscotch } method = Method::metis;
 };
 
 struct Scene {

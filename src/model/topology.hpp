@@ -23,12 +23,20 @@ struct StencilOffset {
   int d[3];
 };
 
+// The families of connections in a lattice cell that a cell law splits its stiffness among (homogenized, the cell
+// term: src/model/cell_law.hpp): the edges, plus both diagonals of every face, plus the body diagonals. A Kuhn
+// topology (its cells split into tetrahedra) has none.
+enum class CellFamilies { none, edges, face_diagonals, body_diagonals };
+
 struct TopologyStyle {
   const char* name;
   TopologyBuilder build;
   const char* description;
   std::vector<StencilOffset> stencil;  // every offset, both signs (the relation is symmetric)
   bool tetrahedra = false;             // connections are the edges of the cells' Kuhn tetrahedra (Eq. 5 needs them)
+  CellFamilies cells = CellFamilies::none;
+  // Diagonals give the cell shear of its own: homogenized reaches any Poisson ratio in range (docs/poisson.md).
+  bool carries_poisson() const { return cells == CellFamilies::face_diagonals || cells == CellFamilies::body_diagonals; }
 };
 
 struct Neighbour {

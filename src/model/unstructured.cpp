@@ -61,6 +61,9 @@ NamedFace make_face(const TetMesh::Surface& s, const std::vector<Vec3>& x, std::
   for (int d = 0; d < 3; ++d)
     if (plane[d] && !s.triangles.empty()) f.axis = d;
   if (f.axis >= 0) {
+    f.plane = f.centroid[f.axis];
+    int axis, side;  // named x- .. z+ (a random box's faces): the side of the box it lies on
+    if (parse_face(f.name, axis, side) && axis == f.axis) f.side = side;
     // Anchors by id and distance only: the same on every rank count.
     f.anchor = f.molecules.front();
     const Vec3& p = x[f.anchor - first];
@@ -191,15 +194,14 @@ void set_nominal_size(BoxGeometry& b, const BodySpec& spec, double length_sum, s
 
 void check_face_names(const Scene& scene, const Body& body) {
   auto check = [&](const std::string& what, std::size_t i, int bi, const std::string& face) {
-    const BoxGeometry& g = body.body(bi);
-    if (!g.unstructured() || body.named_face(bi, face)) return;
+    if (body.named_face(bi, face)) return;  // a box's names are checked by the scene reader
     std::vector<std::string> names;
     for (const auto& f : body.faces)
       if (f.body == bi) names.push_back(f.name);
     const BodySpec& spec = scene.bodies.empty() ? scene.body : scene.bodies[bi];
     throw InputError(scene.file, fmt::format("{}[{}].face", what, i),
                      fmt::format("no physical surface \"{}\" in {} (it has: {})", face,
-                                 spec.shape == "mesh" ? spec.file : std::string("the random box"), names_of(names)));
+                                 spec.shape == BodySpec::Shape::mesh ? spec.file : std::string("the random box"), names_of(names)));
   };
   for (std::size_t i = 0; i < scene.fixes.size(); ++i) {
     const FixSpec& fix = scene.fixes[i];

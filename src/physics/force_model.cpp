@@ -12,52 +12,8 @@
 
 namespace tissue {
 
-namespace {
-
-// The components a fixed face holds, for one molecule (global id) of the body.
-void hold(const Body& all, const FixSpec& fix, std::int64_t g, std::uint8_t* held) {
-  if (all.body_of(g) != fix.body) return;
-  const BoxGeometry& s = all.body(fix.body);
-  if (s.unstructured()) {
-    if (const NamedFace* face = all.named_face(fix.body, fix.face)) hold_named(*face, fix, g, held);
-    return;
-  }
-  int axis, side;
-  parse_face(fix.face, axis, side);
-  if (!s.on_face(g, axis, side)) return;
-  if (fix.mode == FixSpec::Mode::clamped) {
-    held[0] = held[1] = held[2] = 1;
-    return;
-  }
-  // Roller: the face-normal component, plus the least extra holds that remove the rigid motion left in the
-  // face's plane: both in-plane components of its first corner, and the v component of the corner along u
-  // (that stops the rotation about the normal). A uniform lateral contraction meets no resistance from these.
-  held[axis] = 1;
-  int u = (axis + 1) % 3, v = (axis + 2) % 3;
-  auto ijk = s.index(g);
-  if (ijk[u] == 0 && ijk[v] == 0) held[u] = held[v] = 1;
-  if (ijk[u] == s.n[u] - 1 && ijk[v] == 0) held[v] = 1;
-}
-
-}  // namespace
-
 void add_face_load(const LoadSpec& load, const LocalModel& model, double* out) {
-  const BoxGeometry& s = model.shape.body(load.body);
-  if (s.unstructured()) {
-    if (const NamedFace* face = model.shape.named_face(load.body, load.face)) add_named_face_load(load, *face, model, out);
-    return;
-  }
-  int axis, side;
-  parse_face(load.face, axis, side);
-  int u = (axis + 1) % 3, v = (axis + 2) % 3;
-  const double face_area = s.length(u) * s.length(v);
-  const double count = static_cast<double>(s.n[u]) * s.n[v];
-  for (int i = 0; i < model.owned; ++i) {
-    if (model.body[i] != load.body || !s.on_face(model.id[i], axis, side)) continue;
-    // traction: each molecule's share is its tributary area on the face; equal: the same share for all.
-    double share = load.distribution == "equal" ? 1.0 / count : s.face_area(model.id[i], axis) / face_area;
-    for (int d = 0; d < 3; ++d) out[3 * i + d] += share * load.force[d];
-  }
+  if (const NamedFace* face = model.shape.named_face(load.body, load.face)) add_named_face_load(load, *face, model, out);
 }
 
 ForceModel::ForceModel(const Scene& scene, const LocalModel& model)
@@ -65,9 +21,12 @@ ForceModel::ForceModel(const Scene& scene, const LocalModel& model)
   const Body& s = model.shape;
   held_.assign(3 * model.local, 0);
   std::vector<int> first_fix(3 * model.owned, -1);  // which fix holds an owned component first
+  std::vector<const NamedFace*> fixed_face;  // looked up once per fix (the scene check found every one)
+  for (const auto& fix : scene.fixes) fixed_face.push_back(s.named_face(fix.body, fix.face));
   for (int i = 0; i < model.local; ++i)
     for (std::size_t f = 0; f < scene.fixes.size(); ++f) {
-      hold(s, scene.fixes[f], model.id[i], &held_[3 * i]);
+      if (fixed_face[f] && s.body_of(model.id[i]) == scene.fixes[f].body)
+        hold_named(*fixed_face[f], scene.fixes[f], model.id[i], &held_[3 * i]);
       if (i < model.owned)
         for (int d = 0; d < 3; ++d)
           if (held_[3 * i + d] && first_fix[3 * i + d] < 0) first_fix[3 * i + d] = static_cast<int>(f);

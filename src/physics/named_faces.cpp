@@ -14,13 +14,11 @@ void hold_named(const NamedFace& face, const FixSpec& fix, std::int64_t g, std::
 }
 
 void add_named_face_load(const LoadSpec& load, const NamedFace& face, const LocalModel& model, double* out) {
-  const double count = static_cast<double>(face.molecules.size());
+  const double count = face.count();
   for (int i = 0; i < model.owned; ++i) {
-    if (model.body[i] != load.body) continue;
-    const auto k = face.find(model.id[i]);
-    if (k < 0) continue;
+    if (model.body[i] != load.body || !face.contains(model.id[i])) continue;
     // traction: each molecule's share is its tributary area on the face; equal: the same share for all.
-    const double share = load.distribution == "equal" ? 1.0 / count : face.area[k] / face.total_area;
+    const double share = load.distribution == LoadSpec::Distribution::equal ? 1.0 / count : face.area_of(model.id[i]) / face.total_area;
     for (int d = 0; d < 3; ++d) out[3 * i + d] += share * load.force[d];
   }
 }

@@ -1,15 +1,15 @@
-// The tension test of Eq. 3 that the scene describes, when it describes one: on a box, the loaded face and the
-// fixed face opposite (lattice indices); on an explicit topology (mesh, random box), the two named faces.
+// The tension test of Eq. 3 that the scene describes, when it describes one: the loaded named face and a fixed
+// face of the same body (for faces named x- .. z+, the one opposite); a box's faces and a mesh's alike.
 #pragma once
-#include <string>
 
 #include "src/model/body.hpp"
 #include "src/model/scene.hpp"
 
 namespace tissue {
 
-// One loaded face with a fixed face opposite. l0 = distance between the two planes of molecules, A = the
-// cross-section normal to the load axis.
+// One loaded face with a fixed face. l0 = the distance between the two faces (along their normal when both are
+// planes normal to one axis, else between their centroids along the load), A = the body's volume / l0 (exact for
+// a prism between the two faces: on a box, its cross-section).
 struct TensionTest {
   bool valid = false;
   int body = 0;  // the body the load is on
@@ -17,7 +17,7 @@ struct TensionTest {
   Vec3 direction{0, 0, -1};  // unit vector of the load
   double force = 0.0;        // N, total
   double rest_length = 0.0, cross_section = 0.0;
-  std::string load_face, fixed_face;  // explicit topologies (named faces): the two faces Eq. 3 reads
+  int load_face = -1, fixed_face = -1;  // the two faces Eq. 3 reads: indices in Body::faces
 };
 TensionTest tension_test(const Scene& scene, const Body& shape);
 

@@ -35,7 +35,6 @@ std::size_t v_size(const LocalModel& model) { return 3 * static_cast<std::size_t
 SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const ForceModel& forces, SolverState& state,
                           const SolverHooks& hooks) {
   SolveReport report;
-  report.kind = "dynamic";
   report.critical_time_step = critical_time_step(forces);
   const double dt = scene.solver.time_step ? checked_time_step(scene, model, *scene.solver.time_step,
                                                                 report.critical_time_step, "dynamic")

@@ -51,7 +51,6 @@ void load_state(Vec X, const LocalModel& model, SolverState& state) {
 SolveReport solve_quasi_static(const Scene& scene, const LocalModel& model, const ForceModel& forces,
                                SolverState& state, const SolverHooks& hooks) {
   SolveReport report;
-  report.kind = "quasi-static";
   const double dt = *scene.solver.time_step;  // the scene reader requires it
   const double end = scene.solver.end_time ? *scene.solver.end_time : dt * static_cast<double>(scene.solver.steps);
   // The step grows by solver.time_step_growth after every step, up to max_time_step, and starts from dt again
@@ -144,6 +143,7 @@ SolveReport solve_quasi_static(const Scene& scene, const LocalModel& model, cons
 TISSUE_SOLVER(quasi_static, {"quasi-static", solve_quasi_static,
                              "equilibrium at every time step (loads and holds in time, viscoelastic history)",
                              /*equilibrium=*/false, /*newton=*/true, /*explicit_steps=*/false,
-                             /*integrates_time=*/false, /*settles_on_obstacles=*/false, /*time_line=*/true});
+                             /*integrates_time=*/false, /*settles_on_obstacles=*/false, /*time_line=*/true,
+                             /*moves_holds=*/true, /*needs_time_step=*/true, /*checkpointed=*/true});
 
 }  // namespace tissue

@@ -15,7 +15,6 @@ namespace tissue {
 SolveReport solve_relaxation(const Scene& scene, const LocalModel& model, const ForceModel& forces,
                              SolverState& state, const SolverHooks& hooks) {
   SolveReport report;
-  report.kind = "relaxation";
   report.critical_time_step = critical_time_step(forces);
   const double dt_max = scene.solver.time_step ? checked_time_step(scene, model, *scene.solver.time_step,
                                                                     report.critical_time_step, "relaxation")

@@ -116,6 +116,7 @@ SolveReport solve(const Scene& scene, const LocalModel& model, const ForceModel&
   const double start = MPI_Wtime();
   const std::clock_t cpu_start = std::clock();
   SolveReport report = style->solve(scene, model, forces, state, hooks);
+  report.kind = style;
   report.seconds = MPI_Wtime() - start;
   report.cpu_seconds = static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC;
   return report;

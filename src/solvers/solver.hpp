@@ -56,8 +56,10 @@ struct SolverState {
   std::vector<double> v_half;
 };
 
+struct SolverStyle;
+
 struct SolveReport {
-  std::string kind;
+  const SolverStyle* kind = nullptr;  // the kind that ran (solve() sets it); nullptr: none ran
   long iterations = 0;          // relaxation iterations, Newton iterations or time steps
   long linear_iterations = 0;   // static: Krylov iterations, summed
   double residual = 0.0;        // final relative force residual (static, relaxation)
@@ -128,7 +130,13 @@ struct SolverStyle {
   bool integrates_time = false;       // follows the motion in time: cyclic loads; rigid motion need not be held
   bool settles_on_obstacles = false;  // an equilibrium may be held by obstacles alone (never inverts the stiffness)
   bool time_line = false;             // advances a time line: time and steps in the summary
+  bool moves_holds = false;           // holds may move (fix displacement, history): equilibrium at every time
+  bool needs_time_step = false;       // solver.time_step must be given (no critical step to start from)
+  bool checkpointed = true;           // output.checkpoint_every is honoured (restart resumes the run)
 };
+
+// The name of the kind that ran ("" when none did: a failure before the solve).
+inline const char* kind_name(const SolveReport& report) { return report.kind ? report.kind->name : ""; }
 
 #define TISSUE_SOLVER(id, ...)                    \
   const SolverStyle& solver_style_##id() {        \

@@ -7,7 +7,6 @@ namespace tissue {
 SolveReport solve_static(const Scene& scene, const LocalModel& model, const ForceModel& forces, SolverState& state,
                          const SolverHooks& hooks) {
   SolveReport report;
-  report.kind = "static";
   NewtonEquilibrium newton(scene, model, forces, state, hooks, report, "static");
   newton.record_load_steps();
   newton.solve(scene.solver.load_steps);

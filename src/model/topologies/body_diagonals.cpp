@@ -24,6 +24,7 @@ void build_body_diagonals(Body& b) {
 }
 
 TISSUE_TOPOLOGY(body_diagonals, {"body-diagonals", build_body_diagonals, "face-diagonals plus the 4 diagonals of every cell",
-                                  with_body_diagonals(with_face_diagonals(axis_offsets()))});
+                                  with_body_diagonals(with_face_diagonals(axis_offsets())), false,
+                                  CellFamilies::body_diagonals});
 
 }  // namespace tissue

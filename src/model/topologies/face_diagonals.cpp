@@ -37,6 +37,6 @@ void build_face_diagonals(Body& b) {
 }
 
 TISSUE_TOPOLOGY(face_diagonals, {"face-diagonals", build_face_diagonals, "cell edges and both diagonals of every cell face",
-                                  with_face_diagonals(axis_offsets())});
+                                  with_face_diagonals(axis_offsets()), false, CellFamilies::face_diagonals});
 
 }  // namespace tissue

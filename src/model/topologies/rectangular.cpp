@@ -18,6 +18,7 @@ void build_rectangular(Body& b) {
       }
 }
 
-TISSUE_TOPOLOGY(rectangular, {"rectangular", build_rectangular, "the 6 axis neighbours (cell edges)", axis_offsets()});
+TISSUE_TOPOLOGY(rectangular, {"rectangular", build_rectangular, "the 6 axis neighbours (cell edges)", axis_offsets(),
+                                false, CellFamilies::edges});
 
 }  // namespace tissue

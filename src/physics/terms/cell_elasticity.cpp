@@ -331,7 +331,7 @@ public:
         fibres_.insert(fibres_.end(), families.begin(), families.end());
         fibre_begin_.push_back(static_cast<int>(fibres_.size()));
       }
-      const CellSprings split = cell_springs(box.h, box.topology);
+      const CellSprings split = cell_springs(box.h, find_topology(box.topology)->cells);
       Kind kind;
       kind.moduli.mu = mu, kind.moduli.kappa = kappa;
       for (int w = 0; w < 3; ++w) kind.moduli.alpha[w] = split.alpha[w] * E_s;

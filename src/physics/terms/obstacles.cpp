@@ -23,7 +23,7 @@ public:
     const std::vector<double> support = body_support_stiffness(m);
     for (const auto& o : scene.obstacles) {
       Shape s;
-      s.sphere = o.kind == "sphere";
+      s.sphere = o.kind == ObstacleSpec::Kind::sphere;
       if (s.sphere) {
         s.c = o.center, s.R = o.radius;
       } else {

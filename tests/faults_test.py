@@ -52,7 +52,7 @@ ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIR
 # after 5 s, a failed rank waits 5 s for the others. Fault-free runs and restarts keep the defaults.
 BOUNDS = {"TISSUE_STAGE_SECONDS": "5", "TISSUE_AGREEMENT_SECONDS": "5"}
 SETS = ["body.molecules=[4,4,4]", "solver.kind=dynamic", "solver.steps=20", "output.snapshot_every=5",
-        "output.checkpoint_every=5", "output.progress=false", 'output.fields=["positions","velocities"]']
+        "output.checkpoint_every=5", "output.history_every=1", "output.progress=false", 'output.fields=["positions","velocities"]']
 
 # target: (call, errno, file, calls or bytes let through, the files that must be there afterwards)
 TARGETS = {

@@ -219,18 +219,17 @@ double energy_density(const double F[9], const Moduli& m, const Fibre* fibres, i
   return W;
 }
 
-// The fibre terms' second Piola-Kirchhoff stress S_f = F^-1 P_f (objective: the quantity the Prony history of
-// quasi-linear viscoelasticity follows, docs/anisotropy.md); false when J <= 0.
+// The cell's second Piola-Kirchhoff stress S = F^-1 P (every part: isotropic, non-cubic remainder, fibres;
+// objective: the quantity the Prony history of quasi-linear viscoelasticity follows, so the whole tensor relaxes
+// by one G(t) and nu stays constant in time); false when J <= 0.
 template <class T>
-bool fibre_pk2(const T F[9], const Fibre* fibres, int nfibres, T S[9]) {
+bool cell_pk2(const T F[9], const Moduli& m, const Fibre* fibres, int nfibres, T S[9]) {
+  T P[9];
+  if (!stress(F, m, fibres, nfibres, P)) return false;
   const T cof[9] = {F[4] * F[8] - F[5] * F[7], F[5] * F[6] - F[3] * F[8], F[3] * F[7] - F[4] * F[6],
                     F[2] * F[7] - F[1] * F[8], F[0] * F[8] - F[2] * F[6], F[1] * F[6] - F[0] * F[7],
                     F[1] * F[5] - F[2] * F[4], F[2] * F[3] - F[0] * F[5], F[0] * F[4] - F[1] * F[3]};
   const T J = F[0] * cof[0] + F[1] * cof[1] + F[2] * cof[2];
-  if (!(value(J) > 0)) return false;
-  T P[9];
-  for (int q = 0; q < 9; ++q) P[q] = T(0.0);
-  for (int k = 0; k < nfibres; ++k) add_fibre_stress(F, J, cof, fibres[k], P);
   // F^-1_im = cof_mi / J
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) S[3 * i + j] = (cof[i] * P[j] + cof[3 + i] * P[3 + j] + cof[6 + i] * P[6 + j]) / J;
@@ -316,8 +315,8 @@ public:
           if (o.same_law(f)) o.E_f += f.E_f, o.dG += f.dG, o.alpha += f.alpha, merged = true;
         if (!merged) families.push_back(f);
       }
-      if (!families.empty() && !specs[b].viscoelastic.empty()) {
-        // Quasi-linear viscoelastic fibres: a history per Prony term on this cell's fibre stress.
+      if (!specs[b].viscoelastic.empty()) {
+        // Quasi-linear viscoelasticity: a history per Prony term on this cell's stress (the springs carry theirs).
         if (history_.empty()) history_.assign(k, -1);
         history_.push_back(history_cells_++);
         double sum = 0;
@@ -524,7 +523,7 @@ public:
       int corner[8];
       corners(k, corner);
       gradient(x, corner, geometry_[kinds_[kind_[k]].body], F);
-      if (!fibre_pk2(F, fibres(k), fibre_count(k), S)) continue;
+      if (!cell_pk2(F, kinds_[kind_[k]].moduli, fibres(k), fibre_count(k), S)) continue;
       const double* w = weight_.data() + kinds_[kind_[k]].body * width_;
       const double* e = decay_.data() + kinds_[kind_[k]].body * width_;
       double* so = &s_old_[9 * static_cast<std::size_t>(c)];
@@ -591,8 +590,8 @@ public:
   }
 
 private:
-  // Quasi-linear viscoelastic fibres: P += F H, H = sum_i h_i the Prony histories of the fibre stress S_f,
-  //   h_i <- exp(-dt/tau_i) h_i + gamma_i beta_i (S_f(n+1) - S_f(n))
+  // Quasi-linear viscoelasticity: P += F H, H = sum_i h_i the Prony histories of the cell's stress S,
+  //   h_i <- exp(-dt/tau_i) h_i + gamma_i beta_i (S(n+1) - S(n))
   // (the springs' exact exponential update, src/physics/terms/viscoelastic.cpp); within a step H follows x (the
   // tangent is exact through the same dual numbers), outside one it is frozen. False when J <= 0.
   template <class T>
@@ -603,7 +602,7 @@ private:
     for (int q = 0; q < 9; ++q) H[q] = T(0.0);
     if (stepping_) {
       T S[9];
-      if (!fibre_pk2(F, fibres(k), fibre_count(k), S)) return false;
+      if (!cell_pk2(F, kinds_[kind_[k]].moduli, fibres(k), fibre_count(k), S)) return false;
       const double* w = weight_.data() + kinds_[kind_[k]].body * width_;
       const double* e = decay_.data() + kinds_[kind_[k]].body * width_;
       for (int i = 0; i < width_; ++i)
@@ -646,11 +645,11 @@ private:
   int cells_ = 0;
   std::vector<int> fibre_begin_;
   std::vector<Fibre> fibres_;
-  // Viscoelastic fibre cells only (all empty otherwise): history_[k] = the cell's history slot or -1.
+  // Viscoelastic cells only (all empty otherwise): history_[k] = the cell's history slot or -1.
   std::vector<int> history_;
   int history_cells_ = 0, width_ = 0;
   std::vector<double> gamma_, tau_, decay_, weight_;  // per body and Prony term
-  std::vector<double> s_old_, h_;                     // per history cell: committed S_f (9), h per term (9 each)
+  std::vector<double> s_old_, h_;                     // per history cell: committed S (9), h per term (9 each)
   bool active_ = false, stepping_ = false;
   // A cell's 8 local corner indices (corner c = (c & 1, c >> 1 & 1, c >> 2 & 1)): base_ + patterns_[pattern_].
   std::vector<int> base_, pattern_;

@@ -78,8 +78,19 @@ Measurements measure(const Scene& scene, const LocalModel& model, const TensionT
   };
   for (const auto& f : scene.fixes) free = free && !touches(f.body, f.face);
   for (const auto& l : scene.loads) free = free && !touches(l.body, l.face);
+  // Bits per owned molecule: 1 on the loaded face, 2 on the fixed face, 4 << (2 l + side) on lateral face (l, side).
+  if (test.valid && test.face_bits.size() != static_cast<std::size_t>(model.owned)) {
+    test.face_bits.assign(model.owned, 0);
+    for (int i = 0; i < model.owned; ++i) {
+      if (model.body[i] != test.body) continue;
+      const std::int64_t g = model.id[i];
+      std::uint8_t b = (load_face->contains(g) ? 1 : 0) | (fixed_face->contains(g) ? 2 : 0);
+      for (int q = 0; q < 4; ++q)
+        if (lateral[q] && lateral[q]->contains(g)) b |= 4 << q;
+      test.face_bits[i] = b;
+    }
+  }
   for (int i = 0; i < model.owned; ++i) {
-    const std::int64_t g = model.id[i];
     const double* xi = x + 3 * i;
     const double* x0 = model.rest.data() + 3 * i;
     for (int d = 0; d < 3; ++d) sum[d] += model.mass[i] * xi[d];
@@ -89,12 +100,13 @@ Measurements measure(const Scene& scene, const LocalModel& model, const TensionT
     if (!test.valid || model.body[i] != test.body) continue;
     double along = 0;
     for (int d = 0; d < 3; ++d) along += (xi[d] - x0[d]) * test.direction[d];
-    if (load_face->contains(g)) sum[5] += along, sum[6] += 1;
-    if (fixed_face->contains(g)) sum[7] += along, sum[8] += 1;
+    const std::uint8_t bits = test.face_bits[i];
+    if (bits & 1) sum[5] += along, sum[6] += 1;
+    if (bits & 2) sum[7] += along, sum[8] += 1;
     if (!free) continue;
     for (int l = 0; l < 2; ++l)
       for (int side = 0; side < 2; ++side)
-        if (lateral[2 * l + side]->contains(g)) {
+        if (bits & (4 << (2 * l + side))) {
           sum[9 + 4 * l + 2 * side] += xi[axes[l]] - x0[axes[l]];
           sum[10 + 4 * l + 2 * side] += 1;
         }

@@ -1,6 +1,8 @@
 // The tension test of Eq. 3 that the scene describes, when it describes one: the loaded named face and a fixed
 // face of the same body (for faces named x- .. z+, the one opposite); a box's faces and a mesh's alike.
 #pragma once
+#include <cstdint>
+#include <vector>
 
 #include "src/model/body.hpp"
 #include "src/model/scene.hpp"
@@ -18,6 +20,9 @@ struct TensionTest {
   double force = 0.0;        // N, total
   double rest_length = 0.0, cross_section = 0.0;
   int load_face = -1, fixed_face = -1;  // the two faces Eq. 3 reads: indices in Body::faces
+  // measure()'s face membership of the owned molecules (src/measure/measure.cpp), found on its first call: a
+  // history.csv row every step must not test faces molecule by molecule (lattice indices cost divisions).
+  mutable std::vector<std::uint8_t> face_bits;
 };
 TensionTest tension_test(const Scene& scene, const Body& shape);
 

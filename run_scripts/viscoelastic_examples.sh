@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The examples of docs/viscoelastic.md: ligament creep under a constant pull and cartilage stress relaxation after
-# a ramped compression, both quasi-static with Prony-series connections, on NP ranks (default 2); plots their
-# history.csv into docs/examples/visco_*.png (python3-matplotlib).
+# a ramped compression, both quasi-static with Prony-series connections, and a loading-unloading hysteresis loop
+# (run_scripts/hysteresis_example.py), on NP ranks (default 2); plots their history.csv into docs/examples/visco_*.png
+# (python3-matplotlib).
 #   bash run_scripts/viscoelastic_examples.sh [NP]
 set -euo pipefail
 ROOT="$(cd "$(dirname "$0")/.." && pwd)"
@@ -22,4 +23,5 @@ done
 "$PYTHON" run_scripts/plot_history.py docs/examples/visco_cartilage_relaxation.png \
   "Cartilage stress relaxation, 2 % ramped in 1 s and held" \
   "out/visco/cartilage_relaxation:reaction1_z:reaction of the moving face (N)"
-echo "plots: docs/examples/visco_ligament_creep.png docs/examples/visco_cartilage_relaxation.png"
+"$PYTHON" run_scripts/hysteresis_example.py "$NP"  # the loading-unloading loop against pi E''/E K a^2
+echo "plots: docs/examples/visco_ligament_creep.png docs/examples/visco_cartilage_relaxation.png docs/examples/visco_hysteresis.png"

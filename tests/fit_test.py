@@ -13,6 +13,9 @@ e. A two-term Prony relaxation curve (a step strain held 20 s, the reaction agai
    separable (|correlation| > 0.999; at tau = [2, 2.1] s it is 0.997 and the fit still separates them).
 f. E and nu from a static tension test's elongation and lateral contraction fitted together (y = ["elongation",
    "lateral_strain"], one history.csv row per load step), from E = 2 MPa, nu = 0.2 towards 1 MPa, 0.35: to 1e-4.
+g. A toe-law ligament curve (issue 17's exp-linear toe on fibres along the load, a static tension through the toe
+   in 10 load steps, the elongation against the load fraction): the toe's stretch and exponent (1.03, 40) fitted
+   back from (1.05, 20) at 1 and 2 ranks: to 1e-3.
 d. Bad input: no [fit], a CSV without the column, x not increasing, a start value outside its bounds, a key that
    is not a number in the scene: exit 2, one stderr line naming the file, and no forward run (nothing written).
 
@@ -103,6 +106,35 @@ force = [0.0, 0.0, 0.01]
 [solver]
 kind = "static"
 load_steps = 4
+[output]
+fields = []
+progress = false
+"""
+
+TOE = """
+title = "toe-law ligament bar"
+[body]
+molecules = [3, 3, 6]
+size = [0.002, 0.002, 0.005]
+topology = "face-diagonals"
+youngs_modulus = 1.0e5
+poisson_ratio = 0.3
+[body.fibres]
+direction = [0.0, 0.0, 1.0]
+youngs_modulus = 1.0e6
+poisson_ratio = 0.3
+toe = {{ law = "exp-linear", stretch = {stretch}, exponent = {exponent} }}
+[calibration]
+method = "homogenized"
+[[fix]]
+face = "z-"
+mode = "roller"
+[[load]]
+face = "z+"
+force = [0.0, 0.0, 0.15]
+[solver]
+kind = "static"
+load_steps = 10
 [output]
 fields = []
 progress = false
@@ -298,6 +330,31 @@ def main():
         check(r["y"] == ["elongation", "lateral_strain"] and set(r["residual_norms"]) == set(r["y"]),
               "f. fit.json names both y columns and their residual norms")
         print("      f. %d forward runs, %s" % (r["forward_runs"], r["parameters"]))
+
+    # g. a toe-law ligament curve: the toe's stretch and exponent
+    with open(os.path.join(out, "toe_truth.toml"), "w") as f:
+        f.write(TOE.format(stretch=1.03, exponent=40.0))
+    code, _, err = run([exe, "run", os.path.join(out, "toe_truth.toml"), "--output", os.path.join(out, "toe")])
+    check(code == 0, "g. the toe-law tension runs: " + err.strip()[-300:])
+    xs, ys = history(os.path.join(out, "toe", "history.csv"))
+    # the toe: the first load step stretches more per newton than the last (stiffening)
+    check(len(xs) == 10 and ys[0] / xs[0] > 1.5 * (ys[-1] - ys[-2]) / (xs[-1] - xs[-2]),
+          "g. 10 rows, stiffening through the toe (%s)" % ys[:2])
+    write_csv(os.path.join(out, "toe.csv"), xs, ys)
+    for n in (1, 2):
+        scene = os.path.join(out, "toe_fit_np%d.toml" % n)
+        with open(scene, "w") as f:
+            f.write(TOE.format(stretch=1.05, exponent=20.0) + FIT.format(
+                data="toe.csv",
+                parameters='"body.fibres.toe.stretch" = [1.005, 1.1]\n"body.fibres.toe.exponent" = [5.0, 200.0]\n'))
+        d = os.path.join(out, "toe_fit_np%d" % n)
+        code, _, err = run(mpi(exe, n, ["fit", scene, "--output", d]))
+        if check(code == 0, "g. toe fit at %d ranks exits 0: %s" % (n, err.strip()[-300:])):
+            r = json.load(open(os.path.join(d, "fit.json")))
+            for key, value in (("body.fibres.toe.stretch", 1.03), ("body.fibres.toe.exponent", 40.0)):
+                got = r["parameters"][key]
+                check(abs(got - value) <= 1e-3 * value, "g. %d ranks: %s = %.8g, truth %g (1e-3)" % (n, key, got, value))
+            print("      g. %d ranks: %d forward runs, %s" % (n, r["forward_runs"], r["parameters"]))
 
     # d. bad input: exit 2, one line, nothing run
     with open(os.path.join(out, "backwards.csv"), "w") as f:

@@ -4,7 +4,7 @@ static creep scene with a ramp-and-hold load at 1 and 2 ranks, read back with th
 is the interface's (step, time, force_x..z, elongation, kinetic_energy, reaction<i>_x..z per [[fix]]); one row per
 step, t = 0 first, the breakpoint 0.3 s landed on; every cell a number; the applied force follows the history; the
 roller's reaction balances it to the solver's tolerance; summary.json's reactions and time are the last row's;
-the same curve at 1 and 2 ranks to 1e-10; and a second run into the same directory starts a new file.
+the same curve at 1 and 2 ranks to 1e-10; a relaxation run's single row (its equilibrium); and a second run into the same directory starts a new file.
 
 Usage: history_csv_test.py --build BUILD_DIR --source SOURCE_DIR      Prints 'N passed, M failed'."""
 import argparse
@@ -90,6 +90,25 @@ def main():
         curves[ranks] = data
     check(all(abs(x - y) <= 1e-10 * abs(curves[1][-1][5]) for x, y in
               zip([r[5] for r in curves[1]], [r[5] for r in curves[2]])), "the same elongation at 1 and 2 ranks")
+    # Relaxation (FIRE): one row, the equilibrium found: step 1, time 1, the elongation and reactions of the summary.
+    relax = SCENE.replace("[body.viscoelastic]\ngamma = [2.0]\ntau = [1.0]\n", "") \
+        .replace('history = [[0.0, 0.0], [0.3, 1.0]]\n', "") \
+        .replace('kind = "quasi-static"\ntime_step = 0.25\nend_time = 1.0\n', 'kind = "relaxation"\n')
+    with open(os.path.join(workdir, "relax.toml"), "w") as f:
+        f.write(relax)
+    out = os.path.join(workdir, "relax")
+    r = subprocess.run(["mpirun", "--oversubscribe", "-np", "2", os.path.join(a.build, "tissue"), "run",
+                        os.path.join(workdir, "relax.toml"), "--output", out], capture_output=True, text=True, timeout=120)
+    if check(r.returncode == 0, f"relaxation: exit code {r.returncode}: {r.stderr[-300:]}"):
+        with open(os.path.join(out, "history.csv"), newline="") as f:
+            rows = list(csv.reader(f))
+        summary = json.load(open(os.path.join(out, "summary.json")))
+        data = [[float(c) for c in row] for row in rows[1:]]
+        check(rows[0] == COLUMNS and len(data) == 1 and data[0][:2] == [1.0, 1.0],
+              f"relaxation: one row, step 1 at time 1: {rows}")
+        check(data[0][5] == summary["elongation"] and [data[0][7:10]] == summary["reactions"],
+              "relaxation: the row's elongation and reactions are the summary's")
+
     # A second run into the same directory writes a new history.csv, not rows after the old ones.
     rows, _ = run(a.build, workdir, 1, os.path.join(workdir, "np1"))
     check(len(rows) == 7, f"a second run rewrites history.csv ({len(rows)} lines)")

@@ -100,6 +100,9 @@ SolveReport solve_relaxation(const Scene& scene, const LocalModel& model, const 
   report.residual = residual;
   report.residual_history.push_back(residual);
   if (report.converged) std::fill(state.v.begin(), state.v.end(), 0.0);  // equilibrium: at rest
+  // history.csv: one row, the equilibrium found (as a static solve's single load step; FIRE's iterations are not
+  // a time line). An interrupted run has not reached it.
+  if (hooks.record && !report.interrupted) hooks.record(state);
   return report;
 }
 

@@ -87,7 +87,8 @@ struct SolverHooks {
   // is requested.
   std::function<void(const SolverState&)> checkpoint;
   // DIR/history.csv's rows (collective), with the state at a step's end: quasi-static after every step, the
-  // t = 0 step included; dynamic at step 0 and every output.history_every steps; static after every load step.
+  // t = 0 step included; dynamic at step 0 and every output.history_every steps; static after every load step;
+  // relaxation once, at its end.
   std::function<void(const SolverState&)> record;
 };
 

@@ -9,16 +9,19 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <cerrno>
 #include <chrono>
 #include <csignal>
+#include <exception>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <unordered_map>
 
@@ -91,6 +94,9 @@ double time_limit(const std::string& path, bool geometry) {
   return 60.0 + (ec ? 0.0 : static_cast<double>(bytes) / 1e6);
 }
 constexpr char kModel = 'M', kError = 'E';
+// Elements per chunk of a block on the pipe: what the parent holds of Gmsh's element arrays at a time (2.6 MB of
+// tetrahedra).
+constexpr std::size_t kElementsPerChunk = 1 << 16;
 
 class PipeWriter {
 public:
@@ -164,8 +170,16 @@ private:
     for (const auto& b : model.blocks) {
       for (int v : {b.dim, b.entity, b.type, b.nodes_per_element}) out.value<std::int32_t>(v);
       out.array(b.physical);
-      out.array(b.tags);
-      out.array(b.nodes);
+      // Tags and nodes interleaved in chunks, so that the parent converts a chunk at a time (its memory, not
+      // the child's, is the rank's).
+      const std::size_t count = b.tags.size(), npe = static_cast<std::size_t>(b.nodes_per_element);
+      out.value<std::uint64_t>(count), out.value<std::uint64_t>(b.nodes.size()), out.value<std::uint64_t>(b.tags[0]);
+      if (b.nodes.size() != npe * count) continue;  // the parent refuses it from the counts
+      for (std::size_t e0 = 0; e0 < count; e0 += kElementsPerChunk) {
+        const std::size_t e1 = std::min(count, e0 + kElementsPerChunk);
+        out.bytes(b.tags.data() + e0, (e1 - e0) * sizeof(std::size_t));
+        out.bytes(b.nodes.data() + npe * e0, npe * (e1 - e0) * sizeof(std::size_t));
+      }
     }
   }
   out.flush();
@@ -214,80 +228,6 @@ private:
   bool timed_out_ = false;
 };
 
-bool receive(PipeReader& in, gmsh_module::Model& model, std::string& error) {
-  char kind = 0;
-  if (!in.value(kind)) return false;
-  if (kind == kError) return in.string(error) && !error.empty();
-  if (kind != kModel) return false;
-  std::uint8_t partitioned = 0;
-  std::uint64_t names = 0, blocks = 0;
-  if (!in.array(model.node_tags) || !in.array(model.coords) || !in.value(partitioned) || !in.value(names))
-    return false;
-  model.partitioned = partitioned != 0;
-  for (std::uint64_t i = 0; i < names; ++i) {
-    std::int32_t dim = 0, tag = 0;
-    std::string name;
-    if (!in.value(dim) || !in.value(tag) || !in.string(name)) return false;
-    model.physical_names[{dim, tag}] = name;
-  }
-  if (!in.value(blocks)) return false;
-  for (std::uint64_t i = 0; i < blocks; ++i) {
-    gmsh_module::Block b;
-    std::int32_t v[4];
-    for (auto& x : v)
-      if (!in.value(x)) return false;
-    b.dim = v[0], b.entity = v[1], b.type = v[2], b.nodes_per_element = v[3];
-    if (!in.array(b.physical) || !in.array(b.tags) || !in.array(b.nodes)) return false;
-    model.blocks.push_back(std::move(b));
-  }
-  char end = 0;
-  return !in.value(end);  // nothing after the model
-}
-
-void read_in_child(const std::string& path, double mesh_size, bool geometry, gmsh_module::Model& model) {
-  int fds[2];
-  if (::pipe2(fds, O_CLOEXEC) != 0)
-    throw InputError(path, "", std::string("cannot create a pipe to read the mesh in a child process: ") +
-                                   std::strerror(errno));
-  std::fflush(nullptr);  // else the child's copies of unflushed stdio buffers could be written twice
-  const pid_t pid = ::fork();
-  if (pid < 0) {
-    const int err = errno;
-    ::close(fds[0]), ::close(fds[1]);
-    throw InputError(path, "", std::string("cannot fork to read the mesh in a child process: ") + std::strerror(err));
-  }
-  if (pid == 0) {
-    ::close(fds[0]);
-    child(fds[1], path, mesh_size, geometry);
-  }
-  ::close(fds[1]);
-  const double seconds = time_limit(path, geometry);
-  const auto deadline = seconds <= 0 ? std::chrono::steady_clock::time_point::max()
-                                     : std::chrono::steady_clock::now() + std::chrono::duration_cast<
-                                           std::chrono::steady_clock::duration>(std::chrono::duration<double>(seconds));
-  PipeReader in(fds[0], deadline);
-  std::string error;
-  const bool complete = receive(in, model, error);
-  ::close(fds[0]);
-  if (in.timed_out()) ::kill(pid, SIGKILL);
-  int status = 0;
-  pid_t reaped;
-  while ((reaped = ::waitpid(pid, &status, 0)) < 0 && errno == EINTR) {
-  }
-  const std::string tail = " (in the child process that reads it): a corrupt or crafted file?";
-  if (in.timed_out())
-    throw InputError(path, "", fmt::format("Gmsh did not finish reading it in {:g} s{}", seconds, tail));
-  if (reaped == pid && WIFSIGNALED(status))
-    throw InputError(path, "", fmt::format("Gmsh died with signal {} ({}){}", WTERMSIG(status),
-                                           strsignal(WTERMSIG(status)), tail));
-  if (!complete) {  // Gmsh called exit (a .geo's Exit does), or the pipe broke
-    const std::string how =
-        reaped == pid && WIFEXITED(status) ? fmt::format("exited with status {}", WEXITSTATUS(status)) : "ended";
-    throw InputError(path, "", fmt::format("Gmsh {} without a result{}", how, tail));
-  }
-  if (!error.empty()) throw InputError(path, "", error);
-}
-
 // Node tag -> index into Gmsh's node arrays: dense when the tags are (Gmsh numbers nodes 1..n), hashed otherwise.
 class NodeIndex {
 public:
@@ -313,6 +253,241 @@ private:
   std::vector<std::int64_t> slot_;
   std::unordered_map<std::size_t, std::int64_t> map_;
 };
+
+// Gmsh's model into a TetMesh as it comes through the pipe, a chunk of elements at a time: rank 0 reads every
+// rank's mesh, so it never holds Gmsh's element arrays whole, nor a second copy of the tetrahedra (#21's memory
+// target). The tetrahedra keep Gmsh's node indices until finish() numbers the molecules.
+class Converter {
+public:
+  Converter(const std::string& path, bool geometry) : path_(path), geometry_(geometry) { mesh_.file = path; }
+
+  // Gmsh's model as far as it has come: the nodes, names and partitioning (no blocks).
+  gmsh_module::Model& model() { return model_; }
+
+  // The nodes, names and partitioning have come; checks them.
+  void begin() {
+    const gmsh_module::Model& model = model_;
+    if (model.partitioned)  // its entities and their order are the partitioning's, not the model's
+      throw InputError(path_, "", "a partitioned mesh; save it unpartitioned (tissue partitions it itself)");
+    if (model.coords.size() != 3 * model.node_tags.size())
+      throw InputError(path_, "", fmt::format("Gmsh gave {} coordinates for {} nodes", model.coords.size(),
+                                              model.node_tags.size()));
+    index_ = std::make_unique<NodeIndex>(model.node_tags);
+  }
+
+  // A block's header; false: the block does not count (its elements are read and dropped).
+  bool block(const gmsh_module::Block& b, std::uint64_t count, std::uint64_t node_count, std::size_t first_tag) {
+    // A volume of a .msh counts always (the file holds what was saved); of a .geo as Gmsh saves it: only
+    // physical ones once the model has a physical group (Mesh.SaveAll = 0). Surfaces come physical only.
+    if (b.dim == 3 && b.physical.empty() && geometry_ && !model_.physical_names.empty()) return false;
+    if (b.dim == 3 && b.type != 4)
+      throw InputError(path_, "", fmt::format("element {} is of type {} ({}); only 4-node tetrahedra (type 4) are "
+                                              "supported", first_tag, b.type, type_name(b.type, b.nodes_per_element)));
+    if (b.dim == 2 && b.type != 2)
+      throw InputError(path_, "", fmt::format("element {} on a physical surface is of type {} ({}); only 3-node "
+                                              "triangles (type 2) bound a tetrahedral mesh", first_tag, b.type,
+                                              type_name(b.type, b.nodes_per_element)));
+    const std::uint64_t nn = b.dim == 3 ? 4 : 3;
+    if (node_count != nn * count)
+      throw InputError(path_, "", fmt::format("Gmsh gave {} node tags for {} elements of type {}", node_count, count,
+                                              b.type));
+    dim_ = b.dim;
+    physical_ = b.physical;
+    if (dim_ == 3) mesh_.tets.reserve(mesh_.tets.size() + count), tet_physical_.reserve(tet_physical_.size() + count);
+    return true;
+  }
+
+  // `n` elements of the current block: their tags and nodes.
+  void elements(const std::size_t* tags, const std::size_t* nodes, std::size_t n) {
+    const std::size_t nn = dim_ == 3 ? 4 : 3;
+    for (std::size_t e = 0; e < n; ++e) {
+      const std::size_t* t = nodes + nn * e;
+      std::array<std::int64_t, 4> i{};
+      for (std::size_t k = 0; k < nn; ++k) i[k] = node(t[k], tags[e]);
+      if (dim_ == 3) {
+        const double vol = signed_volume(position(i[0]), position(i[1]), position(i[2]), position(i[3]));
+        if (!(vol > 0))
+          throw InputError(path_, "", fmt::format("tetrahedron {} is {} (volume {:.3e}; Gmsh orders a tetrahedron's "
+                                                  "nodes so that its volume is positive)",
+                                                  tags[e], vol < 0 ? "inverted" : "flat", vol));
+        mesh_.tets.push_back(i);
+        tet_physical_.push_back(physical_.empty() ? -1 : physical_.front());
+      } else {
+        for (int p : physical_) surface_[p].push_back({i[0], i[1], i[2]});
+      }
+    }
+  }
+
+  // Molecules: the nodes the tetrahedra use, in tag order.
+  TetMesh finish() {
+    if (mesh_.tets.empty())
+      throw InputError(path_, "", "no tetrahedra (mesh the volume, gmsh -3, and put it in a physical volume)");
+    index_.reset();
+    const std::vector<std::size_t>& tag = model_.node_tags;
+    std::vector<std::int64_t> molecule(tag.size(), -1);  // Gmsh's node index -> molecule
+    for (const auto& T : mesh_.tets)
+      for (auto i : T) molecule[i] = 0;
+    std::vector<std::int64_t> used;
+    for (std::size_t i = 0; i < molecule.size(); ++i)
+      if (molecule[i] == 0) used.push_back(static_cast<std::int64_t>(i));
+    std::sort(used.begin(), used.end(), [&](std::int64_t x, std::int64_t y) { return tag[x] < tag[y]; });
+    mesh_.nodes.reserve(used.size());
+    for (auto i : used) {
+      molecule[i] = static_cast<std::int64_t>(mesh_.nodes.size());
+      mesh_.nodes.push_back(position(i));
+    }
+    used = {}, model_.coords = {};
+    for (auto& T : mesh_.tets)
+      for (auto& i : T) i = molecule[i];
+    auto label = [&](int dim, int t) {
+      auto it = model_.physical_names.find({dim, t});
+      return it != model_.physical_names.end() && !it->second.empty() ? it->second : std::to_string(t);
+    };
+    std::map<int, int> region_index;  // physical tag -> index in region_names
+    for (int& r : tet_physical_) {
+      if (r < 0) continue;
+      auto [it, added] = region_index.emplace(r, static_cast<int>(mesh_.region_names.size()));
+      if (added) mesh_.region_names.push_back(label(3, r));
+      r = it->second;
+    }
+    mesh_.tet_region = std::move(tet_physical_);
+    for (const auto& [physical, triangles] : surface_) {
+      TetMesh::Surface s;
+      s.name = label(2, physical);
+      s.triangles.reserve(triangles.size());
+      for (const auto& tri : triangles) {
+        std::array<std::int64_t, 3> v;
+        for (int k = 0; k < 3; ++k) {
+          if (molecule[tri[k]] < 0)
+            throw InputError(path_, "", fmt::format("physical surface \"{}\" has node {}, which no tetrahedron uses",
+                                                    s.name, tag[tri[k]]));
+          v[k] = molecule[tri[k]];
+        }
+        s.triangles.push_back(v);
+      }
+      mesh_.surfaces.push_back(std::move(s));
+    }
+    return std::move(mesh_);
+  }
+
+private:
+  std::int64_t node(std::size_t tag, std::size_t element) const {
+    const std::int64_t i = (*index_)(tag);
+    if (i < 0)
+      throw InputError(path_, "", fmt::format("element {} names node {}, which the mesh does not define", element, tag));
+    return i;
+  }
+  Vec3 position(std::int64_t i) const {
+    const auto& c = model_.coords;
+    return {c[3 * i], c[3 * i + 1], c[3 * i + 2]};
+  }
+
+  std::string path_;
+  bool geometry_;
+  gmsh_module::Model model_;
+  std::unique_ptr<NodeIndex> index_;
+  int dim_ = 0;
+  std::vector<int> physical_;  // the current block's
+  TetMesh mesh_;
+  std::vector<int> tet_physical_;  // per tetrahedron: its physical volume, -1: none (then its region)
+  std::map<int, std::vector<std::array<std::int64_t, 3>>> surface_;  // physical tag -> triangles (node indices)
+};
+
+// The model from the child into `to`; false if it is incomplete (or `error`: Gmsh's). Throws the Converter's
+// InputError as soon as an element is refused.
+bool receive(PipeReader& in, Converter& to, std::string& error) {
+  gmsh_module::Model& model = to.model();
+  char kind = 0;
+  if (!in.value(kind)) return false;
+  if (kind == kError) return in.string(error) && !error.empty();
+  if (kind != kModel) return false;
+  std::uint8_t partitioned = 0;
+  std::uint64_t names = 0, blocks = 0;
+  if (!in.array(model.node_tags) || !in.array(model.coords) || !in.value(partitioned) || !in.value(names))
+    return false;
+  model.partitioned = partitioned != 0;
+  for (std::uint64_t i = 0; i < names; ++i) {
+    std::int32_t dim = 0, tag = 0;
+    std::string name;
+    if (!in.value(dim) || !in.value(tag) || !in.string(name)) return false;
+    model.physical_names[{dim, tag}] = name;
+  }
+  if (!in.value(blocks)) return false;
+  to.begin();
+  std::vector<std::size_t> tags, nodes;  // one chunk
+  for (std::uint64_t i = 0; i < blocks; ++i) {
+    gmsh_module::Block b;
+    std::int32_t v[4];
+    for (auto& x : v)
+      if (!in.value(x)) return false;
+    b.dim = v[0], b.entity = v[1], b.type = v[2], b.nodes_per_element = v[3];
+    std::uint64_t count = 0, node_count = 0, first_tag = 0;
+    if (!in.array(b.physical) || !in.value(count) || !in.value(node_count) || !in.value(first_tag)) return false;
+    const bool keep = to.block(b, count, node_count, first_tag);
+    const std::uint64_t npe = static_cast<std::uint64_t>(std::max(b.nodes_per_element, 0));
+    if (node_count != npe * count) return false;  // (a kept block's counts are checked by the Converter)
+    for (std::uint64_t e0 = 0; e0 < count; e0 += kElementsPerChunk) {
+      const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(kElementsPerChunk, count - e0));
+      tags.resize(n), nodes.resize(npe * n);
+      if (!in.bytes(tags.data(), n * sizeof(std::size_t)) || !in.bytes(nodes.data(), npe * n * sizeof(std::size_t)))
+        return false;
+      if (keep) to.elements(tags.data(), nodes.data(), n);
+    }
+  }
+  char end = 0;
+  return !in.value(end);  // nothing after the model
+}
+
+void read_in_child(const std::string& path, double mesh_size, bool geometry, Converter& to) {
+  int fds[2];
+  if (::pipe2(fds, O_CLOEXEC) != 0)
+    throw InputError(path, "", std::string("cannot create a pipe to read the mesh in a child process: ") +
+                                   std::strerror(errno));
+  std::fflush(nullptr);  // else the child's copies of unflushed stdio buffers could be written twice
+  const pid_t pid = ::fork();
+  if (pid < 0) {
+    const int err = errno;
+    ::close(fds[0]), ::close(fds[1]);
+    throw InputError(path, "", std::string("cannot fork to read the mesh in a child process: ") + std::strerror(err));
+  }
+  if (pid == 0) {
+    ::close(fds[0]);
+    child(fds[1], path, mesh_size, geometry);
+  }
+  ::close(fds[1]);
+  const double seconds = time_limit(path, geometry);
+  const auto deadline = seconds <= 0 ? std::chrono::steady_clock::time_point::max()
+                                     : std::chrono::steady_clock::now() + std::chrono::duration_cast<
+                                           std::chrono::steady_clock::duration>(std::chrono::duration<double>(seconds));
+  PipeReader in(fds[0], deadline);
+  std::string error;
+  bool complete = false;
+  std::exception_ptr refused;  // the Converter's verdict on an element (or out of memory)
+  try {
+    complete = receive(in, to, error);
+  } catch (...) {
+    refused = std::current_exception();
+  }
+  ::close(fds[0]);
+  if (in.timed_out() || refused) ::kill(pid, SIGKILL);
+  int status = 0;
+  pid_t reaped;
+  while ((reaped = ::waitpid(pid, &status, 0)) < 0 && errno == EINTR) {
+  }
+  if (refused) std::rethrow_exception(refused);
+  const std::string tail = " (in the child process that reads it): a corrupt or crafted file?";
+  if (in.timed_out())
+    throw InputError(path, "", fmt::format("Gmsh did not finish reading it in {:g} s{}", seconds, tail));
+  if (reaped == pid && WIFSIGNALED(status))
+    throw InputError(path, "", fmt::format("Gmsh died with signal {} ({}){}", WTERMSIG(status),
+                                           strsignal(WTERMSIG(status)), tail));
+  if (!complete) {  // Gmsh called exit (a .geo's Exit does), or the pipe broke
+    const std::string how =
+        reaped == pid && WIFEXITED(status) ? fmt::format("exited with status {}", WEXITSTATUS(status)) : "ended";
+    throw InputError(path, "", fmt::format("Gmsh {} without a result{}", how, tail));
+  }
+  if (!error.empty()) throw InputError(path, "", error);
+}
 
 // The last line of a .msh file (ASCII or binary, every version) is the $End of its last section; a file that ends
 // elsewhere was cut short (Gmsh itself would silently read some such files as a smaller mesh).
@@ -354,118 +529,9 @@ TetMesh read_gmsh(const std::string& path, double mesh_size) {
   if (is_mesh) check_complete(in, path);
   in.close();
 
-  gmsh_module::Model model;
-  read_in_child(path, mesh_size, geometry, model);
-  if (model.partitioned)  // its entities and their order are the partitioning's, not the model's
-    throw InputError(path, "", "a partitioned mesh; save it unpartitioned (tissue partitions it itself)");
-
-  if (model.coords.size() != 3 * model.node_tags.size())
-    throw InputError(path, "", fmt::format("Gmsh gave {} coordinates for {} nodes", model.coords.size(),
-                                           model.node_tags.size()));
-  const std::vector<std::size_t>& node_tag = model.node_tags;
-  const std::vector<double>& coord = model.coords;
-  const NodeIndex gmsh_index(node_tag);
-  auto position = [&](std::size_t tag, std::size_t element) -> Vec3 {
-    const std::int64_t i = gmsh_index(tag);
-    if (i < 0)
-      throw InputError(path, "", fmt::format("element {} names node {}, which the mesh does not define", element, tag));
-    return {coord[3 * i], coord[3 * i + 1], coord[3 * i + 2]};
-  };
-  struct Tet {
-    std::array<std::size_t, 4> tags;
-    int physical;  // -1: none
-  };
-  std::vector<Tet> tets;
-  std::map<int, std::vector<std::array<std::size_t, 3>>> surface;  // physical tag -> triangles (node tags)
-  for (const auto& b : model.blocks) {
-    // A volume of a .msh counts always (the file holds what was saved); of a .geo as Gmsh saves it: only
-    // physical ones once the model has a physical group (Mesh.SaveAll = 0). Surfaces come physical only.
-    if (b.dim == 3 && b.physical.empty() && geometry && !model.physical_names.empty()) continue;
-    if (b.dim == 3 && b.type != 4)
-      throw InputError(path, "", fmt::format("element {} is of type {} ({}); only 4-node tetrahedra (type 4) are "
-                                             "supported", b.tags[0], b.type, type_name(b.type, b.nodes_per_element)));
-    if (b.dim == 2 && b.type != 2)
-      throw InputError(path, "", fmt::format("element {} on a physical surface is of type {} ({}); only 3-node "
-                                             "triangles (type 2) bound a tetrahedral mesh", b.tags[0], b.type,
-                                             type_name(b.type, b.nodes_per_element)));
-    const std::size_t nn = b.dim == 3 ? 4 : 3;
-    if (b.nodes.size() != nn * b.tags.size())
-      throw InputError(path, "", fmt::format("Gmsh gave {} node tags for {} elements of type {}", b.nodes.size(),
-                                             b.tags.size(), b.type));
-    for (std::size_t e = 0; e < b.tags.size(); ++e) {
-      const std::size_t* t = &b.nodes[nn * e];
-      if (b.dim == 3) {
-        const Vec3 p0 = position(t[0], b.tags[e]), p1 = position(t[1], b.tags[e]), p2 = position(t[2], b.tags[e]),
-                   p3 = position(t[3], b.tags[e]);
-        const double vol = signed_volume(p0, p1, p2, p3);
-        if (!(vol > 0))
-          throw InputError(path, "", fmt::format("tetrahedron {} is {} (volume {:.3e}; Gmsh orders a tetrahedron's "
-                                                 "nodes so that its volume is positive)",
-                                                 b.tags[e], vol < 0 ? "inverted" : "flat", vol));
-        tets.push_back({{t[0], t[1], t[2], t[3]}, b.physical.empty() ? -1 : b.physical.front()});
-      } else {
-        for (int k = 0; k < 3; ++k) position(t[k], b.tags[e]);
-        for (int p : b.physical) surface[p].push_back({t[0], t[1], t[2]});
-      }
-    }
-  }
-  if (tets.empty())
-    throw InputError(path, "", "no tetrahedra (mesh the volume, gmsh -3, and put it in a physical volume)");
-  model.blocks = {};  // converted: 40 bytes a tetrahedron less at the read's peak (rank 0 reads for every rank)
-
-  // Molecules: the nodes the tetrahedra use, in tag order.
-  std::vector<std::size_t> used;
-  used.reserve(4 * tets.size());
-  for (const auto& t : tets) used.insert(used.end(), t.tags.begin(), t.tags.end());
-  std::sort(used.begin(), used.end());
-  used.erase(std::unique(used.begin(), used.end()), used.end());
-  std::unordered_map<std::size_t, std::int64_t> index;  // node tag -> molecule
-  index.reserve(used.size());
-  TetMesh mesh;
-  mesh.file = path;
-  mesh.nodes.reserve(used.size());
-  for (auto t : used) {
-    const std::int64_t i = gmsh_index(t);
-    index[t] = static_cast<std::int64_t>(mesh.nodes.size());
-    mesh.nodes.push_back({coord[3 * i], coord[3 * i + 1], coord[3 * i + 2]});
-  }
-  used = {};  // 32 bytes a tetrahedron, before the tetrahedra are copied
-  auto label = [&](int dim, int tag) {
-    auto it = model.physical_names.find({dim, tag});
-    return it != model.physical_names.end() && !it->second.empty() ? it->second : std::to_string(tag);
-  };
-  std::map<int, int> region_index;  // physical tag -> index in region_names
-  mesh.tets.reserve(tets.size());
-  mesh.tet_region.reserve(tets.size());
-  for (const auto& t : tets) {
-    std::array<std::int64_t, 4> v;
-    for (int k = 0; k < 4; ++k) v[k] = index[t.tags[k]];
-    mesh.tets.push_back(v);
-    int r = -1;
-    if (t.physical >= 0) {
-      auto [it, added] = region_index.emplace(t.physical, static_cast<int>(mesh.region_names.size()));
-      if (added) mesh.region_names.push_back(label(3, t.physical));
-      r = it->second;
-    }
-    mesh.tet_region.push_back(r);
-  }
-  for (const auto& [tag, triangles] : surface) {
-    TetMesh::Surface s;
-    s.name = label(2, tag);
-    for (const auto& tri : triangles) {
-      std::array<std::int64_t, 3> v;
-      for (int k = 0; k < 3; ++k) {
-        auto it = index.find(tri[k]);
-        if (it == index.end())
-          throw InputError(path, "", fmt::format("physical surface \"{}\" has node {}, which no tetrahedron uses",
-                                                 s.name, tri[k]));
-        v[k] = it->second;
-      }
-      s.triangles.push_back(v);
-    }
-    mesh.surfaces.push_back(std::move(s));
-  }
-  return mesh;
+  Converter to(path, geometry);
+  read_in_child(path, mesh_size, geometry, to);
+  return to.finish();
 }
 
 TetMesh read_mesh(const BodySpec& spec) { return read_gmsh(spec.file, spec.mesh_size); }

@@ -404,8 +404,8 @@ CalibrationSpec read_calibration(const Section& s, const BodySpec* body, int ind
                                  "bodies ({} here); find C with the body alone in a one-body scene, then give it "
                                  "calibration = {{ method = \"divided\", divisor = C }}", c.method, nbodies));
   if (!body) return c;
-  if (c.method == "manual") {
-    s.require("stiffness", "method = \"manual\" needs stiffness = { edge = ..., ... } in N/m");
+  if (style.reads_stiffness) {
+    s.require("stiffness", fmt::format("method = \"{}\" needs stiffness = {{ edge = ..., ... }} in N/m", c.method));
     for (const auto& cls : classes_of(*body))
       if (!c.stiffness.count(cls))
         s.table("stiffness")

@@ -1,6 +1,7 @@
 #include "partition/explicit_model.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cstring>
 #include <limits>
 #include <stdexcept>
@@ -17,8 +18,8 @@
 namespace tissue {
 namespace {
 
-// Tetrahedra handed out per round: 393,216 edge records (12 MB) in rank 0's send buffer at a time.
-constexpr std::size_t kTetrahedraPerChunk = 1 << 16;
+// Tetrahedra handed out per round: 98,304 edge records (3 MB) in rank 0's send buffer at a time.
+constexpr std::size_t kTetrahedraPerChunk = 1 << 14;
 
 // The directory: rank r holds molecules [begin[r], begin[r + 1]) (PT-Scotch's even blocks, so its rows are the
 // whole-body path's).
@@ -161,7 +162,7 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationIn
 
   // 1. Rank 0 reads every explicit body (the counts number the bodies one after another).
   struct Read {
-    TetMesh mesh;  // tetrahedra only, once the molecules are worked out
+    std::vector<std::array<std::int32_t, 4>> tets;  // the mesh's, as 4-byte ints: rank 0 holds them until handed out
     MeshMolecules molecules;
   };
   std::vector<Read> read(nbodies);
@@ -176,7 +177,7 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationIn
       if (explicit_spec(spec)) {
         const std::string key = nbodies > 1 ? "body[" + std::to_string(i) + "]" : "body";
         if (spec.shape == BodySpec::Shape::mesh && !read_mesh) throw std::logic_error("build_explicit_model: a mesh body and no mesh reader");
-        TetMesh& mesh = read[i].mesh;
+        TetMesh mesh;
         if (spec.shape == BodySpec::Shape::mesh && spec.random)
           mesh = random_in_mesh(read_mesh(spec), spec, scene.file, key);
         else
@@ -184,7 +185,13 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationIn
         read[i].molecules = mesh_molecules(spec, mesh, first, scene.file, key);
         mesh.nodes = {}, mesh.tet_region = {}, mesh.surfaces = {};
         count[i] = static_cast<std::int64_t>(read[i].molecules.points.size());
+        if (count[i] > std::numeric_limits<std::int32_t>::max())
+          throw std::runtime_error("the body has more molecules than 32-bit PETSc indices can address");
         tetrahedra[i] = static_cast<std::int64_t>(mesh.tets.size());
+        read[i].tets.resize(mesh.tets.size());
+        for (std::size_t t = 0; t < mesh.tets.size(); ++t)
+          for (int v = 0; v < 4; ++v) read[i].tets[t][v] = static_cast<std::int32_t>(mesh.tets[t][v]);
+        mesh = TetMesh();
         total_volume[i] = read[i].molecules.total_volume;
         for (auto& f : read[i].molecules.faces) f.body = i, faces.push_back(std::move(f));
         read[i].molecules.faces = {};
@@ -283,7 +290,7 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationIn
       std::vector<int> bytes(m.size, 0), displs(m.size, 0);
       std::vector<Edge> send;
       if (m.rank == 0) {
-        const auto& tets = read[i].mesh.tets;
+        const auto& tets = read[i].tets;
         const auto& x = read[i].molecules.points;
         std::vector<int> per(m.size, 0);
         for (std::int64_t t = t0; t < t1; ++t)

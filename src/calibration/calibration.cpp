@@ -105,9 +105,9 @@ void note_ignored_poisson(const Scene& scene, const LocalModel& model) {
     const CalibrationSpec& c = b < scene.calibrations.size() ? scene.calibrations[b] : scene.calibration;
     if (c.honours_poisson) continue;
     std::string material = specs[b].material;
-    for (const auto& r : specs[b].regions)
-      if (material == "custom") material = r.material;
-    const TissuePreset* preset = material == "custom" ? nullptr : find_tissue(material);
+    for (const auto& r : specs[b].regions)  // a body without a preset: the first region with one
+      if (!find_tissue(material)) material = r.material;
+    const TissuePreset* preset = find_tissue(material);  // nullptr for "custom" (no preset)
     if (!preset) continue;
     std::fprintf(stderr, "tissue: note: body %zu: the poisson_ratio %g of material \"%s\" is used by "
                          "calibration.method = \"homogenized\" only; %s gives nu = 1/4\n",

@@ -59,6 +59,7 @@ struct CalibrationStyle {
   CalibrationNeeds needs = CalibrationNeeds::any_topology;
   bool reads_divisor = false;                // calibration.divisor is C as given (the summary reports it)
   bool honours_poisson = false;              // builds the body's Poisson ratio (else nu = 1/4: central springs)
+  bool reads_stiffness = false;              // k as given per connection class (calibration.stiffness, required)
   // The stiffness stays as calibrated for the whole solve: the connections may be stored by type.
   bool stiffness_final() const { return !updater && !wrap_solver; }
 };

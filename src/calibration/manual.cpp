@@ -13,6 +13,7 @@ void calibrate_manual(const CalibrationContext& ctx, std::vector<double>& k) {
   }
 }
 
-TISSUE_CALIBRATION(manual, {"manual", calibrate_manual, "k given per connection class (calibration.stiffness)"});
+TISSUE_CALIBRATION(manual, {"manual", calibrate_manual, "k given per connection class (calibration.stiffness)",
+                            nullptr, nullptr, CalibrationNeeds::any_topology, false, false, /*reads_stiffness=*/true});
 
 }  // namespace tissue

@@ -190,6 +190,9 @@ PetscErrorCode attach_rigid_modes(const LocalModel& model, Vec like, Mat J) {
 
 }  // namespace
 
+// GAMG's PtAP algorithm at 2+ ranks (see setup()).
+constexpr const char* kGamgPtap = "allatonce_merged";
+
 struct NewtonEquilibrium::Impl {
   Impl(const Scene& scene, const LocalModel& model, const ForceModel& forces, SolverState& state,
        const SolverHooks& hooks, SolveReport& report, const char* kind)
@@ -273,16 +276,21 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
   }
   // The lattice multigrid's Galerkin products through hypre's triple product: a lower memory peak than PETSc's
   // default (scalable) algorithm, in no more time (docs/benchmarks.md).
-  // The option is global, so it is set only for this solve and only for the lattice multigrid (GAMG's
-  // products with it gave NaN on a contact test); -matptap_via or -mat_product_algorithm override it.
+  // GAMG's products with hypre gave NaN on a contact test: GAMG's (meshes, random clouds) go by PETSc's
+  // all-at-once algorithm instead, whose lower peak (the default kept intermediate products that made each of 3
+  // ranks need as much memory for the solve as 1 rank did) gives the same numbers (#21, docs/benchmarks.md).
+  // The option is global, so it is set only for this solve and only for our choice of preconditioner (not with
+  // the user's -pc_type); -matptap_via or -mat_product_algorithm override it (-matptap_via scalable: PETSc's
+  // default: faster products, the higher peak).
   // On one rank hypre's product of the sequential matrices came out wrong (the first Krylov solve diverged at
-  // iteration 1 and every 1-rank run fell back to GAMG), so it is used on 2+ ranks only.
-  if (lattice_mg && model.size > 1) {
+  // iteration 1 and every 1-rank run fell back to GAMG), so both are used on 2+ ranks only (sequential matrices
+  // have neither).
+  if (model.size > 1 && !user_pc) {
     PetscBool user_ptap = PETSC_FALSE, user_product = PETSC_FALSE;
     PetscCall(PetscOptionsHasName(nullptr, nullptr, "-matptap_via", &user_ptap));
     PetscCall(PetscOptionsHasName(nullptr, nullptr, "-mat_product_algorithm", &user_product));
     set_ptap = !user_ptap && !user_product;
-    if (set_ptap) PetscCall(PetscOptionsSetValue(nullptr, "-matptap_via", "hypre"));
+    if (set_ptap) PetscCall(PetscOptionsSetValue(nullptr, "-matptap_via", lattice_mg ? "hypre" : kGamgPtap));
   }
   PetscCall(PetscInfo(pc, "lattice multigrid: %d levels\n", (int)mg_levels));
   if (!lattice_mg) PetscCall(PCSetType(pc, PCGAMG));

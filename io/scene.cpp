@@ -83,7 +83,14 @@ void apply_poisson(const Section& body_table, BodySpec& b, const CalibrationSpec
                                  "method = \"homogenized\" or remove poisson_ratio", c.method));
   if (!homogenized) return;
   const TopologyStyle* lattice = b.unstructured() ? nullptr : find_topology(b.topology);
-  const bool carries = lattice && lattice->carries_poisson();
+  // Meshes and clouds: the per-tetrahedron term carries E, nu and fibres (body_has_tetrahedra), for the body's
+  // own material (a region's nu or fibres would need per-tetrahedron materials: not built).
+  const bool carries = b.unstructured() || (lattice && lattice->carries_poisson());
+  if (b.unstructured() && !b.regions.empty())
+    body_table.fail("region", "homogenized on a mesh or random cloud takes the body's own material; regions are not "
+                              "supported with it yet (docs/poisson.md)");
+  if (b.unstructured() && !b.viscoelastic.empty())
+    body_table.fail("viscoelastic", "homogenized on a mesh or random cloud is elastic only (docs/poisson.md)");
   if (given && !carries) {
     std::vector<std::string> names;
     for (const auto& t : topology_styles())
@@ -170,7 +177,7 @@ void apply_fibres(const Section& body_table, const BodySpec& b, const Calibratio
     throw InputError(body_table.file(), c.key + ".method",
                      fmt::format("{} cannot honour fibres (central springs are isotropic); use method = "
                                  "\"homogenized\" or remove [body.fibres]", c.method));
-  if (b.topology != "face-diagonals" && b.topology != "body-diagonals")
+  if (!b.unstructured() && b.topology != "face-diagonals" && b.topology != "body-diagonals")
     body_table.fail("fibres", fmt::format("needs topology \"face-diagonals\" or \"body-diagonals\" (the body has "
                                           "\"{}\")", b.topology));
   auto check = [](const Section& where, double E, const std::optional<double>& nu, const FibreSpec& f) {

@@ -255,7 +255,7 @@ PronySpec read_viscoelastic(const Section& s) {
 // shape = "mesh": a Gmsh file, its physical volumes as regions (by name). The file is read with the body.
 BodySpec read_mesh_body(const Section& s, BodySpec b) {
   s.allow({"shape", "file", "topology", "material", "youngs_modulus", "density", "offset", "region", "radius",
-           "calibration", "seed", "interior_molecules", "mesh_size", "viscoelastic"});
+           "calibration", "seed", "interior_molecules", "mesh_size", "viscoelastic", "poisson_ratio", "fibres"});
   s.require("file", "the Gmsh mesh (.msh) or geometry (.geo) of the body");
   b.file = *s.string("file");
   if (b.file.empty()) s.fail("file", "empty path");
@@ -283,7 +283,9 @@ BodySpec read_mesh_body(const Section& s, BodySpec b) {
     if (b.interior_molecules > 2000000000L)
       s.fail("interior_molecules", fmt::format("{} molecules, more than the 2e9 supported", b.interior_molecules));
   }
-  read_material(s, b.material, b.youngs_modulus, b.density);
+  // poisson_ratio and [body.fibres]: homogenized only (the per-tetrahedron term, docs/poisson.md).
+  read_material(s, b.material, b.youngs_modulus, b.density, &b.poisson_ratio);
+  if (s.has("fibres")) read_fibre_material(s, b.material, b.youngs_modulus, b.fibres);
   b.offset = s.vec3("offset").value_or(b.offset);
   b.radius = s.number("radius");
   if (b.radius) s.positive("radius", *b.radius);

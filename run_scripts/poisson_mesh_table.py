@@ -51,7 +51,7 @@ def main():
         print("| nu | h | molecules | E error (rollers) | nu_x error | nu_y error | E_app bonded / E | "
               "change from coarser | seconds (both runs) |")
         print("|---|---|---|---|---|---|---|---|---|")
-        meshes = {h: mesh(work, h) for h in (0.5, 0.25, 0.125)}
+        meshes = {h: mesh(work, h) for h in (0.5, 0.25, 0.125, 0.0625)}
         for nu in (0.1, 0.25, 0.45):
             previous = None
             for h, msh in meshes.items():

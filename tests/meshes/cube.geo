@@ -14,5 +14,6 @@ Physical Surface("y-") = Surface In BoundingBox{-e, -e, -e, 1 + e, e, 1 + e};
 Physical Surface("y+") = Surface In BoundingBox{-e, 1 - e, -e, 1 + e, 1 + e, 1 + e};
 Physical Surface("z-") = Surface In BoundingBox{-e, -e, -e, 1 + e, 1 + e, e};
 Physical Surface("z+") = Surface In BoundingBox{-e, -e, 1 - e, 1 + e, 1 + e, 1 + e};
+MeshSize{ PointsOf{ Volume{1}; } } = h;
 Mesh.CharacteristicLengthMax = h;
 Mesh.Binary = 0;

@@ -64,7 +64,7 @@ def main():
                 Eb = mb["youngs_modulus_measured"] / E
                 change = "" if previous is None else f"{(Eb - previous) / previous:+.2e}"
                 previous = Eb
-                n = s.get("model", {}).get("molecules", "")
+                n = s.get("molecules", "")
                 print(f"| {nu} | {h} | {n} | {Em / E - 1:+.1e} | {nus[0] - nu:+.1e} | {nus[1] - nu:+.1e} | "
                       f"{Eb:.5f} | {change} | {t1 + t2:.2f} |")
 

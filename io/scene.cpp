@@ -83,7 +83,14 @@ void apply_poisson(const Section& body_table, BodySpec& b, const CalibrationSpec
                                  "method = \"homogenized\" or remove poisson_ratio", c.method));
   if (!homogenized) return;
   const TopologyStyle* lattice = b.unstructured() ? nullptr : find_topology(b.topology);
-  const bool carries = lattice && lattice->carries_poisson();
+  // Meshes and clouds: the per-tetrahedron term carries E, nu and fibres (body_has_tetrahedra), for the body's
+  // own material (a region's nu or fibres would need per-tetrahedron materials: not built).
+  const bool carries = b.unstructured() || (lattice && lattice->carries_poisson());
+  if (b.unstructured() && !b.regions.empty())
+    body_table.fail("region", "homogenized on a mesh or random cloud takes the body's own material; regions are not "
+                              "supported with it yet (docs/poisson.md)");
+  if (b.unstructured() && !b.viscoelastic.empty())
+    body_table.fail("viscoelastic", "homogenized on a mesh or random cloud is elastic only (docs/poisson.md)");
   if (given && !carries) {
     std::vector<std::string> names;
     for (const auto& t : topology_styles())
@@ -170,7 +177,7 @@ void apply_fibres(const Section& body_table, const BodySpec& b, const Calibratio
     throw InputError(body_table.file(), c.key + ".method",
                      fmt::format("{} cannot honour fibres (central springs are isotropic); use method = "
                                  "\"homogenized\" or remove [body.fibres]", c.method));
-  if (b.topology != "face-diagonals" && b.topology != "body-diagonals")
+  if (!b.unstructured() && b.topology != "face-diagonals" && b.topology != "body-diagonals")
     body_table.fail("fibres", fmt::format("needs topology \"face-diagonals\" or \"body-diagonals\" (the body has "
                                           "\"{}\")", b.topology));
   auto check = [](const Section& where, double E, const std::optional<double>& nu, const FibreSpec& f) {
@@ -248,7 +255,7 @@ PronySpec read_viscoelastic(const Section& s) {
 // shape = "mesh": a Gmsh file, its physical volumes as regions (by name). The file is read with the body.
 BodySpec read_mesh_body(const Section& s, BodySpec b) {
   s.allow({"shape", "file", "topology", "material", "youngs_modulus", "density", "offset", "region", "radius",
-           "calibration", "seed", "interior_molecules", "mesh_size", "viscoelastic"});
+           "calibration", "seed", "interior_molecules", "mesh_size", "viscoelastic", "poisson_ratio", "fibres"});
   s.require("file", "the Gmsh mesh (.msh) or geometry (.geo) of the body");
   b.file = *s.string("file");
   if (b.file.empty()) s.fail("file", "empty path");
@@ -276,7 +283,9 @@ BodySpec read_mesh_body(const Section& s, BodySpec b) {
     if (b.interior_molecules > 2000000000L)
       s.fail("interior_molecules", fmt::format("{} molecules, more than the 2e9 supported", b.interior_molecules));
   }
-  read_material(s, b.material, b.youngs_modulus, b.density);
+  // poisson_ratio and [body.fibres]: homogenized only (the per-tetrahedron term, docs/poisson.md).
+  read_material(s, b.material, b.youngs_modulus, b.density, &b.poisson_ratio);
+  if (s.has("fibres")) read_fibre_material(s, b.material, b.youngs_modulus, b.fibres);
   b.offset = s.vec3("offset").value_or(b.offset);
   b.radius = s.number("radius");
   if (b.radius) s.positive("radius", *b.radius);

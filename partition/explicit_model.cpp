@@ -10,6 +10,7 @@
 #include "partition/exchange.hpp"
 #include "partition/metis_partition.hpp"
 #include "partition/ptscotch_partition.hpp"
+#include "src/model/cell_law.hpp"
 #include "src/model/mesh_cloud.hpp"
 #include "src/model/random_cloud.hpp"
 #include "src/model/topology.hpp"
@@ -54,7 +55,14 @@ struct ConnectionRow {
   std::int32_t cls, unused;
 };
 
+// A tetrahedron on its way to the ranks that need it (global tetrahedron id, global corner ids).
+struct TetrahedronRow {
+  std::int64_t id, v[4];
+};
+
 bool explicit_spec(const BodySpec& spec) { return spec.unstructured(); }
+
+
 
 // Rows of a trivially copyable type through an exchange plan, as bytes.
 template <typename Row>
@@ -86,6 +94,25 @@ std::vector<Molecule> ask(MPI_Comm comm, const Blocks& blocks, const std::vector
 void sort_unique(std::vector<std::int64_t>& v) {
   std::sort(v.begin(), v.end());
   v.erase(std::unique(v.begin(), v.end()), v.end());
+}
+
+// Routes each row to the distinct ranks dest(row) names (at most 4), through one exchange. Collective.
+template <typename Dest>
+std::vector<TetrahedronRow> route_tetrahedra(MPI_Comm comm, int size, const std::vector<TetrahedronRow>& rows, Dest dest) {
+  std::vector<std::vector<TetrahedronRow>> out(size);
+  for (const auto& t : rows) {
+    int to[4], n = 0;
+    for (int v = 0; v < 4; ++v) {
+      const int r = dest(t.v[v]);
+      if (r >= 0 && std::find(to, to + n, r) == to + n) to[n++] = r;
+    }
+    for (int k = 0; k < n; ++k) out[to[k]].push_back(t);
+  }
+  std::vector<int> counts(size);
+  std::vector<TetrahedronRow> send;
+  for (int r = 0; r < size; ++r) counts[r] = static_cast<int>(out[r].size()), send.insert(send.end(), out[r].begin(), out[r].end());
+  const ExchangePlan plan(comm, std::move(counts));
+  return forward_rows(plan, send);
 }
 
 // Faces from rank 0 to every rank (O(surface)).
@@ -166,6 +193,15 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationIn
     MeshMolecules molecules;
   };
   std::vector<Read> read(nbodies);
+  // Bodies whose per-tetrahedron term needs their tetrahedra on the ranks (homogenized on a mesh or a cloud);
+  // the others' tetrahedra are handed out as edges only.
+  std::vector<char> keep_tetrahedra(nbodies, 0);
+  bool any_tetrahedra = false;
+  for (int i = 0; i < nbodies; ++i) {
+    const CalibrationSpec& c = i < static_cast<int>(scene.calibrations.size()) ? scene.calibrations[i] : scene.calibration;
+    keep_tetrahedra[i] = body_has_tetrahedra(specs[i], c);
+    any_tetrahedra = any_tetrahedra || keep_tetrahedra[i];
+  }
   std::vector<std::int64_t> count(nbodies, 0), tetrahedra(nbodies, 0);
   std::vector<double> total_volume(nbodies, 0.0);
   std::vector<NamedFace> faces;
@@ -280,11 +316,15 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationIn
     }
   }
 
-  //    Tetrahedra's edges to the directory rank of their lower end, chunk by chunk.
+  //    Tetrahedra's edges to the directory rank of their lower end, chunk by chunk (and, for bodies that keep
+  //    them, the tetrahedra themselves to the directory ranks of their corners).
   std::vector<Edge> edges;  // explicit bodies' connections with a in this block, sorted by (a, b)
+  std::vector<TetrahedronRow> held;  // kept tetrahedra with a corner in this block
+  std::int64_t first_tetrahedron = 0;
   for (int i = 0; i < nbodies; ++i) {
     if (!m.shape.body(i).unstructured()) continue;
-    const std::int64_t b0 = m.shape.body(i).first;
+    const std::int64_t b0 = m.shape.body(i).first, t_first = first_tetrahedron;
+    first_tetrahedron += keep_tetrahedra[i] ? tetrahedra[i] : 0;  // dense ids over the kept bodies
     for (std::int64_t t0 = 0; t0 < tetrahedra[i]; t0 += kTetrahedraPerChunk) {
       const std::int64_t t1 = std::min<std::int64_t>(t0 + kTetrahedraPerChunk, tetrahedra[i]);
       std::vector<int> bytes(m.size, 0), displs(m.size, 0);
@@ -316,6 +356,17 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationIn
       MPI_Scatter(bytes.data(), 1, MPI_INT, &mine, 1, MPI_INT, 0, comm);
       std::vector<Edge> chunk(mine / sizeof(Edge));
       MPI_Scatterv(send.data(), bytes.data(), displs.data(), MPI_BYTE, chunk.data(), mine, MPI_BYTE, 0, comm);
+      if (keep_tetrahedra[i]) {
+        std::vector<TetrahedronRow> rows;
+        if (m.rank == 0)
+          for (std::int64_t t = t0; t < t1; ++t) {
+            const auto& T = read[i].mesh.tets[t];
+            rows.push_back({t_first + t, {T[0] + b0, T[1] + b0, T[2] + b0, T[3] + b0}});
+          }
+        const std::vector<TetrahedronRow> in =
+            route_tetrahedra(comm, m.size, rows, [&](std::int64_t g) { return blocks.owner(g); });
+        held.insert(held.end(), in.begin(), in.end());
+      }
       send = std::vector<Edge>();
       merge_edges(edges, chunk);
     }
@@ -459,6 +510,21 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationIn
     for (std::size_t k = 0; k < order.size(); ++k) mol[order[k]].block = back[k];
   }
 
+  //    Kept tetrahedra to the owners of their corners (a tetrahedron with corners in several blocks arrives more
+  //    than once: kept once, in increasing id).
+  std::vector<TetrahedronRow> mine_tetrahedra;
+  if (any_tetrahedra) {
+    mine_tetrahedra = route_tetrahedra(comm, m.size, held, [&](std::int64_t g) {
+      return g >= lo && g < hi ? mol[g - lo].part : -1;
+    });
+    held = std::vector<TetrahedronRow>();
+    std::sort(mine_tetrahedra.begin(), mine_tetrahedra.end(),
+              [](const TetrahedronRow& x, const TetrahedronRow& y) { return x.id < y.id; });
+    mine_tetrahedra.erase(std::unique(mine_tetrahedra.begin(), mine_tetrahedra.end(),
+                                      [](const TetrahedronRow& x, const TetrahedronRow& y) { return x.id == y.id; }),
+                          mine_tetrahedra.end());
+  }
+
   //    The directory's view of its connections' upper ends (part; position for the nominal size).
   std::vector<std::int64_t> outside;
   for (const auto& c : forward)
@@ -569,6 +635,20 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationIn
     if (a < m.owned) ++m.written_count;
   }
   m.table.set_rest_lengths(std::move(rest_length));
+  //    The kept tetrahedra in local indices: every corner is an end of a connection of the owned corner (the
+  //    tetrahedron's edges are connections), hence local.
+  agree(comm, [&] {
+    for (const auto& t : mine_tetrahedra) {
+      int v[4];
+      for (int c = 0; c < 4; ++c) {
+        v[c] = local_index(t.v[c]);
+        if (v[c] >= m.local || m.id[v[c]] != t.v[c])
+          throw std::logic_error("build_explicit_model: a tetrahedron's corner is not local");
+      }
+      m.tetrahedron_id.push_back(t.id);
+      m.tetrahedra.insert(m.tetrahedra.end(), v, v + 4);
+    }
+  });
 
   m.partition.surface_to_volume = largest_ghost_ratio(m);
   return m;

@@ -85,6 +85,11 @@ struct MoleculeLayout {
   std::vector<std::uint16_t> forward_rank;
   std::vector<ConnectionClass> connection_class;
   std::size_t written_count = 0;     // connections whose end a this rank owns
+  // Meshes and clouds calibrated by homogenized only (the per-tetrahedron term; empty otherwise): the tetrahedra
+  // with an owned corner, in increasing global id, 4 local corner indices each (every corner is a connection
+  // neighbour of the owned one, hence local).
+  std::vector<std::int64_t> tetrahedron_id;
+  std::vector<int> tetrahedra;
 
   int connections() const { return static_cast<int>(end_a.size()); }
   std::int64_t connection_id(int c) const {

@@ -1,6 +1,7 @@
-// Shared by the cell-term tests (poisson_test, anisotropy_test): a deterministic large deformation and the check
-// that the force is minus the gradient of the energy and the assembled tangent minus the gradient of the force
-// (central differences), on one rank holding everything.
+// Shared by the cell-term tests (poisson_test, poisson_mesh_test, anisotropy_test): a deterministic large
+// deformation and the check that the force is minus the gradient of the energy and the assembled tangent minus the
+// gradient of the force (central differences), on one rank holding everything; and the check that a run on
+// PETSC_COMM_WORLD has the forces, solution and energy of the same run on one rank.
 #pragma once
 #include <gtest/gtest.h>
 #include <petscmat.h>
@@ -8,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "partition/local_model.hpp"
@@ -64,6 +66,32 @@ inline int expect_consistent_derivatives(const LocalModel& m, const ForceModel& 
   }
   MatDestroy(&J);
   return checked;
+}
+
+// `world` (PETSC_COMM_WORLD) and `self` (MPI_COMM_SELF) ran the same scene: forces at deform()'s large deformation
+// bit for bit equal, static solutions to `position_tolerance`, potential energies to 1e-12.
+template <class Run>
+void expect_same_as_one_rank(const Run& world, const Run& self, double position_tolerance) {
+  std::unordered_map<std::int64_t, int> at;
+  for (int i = 0; i < self.model.owned; ++i) at[self.model.id[i]] = i;
+  std::vector<double> xw, xs, fw(3 * world.model.local), fs(3 * self.model.local);
+  deform(world.model, xw);
+  deform(self.model, xs);
+  world.forces->forces(xw.data(), nullptr, fw.data());
+  self.forces->forces(xs.data(), nullptr, fs.data());
+  const double* pw = world.state->x.array();
+  const double* ps = self.state->x.array();
+  for (int i = 0; i < world.model.owned; ++i) {
+    const int k = at.at(world.model.id[i]);
+    for (int d = 0; d < 3; ++d) {
+      EXPECT_EQ(fw[3 * i + d], fs[3 * k + d]) << "molecule " << world.model.id[i];
+      EXPECT_NEAR(pw[3 * i + d], ps[3 * k + d], position_tolerance) << "molecule " << world.model.id[i];
+    }
+  }
+  double ew = world.forces->potential_energy(xw.data()), total = 0;
+  EXPECT_NE(ew, 0.0);
+  MPI_Allreduce(&ew, &total, 1, MPI_DOUBLE, MPI_SUM, PETSC_COMM_WORLD);
+  EXPECT_NEAR(total, self.forces->potential_energy(xs.data()), 1e-12 * std::fabs(total));
 }
 
 }  // namespace tissue::test_pipeline

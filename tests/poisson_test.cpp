@@ -165,26 +165,7 @@ TEST(Poisson, SameOnEveryRankCount) {
   c.n = {5, 4, 6}, c.h = {1, 1, 0.5}, c.nu = 0.45;
   auto world = run(scene_text(c), PETSC_COMM_WORLD);
   auto self = run(scene_text(c), MPI_COMM_SELF);
-  std::unordered_map<std::int64_t, int> at;
-  for (int i = 0; i < self->model.owned; ++i) at[self->model.id[i]] = i;
-  std::vector<double> xw, xs, fw(3 * world->model.local), fs(3 * self->model.local);
-  deform(world->model, xw);
-  deform(self->model, xs);
-  world->forces->forces(xw.data(), nullptr, fw.data());
-  self->forces->forces(xs.data(), nullptr, fs.data());
-  const double* pw = world->state->x.array();
-  const double* ps = self->state->x.array();
-  for (int i = 0; i < world->model.owned; ++i) {
-    const int k = at.at(world->model.id[i]);
-    for (int d = 0; d < 3; ++d) {
-      EXPECT_EQ(fw[3 * i + d], fs[3 * k + d]) << "molecule " << world->model.id[i];
-      EXPECT_NEAR(pw[3 * i + d], ps[3 * k + d], 1e-10 * 5) << "molecule " << world->model.id[i];
-    }
-  }
-  EXPECT_EQ(world->forces->potential_energy(xw.data()) == 0, false);
-  double ew = world->forces->potential_energy(xw.data()), total = 0;
-  MPI_Allreduce(&ew, &total, 1, MPI_DOUBLE, MPI_SUM, PETSC_COMM_WORLD);
-  EXPECT_NEAR(total, self->forces->potential_energy(xs.data()), 1e-12 * std::fabs(total));
+  expect_same_as_one_rank(*world, *self, 1e-10 * 5);
 }
 
 // The critical time step of a body with the cell term is 0.8 h / c_p, c_p = sqrt((lambda + 2 mu) / rho); a

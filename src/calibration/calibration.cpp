@@ -78,14 +78,14 @@ std::string calibration_topology_problem(const CalibrationStyle& style, const st
       return std::string(style.name) + " needs topology = \"tetrahedral\" (it sums over the tetrahedra incident on each "
                                        "connection)";
     case CalibrationNeeds::lattice_cells: {
-      if (lattice && !lattice->tetrahedra) return "";
+      if (!lattice || !lattice->tetrahedra) return "";  // meshes and clouds: the per-tetrahedron term
       std::vector<std::string> cells;
       for (const auto& t : topology_styles())
         if (!t.tetrahedra) cells.emplace_back(t.name);
       std::string list;
       for (std::size_t i = 0; i < cells.size(); ++i)
         list += (i == 0 ? "" : i + 1 == cells.size() ? " or " : ", ") + cells[i];
-      return std::string(style.name) + " needs a box lattice topology (" + list + ")";
+      return std::string(style.name) + " needs a box lattice topology (" + list + ") or a mesh or random cloud";
     }
   }
   return "";

@@ -45,7 +45,7 @@ using CalibrationSolver = void (*)(const Scene&, LocalModel&, const CalibrationI
 enum class CalibrationNeeds {
   any_topology,
   tetrahedra,    // a tetrahedral topology (TopologyStyle::tetrahedra), a mesh or a random cloud: Eq. 5 sums over them
-  lattice_cells, // a box lattice without tetrahedra: the method solves each cell's springs
+  lattice_cells, // a box lattice without tetrahedra (the method solves each cell's springs), or a mesh or random cloud
 };
 
 // A calibration method and what it can do; the driver and the scene reader ask these capabilities, never the

@@ -50,6 +50,12 @@ void calibrate_homogenized(const CalibrationContext& ctx, std::vector<double>& k
   const LocalModel& m = ctx.model;
   const Body& shape = m.shape;
   const std::string& topology = shape.topology;
+  if (shape.unstructured()) {
+    // A mesh or a cloud: the per-tetrahedron term (src/physics/terms/tetrahedron_elasticity.cpp) carries the whole
+    // target, exact for every affine state; springs on an irregular graph are not isotropic, so they carry nothing.
+    std::fill(k.begin(), k.end(), 0.0);
+    return;
+  }
   const TopologyStyle* lattice = find_topology(topology);
   if (!lattice || lattice->tetrahedra)
     throw InputError(ctx.scene.file, "calibration.method",

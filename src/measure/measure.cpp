@@ -63,13 +63,14 @@ Measurements measure(const Scene& scene, const LocalModel& model, const TensionT
   const int u = (test.axis + 1) % 3, w = (test.axis + 2) % 3;
   const NamedFace* load_face = test.valid ? &s.faces[test.load_face] : nullptr;
   const NamedFace* fixed_face = test.valid ? &s.faces[test.fixed_face] : nullptr;
-  // The Poisson ratio reads the four lateral faces (u-, u+, w-, w+) when they are lattice planes free of holds
-  // and loads (a random box's lateral molecules are jittered within their faces, a mesh may have none).
+  // The Poisson ratio reads the four lateral faces (u-, u+, w-, w+) when they are planes named x- .. z+ free of
+  // holds and loads: a lattice's, a random box's or a mesh's (their molecules lie on the plane; a mesh may have
+  // none).
   std::array<const NamedFace*, 4> lateral{};
   bool free = test.valid && std::fabs(test.direction[test.axis]) > 0.5;  // not for a shear load
   const int axes[2] = {u, w};
   for (const auto& f : s.faces)
-    if (test.valid && f.body == test.body && f.lattice && f.axis != test.axis)
+    if (test.valid && f.body == test.body && (f.lattice || f.side >= 0) && f.axis >= 0 && f.axis != test.axis)
       lateral[2 * (f.axis == w) + f.side] = &f;
   for (const NamedFace* f : lateral) free = free && f;
   auto touches = [&](int body, const std::string& name) {  // a hold or load on a face not normal to the axis

@@ -170,4 +170,17 @@ bool scene_has_cells(const Scene& scene) {
   return false;
 }
 
+bool body_has_tetrahedra(const BodySpec& body, const CalibrationSpec& calibration) {
+  return calibration.honours_poisson && body.unstructured();
+}
+
+bool scene_has_tetrahedra(const Scene& scene) {
+  if (scene.bodies.empty())
+    return !scene.calibrations.empty() && body_has_tetrahedra(scene.body, scene.calibrations[0]);
+  for (std::size_t b = 0; b < scene.bodies.size(); ++b)
+    if (body_has_tetrahedra(scene.bodies[b], b < scene.calibrations.size() ? scene.calibrations[b] : scene.calibration))
+      return true;
+  return false;
+}
+
 }  // namespace tissue

@@ -75,6 +75,10 @@ CellModuli cell_moduli(double youngs_modulus, double poisson_ratio, const FibreS
 // (with fibres: always)
 bool body_has_cells(const BodySpec& body, const CalibrationSpec& calibration);
 bool scene_has_cells(const Scene& scene);
+// Does a body need the per-tetrahedron term (src/physics/terms/tetrahedron_elasticity.cpp): homogenized on a
+// mesh or a random cloud (the term then carries E, nu and the fibres; the springs are 0).
+bool body_has_tetrahedra(const BodySpec& body, const CalibrationSpec& calibration);
+bool scene_has_tetrahedra(const Scene& scene);
 
 // The P-wave modulus lambda + 2 mu of (E, nu) (nu NaN: 1/4).
 inline double p_wave_modulus(double E, double nu) {

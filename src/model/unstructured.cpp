@@ -67,16 +67,33 @@ NamedFace make_face(const TetMesh::Surface& s, const std::vector<Vec3>& x, std::
     // Anchors by id and distance only: the same on every rank count.
     f.anchor = f.molecules.front();
     const Vec3& p = x[f.anchor - first];
-    double best = -1;
+    const int u = (f.axis + 1) % 3, v = (f.axis + 2) % 3;
+    // anchor2 holds one in-plane component c against rotation about the normal. Best on a line through the anchor
+    // along the other in-plane axis (q_c = p_c), as a box's anchors are: then a uniform in-plane stretch (a free
+    // lateral contraction) moves no held component, and the face is a roller indeed. Else the farthest molecule.
+    double best = -1, extent = 0;
+    for (auto id : f.molecules)
+      for (int d : {u, v}) extent = std::max(extent, std::fabs(x[id - first][d] - p[d]));
+    const double tol = 1e-9 * extent;
     for (auto id : f.molecules) {
       const Vec3& q = x[id - first];
-      double d2 = 0;
-      for (int d = 0; d < 3; ++d) d2 += (q[d] - p[d]) * (q[d] - p[d]);
-      if (d2 > best) best = d2, f.anchor2 = id;
+      for (int c : {v, u}) {
+        const int o = c == v ? u : v;
+        if (std::fabs(q[c] - p[c]) <= tol && std::fabs(q[o] - p[o]) > best)
+          best = std::fabs(q[o] - p[o]), f.anchor2 = id, f.anchor2_component = c;
+      }
     }
-    const int u = (f.axis + 1) % 3, v = (f.axis + 2) % 3;
-    const Vec3& q = x[f.anchor2 - first];
-    f.anchor2_component = std::fabs(q[u] - p[u]) >= std::fabs(q[v] - p[v]) ? v : u;
+    if (!(best > 0.1 * extent)) {
+      best = -1;
+      for (auto id : f.molecules) {
+        const Vec3& q = x[id - first];
+        double d2 = 0;
+        for (int d = 0; d < 3; ++d) d2 += (q[d] - p[d]) * (q[d] - p[d]);
+        if (d2 > best) best = d2, f.anchor2 = id;
+      }
+      const Vec3& q = x[f.anchor2 - first];
+      f.anchor2_component = std::fabs(q[u] - p[u]) >= std::fabs(q[v] - p[v]) ? v : u;
+    }
   }
   return f;
 }

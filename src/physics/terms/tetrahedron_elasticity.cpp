@@ -1,0 +1,317 @@
+// The tetrahedron term: `homogenized` on meshes and random clouds (docs/poisson.md, "Meshes and random clouds").
+// One energy per tetrahedron of its linear deformation gradient, the continuum law of the lattice cell term
+// (src/physics/continuum_law.hpp) with the whole target: isochoric neo-Hookean mu = E / (2 (1 + nu)), volumetric
+// kappa = E / (3 (1 - 2 nu)), and with [body.fibres] the matrix (E_m, nu_m) plus the fibre, fibre-shear and
+// coupling terms of transverse isotropy (src/model/cell_law.hpp). The springs carry nothing (homogenized sets them
+// to 0 on these bodies: central springs on an irregular graph are not isotropic), so every affine state has the
+// target's stress in every tetrahedron: with traction loads by tributary area (a third of each face triangle: the
+// consistent loads of linear tetrahedra) a block's affine tension is the discrete equilibrium, and E, nu (and the
+// five fibre constants) are measured to round-off at small strain, on any mesh.
+//
+// The volumetric part is per tetrahedron (not averaged per molecule): the tangent then couples only a
+// tetrahedron's corners, which are connection neighbours, so the tangent's one-ring pattern and ghost layer hold
+// it. The price is volumetric locking as nu -> 1/2 (bending of coarse meshes stiffens for nu > 0.45; tension,
+// compression and other affine states stay exact at every nu).
+//
+// F = I + sum_a u_a (x) g_a (u the displacements, g_a the gradients of the linear shape functions: rows of
+// Dm^-1 for corners 1..3, g_0 = -(g_1 + g_2 + g_3), Dm = [X_1 - X_0, X_2 - X_0, X_3 - X_0]); forces
+// f_a = -V P g_a; the tangent is P's exact derivative by forward-mode dual numbers through the same code.
+//
+// Ranks: each rank holds the tetrahedra with an owned corner (partition/explicit_model.cpp), evaluates them in
+// increasing global id and adds to its owned corners only: a molecule sums its tetrahedra in the same order on
+// any partition, so results are bit for bit those of one rank. A tetrahedron's energy and output belong to the
+// rank owning its lowest-id corner.
+#include <mpi.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <vector>
+
+#include "src/model/cell_law.hpp"
+#include "src/physics/continuum_law.hpp"
+#include "src/physics/term.hpp"
+
+namespace tissue {
+
+namespace {
+
+using namespace continuum;
+
+class TetrahedronElasticity final : public Term {
+public:
+  TetrahedronElasticity(const Scene& scene, const LocalModel& model) : m_(model) {
+    const std::vector<BodySpec> specs = scene.bodies.empty() ? std::vector<BodySpec>{scene.body} : scene.bodies;
+    // One material per body (the body's own: regions are refused with this term by the scene reader).
+    for (std::size_t b = 0; b < specs.size(); ++b) {
+      const BodySpec& spec = specs[b];
+      Material mat;
+      mat.density = spec.density;
+      const double nu = spec.poisson_ratio.value_or(0.25);
+      double E = spec.youngs_modulus, n = nu;
+      if (spec.fibres) {
+        const TransverseIsotropy ti = transverse_isotropy(spec.youngs_modulus, nu, *spec.fibres);
+        const FibreModuli fm = fibre_moduli(ti);
+        E = fm.E_m, n = fm.nu_m;
+        Fibre f;
+        for (int d = 0; d < 3; ++d) f.a[d] = spec.fibres->direction[d];
+        f.E_f = fm.E_f, f.dG = fm.dG, f.alpha = fm.alpha;
+        f.tension_only = spec.fibres->tension_only;
+        f.toe_stretch = spec.fibres->toe_stretch, f.toe_exponent = spec.fibres->toe_exponent;
+        mat.fibres.push_back(f);
+      }
+      mat.moduli.mu = E / (2.0 * (1.0 + n));
+      mat.moduli.kappa = E / (3.0 * (1.0 - 2.0 * n));
+      mat.force_modulus = mat.moduli.kappa + 2.0 * mat.moduli.mu;
+      for (const Fibre& f : mat.fibres) mat.force_modulus += std::abs(f.E_f) + 2 * std::abs(f.dG) + 2 * std::abs(f.alpha);
+      materials_.push_back(mat);
+    }
+    const std::size_t count = model.tetrahedron_id.size();
+    geometry_.resize(count);
+    body_.resize(count);
+    owns_energy_.resize(count);
+    long long owned_energy = 0;
+    std::vector<double> row_sum(3 * static_cast<std::size_t>(model.owned), 0.0);  // |K| row sums, owned rows
+    for (std::size_t t = 0; t < count; ++t) {
+      const int* c = &model.tetrahedra[4 * t];
+      Geometry& geo = geometry_[t];
+      body_[t] = model.body[c[0]];
+      // Dm^-1 by cofactors: row r of Dm^-1 is g_(r+1).
+      double D[3][3];
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) D[i][j] = model.rest[3 * c[j + 1] + i] - model.rest[3 * c[0] + i];
+      const double det = D[0][0] * (D[1][1] * D[2][2] - D[1][2] * D[2][1]) -
+                         D[0][1] * (D[1][0] * D[2][2] - D[1][2] * D[2][0]) +
+                         D[0][2] * (D[1][0] * D[2][1] - D[1][1] * D[2][0]);
+      if (det != 0) {
+        // inv[j][i] = cofactor(i, j) / det
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j) {
+            const int i1 = (i + 1) % 3, i2 = (i + 2) % 3, j1 = (j + 1) % 3, j2 = (j + 2) % 3;
+            geo.g[j + 1][i] = (D[i1][j1] * D[i2][j2] - D[i1][j2] * D[i2][j1]) / det;
+          }
+        geo.volume = std::abs(det) / 6.0;
+      }  // else a flat tetrahedron: no volume, no energy (g = 0)
+      for (int i = 0; i < 3; ++i) geo.g[0][i] = -(geo.g[1][i] + geo.g[2][i] + geo.g[3][i]);
+      int lowest = 0;
+      for (int a = 1; a < 4; ++a)
+        if (model.id[c[a]] < model.id[c[lowest]]) lowest = a;
+      owns_energy_[t] = c[lowest] < model.owned;
+      owned_energy += owns_energy_[t];
+      // The explicit time step: element by element, omega^2 <= max over tetrahedra of the largest eigenvalue of
+      // M_t^-1 K_t with M_t = rho V / 4 per corner (a molecule's mass is the sum of its tetrahedra's quarters,
+      // src/model/unstructured.cpp). K_t (at rest) is positive semi-definite with at most 6 non-zero eigenvalues,
+      // so lambda_max <= trace(K_t^8)^(1/8) = |K_t^4|_F^(1/4) <= 6^(1/8) lambda_max: an upper bound within 1.25x.
+      if (geo.volume > 0) {
+        const Material& mat = materials_[body_[t]];
+        double K[12][12], K2[12][12], K4[12][12];
+        element_stiffness(t, nullptr, K);
+        for (int a = 0; a < 4; ++a)
+          if (c[a] < model.owned)
+            for (int i = 0; i < 3; ++i)
+              for (int q = 0; q < 12; ++q) row_sum[3 * c[a] + i] += std::abs(K[3 * a + i][q]);
+        double largest = 0;  // K / largest: the eighth power stays in range
+        for (int r = 0; r < 12; ++r)
+          for (int q = 0; q < 12; ++q) largest = std::max(largest, std::abs(K[r][q]));
+        for (int r = 0; r < 12; ++r)
+          for (int q = 0; q < 12; ++q) K[r][q] /= largest;
+        auto square = [](const double A[12][12], double B[12][12]) {
+          for (int r = 0; r < 12; ++r)
+            for (int q = 0; q < 12; ++q) {
+              double s = 0;
+              for (int k = 0; k < 12; ++k) s += A[r][k] * A[k][q];
+              B[r][q] = s;
+            }
+        };
+        square(K, K2);
+        square(K2, K4);
+        double frobenius = 0;
+        for (int r = 0; r < 12; ++r)
+          for (int q = 0; q < 12; ++q) frobenius += K4[r][q] * K4[r][q];
+        const double lambda = largest * std::pow(frobenius, 0.125);
+        dt_ = std::min(dt_, 2.0 / std::sqrt(lambda / (0.25 * mat.density * geo.volume)));
+      }
+    }
+    // Or Gershgorin on the assembled M^-1 K with the molecules' own masses (a sliver's quarter of its own small
+    // volume makes the element bound loose): the larger of two upper-bound-derived steps is still a lower bound of
+    // the stability limit.
+    double rate = 0;
+    for (int i = 0; i < model.owned; ++i)
+      for (int d = 0; d < 3; ++d) rate = std::max(rate, row_sum[3 * i + d] / model.mass[i]);
+    // Each bound over all ranks first (a per-rank max of the two would depend on the partition).
+    double element_dt = dt_, largest_rate = rate;
+    MPI_Allreduce(&element_dt, &dt_, 1, MPI_DOUBLE, MPI_MIN, model.comm);
+    MPI_Allreduce(&rate, &largest_rate, 1, MPI_DOUBLE, MPI_MAX, model.comm);
+    if (largest_rate > 0) dt_ = std::max(dt_, 2.0 / std::sqrt(largest_rate));
+    MPI_Allreduce(&owned_energy, &global_count_, 1, MPI_LONG_LONG, MPI_SUM, model.comm);
+  }
+
+  void add_forces(const double* x, const double*, double, double* f) override {
+    for (std::size_t t = 0; t < geometry_.size(); ++t) {
+      const int* c = &m_.tetrahedra[4 * t];
+      const Geometry& geo = geometry_[t];
+      const Material& mat = materials_[body_[t]];
+      double F[9], P[9];
+      gradient(x, t, F);
+      if (!stress(F, mat.moduli, mat.fibres.data(), static_cast<int>(mat.fibres.size()), P)) {
+        // An inverted tetrahedron: its energy is infinite; NaN forces make every solver's guard stop or cut back.
+        for (int a = 0; a < 4; ++a)
+          if (c[a] < m_.owned)
+            for (int i = 0; i < 3; ++i) f[3 * c[a] + i] = std::numeric_limits<double>::quiet_NaN();
+        continue;
+      }
+      for (int a = 0; a < 4; ++a) {
+        if (c[a] >= m_.owned) continue;
+        const double* g = geo.g[a];
+        for (int i = 0; i < 3; ++i)
+          f[3 * c[a] + i] -= geo.volume * (P[3 * i] * g[0] + P[3 * i + 1] * g[1] + P[3 * i + 2] * g[2]);
+      }
+    }
+  }
+
+  double potential_energy(const double* x) const override {
+    double e = 0;
+    for (std::size_t t = 0; t < geometry_.size(); ++t) {
+      if (!owns_energy_[t]) continue;
+      const Material& mat = materials_[body_[t]];
+      double F[9];
+      gradient(x, t, F);
+      e += geometry_[t].volume * energy_density(F, mat.moduli, mat.fibres.data(), static_cast<int>(mat.fibres.size()));
+    }
+    return e;
+  }
+
+  PetscErrorCode add_tangent(const double* x, BlockAdd add, void* ctx) const override {
+    for (std::size_t t = 0; t < geometry_.size(); ++t) {
+      const int* c = &m_.tetrahedra[4 * t];
+      double K[12][12];
+      if (!element_stiffness(t, x, K)) return 0;  // inverted: the residual is NaN already
+      for (int a = 0; a < 4; ++a) {
+        if (c[a] >= m_.owned) continue;
+        for (int b = 0; b < 4; ++b) {
+          double B[9];
+          for (int i = 0; i < 3; ++i)
+            for (int k = 0; k < 3; ++k) B[3 * i + k] = K[3 * a + i][3 * b + k];
+          const PetscErrorCode ierr = add(ctx, c[a], c[b], B);
+          if (ierr) return ierr;
+        }
+      }
+    }
+    return 0;
+  }
+
+  void add_couplings(std::vector<std::vector<int>>& extra) const override {
+    // A tetrahedron's corners are connection neighbours already; listed for a pattern that never depends on it.
+    for (std::size_t t = 0; t < geometry_.size(); ++t) {
+      const int* c = &m_.tetrahedra[4 * t];
+      for (int a = 0; a < 4; ++a)
+        if (c[a] < m_.owned)
+          for (int b = 0; b < 4; ++b) extra[c[a]].push_back(c[b]);
+    }
+  }
+
+  double critical_time_step() const override { return dt_; }
+
+  void add_force_scale(std::vector<double>& scale) const override {
+    // A corner's force at unit strain: V |g_a| times the tetrahedron's moduli.
+    for (std::size_t t = 0; t < geometry_.size(); ++t) {
+      const int* c = &m_.tetrahedra[4 * t];
+      const Geometry& geo = geometry_[t];
+      for (int a = 0; a < 4; ++a) {
+        const double* g = geo.g[a];
+        scale[c[a]] += geo.volume * materials_[body_[t]].force_modulus * std::sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+      }
+    }
+  }
+
+  void cells(const double* x, CellField& out) const override {
+    out.nodes = 4;
+    out.global_count = global_count_;
+    for (std::size_t t = 0; t < geometry_.size(); ++t) {
+      if (!owns_energy_[t]) continue;
+      const int* c = &m_.tetrahedra[4 * t];
+      double F[9];
+      gradient(x, t, F);
+      out.id.push_back(m_.tetrahedron_id[t]);
+      for (int a = 0; a < 4; ++a) out.corners.push_back(m_.id[c[a]]);
+      out.volume_ratio.push_back(F[0] * (F[4] * F[8] - F[5] * F[7]) - F[1] * (F[3] * F[8] - F[5] * F[6]) +
+                                 F[2] * (F[3] * F[7] - F[4] * F[6]));
+    }
+  }
+
+private:
+  struct Material {
+    Moduli moduli;
+    std::vector<Fibre> fibres;
+    double density = 0, force_modulus = 0;
+  };
+  struct Geometry {
+    double volume = 0;
+    double g[4][3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}, {0, 0, 0}};
+  };
+
+  // F = I + sum_a u_a (x) g_a, from displacements (positions far from the origin would cost digits of F - I).
+  void gradient(const double* x, std::size_t t, double F[9]) const {
+    const int* c = &m_.tetrahedra[4 * t];
+    const Geometry& geo = geometry_[t];
+    for (int q = 0; q < 9; ++q) F[q] = q % 4 == 0 ? 1.0 : 0.0;
+    for (int a = 0; a < 4; ++a) {
+      const double* xa = x + 3 * c[a];
+      const double* Xa = m_.rest.data() + 3 * c[a];
+      for (int i = 0; i < 3; ++i) {
+        const double u = xa[i] - Xa[i];
+        for (int j = 0; j < 3; ++j) F[3 * i + j] += u * geo.g[a][j];
+      }
+    }
+  }
+
+  // K[3a + i][3b + k] = -d f_a[i] / d x_b[k] = V sum_jl dP_ij/dF_kl g_a[j] g_b[l] at x (nullptr: at rest);
+  // false when the tetrahedron is inverted.
+  bool element_stiffness(std::size_t t, const double* x, double K[12][12]) const {
+    const Geometry& geo = geometry_[t];
+    const Material& mat = materials_[body_[t]];
+    double F[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    if (x) gradient(x, t, F);
+    double D[9][9];  // D[kl][ij] = dP_ij / dF_kl
+    for (int kl = 0; kl < 9; ++kl) {
+      Dual Fd[9], Pd[9];
+      for (int q = 0; q < 9; ++q) Fd[q] = Dual(F[q], q == kl ? 1.0 : 0.0);
+      if (!stress(Fd, mat.moduli, mat.fibres.data(), static_cast<int>(mat.fibres.size()), Pd)) return false;
+      for (int q = 0; q < 9; ++q) D[kl][q] = Pd[q].d;
+    }
+    double Dg[9][4][3];  // Dg[kl][a][i] = sum_j D[kl][ij] g_a[j]
+    for (int kl = 0; kl < 9; ++kl)
+      for (int a = 0; a < 4; ++a)
+        for (int i = 0; i < 3; ++i)
+          Dg[kl][a][i] = D[kl][3 * i] * geo.g[a][0] + D[kl][3 * i + 1] * geo.g[a][1] + D[kl][3 * i + 2] * geo.g[a][2];
+    for (int a = 0; a < 4; ++a)
+      for (int b = 0; b < 4; ++b)
+        for (int i = 0; i < 3; ++i)
+          for (int k = 0; k < 3; ++k)
+            K[3 * a + i][3 * b + k] = geo.volume * (Dg[3 * k][a][i] * geo.g[b][0] + Dg[3 * k + 1][a][i] * geo.g[b][1] +
+                                                    Dg[3 * k + 2][a][i] * geo.g[b][2]);
+    return true;
+  }
+
+  const LocalModel& m_;
+  std::vector<Material> materials_;  // per body
+  std::vector<Geometry> geometry_;   // per held tetrahedron (model.tetrahedron_id order)
+  std::vector<int> body_;
+  std::vector<char> owns_energy_;
+  long long global_count_ = 0;
+  double dt_ = std::numeric_limits<double>::infinity();
+};
+
+}  // namespace
+
+std::unique_ptr<Term> make_tetrahedron_elasticity(const TermContext& c) {
+  return std::make_unique<TetrahedronElasticity>(c.scene, c.model);
+}
+
+TISSUE_TERM(tetrahedron_elasticity, {"tetrahedron-elasticity", scene_has_tetrahedra, make_tetrahedron_elasticity,
+                                     "homogenized on a mesh or random cloud: one continuum energy per tetrahedron "
+                                     "(E, nu and fibres exact for affine states; docs/poisson.md)",
+                                     6, /*energy_never_grows=*/true});
+
+}  // namespace tissue

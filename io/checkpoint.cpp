@@ -71,21 +71,25 @@ constexpr const char* kHalfStepVelocities = "/molecules/half_step_velocities";
 // The viscoelastic history (ForceModel::history): present when the scene's terms have internal variables.
 constexpr const char* kHistory = "/connections/history";
 constexpr std::int64_t kMaxHistoryWidth = 1024;
+// The per-cell history (ForceModel::cell_history: the cell term with a Prony series), in cell id order.
+constexpr const char* kCellHistory = "/cells/history";
 
-// Rows of a dataset in original order, one per local connection: `block` holds this rank's natural block
-// (order.begin() .. + order.count(), `width` values each); every local connection (ghost-ended ones too, which
-// another rank writes) gets its row from the rank whose block holds its id. Collective.
-std::vector<double> rows_of_local_connections(const LocalModel& m, const NaturalOrder& order,
-                                              const std::vector<double>& block, int width) {
-  const int n = m.connections(), size = m.size;
+// Rows of a dataset in original order, one per id in `wanted` (ids may be wanted by several ranks): `block` holds
+// this rank's natural block (order.begin() .. + order.count(), `width` values each); each id gets its row from the
+// rank whose block holds it. Collective.
+std::vector<double> rows_of_ids(const NaturalOrder& order, const std::vector<std::int64_t>& wanted,
+                                const std::vector<double>& block, int width) {
+  int size = 1;
+  MPI_Comm_size(order.comm(), &size);
+  const int n = static_cast<int>(wanted.size());
   std::vector<int> owner(n), counts(size, 0);
-  for (int c = 0; c < n; ++c) ++counts[owner[c] = NaturalOrder::block_owner(m.global_connections, size, m.connection_id(c))];
+  for (int c = 0; c < n; ++c) ++counts[owner[c] = NaturalOrder::block_owner(order.global_count(), size, wanted[c])];
   std::vector<int> slot(size, 0);
   for (int r = 1; r < size; ++r) slot[r] = slot[r - 1] + counts[r - 1];
   std::vector<std::int64_t> ids(n);
-  std::vector<int> where(n);  // send slot of local connection c
-  for (int c = 0; c < n; ++c) ids[where[c] = slot[owner[c]]++] = m.connection_id(c);
-  ExchangePlan plan(m.comm, counts);
+  std::vector<int> where(n);  // send slot of wanted[c]
+  for (int c = 0; c < n; ++c) ids[where[c] = slot[owner[c]]++] = wanted[c];
+  ExchangePlan plan(order.comm(), counts);
   const std::vector<std::int64_t> asked = plan.forward(ids);
   std::vector<double> answer(asked.size() * width);
   for (std::size_t q = 0; q < asked.size(); ++q)
@@ -97,6 +101,22 @@ std::vector<double> rows_of_local_connections(const LocalModel& m, const Natural
     std::copy(got.begin() + static_cast<std::size_t>(where[c]) * width,
               got.begin() + static_cast<std::size_t>(where[c] + 1) * width, rows.begin() + static_cast<std::size_t>(c) * width);
   return rows;
+}
+
+// Every local connection's row (ghost-ended ones too, which another rank writes).
+std::vector<double> rows_of_local_connections(const LocalModel& m, const NaturalOrder& order,
+                                              const std::vector<double>& block, int width) {
+  std::vector<std::int64_t> ids(m.connections());
+  for (int c = 0; c < m.connections(); ++c) ids[c] = m.connection_id(c);
+  return rows_of_ids(order, ids, block, width);
+}
+
+// The natural order of the per-cell history: the cells each rank writes.
+NaturalOrder cell_order(const Term& cells, MPI_Comm comm, std::vector<double>* rows = nullptr) {
+  std::vector<std::int64_t> ids;
+  std::vector<double> mine;
+  cells.save_cell_history(ids, rows ? *rows : mine);
+  return NaturalOrder(comm, ids, cells.cell_history_count());
 }
 
 // Hdf5File's messages start with the file's path; the InputError names it already.
@@ -116,8 +136,10 @@ std::string write_checkpoint(const std::string& directory, int keep, const Scene
   {
     // The space the file needs, reserved first: a full disk fails here, cleanly (Hdf5File::create).
     const int history_width = forces ? forces->history_width() : 0;
+    const Term* cells = forces ? forces->cell_history() : nullptr;
     const std::int64_t bytes = (state.v_half.empty() ? 48 : 72) * model.global_molecules +
                                (32 + 8 * history_width) * model.global_connections +
+                               (cells ? 8 * cells->cell_history_width() * cells->cell_history_count() : 0) +
                                static_cast<std::int64_t>(scene.text.size()) + (1 << 20);
     Hdf5File f = Hdf5File::create(path, model.comm, bytes);
     f.set_attribute("/", "kind", "checkpoint");
@@ -164,6 +186,13 @@ std::string write_checkpoint(const std::string& directory, int keep, const Scene
                     all.begin() + static_cast<std::size_t>(c + 1) * history_width);
       write_checked(f, kHistory, model.global_connections, history_width, connections.begin(),
                     connections.to_natural(mine.data(), history_width), comm);
+    }
+    if (cells) {  // the cell term's committed stress and history, in cell id order
+      std::vector<double> rows;
+      const NaturalOrder order = cell_order(*cells, comm, &rows);
+      const int width = cells->cell_history_width();
+      write_checked(f, kCellHistory, order.global_count(), width, order.begin(), order.to_natural(rows.data(), width),
+                    comm);
     }
     f.close();  // flushed and renamed: a checkpoint on disk under its name is always complete
   }
@@ -256,8 +285,8 @@ CheckpointHeader header_metadata(const Hdf5File& f, const std::string& path, std
     throw InputError(path, "molecules",
                      std::to_string(h.molecules) + " molecules and " + std::to_string(h.connections) +
                          " connections do not fit in the file's " + std::to_string(bytes) + " bytes");
-  auto check = [&](const DatasetSpec& d) {
-    const std::int64_t rows = d.per_molecule ? h.molecules : h.connections;
+  auto check = [&](const DatasetSpec& d, std::int64_t rows = -1) {
+    if (rows < 0) rows = d.per_molecule ? h.molecules : h.connections;
     if (!f.exists(d.name)) throw InputError(path, d.name, "dataset missing");
     auto shape = f.shape(d.name);
     if (shape.size() != 2 || shape[0] != rows || shape[1] != d.width)
@@ -276,6 +305,15 @@ CheckpointHeader header_metadata(const Hdf5File& f, const std::string& path, std
       throw InputError(path, kHistory, "has a width that no scene gives or that does not fit in the file");
     h.history_width = static_cast<int>(shape[1]);
     check({kHistory, false, h.history_width, false});
+  }
+  if (f.exists(kCellHistory)) {
+    auto shape = f.shape(kCellHistory);
+    if (shape.size() != 2 || shape[0] < 1 || shape[1] < 1 || shape[1] > kMaxHistoryWidth ||
+        shape[0] > bytes / 8 / shape[1])
+      throw InputError(path, kCellHistory, "has a shape that no scene gives or that does not fit in the file");
+    h.cells = shape[0];
+    h.cell_history_width = static_cast<int>(shape[1]);
+    check({kCellHistory, false, h.cell_history_width, false}, h.cells);
   }
   return h;
 }
@@ -357,6 +395,7 @@ CheckpointHeader read_checkpoint_header(const std::string& path, MPI_Comm comm) 
     verify("/connections/rest_length", h.connections, 1, double());
     if (f.exists(kHalfStepVelocities)) verify(kHalfStepVelocities, h.molecules, 3, double());
     if (h.history_width > 0) verify(kHistory, h.connections, h.history_width, double());
+    if (h.cell_history_width > 0) verify(kCellHistory, h.cells, h.cell_history_width, double());
     f.close();
   } catch (const InputError&) {
     throw;
@@ -437,6 +476,16 @@ void read_checkpoint_state(const std::string& path, const LocalModel& model, con
       });
       auto block = load(kHistory, model.global_connections, width, connections, double());
       forces->set_history(rows_of_local_connections(model, connections, block, width));
+    }
+    if (Term* cells = forces ? forces->cell_history() : nullptr) {
+      agree(model.comm, [&] {
+        if (!f.exists(kCellHistory))
+          throw InputError(path, kCellHistory, "dataset missing: the scene's cells have a viscoelastic history");
+      });
+      const NaturalOrder order = cell_order(*cells, model.comm);
+      const int width = cells->cell_history_width();
+      auto block = load(kCellHistory, order.global_count(), width, order, double());
+      cells->load_cell_history(rows_of_ids(order, cells->cell_history_ids(), block, width).data());
     }
     state.x.update_ghosts();
     agree(model.comm, [&] {  // local reads before the file's collective close

@@ -421,7 +421,7 @@ std::string describe(const Hdf5File& file) {
   for (const char* d : {"/molecules/positions", "/molecules/displacements", "/molecules/velocities",
                         "/molecules/forces", "/molecules/fibre_direction", "/molecules/fibre_stretch",
                         "/connections/endpoints", "/connections/strain", "/connections/force",
-                        "/connections/history", "/cells/corners", "/cells/volume_ratio"})
+                        "/connections/history", "/cells/corners", "/cells/volume_ratio", "/cells/history"})
     if (file.exists(d)) {
       auto shape = file.shape(d);
       out += std::string(" ") + d + " [" + std::to_string(shape[0]) + " x " +

@@ -661,8 +661,8 @@ Scene build_scene(const Value& root, const std::string& file) {
   if (scene.output.checkpoint_every > 0 && !solver.checkpointed)
     throw InputError(file, "output.checkpoint_every", fmt::format("a {} run is not checkpointed yet (give 0)", solver.name));
   // The cell term's viscoelastic history (poisson_ratio, fibres) lives per cell (src/physics/terms/
-  // cell_elasticity.cpp) and follows the body's Prony series: checkpoints hold the connections' history only, and a
-  // region's own series would relax its springs and cells differently.
+  // cell_elasticity.cpp) and follows the body's Prony series: a region's own series would relax its springs and
+  // cells differently.
   for (std::size_t b = 0; b < scene.bodies.size(); ++b) {
     const BodySpec& body = scene.bodies[b];
     if (!body_has_cells(body, b < scene.calibrations.size() ? scene.calibrations[b] : scene.calibration)) continue;
@@ -671,10 +671,6 @@ Scene build_scene(const Value& root, const std::string& file) {
         throw InputError(file, "body.region.viscoelastic",
                          "a region's own Prony series with the cell term (poisson_ratio or fibres) is not supported "
                          "yet (give the body one series)");
-    if (scene.output.checkpoint_every > 0 && !body.viscoelastic.empty())
-      throw InputError(file, "output.checkpoint_every",
-                       "checkpoints do not hold the cell term's viscoelastic history yet (poisson_ratio or fibres "
-                       "with [body.viscoelastic]; give 0)");
   }
   if (top.has("partition")) {
     Section p = top.table("partition");

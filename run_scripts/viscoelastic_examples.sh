@@ -13,7 +13,7 @@ export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 PYTHON="${PYTHON:-/usr/bin/python3}"  # Debian's, with python3-matplotlib
 "$PYTHON" -c "import matplotlib" 2> /dev/null || { apt-get update -qq && apt-get install -y -qq python3-matplotlib; }
 mkdir -p docs/examples
-for name in ligament_creep cartilage_relaxation; do
+for name in ligament_creep cartilage_relaxation cartilage_confined_relaxation; do
   scene="run_scripts/scenes/example_$name.toml"
   /usr/bin/time -f "$name: %e s" mpirun --oversubscribe -np "$NP" build/tissue run "$scene" > "out/visco_$name.log"
 done
@@ -23,5 +23,11 @@ done
 "$PYTHON" run_scripts/plot_history.py docs/examples/visco_cartilage_relaxation.png \
   "Cartilage stress relaxation, 2 % ramped in 1 s and held" \
   "out/visco/cartilage_relaxation:reaction1_z:reaction of the moving face (N)"
+# confined compression: against the closed form c H_A(t) A eps, c from an elastic run of the same compression
+mpirun --oversubscribe -np "$NP" build/tissue run run_scripts/scenes/example_cartilage_confined_relaxation.toml \
+  --set 'body.viscoelastic.gamma=[0.0,0.0]' --set 'fix.1.history=[[0.0,1.0]]' --set solver.end_time=0.25 \
+  --output out/visco/cartilage_confined_elastic > out/visco_cartilage_confined_elastic.log
+"$PYTHON" run_scripts/plot_confined_relaxation.py out/visco/cartilage_confined_relaxation \
+  out/visco/cartilage_confined_elastic docs/examples/visco_cartilage_confined.png
 "$PYTHON" run_scripts/hysteresis_example.py "$NP"  # the loading-unloading loop against pi E''/E K a^2
-echo "plots: docs/examples/visco_ligament_creep.png docs/examples/visco_cartilage_relaxation.png docs/examples/visco_hysteresis.png"
+echo "plots: docs/examples/visco_ligament_creep.png docs/examples/visco_cartilage_relaxation.png docs/examples/visco_cartilage_confined.png docs/examples/visco_hysteresis.png"

@@ -10,7 +10,9 @@ the Krylov solver's round-off, history.csv to 1e-9 of the curve's scale.
 Dynamic creep with the same Prony series (forces summed in global order, so the trajectory does not depend on the
 partition): 2 -> 2, 1 -> 2 and 2 -> 3 ranks end with positions byte for byte the uninterrupted run's (history.csv:
 byte for byte at 2 -> 2, to 1e-9 otherwise, its sums being MPI reductions). An elastic quasi-static run restarts
-byte for byte as well.
+byte for byte as well. The same with the cell term (nu = 0.4: springs and cells carry the history; the cells' in
+/cells/history): quasi-static 1 -> 1, 2 -> 2 byte for byte, 1 -> 2, 2 -> 3 to 1e-9; dynamic byte for byte at
+2 -> 2, 1 -> 2 and 2 -> 3.
 
 Usage: visco_restart_test.py --build BUILD_DIR --source SOURCE_DIR      Prints 'N passed, M failed'."""
 import argparse
@@ -92,6 +94,11 @@ progress = false
 """
 
 STATE_KEYS = ["elongation", "center_of_mass", "reactions", "time", "steps", "kinetic_energy"]
+
+
+def with_cells(text):
+    """The scene with the cell term: nu = 0.4 (springs plus one energy per lattice cell)."""
+    return text.replace("youngs_modulus = 1.0e5\n", "youngs_modulus = 1.0e5\npoisson_ratio = 0.4\n", 1)
 
 
 def rows(out):
@@ -215,10 +222,39 @@ def main():
         out = restart(a.build, work, big[n], 8, n, f"mg_{n}to{n}")
         compare(out, big[n], f"quasi-static, lattice multigrid, {n} -> {n} ranks", exact=True, same_state=True)
 
+    # The cell term (poisson_ratio, fibres) carries its own history per cell (/cells/history, in cell id order):
+    # quasi-static 1 -> 1 and 2 -> 2 byte for byte, 1 -> 2 and 2 -> 3 to 1e-9 of the curve's scale (the Krylov
+    # solver's round-off); dynamic (forces summed in global order) byte for byte on every rank count.
+    cells_qs = {n: straight(a.build, work, "cells_qs", with_cells(QUASI_STATIC), n) for n in (1, 2, 3)}
+    for src, dst in ((1, 1), (2, 2)):
+        out = restart(a.build, work, cells_qs[src], 8, dst, f"cells_qs_{src}to{dst}")
+        compare(out, cells_qs[src], f"cells, quasi-static {src} -> {dst} ranks", exact=True, same_state=True)
+    for src, dst in ((1, 2), (2, 3)):
+        out = restart(a.build, work, cells_qs[src], 8, dst, f"cells_qs_{src}to{dst}")
+        compare(out, cells_qs[dst], f"cells, quasi-static {src} -> {dst} ranks", exact=False,
+                scale=scales(cells_qs[1]))
+    r = rows(cells_qs[1])
+    e = r[0].index("elongation")
+    check(float(r[-1][e]) > 1.05 * float(r[9][e]), "cells, quasi-static: the block creeps after the checkpoint")
+    cells_dyn = {n: straight(a.build, work, "cells_dyn", with_cells(DYNAMIC), n) for n in (1, 2, 3)}
+    check(positions(cells_dyn[1]) == positions(cells_dyn[2]) == positions(cells_dyn[3]),
+          "cells, dynamic: the straight runs on 1, 2 and 3 ranks end bit for bit alike")
+    for src, dst in ((2, 2), (1, 2), (2, 3)):
+        out = restart(a.build, work, cells_dyn[src], 250, dst, f"cells_dyn_{src}to{dst}")
+        compare(out, cells_dyn[src], f"cells, dynamic {src} -> {dst} ranks", exact=src == dst,
+                scale=scales(cells_dyn[1]), same_state=True)
+    # The checkpoint holds what the restart needs: 2 x 2 x 4 cells x 27 (S, then one tensor per Prony term).
+    with h5py.File(os.path.join(cells_qs[2], "checkpoint_0000000008.h5"), "r") as f:
+        held = f["/cells/history"][...]
+    check(held.shape == (16, 27), f"/cells/history has shape {held.shape}, expected (16, 27)")
+    # (non-zero, so the byte-for-byte restarts above could not come out without it)
+    check(abs(held[:, 9:]).max() > 0 and abs(held[:, :9]).max() > 0, "/cells/history holds a non-zero history")
     # What a checkpoint holds: the history, C connections x (1 + 2 Prony terms) (`tissue info`).
     r = tissue(a.build, 1, "info", os.path.join(qs[1], "checkpoint_0000000012.h5"))
     check(r.returncode == 0 and "/connections/history [" in r.stdout and " x 3]" in r.stdout.split("/connections/history")[1][:20],
           f"tissue info names /connections/history: {r.stdout[-300:]}")
+    r = tissue(a.build, 1, "info", os.path.join(cells_qs[1], "checkpoint_0000000012.h5"))
+    check(r.returncode == 0 and "/cells/history [16 x 27]" in r.stdout, f"tissue info names /cells/history: {r.stdout[-300:]}")
     # An elastic quasi-static run (no history) is checkpointed and restarted too.
     plain = os.path.join(work, "elastic.toml")
     with open(plain, "w") as f:

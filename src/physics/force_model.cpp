@@ -238,6 +238,12 @@ void ForceModel::set_history(const std::vector<double>& rows) const {
     }
 }
 
+Term* ForceModel::cell_history() const {
+  for (const auto& t : terms_)
+    if (t->cell_history_width() > 0) return t.get();
+  return nullptr;
+}
+
 double ForceModel::largest_stiffness_rate() const {
   std::vector<double> ksum(model_.local, 0.0);
   for (int c = 0; c < model_.connections(); ++c) {

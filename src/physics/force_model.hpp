@@ -86,6 +86,8 @@ public:
   int history_width() const;
   std::vector<double> history() const;
   void set_history(const std::vector<double>& rows) const;
+  // The per-cell internal variables (Term::cell_history_width; one term at most has cells): null when none.
+  Term* cell_history() const;
   // The terms built for this scene, by name (the connection forces and constant loads are not listed).
   std::vector<std::string> term_names() const;
   // Every listed term keeps the total energy from growing (TermStyle::energy_never_grows; true with none).

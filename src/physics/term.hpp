@@ -85,6 +85,16 @@ public:
   virtual int history_width() const { return 0; }
   virtual void save_history(double* rows) const {}
   virtual void load_history(const double* rows) {}
+  // The same for internal variables per cell (the cell term's history on its stress): cell_history_width() values
+  // per cell, cells with dense global ids 0 .. cell_history_count() - 1. A cell may be on several ranks (each
+  // evaluates every cell with an owned corner), all holding the same values: save_cell_history gives the cells
+  // this rank writes (each cell on exactly one rank) and their rows; cell_history_ids the cells this rank holds,
+  // the order of load_cell_history's rows (which then act as after a committed step).
+  virtual int cell_history_width() const { return 0; }
+  virtual std::int64_t cell_history_count() const { return 0; }
+  virtual void save_cell_history(std::vector<std::int64_t>& ids, std::vector<double>& rows) const {}
+  virtual std::vector<std::int64_t> cell_history_ids() const { return {}; }
+  virtual void load_cell_history(const double* rows) {}
 };
 
 using TermFactory = std::unique_ptr<Term> (*)(const TermContext&);

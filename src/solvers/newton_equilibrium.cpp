@@ -195,8 +195,9 @@ constexpr const char* kGamgPtap = "allatonce_merged";
 
 struct NewtonEquilibrium::Impl {
   Impl(const Scene& scene, const LocalModel& model, const ForceModel& forces, SolverState& state,
-       const SolverHooks& hooks, SolveReport& report, const char* kind)
+       const SolverHooks& hooks, SolveReport& report, const char* kind, bool own_reference)
       : scene(scene), model(model), forces(forces), state(state), report(report), kind(kind),
+        own_reference(own_reference),
         ctx{&model, &forces, &state, 1.0, &hooks} {}
   ~Impl() {
     // Nothing can be reported from here: the objects are released whatever the errors.
@@ -222,6 +223,7 @@ struct NewtonEquilibrium::Impl {
   SolverState& state;
   SolveReport& report;
   const std::string kind;
+  const bool own_reference;
   Context ctx;
   Vec X = nullptr, saved = nullptr;
   Mat J = nullptr;
@@ -296,7 +298,7 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
   if (!lattice_mg) PetscCall(PCSetType(pc, PCGAMG));
   reference = forces.applied_norm() > 0 ? forces.applied_norm() : 1.0;
   const long max_newton = scene.solver.max_iterations > 0 ? scene.solver.max_iterations : 50;
-  tolerance = reachable_tolerance(scene, model, forces);
+  tolerance = own_reference ? scene.solver.tolerance : reachable_tolerance(scene, model, forces);
   report.tolerance_used = tolerance;
   PetscCall(SNESSetTolerances(snes, tolerance * reference, 0.0, 0.0, max_newton, 1000000));
   // A tight linear tolerance: an inexact last Newton step leaves errors in soft modes that the force residual
@@ -461,8 +463,8 @@ PetscErrorCode NewtonEquilibrium::Impl::finish() {
 
 NewtonEquilibrium::NewtonEquilibrium(const Scene& scene, const LocalModel& model, const ForceModel& forces,
                                      SolverState& state, const SolverHooks& hooks, SolveReport& report,
-                                     const char* kind)
-    : impl_(std::make_unique<Impl>(scene, model, forces, state, hooks, report, kind)) {
+                                     const char* kind, bool own_reference)
+    : impl_(std::make_unique<Impl>(scene, model, forces, state, hooks, report, kind, own_reference)) {
   if (impl_->setup()) throw SolverFailure(std::string(kind) + ": a PETSc call failed");
 }
 

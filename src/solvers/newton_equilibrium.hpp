@@ -12,9 +12,12 @@ namespace tissue {
 
 class NewtonEquilibrium {
 public:
-  // Collective. Starts from the state's positions; `kind` names the solver in messages.
+  // Collective. Starts from the state's positions; `kind` names the solver in messages. own_reference: the caller
+  // sets the force reference of every solve (set_force_reference) and checks solver.tolerance's round-off floor
+  // against it (the quasi-static solver: the reactions of a scene driven by displacements); otherwise the
+  // tolerance is checked here against the applied forces (reachable_tolerance).
   NewtonEquilibrium(const Scene& scene, const LocalModel& model, const ForceModel& forces, SolverState& state,
-                    const SolverHooks& hooks, SolveReport& report, const char* kind);
+                    const SolverHooks& hooks, SolveReport& report, const char* kind, bool own_reference = false);
   ~NewtonEquilibrium();
   // Collective. Equilibrium from the positions in solution(), the loads raised from 0 to their full value in
   // load_steps increments (cut in half on failure); throws SolverFailure (last good state) when that fails.

@@ -36,19 +36,25 @@ double force_round_off(const LocalModel& model, const ForceModel& forces) {
 }
 
 double reachable_tolerance(const Scene& scene, const LocalModel& model, const ForceModel& forces) {
-  const double round_off = force_round_off(model, forces);
   const double reference = forces.applied_norm() > 0 ? forces.applied_norm() : 1.0;
+  return reachable_tolerance(scene.solver.tolerance, force_round_off(model, forces), reference, "applied forces",
+                             model.rank, true);
+}
+
+double reachable_tolerance(double tolerance, double round_off, double reference, const char* what, int rank,
+                           bool warn) {
   const double floor = round_off / reference;
-  if (scene.solver.tolerance >= floor) return scene.solver.tolerance;
+  if (tolerance >= floor) return tolerance;
   // A floor this high means the load is lost in the round-off of the spring forces: any "converged" answer
   // would be noise. Stop and say so rather than report a number.
   if (floor > 1e-3)
-    throw SolverFailure("the applied forces are below the round-off of the spring forces (relative residual "
-                        "floor " + std::to_string(floor) + "): no equilibrium can be resolved; apply a larger load");
-  if (model.rank == 0)
+    throw SolverFailure(std::string("the ") + what + " are below the round-off of the spring forces (relative "
+                        "residual floor " + std::to_string(floor) + "): no equilibrium can be resolved; apply a "
+                        "larger load or displacement");
+  if (warn && rank == 0)
     std::fprintf(stderr, "tissue: warning: solver.tolerance %.3g is below the round-off floor of the force "
-                         "residual (%.3g for these springs and loads); using %.3g\n",
-                 scene.solver.tolerance, floor, floor);
+                         "residual (%.3g for these springs and %s); using %.3g\n",
+                 tolerance, floor, what, floor);
   return floor;
 }
 

@@ -107,6 +107,11 @@ double critical_time_step(const ForceModel& forces);
 // of the relative residual, eps |sum over connections of k l| per molecule over the applied forces: spring forces
 // are differences of lengths, so each carries an error of about eps k l. Collective.
 double reachable_tolerance(const Scene& scene, const LocalModel& model, const ForceModel& forces);
+// The same against any reference (N): `tolerance` (relative) raised to round_off / reference (a warning on rank 0
+// when `warn`), and a SolverFailure naming `what` (the forces the reference stands for) when that floor is above
+// 1e-3. Not collective: every rank passes the same numbers.
+double reachable_tolerance(double tolerance, double round_off, double reference, const char* what, int rank,
+                           bool warn);
 // The round-off of the force residual (N): 2 eps |sum over connections of k l| per molecule, 2-norm. Collective.
 double force_round_off(const LocalModel& model, const ForceModel& forces);
 

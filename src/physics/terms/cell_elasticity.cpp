@@ -172,9 +172,15 @@ public:
       // bound within 1.4x of them.
       dt_ = std::min(dt_, 0.8 * h / std::sqrt(modulus / density));
     }
+    // Whether cells carry a history is the scene's (every rank agrees, for the checkpoint's collective writes),
+    // though a rank may hold none of those cells.
+    for (int b = 0; b < model.shape.bodies(); ++b)
+      if (!specs[b].viscoelastic.empty() &&
+          body_has_cells(specs[b], b < static_cast<int>(scene.calibrations.size()) ? scene.calibrations[b]
+                                                                                   : scene.calibration))
+        for (const auto& spec : specs) width_ = std::max(width_, static_cast<int>(spec.viscoelastic.gamma.size()));
     if (history_cells_ > 0) {
       const int nb = static_cast<int>(specs.size());
-      for (const auto& spec : specs) width_ = std::max(width_, static_cast<int>(spec.viscoelastic.gamma.size()));
       gamma_.assign(nb * width_, 0.0), tau_.assign(nb * width_, 1.0);
       for (int b = 0; b < nb; ++b)
         for (std::size_t i = 0; i < specs[b].viscoelastic.gamma.size(); ++i)
@@ -351,6 +357,32 @@ public:
     stepping_ = false;
   }
 
+  // Checkpoints: per cell its committed S (9 values), then h per Prony term (9 each); cells of a body without a
+  // Prony series write zeros. Every rank holding a cell computed the same values, so any one may write it.
+  int cell_history_width() const override { return width_ > 0 ? 9 * (1 + width_) : 0; }
+  std::int64_t cell_history_count() const override { return width_ > 0 ? global_cells_ : 0; }
+  void save_cell_history(std::vector<std::int64_t>& ids, std::vector<double>& rows) const override {
+    const int w = cell_history_width();
+    ids.clear(), rows.clear();
+    for (int k = 0; k < cells_; ++k) {
+      if (!owns_energy_[k]) continue;
+      ids.push_back(cell_id_[k]);
+      const std::size_t at = rows.size();
+      rows.resize(at + w, 0.0);
+      if (!history_.empty() && history_[k] >= 0) history_row(k, rows.data() + at);
+    }
+  }
+  std::vector<std::int64_t> cell_history_ids() const override {
+    return width_ > 0 ? cell_id_ : std::vector<std::int64_t>{};
+  }
+  void load_cell_history(const double* rows) override {
+    const int w = cell_history_width();
+    for (int k = 0; k < cells_; ++k)
+      if (!history_.empty() && history_[k] >= 0) set_history_row(k, rows + static_cast<std::size_t>(k) * w);
+    // Committed and frozen, as the run that wrote them left them between two steps (a zero history adds zero).
+    active_ = history_cells_ > 0, stepping_ = false;
+  }
+
   bool fibre_field(const double* x, double* direction, double* stretch) const override {
     if (fibre_begin_.empty()) return false;
     std::vector<int> count(m_.owned, 0);
@@ -431,6 +463,18 @@ private:
       for (int j = 0; j < 3; ++j)
         P[3 * i + j] = P[3 * i + j] + F[3 * i] * H[j] + F[3 * i + 1] * H[3 + j] + F[3 * i + 2] * H[6 + j];
     return true;
+  }
+
+  // Cell k's row of a checkpoint: its committed S, then h per Prony term.
+  void history_row(int k, double* row) const {
+    const std::size_t c = static_cast<std::size_t>(history_[k]);
+    std::copy_n(&s_old_[9 * c], 9, row);
+    std::copy_n(&h_[9 * c * width_], 9 * width_, row + 9);
+  }
+  void set_history_row(int k, const double* row) {
+    const std::size_t c = static_cast<std::size_t>(history_[k]);
+    std::copy_n(row, 9, &s_old_[9 * c]);
+    std::copy_n(row + 9, 9 * width_, &h_[9 * c * width_]);
   }
 
   struct Geometry {

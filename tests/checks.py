@@ -24,3 +24,13 @@ def tissue(build, ranks, *args, timeout=300):
     """`mpirun -np RANKS BUILD/tissue ARGS...`, its CompletedProcess (text output captured)."""
     cmd = ["mpirun", "--oversubscribe", "-np", str(ranks), os.path.join(build, "tissue")] + list(args)
     return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+
+
+def run_scene(build, work, label, ranks, text):
+    """Writes `text` to WORK/LABEL.toml and runs it on `ranks` ranks into WORK/LABEL: (that directory, the
+    CompletedProcess)."""
+    path = os.path.join(work, label + ".toml")
+    with open(path, "w") as f:
+        f.write(text)
+    out = os.path.join(work, label)
+    return out, tissue(build, ranks, "run", path, "--output", out)

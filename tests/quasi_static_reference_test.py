@@ -24,7 +24,7 @@ import shutil
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from checks import check, report, tissue  # noqa: E402
+from checks import check, report, run_scene  # noqa: E402
 
 SCENE = """
 title = "displacement-only relaxation"
@@ -66,11 +66,7 @@ def main():
     os.makedirs(work)
 
     def run(label, ranks, displacement):
-        path = os.path.join(work, label + ".toml")
-        with open(path, "w") as f:
-            f.write(SCENE.replace("DISPLACEMENT", displacement))
-        out = os.path.join(work, label)
-        return out, tissue(a.build, ranks, "run", path, "--output", out)
+        return run_scene(a.build, work, label, ranks, SCENE.replace("DISPLACEMENT", displacement))
 
     for ranks in (1, 2, 3):
         out, r = run(f"reachable_np{ranks}", ranks, "4.0e-5")

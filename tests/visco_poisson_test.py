@@ -21,7 +21,7 @@ import shutil
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from checks import check, report, tissue  # noqa: E402
+from checks import check, report, run_scene  # noqa: E402
 
 SCENE = """
 title = "nu constant in time"
@@ -63,11 +63,7 @@ def main():
     os.makedirs(work)
 
     def run(label, ranks, text):
-        path = os.path.join(work, label + ".toml")
-        with open(path, "w") as f:
-            f.write(text)
-        out = os.path.join(work, label)
-        r = tissue(a.build, ranks, "run", path, "--output", out)
+        out, r = run_scene(a.build, work, label, ranks, text)
         check(r.returncode == 0, f"{label}: exit {r.returncode}: {r.stderr[-400:]}")
         return out
 

@@ -47,7 +47,6 @@ RowStream::RowStream(MPI_Comm comm, std::int64_t global_rows, std::int64_t slots
   check_mpi(MPI_Comm_rank(comm, &rank_), "MPI_Comm_rank");
   check_mpi(MPI_Comm_size(comm, &size_), "MPI_Comm_size");
   if (piece_rows_ <= 0) throw std::invalid_argument("RowStream: pieces of no rows");
-  piece_rows_ *= size_;  // each rank's part of a piece: at most piece_rows rows (fewer pieces, fewer collectives)
   pieces_ = std::max<std::int64_t>(1, (global_rows_ + piece_rows_ - 1) / piece_rows_);
   const std::int64_t parts = pieces_ * size_;
   start_.assign(parts + 1, slots_);

@@ -14,6 +14,7 @@
 #include <type_traits>
 
 #include "io/hdf5_file.hpp"
+#include "io/row_stream.hpp"
 #include "partition/exchange.hpp"
 #include "partition/agreement.hpp"
 
@@ -21,24 +22,11 @@ namespace tissue {
 
 namespace {
 
-// An order-independent checksum of a dataset: the sum (mod 2^64) over rows of FNV-1a of (row index, row bytes).
-// Each rank sums its block; the total does not depend on how rows were split among ranks.
+// The order-independent checksum of a dataset (row_hash_sum): each rank sums its block, the ranks' sums add up.
 template <typename T>
 std::uint64_t checksum(const std::vector<T>& block, int width, std::int64_t first_row, MPI_Comm comm) {
-  std::uint64_t sum = 0;
-  const std::size_t rows = width ? block.size() / width : 0;
-  for (std::size_t r = 0; r < rows; ++r) {
-    std::uint64_t h = 1469598103934665603ULL;
-    auto mix = [&](const void* p, std::size_t n) {
-      const unsigned char* b = static_cast<const unsigned char*>(p);
-      for (std::size_t i = 0; i < n; ++i) h = (h ^ b[i]) * 1099511628211ULL;
-    };
-    std::int64_t row = first_row + static_cast<std::int64_t>(r);
-    mix(&row, sizeof row);
-    mix(block.data() + r * width, sizeof(T) * width);
-    sum += h;
-  }
-  std::uint64_t total = 0;
+  const std::int64_t rows = width ? static_cast<std::int64_t>(block.size()) / width : 0;
+  std::uint64_t sum = row_hash_sum(block.data(), width, rows, first_row), total = 0;
   MPI_Allreduce(&sum, &total, 1, MPI_UINT64_T, MPI_SUM, comm);
   return total;
 }
@@ -47,22 +35,6 @@ std::int64_t as_signed(std::uint64_t u) {
   std::int64_t s;
   std::memcpy(&s, &u, sizeof s);
   return s;
-}
-
-template <typename T>
-void write_checked(Hdf5File& f, const std::string& name, std::int64_t global_rows, int width, std::int64_t offset,
-                   const std::vector<T>& block, MPI_Comm comm) {
-  const std::int64_t rows = width ? static_cast<std::int64_t>(block.size()) / width : 0;
-  f.write(name, global_rows, width, offset, rows, block.empty() ? nullptr : block.data());
-  f.set_attribute(name, "checksum", as_signed(checksum(block, width, offset, comm)));
-}
-
-template <typename Value>
-std::vector<double> connection_values(const LocalModel& m, Value value) {
-  std::vector<double> v;
-  v.reserve(m.written_here().size());
-  for (int c : m.written_here()) v.push_back(value(c));
-  return v;
 }
 
 // Dynamic runs whose forces read velocities only (SolverState::v_half): optional, checked when present.
@@ -128,7 +100,7 @@ std::string without_path(const std::string& message, const std::string& path) {
 }  // namespace
 
 std::string write_checkpoint(const std::string& directory, int keep, const Scene& scene, const LocalModel& model,
-                             const NaturalOrder& molecules, const NaturalOrder& connections,
+                             const RowStream& molecules, const RowStream& connections,
                              const SolverState& state, const ForceModel* forces) {
   char name[64];
   std::snprintf(name, sizeof name, "checkpoint_%010ld.h5", state.step);
@@ -159,40 +131,38 @@ std::string write_checkpoint(const std::string& directory, int keep, const Scene
     f.set_attribute("/", "fire_dt", state.fire_dt);
     f.set_attribute("/", "fire_alpha", state.fire_alpha);
     f.set_attribute("/", "fire_positive", state.fire_positive);
-    const MPI_Comm comm = model.comm;
-    write_checked(f, "/molecules/positions", model.global_molecules, 3, molecules.begin(),
-                  molecules.to_natural(state.x.array(), 3), comm);
-    write_checked(f, "/molecules/velocities", model.global_molecules, 3, molecules.begin(),
-                  molecules.to_natural(state.v.data(), 3), comm);
+    // Every dataset streamed in pieces (io/row_stream.hpp), with its row hash as the "checksum" attribute.
+    auto copy = [](const double* from, int width) {
+      return [from, width](std::int64_t k, double* row) { std::copy(from + width * k, from + width * (k + 1), row); };
+    };
+    auto checked = [&](const char* name, std::uint64_t hash) { f.set_attribute(name, "checksum", as_signed(hash)); };
+    checked("/molecules/positions", molecules.write_double(f, "/molecules/positions", 3, copy(state.x.array(), 3)));
+    checked("/molecules/velocities", molecules.write_double(f, "/molecules/velocities", 3, copy(state.v.data(), 3)));
     if (!state.v_half.empty())  // forces that read velocities (dynamic.cpp): what the last evaluation read
-      write_checked(f, kHalfStepVelocities, model.global_molecules, 3, molecules.begin(),
-                    molecules.to_natural(state.v_half.data(), 3), comm);
-    std::vector<std::int64_t> ends;
-    for (int c : model.written_here()) ends.push_back(model.id[model.end_a[c]]), ends.push_back(model.id[model.end_b[c]]);
-    write_checked(f, "/connections/endpoints", model.global_connections, 2, connections.begin(),
-                  connections.to_natural_ids(ends.data(), 2), comm);
-    auto k = connection_values(model, [&](int c) { return model.k(c); });
-    auto l0 = connection_values(model, [&](int c) { return model.l0(c); });
-    write_checked(f, "/connections/stiffness", model.global_connections, 1, connections.begin(),
-                  connections.to_natural(k.data(), 1), comm);
-    write_checked(f, "/connections/rest_length", model.global_connections, 1, connections.begin(),
-                  connections.to_natural(l0.data(), 1), comm);
+      checked(kHalfStepVelocities, molecules.write_double(f, kHalfStepVelocities, 3, copy(state.v_half.data(), 3)));
+    checked("/connections/endpoints",
+            connections.write_int64(f, "/connections/endpoints", 2, [&](std::int64_t c, std::int64_t* row) {
+              row[0] = model.id[model.end_a[c]], row[1] = model.id[model.end_b[c]];
+            }));
+    checked("/connections/stiffness", connections.write_double(f, "/connections/stiffness", 1, [&](std::int64_t c, double* row) {
+              row[0] = model.k(static_cast<int>(c));
+            }));
+    checked("/connections/rest_length",
+            connections.write_double(f, "/connections/rest_length", 1, [&](std::int64_t c, double* row) {
+              row[0] = model.l0(static_cast<int>(c));
+            }));
     if (history_width > 0) {  // the committed internal variables, in original connection order
       const std::vector<double> all = forces->history();
-      std::vector<double> mine;
-      mine.reserve(model.written_here().size() * history_width);
-      for (int c : model.written_here())
-        mine.insert(mine.end(), all.begin() + static_cast<std::size_t>(c) * history_width,
-                    all.begin() + static_cast<std::size_t>(c + 1) * history_width);
-      write_checked(f, kHistory, model.global_connections, history_width, connections.begin(),
-                    connections.to_natural(mine.data(), history_width), comm);
+      checked(kHistory, connections.write_double(f, kHistory, history_width, copy(all.data(), history_width)));
     }
     if (cells) {  // the cell term's committed stress and history, in cell id order
       std::vector<double> rows;
-      const NaturalOrder order = cell_order(*cells, comm, &rows);
+      const NaturalOrder order = cell_order(*cells, model.comm, &rows);
       const int width = cells->cell_history_width();
-      write_checked(f, kCellHistory, order.global_count(), width, order.begin(), order.to_natural(rows.data(), width),
-                    comm);
+      const std::vector<double> block = order.to_natural(rows.data(), width);
+      const std::int64_t n = width ? static_cast<std::int64_t>(block.size()) / width : 0;
+      f.write(kCellHistory, order.global_count(), width, order.begin(), n, block.empty() ? nullptr : block.data());
+      checked(kCellHistory, checksum(block, width, order.begin(), model.comm));
     }
     f.close();  // flushed and renamed: a checkpoint on disk under its name is always complete
   }

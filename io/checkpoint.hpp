@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "io/row_stream.hpp"
 #include "partition/natural_order.hpp"
 #include "src/solvers/solver.hpp"
 
@@ -29,9 +30,11 @@ struct CheckpointHeader {
 };
 
 // Collective. Writes DIR/checkpoint_<step>.h5 and removes older checkpoints beyond the newest `keep`; with
-// `forces`, the internal variables of its terms too (/connections/history, /cells/history). Returns the path written.
+// `forces`, the internal variables of its terms too (/connections/history, /cells/history). Returns the path written. Every
+// dataset is written in pieces (io/row_stream.hpp): `molecules` over the owned molecules, `connections` over the
+// local connections (those whose end a this rank owns).
 std::string write_checkpoint(const std::string& directory, int keep, const Scene& scene, const LocalModel& model,
-                             const NaturalOrder& molecules, const NaturalOrder& connections,
+                             const RowStream& molecules, const RowStream& connections,
                              const SolverState& state, const ForceModel* forces = nullptr);
 
 // Collective. Reads and checks the header (kind, version, scene text). Bad files throw InputError naming the file

@@ -33,6 +33,10 @@ public:
   hid_t get() const { return id_; }
   bool ok() const { return id_ >= 0; }
   hid_t release() { return std::exchange(id_, -1); }
+  void reset(hid_t id) {
+    if (id_ >= 0) closer_(id_);
+    id_ = id;
+  }
 
 private:
   hid_t id_;
@@ -408,17 +412,33 @@ void Hdf5File::write(const std::string& dataset, int64_t global_rows, int width,
 
 void Hdf5File::write_block(const std::string& dataset, int64_t global_rows, int width, int64_t offset, int64_t rows,
                            const void* data, hid_t file_type, hid_t mem_type) {
-  if (!writable_ || file_ < 0) fail(dataset, "file is not open for writing");
   // Ranks that disagree on the shape, or a block outside it, would hang or corrupt the collective write:
   // agree first, so that every rank throws the same error.
   const int bad = offset < 0 || rows < 0 || width <= 0 || offset + rows > global_rows || (rows > 0 && !data);
-  long long mine[5] = {global_rows, -global_rows, width, -width, bad}, all[5];
-  check_mpi(MPI_Allreduce(mine, all, 5, MPI_LONG_LONG, MPI_MAX, comm_), path_, "MPI_Allreduce");
-  if (all[0] != -all[1] || all[2] != -all[3])
-    throw std::runtime_error(path_ + ": " + dataset + ": ranks disagree on the dataset's shape");
-  if (all[4])
+  int any_bad = 0;
+  check_mpi(MPI_Allreduce(&bad, &any_bad, 1, MPI_INT, MPI_MAX, comm_), path_, "MPI_Allreduce");
+  if (any_bad)
     throw std::runtime_error(path_ + ": " + dataset + ": a rank's row block lies outside [0, " +
                              std::to_string(global_rows) + ") or has no data");
+  write_pieces(dataset, global_rows, width, file_type, mem_type, 1, [&](int64_t, int64_t* o, int64_t* r) {
+    *o = offset, *r = rows;
+    return data;
+  });
+}
+
+void Hdf5File::write_pieces(const std::string& dataset, int64_t global_rows, int width, bool integer, int64_t pieces,
+                            const Piece& piece) {
+  write_pieces(dataset, global_rows, width, integer ? H5T_STD_I64LE : H5T_IEEE_F64LE,
+               integer ? H5T_NATIVE_INT64 : H5T_NATIVE_DOUBLE, pieces, piece);
+}
+
+void Hdf5File::write_pieces(const std::string& dataset, int64_t global_rows, int width, hid_t file_type,
+                            hid_t mem_type, int64_t pieces, const Piece& piece) {
+  if (!writable_ || file_ < 0) fail(dataset, "file is not open for writing");
+  long long mine[5] = {global_rows, -global_rows, width, -width, pieces}, all[5];
+  check_mpi(MPI_Allreduce(mine, all, 5, MPI_LONG_LONG, MPI_MAX, comm_), path_, "MPI_Allreduce");
+  if (all[0] != -all[1] || all[2] != -all[3] || all[4] != pieces || width <= 0)
+    throw std::runtime_error(path_ + ": " + dataset + ": ranks disagree on the dataset's shape");
 
   const hsize_t dims[2] = {static_cast<hsize_t>(global_rows), static_cast<hsize_t>(width)};
   Handle file_space(H5Screate_simple(2, dims, nullptr), H5Sclose);
@@ -428,35 +448,47 @@ void Hdf5File::write_block(const std::string& dataset, int64_t global_rows, int 
   // Every row is written: skip the fill pass that would otherwise write the whole dataset twice.
   Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
   if (!dcpl.ok() || H5Pset_fill_time(dcpl.get(), H5D_FILL_TIME_NEVER) < 0) fail(dataset, "cannot set up creation");
+  Handle dxpl(H5Pcreate(H5P_DATASET_XFER), H5Pclose);
+  if (!dxpl.ok() || H5Pset_dxpl_mpio(dxpl.get(), H5FD_MPIO_COLLECTIVE) < 0) fail(dataset, "cannot set up transfer");
   // From here the work is agreed: a rank whose write fails (a full disk, a quota, an I/O error) stops every rank
   // with its line instead of leaving them in the file's next collective. The file is then abandoned, not closed:
   // after a failed write HDF5's ranks no longer agree on what closing it takes (one flushes its metadata in a
   // collective, another has given up and truncates in another: a hang, seen with the fault tests).
   try {
+    Handle dset(-1, H5Dclose);
     agree(comm_, [&] {
       errno = 0;
-      Handle dset(H5Dcreate2(file_, dataset.c_str(), file_type, file_space.get(), lcpl.get(), dcpl.get(), H5P_DEFAULT),
-                  H5Dclose);
+      dset.reset(H5Dcreate2(file_, dataset.c_str(), file_type, file_space.get(), lcpl.get(), dcpl.get(), H5P_DEFAULT));
       if (!dset.ok()) fail_io(dataset, "cannot create dataset", errno);
-
-      const hsize_t start[2] = {static_cast<hsize_t>(offset), 0};
-      const hsize_t count[2] = {static_cast<hsize_t>(rows), static_cast<hsize_t>(width)};
-      // A rank with no rows still takes part in the collective write, with empty selections.
-      const hsize_t mem_dims[2] = {rows > 0 ? count[0] : 1, count[1]};
-      Handle mem_space(H5Screate_simple(2, mem_dims, nullptr), H5Sclose);
-      if (!mem_space.ok()) fail(dataset, "cannot create dataspace");
-      herr_t sel = rows > 0 ? H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr)
-                            : H5Sselect_none(file_space.get());
-      if (sel < 0 || (rows == 0 && H5Sselect_none(mem_space.get()) < 0)) fail(dataset, "cannot select rows");
-
-      Handle dxpl(H5Pcreate(H5P_DATASET_XFER), H5Pclose);
-      if (!dxpl.ok() || H5Pset_dxpl_mpio(dxpl.get(), H5FD_MPIO_COLLECTIVE) < 0) fail(dataset, "cannot set up transfer");
-      const double dummy = 0.0;
-      errno = 0;
-      if (H5Dwrite(dset.get(), mem_type, mem_space.get(), file_space.get(), dxpl.get(), rows > 0 ? data : &dummy) < 0)
-        fail_io(dataset, "cannot write rows [" + std::to_string(offset) + ", " + std::to_string(offset + rows) + ")",
-                errno);
     });
+    // One agreed collective write a piece: each rank's rows of the piece are one block of the file's rows.
+    for (int64_t p = 0; p < pieces; ++p) {
+      agree(comm_, [&] {
+        int64_t offset = 0, rows = 0;
+        const void* data = piece(p, &offset, &rows);
+        const int bad = offset < 0 || rows < 0 || offset + rows > global_rows || (rows > 0 && !data);
+        int any_bad = 0;
+        check_mpi(MPI_Allreduce(&bad, &any_bad, 1, MPI_INT, MPI_MAX, comm_), path_, "MPI_Allreduce");
+        if (any_bad)
+          throw std::runtime_error(path_ + ": " + dataset + ": a rank's row block lies outside [0, " +
+                                   std::to_string(global_rows) + ") or has no data");
+        Handle space(H5Scopy(file_space.get()), H5Sclose);
+        const hsize_t start[2] = {static_cast<hsize_t>(offset), 0};
+        const hsize_t count[2] = {static_cast<hsize_t>(rows), static_cast<hsize_t>(width)};
+        // A rank with no rows still takes part in the collective write, with empty selections.
+        const hsize_t mem_dims[2] = {rows > 0 ? count[0] : 1, count[1]};
+        Handle mem_space(H5Screate_simple(2, mem_dims, nullptr), H5Sclose);
+        if (!space.ok() || !mem_space.ok()) fail(dataset, "cannot create dataspace");
+        herr_t sel = rows > 0 ? H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr)
+                              : H5Sselect_none(space.get());
+        if (sel < 0 || (rows == 0 && H5Sselect_none(mem_space.get()) < 0)) fail(dataset, "cannot select rows");
+        const double dummy = 0.0;
+        errno = 0;
+        if (H5Dwrite(dset.get(), mem_type, mem_space.get(), space.get(), dxpl.get(), rows > 0 ? data : &dummy) < 0)
+          fail_io(dataset, "cannot write rows [" + std::to_string(offset) + ", " + std::to_string(offset + rows) + ")",
+                  errno);
+      });
+    }
   } catch (...) {
     abandon();
     throw;

@@ -74,6 +74,14 @@ public:
   void write(const std::string& dataset, int64_t global_rows, int width, int64_t offset, int64_t rows,
              const int64_t* data);
 
+  // Collective write of a new dataset [global_rows x width] in `pieces` agreed collective writes (the same count on
+  // every rank), so that no rank ever holds more than a piece: piece(p, &offset, &rows) returns this rank's rows
+  // [offset, offset + rows) of piece p (rows * width values, valid until the next call; null when rows == 0).
+  // `integer`: int64 values, otherwise double.
+  using Piece = std::function<const void*(int64_t piece, int64_t* offset, int64_t* rows)>;
+  void write_pieces(const std::string& dataset, int64_t global_rows, int width, bool integer, int64_t pieces,
+                    const Piece& piece);
+
   // The shape {rows, width} of a 2-D dataset (a 1-D dataset reads as width 1).
   std::vector<int64_t> shape(const std::string& dataset) const;
   // Throws unless the dataset is stored as tissue writes it: contiguous, unfiltered, of 8-byte floats (or 8-byte
@@ -105,6 +113,8 @@ private:
   void set_int64_attribute(const std::string& object, const std::string& name, int64_t value);
   void write_block(const std::string& dataset, int64_t global_rows, int width, int64_t offset, int64_t rows,
                    const void* data, hid_t file_type, hid_t mem_type);
+  void write_pieces(const std::string& dataset, int64_t global_rows, int width, hid_t file_type, hid_t mem_type,
+                    int64_t pieces, const Piece& piece);
   void write_numeric_attribute(const std::string& object, const std::string& name, hid_t file_type,
                                hid_t mem_type, const void* value);
   void read_block(const std::string& dataset, int64_t offset, int64_t rows, void* data, hid_t mem_type) const;

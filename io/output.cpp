@@ -14,6 +14,7 @@
 #include "io/atomic_file.hpp"
 #include "io/checkpoint.hpp"
 #include "io/hdf5_file.hpp"
+#include "io/row_stream.hpp"
 #include "io/snapshot.hpp"
 #include "io/summary.hpp"
 #include "partition/agreement.hpp"
@@ -111,86 +112,128 @@ double Output::stage_bytes() const {
          cells + fibres;
 }
 
-void Output::add_fibre_field(SnapshotFrame& frame, const ForceModel& forces, const double* x) {
-  if (!scene_has_fibres(scene_)) return;
-  const int n = model_.owned;
-  std::vector<double> direction(3 * n, 0.0), stretch(n, 0.0);
-  forces.fibre_field(x, direction.data(), stretch.data());
-  frame.fibre_direction = molecules().to_natural(direction.data(), 3);
-  frame.fibre_stretch = molecules().to_natural(stretch.data(), 1);
+const RowStream& Output::molecule_rows() {
+  if (!molecule_rows_)
+    molecule_rows_ = std::make_unique<RowStream>(model_.comm, model_.global_molecules, model_.owned,
+                                                 [&m = model_](std::int64_t k) { return m.id[k]; });
+  return *molecule_rows_;
+}
+
+const RowStream& Output::connection_rows() {
+  if (!connection_rows_)
+    connection_rows_ = std::make_unique<RowStream>(
+        model_.comm, model_.global_connections, model_.connections(),
+        [&m = model_](std::int64_t c) { return m.end_a[c] < m.owned ? m.connection_id(static_cast<int>(c)) : -1; });
+  return *connection_rows_;
 }
 
 void Output::write_snapshot_stage(const SolverState& state, const ForceModel& forces, bool final,
                                   const char* file_name) {
   make_directory();
   const double* x = state.x.array();
-  SnapshotFrame frame;
-  frame.step = state.step;
-  frame.time = state.time;
-  frame.title = scene_.title;
-  frame.molecules = model_.global_molecules;
-  frame.connections = model_.global_connections;
-  frame.molecule_offset = molecules().begin();
-  frame.molecule_rows = molecules().count();
-  frame.connection_offset = connections().begin();
-  frame.connection_rows = connections().count();
-
-  const int n = model_.owned;
-  frame.positions = molecules().to_natural(x, 3);
-  if (wants(scene_, "displacements")) {
-    std::vector<double> u(3 * n);
-    for (int i = 0; i < 3 * n; ++i) u[i] = x[i] - model_.rest[i];
-    frame.displacements = molecules().to_natural(u.data(), 3);
-  }
-  if (wants(scene_, "velocities")) frame.velocities = molecules().to_natural(state.v.data(), 3);
-  add_fibre_field(frame, forces, x);
-  if (wants(scene_, "forces")) {
-    // The connection forces on each molecule: they balance the loads at equilibrium and are the reactions at
-    // held molecules (the net force, zero at equilibrium, would show nothing).
-    std::vector<double> f(3 * model_.local);
-    forces.connection_forces(x, f.data());
-    frame.forces = molecules().to_natural(f.data(), 3);
-  }
-  // Connections: end points (original ids), strain and force of the ones this rank writes.
-  const std::size_t nw = model_.written_here().size();
-  std::vector<std::int64_t> ends(2 * nw);
-  std::vector<double> strain(nw), tension(nw);
-  std::size_t w = 0;
-  for (int c : model_.written_here()) {
-    ends[2 * w] = model_.id[model_.end_a[c]], ends[2 * w + 1] = model_.id[model_.end_b[c]];
-    const double* xa = x + 3 * model_.end_a[c];
-    const double* xb = x + 3 * model_.end_b[c];
-    double len = std::sqrt((xb[0] - xa[0]) * (xb[0] - xa[0]) + (xb[1] - xa[1]) * (xb[1] - xa[1]) +
-                           (xb[2] - xa[2]) * (xb[2] - xa[2]));
-    strain[w] = (len - model_.l0(c)) / model_.l0(c);
-    tension[w] = model_.k(c) * (len - model_.l0(c));
-    ++w;
-  }
-  frame.endpoints = connections().to_natural_ids(ends.data(), 2);
-  if (wants(scene_, "connection_strain")) frame.connection_strain = connections().to_natural(strain.data(), 1);
-  if (wants(scene_, "connection_force")) frame.connection_force = connections().to_natural(tension.data(), 1);
+  const LocalModel& m = model_;
+  SnapshotHeader header;
+  header.step = state.step;
+  header.time = state.time;
+  header.title = scene_.title;
+  header.molecules = m.global_molecules;
+  header.connections = m.global_connections;
   // Cells (the cell term's): their corners and volume ratio J, whatever the fields (the cells are the mesh
   // ParaView shows J on); a scene without cells computes nothing here.
   const CellField cells = forces.cells(x);
-  if (cells.global_count > 0) {
-    if (!cells_) cells_ = std::make_unique<NaturalOrder>(model_.comm, cells.id, cells.global_count);
-    frame.cells = cells.global_count;
-    frame.cell_nodes = cells.nodes;
-    frame.cell_offset = cells_->begin();
-    frame.cell_rows = cells_->count();
-    frame.cell_corners = cells_->to_natural_ids(cells.corners.data(), cells.nodes);
-    frame.volume_ratio = cells_->to_natural(cells.volume_ratio.data(), 1);
-  }
-
-  char name[64];
-  if (file_name) std::snprintf(name, sizeof name, "%s", file_name);
-  else if (final) std::snprintf(name, sizeof name, "final.h5");
-  else std::snprintf(name, sizeof name, "snapshot_%08ld.h5", state.step);
+  if (cells.global_count > 0 && !cells_) cells_ = std::make_unique<NaturalOrder>(m.comm, cells.id, cells.global_count);
+  header.cells = cells.global_count;
+  header.cell_nodes = cells.nodes;
+  bool present[kSnapshotFields] = {};
+  present[kPositions] = present[kEndpoints] = true;  // the mesh
+  present[kDisplacements] = wants(scene_, "displacements");
+  present[kVelocities] = wants(scene_, "velocities");
+  present[kForces] = wants(scene_, "forces");
+  present[kConnectionStrain] = wants(scene_, "connection_strain");
+  present[kConnectionForce] = wants(scene_, "connection_force");
+  present[kCellCorners] = present[kVolumeRatio] = cells.global_count > 0;
+  present[kFibreDirection] = present[kFibreStretch] = scene_has_fibres(scene_);
+  // Every field goes out in pieces, computed from the state as its rows are sent (RowStream): nothing the size of
+  // a field is held, except a field that only exists whole (the connection forces on each molecule, the fibres).
+  std::vector<double> fibre_direction, fibre_stretch;
+  auto stretch_of = [&](int c) {
+    const double* xa = x + 3 * m.end_a[c];
+    const double* xb = x + 3 * m.end_b[c];
+    const double len = std::sqrt((xb[0] - xa[0]) * (xb[0] - xa[0]) + (xb[1] - xa[1]) * (xb[1] - xa[1]) +
+                                 (xb[2] - xa[2]) * (xb[2] - xa[2]));
+    return len - m.l0(c);
+  };
+  auto write_field = [&](Hdf5File& file, SnapshotField field, const char* dataset, std::int64_t, int width) {
+    auto copy3 = [](const double* from) {
+      return [from](std::int64_t k, double* row) { std::copy(from + 3 * k, from + 3 * k + 3, row); };
+    };
+    switch (field) {
+      case kPositions: molecule_rows().write_double(file, dataset, width, copy3(x)); break;
+      case kDisplacements:
+        molecule_rows().write_double(file, dataset, width, [&](std::int64_t k, double* row) {
+          for (int d = 0; d < 3; ++d) row[d] = x[3 * k + d] - m.rest[3 * k + d];
+        });
+        break;
+      case kVelocities: molecule_rows().write_double(file, dataset, width, copy3(state.v.data())); break;
+      case kForces: {
+        // The connection forces on each molecule: they balance the loads at equilibrium and are the reactions at
+        // held molecules (the net force, zero at equilibrium, would show nothing).
+        std::vector<double> f(3 * m.local);
+        forces.connection_forces(x, f.data());
+        molecule_rows().write_double(file, dataset, width, copy3(f.data()));
+        break;
+      }
+      case kEndpoints:  // original molecule ids
+        connection_rows().write_int64(file, dataset, width, [&](std::int64_t c, std::int64_t* row) {
+          row[0] = m.id[m.end_a[c]], row[1] = m.id[m.end_b[c]];
+        });
+        break;
+      case kConnectionStrain:
+        connection_rows().write_double(file, dataset, width, [&](std::int64_t c, double* row) {
+          row[0] = stretch_of(static_cast<int>(c)) / m.l0(static_cast<int>(c));
+        });
+        break;
+      case kConnectionForce:
+        connection_rows().write_double(file, dataset, width, [&](std::int64_t c, double* row) {
+          row[0] = m.k(static_cast<int>(c)) * stretch_of(static_cast<int>(c));
+        });
+        break;
+      case kCellCorners: {
+        const std::vector<std::int64_t> rows = cells_->to_natural_ids(cells.corners.data(), cells.nodes);
+        file.write(dataset, cells.global_count, width, cells_->begin(), cells_->count(), rows.data());
+        break;
+      }
+      case kVolumeRatio: {
+        const std::vector<double> rows = cells_->to_natural(cells.volume_ratio.data(), 1);
+        file.write(dataset, cells.global_count, width, cells_->begin(), cells_->count(), rows.data());
+        break;
+      }
+      case kFibreDirection:
+        // Bodies with fibres (docs/anisotropy.md): the deformed fibre direction and stretch per molecule, 0 where
+        // no fibre cell touches the molecule.
+        fibre_direction.assign(3 * m.owned, 0.0), fibre_stretch.assign(m.owned, 0.0);
+        forces.fibre_field(x, fibre_direction.data(), fibre_stretch.data());
+        molecule_rows().write_double(file, dataset, width, copy3(fibre_direction.data()));
+        break;
+      case kFibreStretch:
+        molecule_rows().write_double(file, dataset, width,
+                                     [&](std::int64_t k, double* row) { row[0] = fibre_stretch[k]; });
+        break;
+      case kSnapshotFields: break;
+    }
+  };
+  const std::string name = file_name ? file_name : final ? "final.h5" : snapshot_name(state.step);
   const std::string dir = scene_.output.directory + "/";
-  XdmfEntry entry = write_snapshot(dir + name, model_.comm, frame);
-  frames_.push_back(entry);
-  agree(model_.comm, [&] {
-    if (model_.rank == 0) write_xdmf(dir + "tissue.xdmf", frames_);
+  frames_.push_back(write_snapshot(dir + name, m.comm, header, present, write_field));
+  // A single box lattice is also a structured grid: lattice.xdmf, the same series without the connection list.
+  const bool box = m.shape.bodies() == 1 && !m.shape.unstructured() &&
+                   static_cast<std::int64_t>(m.shape.n[0]) * m.shape.n[1] * m.shape.n[2] == m.global_molecules;
+  if (box)
+    for (int a = 0; a < 3; ++a) frames_.back().lattice[a] = m.shape.n[a];
+  agree(m.comm, [&] {
+    if (m.rank != 0) return;
+    write_xdmf(dir + "tissue.xdmf", frames_);
+    if (box) write_lattice_xdmf(dir + "lattice.xdmf", frames_);
   });
 }
 
@@ -201,7 +244,8 @@ std::string Output::checkpoint(const SolverState& state, const ForceModel* force
   StageDeadline deadline(model_.comm, path, stage_seconds(stage_bytes()), path + ".tmp");
   return agree(model_.comm, [&] {
     make_directory();
-    return write_checkpoint(scene_.output.directory, 2, scene_, model_, molecules(), connections(), state, forces);
+    return write_checkpoint(scene_.output.directory, 2, scene_, model_, molecule_rows(), connection_rows(), state,
+                            forces);
   });
 }
 

@@ -14,7 +14,6 @@ void check_mpi(int rc, const std::string& path, const char* what) {
 
 struct Field {
   const char* dataset;
-  const char* units;
   int block;  // row block: 0 molecules, 1 connections, 2 cells
   int width;
   const double* f64;
@@ -26,22 +25,21 @@ struct Field {
 
 XdmfEntry write_snapshot(const std::string& path, MPI_Comm comm, const SnapshotFrame& f) {
   const Field fields[] = {
-      {"/molecules/positions", "m", 0, 3, f.positions.data(), nullptr, f.positions.size()},
-      {"/molecules/displacements", "m", 0, 3, f.displacements.data(), nullptr, f.displacements.size()},
-      {"/molecules/velocities", "m/s", 0, 3, f.velocities.data(), nullptr, f.velocities.size()},
-      {"/molecules/forces", "N", 0, 3, f.forces.data(), nullptr, f.forces.size()},
-      {"/connections/endpoints", "", 1, 2, nullptr, f.endpoints.data(), f.endpoints.size()},
-      {"/connections/strain", "1", 1, 1, f.connection_strain.data(), nullptr, f.connection_strain.size()},
-      {"/connections/force", "N", 1, 1, f.connection_force.data(), nullptr, f.connection_force.size()},
-      {"/cells/corners", "", 2, f.cell_nodes, nullptr, f.cell_corners.data(), f.cell_corners.size()},
-      {"/cells/volume_ratio", "1", 2, 1, f.volume_ratio.data(), nullptr, f.volume_ratio.size()},
-      {"/molecules/fibre_direction", "1", 0, 3, f.fibre_direction.data(), nullptr, f.fibre_direction.size()},
-      {"/molecules/fibre_stretch", "1", 0, 1, f.fibre_stretch.data(), nullptr, f.fibre_stretch.size()},
+      {"/molecules/positions", 0, 3, f.positions.data(), nullptr, f.positions.size()},
+      {"/molecules/displacements", 0, 3, f.displacements.data(), nullptr, f.displacements.size()},
+      {"/molecules/velocities", 0, 3, f.velocities.data(), nullptr, f.velocities.size()},
+      {"/molecules/forces", 0, 3, f.forces.data(), nullptr, f.forces.size()},
+      {"/connections/endpoints", 1, 2, nullptr, f.endpoints.data(), f.endpoints.size()},
+      {"/connections/strain", 1, 1, f.connection_strain.data(), nullptr, f.connection_strain.size()},
+      {"/connections/force", 1, 1, f.connection_force.data(), nullptr, f.connection_force.size()},
+      {"/cells/corners", 2, f.cell_nodes, nullptr, f.cell_corners.data(), f.cell_corners.size()},
+      {"/cells/volume_ratio", 2, 1, f.volume_ratio.data(), nullptr, f.volume_ratio.size()},
+      {"/molecules/fibre_direction", 0, 3, f.fibre_direction.data(), nullptr, f.fibre_direction.size()},
+      {"/molecules/fibre_stretch", 0, 1, f.fibre_stretch.data(), nullptr, f.fibre_stretch.size()},
   };
   constexpr int n_fields = sizeof(fields) / sizeof(fields[0]);
+  static_assert(n_fields == kSnapshotFields, "one entry a snapshot field, in SnapshotField's order");
 
-  int ranks = 1;
-  check_mpi(MPI_Comm_size(comm, &ranks), path, "MPI_Comm_size");
   // The blocks must tile the ids in rank order: each offset is the sum of the rows before it.
   long long rows[3] = {f.molecule_rows, f.connection_rows, f.cell_rows}, before[3] = {0, 0, 0},
             total[3] = {0, 0, 0};
@@ -75,52 +73,84 @@ XdmfEntry write_snapshot(const std::string& path, MPI_Comm comm, const SnapshotF
   if (any_bad)
     throw std::invalid_argument(path + ": bad snapshot frame: " + (bad ? why : "see another rank's error"));
 
+  SnapshotHeader header;
+  header.step = f.step, header.time = f.time, header.title = f.title;
+  header.molecules = f.molecules, header.connections = f.connections;
+  header.cells = f.cells, header.cell_nodes = f.cell_nodes;
+  bool written[kSnapshotFields];
+  for (int i = 0; i < n_fields; ++i) written[i] = any[i] != 0;
+  return write_snapshot(path, comm, header, written,
+                        [&](Hdf5File& file, SnapshotField i, const char* dataset, int64_t n, int width) {
+                          const Field& d = fields[i];
+                          const int64_t off = offsets[d.block], r = rows[d.block];
+                          if (d.i64) file.write(dataset, n, width, off, r, d.i64);
+                          else file.write(dataset, n, width, off, r, d.f64);
+                        });
+}
+
+XdmfEntry write_snapshot(const std::string& path, MPI_Comm comm, const SnapshotHeader& h,
+                         const bool (&present)[kSnapshotFields], const SnapshotFieldWriter& write_field) {
+  struct Dataset {
+    const char* name;
+    const char* units;
+    int block;  // row block: 0 molecules, 1 connections, 2 cells
+    int width;
+  };
+  const Dataset datasets[kSnapshotFields] = {
+      {"/molecules/positions", "m", 0, 3},      {"/molecules/displacements", "m", 0, 3},
+      {"/molecules/velocities", "m/s", 0, 3},   {"/molecules/forces", "N", 0, 3},
+      {"/connections/endpoints", "", 1, 2},     {"/connections/strain", "1", 1, 1},
+      {"/connections/force", "N", 1, 1},        {"/cells/corners", "", 2, h.cell_nodes},
+      {"/cells/volume_ratio", "1", 2, 1},       {"/molecules/fibre_direction", "1", 0, 3},
+      {"/molecules/fibre_stretch", "1", 0, 1},
+  };
+  const int64_t counts[3] = {h.molecules, h.connections, h.cells};
+  int ranks = 1;
+  check_mpi(MPI_Comm_size(comm, &ranks), path, "MPI_Comm_size");
   // The space the file needs, reserved first: a full disk fails here, cleanly (Hdf5File::create).
-  int64_t bytes = (1 << 20) + static_cast<int64_t>(f.title.size());
-  for (int i = 0; i < n_fields; ++i)
-    if (any[i]) bytes += 8 * fields[i].width * counts[fields[i].block];
+  int64_t bytes = (1 << 20) + static_cast<int64_t>(h.title.size());
+  for (int i = 0; i < kSnapshotFields; ++i)
+    if (present[i]) bytes += 8 * datasets[i].width * counts[datasets[i].block];
   Hdf5File file = Hdf5File::create(path, comm, bytes);
   file.set_attribute("/", "kind", "snapshot");
   file.set_attribute("/", "program", "tissue");
   file.set_attribute("/", "version", TISSUE_VERSION);
-  file.set_attribute("/", "title", f.title);
-  file.set_attribute("/", "step", f.step);
-  file.set_attribute("/", "time", f.time);
-  file.set_attribute("/", "molecules", f.molecules);
-  file.set_attribute("/", "connections", f.connections);
+  file.set_attribute("/", "title", h.title);
+  file.set_attribute("/", "step", h.step);
+  file.set_attribute("/", "time", h.time);
+  file.set_attribute("/", "molecules", h.molecules);
+  file.set_attribute("/", "connections", h.connections);
   file.set_attribute("/", "ranks", ranks);
   file.create_group("/molecules");
   file.create_group("/connections");
-  if (any[7] || any[8]) file.create_group("/cells");
-  for (int i = 0; i < n_fields; ++i) {
-    if (!any[i]) continue;
-    const Field& d = fields[i];
-    const int64_t n = counts[d.block], off = offsets[d.block], r = rows[d.block];
-    if (d.i64) file.write(d.dataset, n, d.width, off, r, d.i64);
-    else file.write(d.dataset, n, d.width, off, r, d.f64);
-    if (*d.units) file.set_attribute(d.dataset, "units", d.units);
+  if (present[kCellCorners] || present[kVolumeRatio]) file.create_group("/cells");
+  for (int i = 0; i < kSnapshotFields; ++i) {
+    if (!present[i]) continue;
+    const Dataset& d = datasets[i];
+    write_field(file, static_cast<SnapshotField>(i), d.name, counts[d.block], d.width);
+    if (*d.units) file.set_attribute(d.name, "units", d.units);
   }
   file.close();
 
   XdmfEntry e;
   const size_t slash = path.find_last_of('/');
   e.h5_file = slash == std::string::npos ? path : path.substr(slash + 1);
-  e.step = f.step;
-  e.time = f.time;
-  e.molecules = f.molecules;
-  e.connections = f.connections;
-  e.positions = any[0];
-  e.displacements = any[1];
-  e.velocities = any[2];
-  e.forces = any[3];
-  e.endpoints = any[4];
-  e.connection_strain = any[5];
-  e.connection_force = any[6];
-  e.cells = any[7] ? f.cells : 0;
-  e.cell_nodes = f.cell_nodes;
-  e.volume_ratio = any[8];
-  e.fibre_direction = any[9];
-  e.fibre_stretch = any[10];
+  e.step = h.step;
+  e.time = h.time;
+  e.molecules = h.molecules;
+  e.connections = h.connections;
+  e.positions = present[kPositions];
+  e.displacements = present[kDisplacements];
+  e.velocities = present[kVelocities];
+  e.forces = present[kForces];
+  e.endpoints = present[kEndpoints];
+  e.connection_strain = present[kConnectionStrain];
+  e.connection_force = present[kConnectionForce];
+  e.cells = present[kCellCorners] ? h.cells : 0;
+  e.cell_nodes = h.cell_nodes;
+  e.volume_ratio = present[kVolumeRatio];
+  e.fibre_direction = present[kFibreDirection];
+  e.fibre_stretch = present[kFibreStretch];
   return e;
 }
 

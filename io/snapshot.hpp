@@ -11,6 +11,7 @@
 #include <mpi.h>
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -46,6 +47,34 @@ struct SnapshotFrame {
   std::vector<int64_t> cell_corners;  // cell_nodes * cell_rows
   std::vector<double> volume_ratio;   // cell_rows
 };
+
+// What every snapshot file says about itself (root attributes, the XDMF entry): the same on every rank.
+struct SnapshotHeader {
+  int64_t step = 0;
+  double time = 0.0;
+  std::string title;
+  int64_t molecules = 0, connections = 0;
+  int64_t cells = 0;   // M (0: no /cells group)
+  int cell_nodes = 0;  // 8 or 4
+};
+
+// The datasets a snapshot may hold, in the order they are written.
+enum SnapshotField {
+  kPositions, kDisplacements, kVelocities, kForces, kEndpoints, kConnectionStrain, kConnectionForce, kCellCorners,
+  kVolumeRatio, kFibreDirection, kFibreStretch, kSnapshotFields
+};
+
+class Hdf5File;
+// Collective: writes one field's dataset [global_rows x width] into the open file (Hdf5File::write or
+// write_pieces), in original order.
+using SnapshotFieldWriter =
+    std::function<void(Hdf5File& file, SnapshotField field, const char* dataset, int64_t global_rows, int width)>;
+
+// Collective over comm. Writes path atomically (path.tmp, renamed when complete) with the header's attributes and
+// the fields `present` marks (the same on every rank), each by `write_field`; the files are those of the
+// SnapshotFrame overload below. Returns the frame's XDMF entry (file name without directory).
+XdmfEntry write_snapshot(const std::string& path, MPI_Comm comm, const SnapshotHeader& header,
+                         const bool (&present)[kSnapshotFields], const SnapshotFieldWriter& write_field);
 
 // Collective over comm. Writes path atomically (path.tmp, renamed when complete). Throws std::invalid_argument
 // (on every rank) when the blocks do not tile 0..N-1 / 0..C-1 or a field has the wrong length, and

@@ -117,4 +117,31 @@ void write_xdmf(const std::string& path, const std::vector<XdmfEntry>& frames) {
   write_file_atomically(path, os.str());
 }
 
+void write_lattice_xdmf(const std::string& path, const std::vector<XdmfEntry>& frames) {
+  std::ostringstream os;
+  os << std::setprecision(17);
+  os << "<?xml version=\"1.0\" ?>\n"
+     << "<Xdmf Version=\"3.0\">\n"
+     << "  <Domain>\n"
+     << "    <Grid Name=\"lattice\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
+  for (const XdmfEntry& f : frames) {
+    if (f.h5_file.empty() || f.h5_file.find(':') != std::string::npos)
+      throw std::invalid_argument(path + ": snapshot file name '" + f.h5_file + "' is empty or holds ':'");
+    if (!f.positions || f.lattice[0] <= 0 || f.lattice[1] <= 0 || f.lattice[2] <= 0 ||
+        f.lattice[0] * f.lattice[1] * f.lattice[2] != f.molecules)
+      throw std::invalid_argument(path + ": " + f.h5_file + ": not a single box lattice with its positions");
+    // Dimensions slowest first: z, y, x (x runs fastest in the molecule ids, as in the positions' rows).
+    os << "      <Grid Name=\"step_" << f.step << "\" GridType=\"Uniform\">\n"
+       << "        <Time Value=\"" << f.time << "\"/>\n"
+       << "        <Topology TopologyType=\"3DSMesh\" Dimensions=\"" << f.lattice[2] << ' ' << f.lattice[1] << ' '
+       << f.lattice[0] << "\"/>\n";
+    geometry_and_nodes(os, f);
+    os << "      </Grid>\n";
+  }
+  os << "    </Grid>\n"
+     << "  </Domain>\n"
+     << "</Xdmf>\n";
+  write_file_atomically(path, os.str());
+}
+
 }  // namespace tissue

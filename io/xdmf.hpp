@@ -22,6 +22,7 @@ struct XdmfEntry {
   int64_t cells = 0;                                               // /cells/corners rows (0: no cells)
   int cell_nodes = 0;                                              // 8: hexahedra, 4: tetrahedra
   bool volume_ratio = false;                                       // /cells/volume_ratio
+  int64_t lattice[3] = {0, 0, 0};  // a single box lattice: molecules along x, y, z (id = i + n_x (j + n_y k)); else 0
 };
 
 // Not collective: call on one rank (rank 0). Writes <path>.tmp and renames it to path, so readers never see a
@@ -31,5 +32,12 @@ struct XdmfEntry {
 // same node attributes and the cell attribute volume_ratio. Throws std::runtime_error if the file cannot be written,
 // std::invalid_argument for an entry without its mesh (positions, endpoints).
 void write_xdmf(const std::string& path, const std::vector<XdmfEntry>& frames);
+
+// Not collective: call on one rank. The same series for a single box lattice as a structured grid (3DSMesh: the
+// topology is the lattice's dimensions, the geometry /molecules/positions), with the node attributes only: no
+// per-connection list for ParaView to read, so a sample too large for its connection list in memory still opens.
+// Written like write_xdmf (path.tmp, renamed). Throws std::invalid_argument for a frame without lattice dimensions
+// that match its molecule count.
+void write_lattice_xdmf(const std::string& path, const std::vector<XdmfEntry>& frames);
 
 }  // namespace tissue

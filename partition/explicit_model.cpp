@@ -360,7 +360,7 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationIn
         std::vector<TetrahedronRow> rows;
         if (m.rank == 0)
           for (std::int64_t t = t0; t < t1; ++t) {
-            const auto& T = read[i].mesh.tets[t];
+            const auto& T = read[i].tets[t];
             rows.push_back({t_first + t, {T[0] + b0, T[1] + b0, T[2] + b0, T[3] + b0}});
           }
         const std::vector<TetrahedronRow> in =

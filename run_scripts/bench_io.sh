@@ -16,8 +16,13 @@
 #                conv=fdatasync on the same file system. Prints one line per size: molecules, bytes, MB/s (page
 #                cache), MB/s (flushed), dd MB/s. Results and machine: docs/checkpoint.md.
 #
-#                Memory: building and partitioning the body takes about 1 GB per million molecules on top of
-#                the output; a 216^3 body needs a node with ~16 GB.
+#                Memory (after the sizes, in the same run; MEM_SIDE=0 skips it): for RANKS in MEM_RANKS (default
+#                "1 2"), the LAMMPS peer lattice (run_scripts/scenes/peer_lattice.toml, MEM_SIDE^3 molecules, default
+#                100: 10^6), 20 dynamic steps, once with `output.fields = []` (no snapshot) and once writing
+#                positions and velocities every 10 steps (snapshots at steps 10 and 20, and final.h5): the peak
+#                (summary.json's peak_memory_bytes, the largest rank) per molecule of both and their ratio (target:
+#                at most 1.2, issue 18 item 4). Files are streamed in pieces (io/row_stream.hpp), so the ratio
+#                should not grow with the sample or the rank count.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 TISSUE=${TISSUE:-build/tissue}
@@ -79,4 +84,29 @@ EOF
     'BEGIN { w = t1 - t0; f = t2 - t0; if (w <= 0) w = 0.01;
              printf "%10d %12.0f %8d %10.2f %14.1f %14.1f %10.1f\n", m, b, r, w, b / w / 1e6, b / f / 1e6, c * 1048576 / tdd / 1e6 }'
   rm -f "$dir/final.h5"
+done
+
+MEM_SIDE=${MEM_SIDE:-100}
+MEM_RANKS=${MEM_RANKS:-"1 2"}
+[[ "$MEM_SIDE" -gt 0 ]] || exit 0
+echo
+printf "%10s %6s %16s %16s %8s\n" molecules ranks "B/mol(no out)" "B/mol(output)" ratio
+for r in $MEM_RANKS; do
+  peaks=()
+  for mode in none snapshots; do
+    dir="$OUT/mem_np${r}_$mode"
+    rm -rf "$dir"
+    if [[ $mode == none ]]; then
+      sets=(--set 'output.fields=[]')
+    else
+      sets=(--set 'output.fields=["positions","velocities"]' --set output.snapshot_every=10)
+    fi
+    mpirun --oversubscribe -np "$r" "$TISSUE" run run_scripts/scenes/peer_lattice.toml \
+      --set "body.molecules=[$MEM_SIDE,$MEM_SIDE,$MEM_SIDE]" --set solver.steps=20 "${sets[@]}" \
+      --output "$dir" > "$dir.log" 2>&1 || { echo "np $r $mode: tissue failed, see $dir.log"; continue 2; }
+    peaks+=("$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["peak_memory_bytes"])' "$dir/summary.json")")
+    [[ $mode == none ]] || ls "$dir" | grep -c '\.h5$' | xargs -I{} echo "  np $r: {} snapshot files in $dir" >&2
+  done
+  awk -v m=$((MEM_SIDE * MEM_SIDE * MEM_SIDE)) -v r=$r -v a="${peaks[0]}" -v b="${peaks[1]}" \
+    'BEGIN { printf "%10d %6d %16.0f %16.0f %8.3f\n", m, r, a / m, b / m, b / a }'
 done

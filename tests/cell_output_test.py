@@ -7,7 +7,7 @@ spacing); /cells/volume_ratio equals, to round-off, the volume ratio of the unif
 block's edges and det F recomputed here from the written positions, and to first order the closed form
 (1 + eps)(1 - nu eps)^2 with eps = sigma / E; the same J at 1, 2 and 3 ranks (to round-off: Krylov sums); the XDMF's first grid is hexahedra with the volume_ratio cell attribute, the last
 (meshio's) still the connections; /molecules/positions and displacements unchanged in shape; a scene without
-the cell term writes no /cells.
+the cell term writes no /cells; lattice.xdmf describes the box as a structured grid whose points are the lattice.
 
 Usage: cell_output_test.py --build BUILD_DIR --source SOURCE_DIR      Prints 'N passed, M failed'."""
 import argparse
@@ -136,7 +136,24 @@ def main():
         check("cells" not in f, "no /cells without the cell term")
     grids = list(ET.parse(os.path.join(out, "tissue.xdmf")).getroot().find("Domain"))
     check([g.get("Name") for g in grids] == ["tissue"], "one xdmf grid without the cell term")
+    check_lattice_xdmf(out)
     return report()
+
+
+def check_lattice_xdmf(out):
+    """lattice.xdmf (io/xdmf.hpp): the box as a structured grid whose point (i, j, k), x fastest, is molecule
+    i + n_x (j + n_y k): the rest positions read through that shape are the lattice i h_x, j h_y, k h_z."""
+    grid = ET.parse(os.path.join(out, "lattice.xdmf")).getroot().find("Domain").find("Grid").find("Grid")
+    topology = grid.find("Topology")
+    check(topology.get("TopologyType") == "3DSMesh" and topology.get("Dimensions") == f"{N[2]} {N[1]} {N[0]}",
+          f"lattice.xdmf topology {topology.attrib}")
+    check(grid.find("Geometry").find("DataItem").text == "final.h5:/molecules/positions", "lattice.xdmf geometry")
+    check([a.get("Name") for a in grid.findall("Attribute")] == ["displacement"], "lattice.xdmf: node fields only")
+    with h5py.File(os.path.join(out, "final.h5"), "r") as f:
+        rest = (f["/molecules/positions"][:] - f["/molecules/displacements"][:]).reshape(N[2], N[1], N[0], 3)
+    k, j, i = np.meshgrid(*(np.arange(n) for n in (N[2], N[1], N[0])), indexing="ij")
+    lattice = np.stack([i * H[0], j * H[1], k * H[2]], axis=-1)
+    check(np.max(np.abs(rest - lattice)) < 1e-12, "lattice.xdmf: the structured grid's points are the lattice")
 
 
 if __name__ == "__main__":

@@ -1,0 +1,166 @@
+#include "io/row_stream.hpp"
+
+#include <algorithm>
+#include <cstring>
+#include <stdexcept>
+#include <type_traits>
+
+#include "partition/natural_order.hpp"
+
+namespace tissue {
+
+namespace {
+
+void check_mpi(int rc, const char* what) {
+  if (rc != MPI_SUCCESS) throw std::runtime_error(std::string("RowStream: ") + what + " failed");
+}
+
+}  // namespace
+
+template <typename T>
+std::uint64_t row_hash_sum(const T* rows, int width, std::int64_t count, std::int64_t first_row) {
+  std::uint64_t sum = 0;
+  for (std::int64_t r = 0; r < count; ++r) {
+    std::uint64_t h = 1469598103934665603ULL;
+    auto mix = [&](const void* p, std::size_t n) {
+      const unsigned char* b = static_cast<const unsigned char*>(p);
+      for (std::size_t i = 0; i < n; ++i) h = (h ^ b[i]) * 1099511628211ULL;
+    };
+    const std::int64_t row = first_row + r;
+    mix(&row, sizeof row);
+    mix(rows + r * width, sizeof(T) * width);
+    sum += h;
+  }
+  return sum;
+}
+
+template std::uint64_t row_hash_sum<double>(const double*, int, std::int64_t, std::int64_t);
+template std::uint64_t row_hash_sum<std::int64_t>(const std::int64_t*, int, std::int64_t, std::int64_t);
+
+std::int64_t RowStream::part_begin(std::int64_t p, int r) const {
+  const std::int64_t first = p * piece_rows_, length = std::min(global_rows_, first + piece_rows_) - first;
+  return first + NaturalOrder::block_begin(length, size_, r);
+}
+
+RowStream::RowStream(MPI_Comm comm, std::int64_t global_rows, std::int64_t slots, Id id, std::int64_t piece_rows)
+    : comm_(comm), global_rows_(global_rows), slots_(slots), piece_rows_(piece_rows), id_(std::move(id)) {
+  check_mpi(MPI_Comm_rank(comm, &rank_), "MPI_Comm_rank");
+  check_mpi(MPI_Comm_size(comm, &size_), "MPI_Comm_size");
+  if (piece_rows_ <= 0) throw std::invalid_argument("RowStream: pieces of no rows");
+  pieces_ = std::max<std::int64_t>(1, (global_rows_ + piece_rows_ - 1) / piece_rows_);
+  const std::int64_t parts = pieces_ * size_;
+  start_.assign(parts + 1, slots_);
+  send_.assign(parts, 0);
+  // One pass over the slots: the items go to the parts in order, since their ids increase.
+  int bad = global_rows_ < 0;
+  std::int64_t next_part = 0, last = -1;
+  for (std::int64_t k = 0; k < slots_ && !bad; ++k) {
+    const std::int64_t i = id_(k);
+    if (i < 0) continue;
+    if (i <= last || i >= global_rows_) {
+      bad = 1;
+      break;
+    }
+    last = i;
+    const std::int64_t p = i / piece_rows_, first = p * piece_rows_;
+    const std::int64_t part =
+        p * size_ + NaturalOrder::block_owner(std::min(global_rows_, first + piece_rows_) - first, size_, i - first);
+    while (next_part <= part) start_[next_part++] = k;
+    ++send_[part];
+  }
+  // What each rank receives in each piece: one all-to-all of every piece's counts.
+  std::vector<int> out(parts), in(parts);
+  for (int r = 0; r < size_; ++r)
+    for (std::int64_t p = 0; p < pieces_; ++p) out[r * pieces_ + p] = send_[p * size_ + r];
+  check_mpi(MPI_Alltoall(out.data(), static_cast<int>(pieces_), MPI_INT, in.data(), static_cast<int>(pieces_), MPI_INT,
+                         comm_),
+            "MPI_Alltoall");
+  recv_.assign(parts, 0);
+  for (int r = 0; r < size_; ++r)
+    for (std::int64_t p = 0; p < pieces_; ++p) recv_[p * size_ + r] = in[r * pieces_ + p];
+  // Every part must receive exactly its rows' count (duplicates are caught as each piece is written).
+  for (std::int64_t p = 0; p < pieces_ && !bad; ++p) {
+    std::int64_t got = 0;
+    for (int r = 0; r < size_; ++r) got += recv_[p * size_ + r];
+    bad = got != part_begin(p, rank_ + 1) - part_begin(p, rank_);
+  }
+  int any = 0;
+  check_mpi(MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, comm_), "MPI_Allreduce");
+  if (any)
+    throw std::invalid_argument("RowStream: the ranks' ids are not an increasing permutation of 0.." +
+                                std::to_string(global_rows_ - 1));
+}
+
+template <typename T>
+std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int width,
+                               const std::function<void(std::int64_t, T*)>& fill) const {
+  const int row = width + 1;  // the id (its bytes), then the values
+  std::vector<T> outgoing, incoming, rows;
+  std::vector<char> seen;
+  std::vector<int> send_bytes(size_), send_displs(size_), recv_bytes(size_), recv_displs(size_);
+  std::uint64_t hash = 0;
+  auto piece = [&](std::int64_t p, std::int64_t* offset, std::int64_t* count) -> const void* {
+    std::int64_t sent = 0, received = 0;
+    for (int r = 0; r < size_; ++r) sent += send_[p * size_ + r], received += recv_[p * size_ + r];
+    outgoing.resize(static_cast<std::size_t>(sent) * row);
+    incoming.resize(static_cast<std::size_t>(received) * row);
+    std::size_t at = 0;
+    for (int r = 0; r < size_; ++r) {
+      send_displs[r] = static_cast<int>(at * sizeof(T));
+      for (std::int64_t k = start_[p * size_ + r]; k < start_[p * size_ + r + 1]; ++k) {
+        const std::int64_t i = id_(k);
+        if (i < 0) continue;
+        std::memcpy(&outgoing[at], &i, sizeof i);
+        fill(k, &outgoing[at + 1]);
+        at += row;
+      }
+      send_bytes[r] = static_cast<int>(at * sizeof(T)) - send_displs[r];
+    }
+    std::size_t in = 0;
+    for (int r = 0; r < size_; ++r) {
+      recv_displs[r] = static_cast<int>(in * sizeof(T));
+      recv_bytes[r] = static_cast<int>(recv_[p * size_ + r] * row * sizeof(T));
+      in += static_cast<std::size_t>(recv_[p * size_ + r]) * row;
+    }
+    check_mpi(MPI_Alltoallv(outgoing.data(), send_bytes.data(), send_displs.data(), MPI_BYTE, incoming.data(),
+                            recv_bytes.data(), recv_displs.data(), MPI_BYTE, comm_),
+              "MPI_Alltoallv");
+    // Each received row to its place in this rank's part; a row missing or arriving twice is a bad id set.
+    const std::int64_t first = part_begin(p, rank_), length = part_begin(p, rank_ + 1) - first;
+    rows.resize(static_cast<std::size_t>(length) * width);
+    seen.assign(static_cast<std::size_t>(length), 0);
+    int bad = 0;
+    for (std::int64_t q = 0; q < received && !bad; ++q) {
+      std::int64_t i = 0;
+      std::memcpy(&i, &incoming[q * row], sizeof i);
+      const std::int64_t r = i - first;
+      if (r < 0 || r >= length || seen[r]) {
+        bad = 1;
+        break;
+      }
+      seen[r] = 1;
+      std::copy(&incoming[q * row + 1], &incoming[q * row + 1] + width, &rows[r * width]);
+    }
+    int any = 0;
+    check_mpi(MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, comm_), "MPI_Allreduce");
+    if (any) throw std::invalid_argument(file.path() + ": " + dataset + ": the ranks' rows repeat an id");
+    hash += row_hash_sum(rows.data(), width, length, first);
+    *offset = first, *count = length;
+    return rows.data();
+  };
+  file.write_pieces(dataset, global_rows_, width, std::is_same_v<T, std::int64_t>, pieces_, piece);
+  std::uint64_t total = 0;
+  check_mpi(MPI_Allreduce(&hash, &total, 1, MPI_UINT64_T, MPI_SUM, comm_), "MPI_Allreduce");
+  return total;
+}
+
+std::uint64_t RowStream::write_double(Hdf5File& file, const std::string& dataset, int width,
+                                      const FillDouble& fill) const {
+  return write<double>(file, dataset, width, fill);
+}
+
+std::uint64_t RowStream::write_int64(Hdf5File& file, const std::string& dataset, int width, const FillInt& fill) const {
+  return write<std::int64_t>(file, dataset, width, fill);
+}
+
+}  // namespace tissue

@@ -416,3 +416,111 @@ PetscErrorCode ForceModel::assemble_tangent(const double* x, Mat J) const {
 }
 
 }  // namespace tissue
+
+namespace tissue {
+
+// The matrix-free tangent (src/solvers/matrix_free.hpp): a connection's block is k [n n^T + g (I - n n^T)] with
+// g = 1 - l0 / l, as assemble_tangent writes it, so K u = k [g u + (1 - g) n (n . u)] needs no block stored.
+PetscErrorCode ForceModel::apply_tangent(const double* x, const double* in, double* out) const {
+  PetscFunctionBeginUser;
+  const int n = model_.owned;
+  if (static_cast<int>(tangent_.conn_start.size()) != n + 1) tangent_.create_rows(model_);
+  // Held components' columns are zero: their input is read as 0.
+  auto masked = [&](int j, int s) { return held_[3 * j + s] ? 0.0 : in[3 * j + s]; };
+  for (int i = 0; i < n; ++i) {
+    const double* xi = x + 3 * i;
+    const double ui[3] = {masked(i, 0), masked(i, 1), masked(i, 2)};
+    double y[3] = {0.0, 0.0, 0.0};
+    for (int p = tangent_.conn_start[i]; p < tangent_.conn_start[i + 1]; ++p) {
+      const int c = tangent_.row_conns[p];
+      const int j = model_.end_a[c] == i ? model_.end_b[c] : model_.end_a[c];
+      const double* xj = x + 3 * j;
+      const double d[3] = {xj[0] - xi[0], xj[1] - xi[1], xj[2] - xi[2]};
+      const double len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2], len = std::sqrt(len2);
+      const double k = model_.k(c), geo = 1.0 - model_.l0(c) / len;
+      const double u[3] = {ui[0] - masked(j, 0), ui[1] - masked(j, 1), ui[2] - masked(j, 2)};
+      const double along = (1.0 - geo) * (d[0] * u[0] + d[1] * u[1] + d[2] * u[2]) / len2;
+      for (int r = 0; r < 3; ++r) y[r] += k * (geo * u[r] + along * d[r]);
+    }
+    out[3 * i] = y[0], out[3 * i + 1] = y[1], out[3 * i + 2] = y[2];
+  }
+  if (!terms_.empty()) {
+    struct Apply {
+      const std::vector<std::uint8_t>& held;
+      const double* in;
+      double* out;
+    } apply{held_, in, out};
+    auto add = [](void* p, int row, int col, const double K[9]) -> PetscErrorCode {
+      const auto& a = *static_cast<const Apply*>(p);
+      double u[3];
+      for (int s = 0; s < 3; ++s) u[s] = a.held[3 * col + s] ? 0.0 : a.in[3 * col + s];
+      for (int r = 0; r < 3; ++r) a.out[3 * row + r] += K[3 * r] * u[0] + K[3 * r + 1] * u[1] + K[3 * r + 2] * u[2];
+      return 0;
+    };
+    for (const auto& t : terms_) PetscCall(t->add_tangent(x, add, &apply));
+  }
+  for (int h : held_owned_) out[h] = in[h];  // the identity's rows
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ForceModel::tangent_diagonal(const double* x, double* diag) const {
+  PetscFunctionBeginUser;
+  const int n = model_.owned;
+  if (static_cast<int>(tangent_.conn_start.size()) != n + 1) tangent_.create_rows(model_);
+  for (int i = 0; i < n; ++i) {
+    const double* xi = x + 3 * i;
+    double y[3] = {0.0, 0.0, 0.0};
+    for (int p = tangent_.conn_start[i]; p < tangent_.conn_start[i + 1]; ++p) {
+      const int c = tangent_.row_conns[p];
+      const int j = model_.end_a[c] == i ? model_.end_b[c] : model_.end_a[c];
+      const double* xj = x + 3 * j;
+      const double d[3] = {xj[0] - xi[0], xj[1] - xi[1], xj[2] - xi[2]};
+      const double len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2], len = std::sqrt(len2);
+      const double k = model_.k(c), geo = 1.0 - model_.l0(c) / len;
+      for (int r = 0; r < 3; ++r) y[r] += k * (geo + (1.0 - geo) * d[r] * d[r] / len2);
+    }
+    diag[3 * i] = y[0], diag[3 * i + 1] = y[1], diag[3 * i + 2] = y[2];
+  }
+  if (!terms_.empty()) {
+    auto add = [](void* p, int row, int col, const double K[9]) -> PetscErrorCode {
+      if (row == col)
+        for (int r = 0; r < 3; ++r) static_cast<double*>(p)[3 * row + r] += K[4 * r];
+      return 0;
+    };
+    for (const auto& t : terms_) PetscCall(t->add_tangent(x, add, diag));
+  }
+  for (int h : held_owned_) diag[h] = 1.0;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ForceModel::tangent_blocks(const double* x, Term::BlockAdd add, void* ctx) const {
+  PetscFunctionBeginUser;
+  const int n = model_.owned;
+  if (static_cast<int>(tangent_.conn_start.size()) != n + 1) tangent_.create_rows(model_);
+  for (int i = 0; i < n; ++i) {
+    const double* xi = x + 3 * i;
+    double self[9] = {};
+    for (int p = tangent_.conn_start[i]; p < tangent_.conn_start[i + 1]; ++p) {
+      const int c = tangent_.row_conns[p];
+      const int j = model_.end_a[c] == i ? model_.end_b[c] : model_.end_a[c];
+      const double* xj = x + 3 * j;
+      const double d[3] = {xj[0] - xi[0], xj[1] - xi[1], xj[2] - xi[2]};
+      const double len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2], len = std::sqrt(len2);
+      const double k = model_.k(c), geo = 1.0 - model_.l0(c) / len;
+      double minus[9];
+      for (int r = 0; r < 3; ++r)
+        for (int s = 0; s < 3; ++s) {
+          const double nn = d[r] * d[s] / len2;
+          const double K = k * (nn + geo * ((r == s ? 1.0 : 0.0) - nn));
+          self[3 * r + s] += K;
+          minus[3 * r + s] = -K;
+        }
+      PetscCall(add(ctx, i, j, minus));
+    }
+    PetscCall(add(ctx, i, i, self));
+  }
+  for (const auto& t : terms_) PetscCall(t->add_tangent(x, add, ctx));
+  PetscFunctionReturn(0);
+}
+
+}  // namespace tissue

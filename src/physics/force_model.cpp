@@ -420,66 +420,66 @@ PetscErrorCode ForceModel::assemble_tangent(const double* x, Mat J) const {
 namespace tissue {
 
 // The matrix-free tangent (src/solvers/matrix_free.hpp): a connection's block is k [n n^T + g (I - n n^T)] with
-// g = 1 - l0 / l, as assemble_tangent writes it, so K u = k [g u + (1 - g) n (n . u)] needs no block stored.
-PetscErrorCode ForceModel::apply_tangent(const double* x, const double* in, double* out) const {
+// g = 1 - l0 / l, as assemble_tangent writes it, so K u = k [g u + (1 - g) n (n . u)] needs no block stored;
+// a connection's term goes to both of its owned ends, so each is computed once.
+PetscErrorCode ForceModel::apply_tangent(const double* x, double* in, double* out) const {
   PetscFunctionBeginUser;
-  const int n = model_.owned;
-  if (static_cast<int>(tangent_.conn_start.size()) != n + 1) tangent_.create_rows(model_);
-  // Held components' columns are zero: their input is read as 0.
-  auto masked = [&](int j, int s) { return held_[3 * j + s] ? 0.0 : in[3 * j + s]; };
-  for (int i = 0; i < n; ++i) {
-    const double* xi = x + 3 * i;
-    const double ui[3] = {masked(i, 0), masked(i, 1), masked(i, 2)};
-    double y[3] = {0.0, 0.0, 0.0};
-    for (int p = tangent_.conn_start[i]; p < tangent_.conn_start[i + 1]; ++p) {
-      const int c = tangent_.row_conns[p];
-      const int j = model_.end_a[c] == i ? model_.end_b[c] : model_.end_a[c];
-      const double* xj = x + 3 * j;
-      const double d[3] = {xj[0] - xi[0], xj[1] - xi[1], xj[2] - xi[2]};
-      const double len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2], len = std::sqrt(len2);
-      const double k = model_.k(c), geo = 1.0 - model_.l0(c) / len;
-      const double u[3] = {ui[0] - masked(j, 0), ui[1] - masked(j, 1), ui[2] - masked(j, 2)};
-      const double along = (1.0 - geo) * (d[0] * u[0] + d[1] * u[1] + d[2] * u[2]) / len2;
-      for (int r = 0; r < 3; ++r) y[r] += k * (geo * u[r] + along * d[r]);
-    }
-    out[3 * i] = y[0], out[3 * i + 1] = y[1], out[3 * i + 2] = y[2];
+  const int n = model_.owned, local = model_.local;
+  // Held components: their rows are the identity's (out = in), their columns zero (in read as 0).
+  std::vector<double> held_in(held_owned_.size());
+  for (std::size_t h = 0; h < held_owned_.size(); ++h) held_in[h] = in[held_owned_[h]];
+  for (int q = 0; q < 3 * local; ++q)
+    if (held_[q]) in[q] = 0.0;
+  std::fill(out, out + 3 * n, 0.0);
+  // Each connection once (one square root), both owned ends.
+  const int nc = model_.connections();
+  for (int c = 0; c < nc; ++c) {
+    const int a = model_.end_a[c], b = model_.end_b[c];
+    const double* xa = x + 3 * a;
+    const double* xb = x + 3 * b;
+    const double d[3] = {xb[0] - xa[0], xb[1] - xa[1], xb[2] - xa[2]};
+    const double len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2], len = std::sqrt(len2);
+    const double k = model_.k(c), geo = 1.0 - model_.l0(c) / len;
+    const double u[3] = {in[3 * a] - in[3 * b], in[3 * a + 1] - in[3 * b + 1], in[3 * a + 2] - in[3 * b + 2]};
+    const double along = (1.0 - geo) * (d[0] * u[0] + d[1] * u[1] + d[2] * u[2]) / len2;
+    const double f[3] = {k * (geo * u[0] + along * d[0]), k * (geo * u[1] + along * d[1]), k * (geo * u[2] + along * d[2])};
+    if (a < n) out[3 * a] += f[0], out[3 * a + 1] += f[1], out[3 * a + 2] += f[2];
+    if (b < n) out[3 * b] -= f[0], out[3 * b + 1] -= f[1], out[3 * b + 2] -= f[2];
   }
   if (!terms_.empty()) {
     struct Apply {
-      const std::vector<std::uint8_t>& held;
       const double* in;
       double* out;
-    } apply{held_, in, out};
+    } apply{in, out};
     auto add = [](void* p, int row, int col, const double K[9]) -> PetscErrorCode {
       const auto& a = *static_cast<const Apply*>(p);
-      double u[3];
-      for (int s = 0; s < 3; ++s) u[s] = a.held[3 * col + s] ? 0.0 : a.in[3 * col + s];
+      const double* u = a.in + 3 * col;  // held components zero already
       for (int r = 0; r < 3; ++r) a.out[3 * row + r] += K[3 * r] * u[0] + K[3 * r + 1] * u[1] + K[3 * r + 2] * u[2];
       return 0;
     };
     for (const auto& t : terms_) PetscCall(t->add_tangent(x, add, &apply));
   }
-  for (int h : held_owned_) out[h] = in[h];  // the identity's rows
+  for (std::size_t h = 0; h < held_owned_.size(); ++h) out[held_owned_[h]] = held_in[h];
   PetscFunctionReturn(0);
 }
 
 PetscErrorCode ForceModel::tangent_diagonal(const double* x, double* diag) const {
   PetscFunctionBeginUser;
   const int n = model_.owned;
-  if (static_cast<int>(tangent_.conn_start.size()) != n + 1) tangent_.create_rows(model_);
-  for (int i = 0; i < n; ++i) {
-    const double* xi = x + 3 * i;
-    double y[3] = {0.0, 0.0, 0.0};
-    for (int p = tangent_.conn_start[i]; p < tangent_.conn_start[i + 1]; ++p) {
-      const int c = tangent_.row_conns[p];
-      const int j = model_.end_a[c] == i ? model_.end_b[c] : model_.end_a[c];
-      const double* xj = x + 3 * j;
-      const double d[3] = {xj[0] - xi[0], xj[1] - xi[1], xj[2] - xi[2]};
-      const double len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2], len = std::sqrt(len2);
-      const double k = model_.k(c), geo = 1.0 - model_.l0(c) / len;
-      for (int r = 0; r < 3; ++r) y[r] += k * (geo + (1.0 - geo) * d[r] * d[r] / len2);
+  std::fill(diag, diag + 3 * n, 0.0);
+  const int nc = model_.connections();
+  for (int c = 0; c < nc; ++c) {
+    const int a = model_.end_a[c], b = model_.end_b[c];
+    const double* xa = x + 3 * a;
+    const double* xb = x + 3 * b;
+    const double d[3] = {xb[0] - xa[0], xb[1] - xa[1], xb[2] - xa[2]};
+    const double len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2], len = std::sqrt(len2);
+    const double k = model_.k(c), geo = 1.0 - model_.l0(c) / len;
+    for (int r = 0; r < 3; ++r) {
+      const double K = k * (geo + (1.0 - geo) * d[r] * d[r] / len2);
+      if (a < n) diag[3 * a + r] += K;
+      if (b < n) diag[3 * b + r] += K;
     }
-    diag[3 * i] = y[0], diag[3 * i + 1] = y[1], diag[3 * i + 2] = y[2];
   }
   if (!terms_.empty()) {
     auto add = [](void* p, int row, int col, const double K[9]) -> PetscErrorCode {

@@ -37,8 +37,9 @@ public:
   PetscErrorCode create_tangent(Mat* J) const;  // AIJ, block size 3, exactly preallocated
   // The same tangent without storing it (the matrix-free static solver, src/solvers/matrix_free.hpp), each block
   // recomputed from the positions x (local, ghosts up to date) as assemble_tangent computes it:
-  // out (3 * owned) = J in, in: 3 * local values (ghosts up to date); held components' rows and columns the identity's.
-  PetscErrorCode apply_tangent(const double* x, const double* in, double* out) const;
+  // out (3 * owned) = J in, in: 3 * local values (ghosts up to date), its held components zeroed here (scratch);
+  // held components' rows and columns the identity's.
+  PetscErrorCode apply_tangent(const double* x, double* in, double* out) const;
   // J's diagonal (3 * owned).
   PetscErrorCode tangent_diagonal(const double* x, double* diag) const;
   // Every 3x3 block of -dF/dx (owned rows, local columns, held components not masked): the connections' row by

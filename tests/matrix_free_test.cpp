@@ -26,7 +26,19 @@ using tissue::test_pipeline::run;
 
 namespace {
 
-const char* springs = R"(
+// Every scene: a roller face and a clamped face (0-3 free components a molecule).
+const std::string fixes = R"(
+[[fix]]
+face = "z-"
+mode = "roller"
+[[fix]]
+face = "x+"
+mode = "clamped"
+[solver]
+kind = "static"
+)";
+
+const std::string springs = R"(
 title = "matrix-free: springs"
 [body]
 molecules = [10, 7, 12]
@@ -37,17 +49,9 @@ youngs_modulus = 2.5
 [calibration]
 method = "manual"
 stiffness = { edge = 1.0, face = 0.7 }
-[[fix]]
-face = "z-"
-mode = "roller"
-[[fix]]
-face = "x+"
-mode = "clamped"
-[solver]
-kind = "static"
-)";
+)" + fixes;
 
-const char* cells = R"(
+const std::string cells = R"(
 title = "matrix-free: cell term"
 [body]
 molecules = [9, 7, 11]
@@ -57,17 +61,9 @@ youngs_modulus = 1e4
 poisson_ratio = 0.45
 [calibration]
 method = "homogenized"
-[[fix]]
-face = "z-"
-mode = "roller"
-[[fix]]
-face = "x+"
-mode = "clamped"
-[solver]
-kind = "static"
-)";
+)" + fixes;
 
-const char* fibres = R"(
+const std::string fibres = R"(
 title = "matrix-free: fibres"
 [body]
 molecules = [8, 9, 10]
@@ -82,17 +78,9 @@ poisson_ratio = 0.3
 shear_modulus = 1e4
 [calibration]
 method = "homogenized"
-[[fix]]
-face = "z-"
-mode = "roller"
-[[fix]]
-face = "x+"
-mode = "clamped"
-[solver]
-kind = "static"
-)";
+)" + fixes;
 
-const char* visco = R"(
+const std::string visco = R"(
 title = "matrix-free: viscoelastic"
 [body]
 molecules = [8, 7, 9]
@@ -106,15 +94,7 @@ tau = [0.5, 4.0]
 [calibration]
 method = "manual"
 stiffness = { edge = 1.0, face = 0.7 }
-[[fix]]
-face = "z-"
-mode = "roller"
-[[fix]]
-face = "x+"
-mode = "clamped"
-[solver]
-kind = "static"
-)";
+)" + fixes;
 
 // The rest positions moved by a smooth displacement (each molecule's from its own rest position, so ghosts agree
 // with their owners and every rank count sees the same configuration).
@@ -151,7 +131,7 @@ double relative_difference(Mat A, Mat B) {
 }
 
 // Shell against assembled (MatMult, diagonal) and stream against matrix (coarse operators) at two deformations.
-void compare_operators(const char* text, bool viscoelastic_step) {
+void compare_operators(const std::string& text, bool viscoelastic_step) {
   auto r = run(text, PETSC_COMM_WORLD, {}, false);
   if (viscoelastic_step) r->forces->begin_step(0.1);  // the history's tangent factor of a 0.1 s step
   Mat A, S;
@@ -216,8 +196,8 @@ TEST(MatrixFree, ShellEqualsAssembledViscoelasticStep) { compare_operators(visco
 
 // A static tension test both ways: displacements and elongation to the solve's tolerance.
 // Above 1,000 molecules: smaller lattices get GAMG, and the assembled tangent with a note.
-void compare_static(const char* text, const std::string& molecules, const std::string& load) {
-  const std::string scene = std::string(text) + load;
+void compare_static(const std::string& text, const std::string& molecules, const std::string& load) {
+  const std::string scene = text + load;
   auto a = run(scene, PETSC_COMM_WORLD, {"solver.tolerance=1e-10", "body.molecules=" + molecules});
   auto m = run(scene, PETSC_COMM_WORLD,
                {"solver.tolerance=1e-10", "body.molecules=" + molecules, "solver.operator=matrix-free"});
@@ -249,7 +229,7 @@ TEST(MatrixFree, StaticTensionCellTerm) {
 // Where the lattice multigrid does not apply (840 molecules: GAMG), matrix-free says so and the assembled
 // tangent solves: the same answer as asking for it.
 TEST(MatrixFree, NotApplicableFallsBackWithANote) {
-  const std::string scene = std::string(springs) + "[[load]]\nface = \"z+\"\nforce = [0.0, 0.0, 1.5]\n";
+  const std::string scene = springs + "[[load]]\nface = \"z+\"\nforce = [0.0, 0.0, 1.5]\n";
   auto a = run(scene, PETSC_COMM_WORLD, {});
   auto m = run(scene, PETSC_COMM_WORLD, {"solver.operator=matrix-free"});
   EXPECT_NE(m->report.note.find("matrix-free not used"), std::string::npos) << m->report.note;

@@ -422,6 +422,18 @@ namespace tissue {
 // The matrix-free tangent (src/solvers/matrix_free.hpp): a connection's block is k [n n^T + g (I - n n^T)] with
 // g = 1 - l0 / l, as assemble_tangent writes it, so K u = k [g u + (1 - g) n (n . u)] needs no block stored;
 // a connection's term goes to both of its owned ends, so each is computed once.
+namespace {
+// Connection c from molecule a to b at positions x: d = x_b - x_a, |d|^2, its stiffness k and g = 1 - l0 / |d|.
+struct Stretch {
+  Stretch(const LocalModel& m, const double* x, int a, int b, int c) {
+    for (int r = 0; r < 3; ++r) d[r] = x[3 * b + r] - x[3 * a + r];
+    len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    k = m.k(c), geo = 1.0 - m.l0(c) / std::sqrt(len2);
+  }
+  double d[3], len2, k, geo;
+};
+}  // namespace
+
 PetscErrorCode ForceModel::apply_tangent(const double* x, double* in, double* out) const {
   PetscFunctionBeginUser;
   const int n = model_.owned, local = model_.local;
@@ -435,11 +447,9 @@ PetscErrorCode ForceModel::apply_tangent(const double* x, double* in, double* ou
   const int nc = model_.connections();
   for (int c = 0; c < nc; ++c) {
     const int a = model_.end_a[c], b = model_.end_b[c];
-    const double* xa = x + 3 * a;
-    const double* xb = x + 3 * b;
-    const double d[3] = {xb[0] - xa[0], xb[1] - xa[1], xb[2] - xa[2]};
-    const double len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2], len = std::sqrt(len2);
-    const double k = model_.k(c), geo = 1.0 - model_.l0(c) / len;
+    const Stretch st(model_, x, a, b, c);
+    const double* d = st.d;
+    const double len2 = st.len2, k = st.k, geo = st.geo;
     const double u[3] = {in[3 * a] - in[3 * b], in[3 * a + 1] - in[3 * b + 1], in[3 * a + 2] - in[3 * b + 2]};
     const double along = (1.0 - geo) * (d[0] * u[0] + d[1] * u[1] + d[2] * u[2]) / len2;
     const double f[3] = {k * (geo * u[0] + along * d[0]), k * (geo * u[1] + along * d[1]), k * (geo * u[2] + along * d[2])};
@@ -470,11 +480,9 @@ PetscErrorCode ForceModel::tangent_diagonal(const double* x, double* diag) const
   const int nc = model_.connections();
   for (int c = 0; c < nc; ++c) {
     const int a = model_.end_a[c], b = model_.end_b[c];
-    const double* xa = x + 3 * a;
-    const double* xb = x + 3 * b;
-    const double d[3] = {xb[0] - xa[0], xb[1] - xa[1], xb[2] - xa[2]};
-    const double len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2], len = std::sqrt(len2);
-    const double k = model_.k(c), geo = 1.0 - model_.l0(c) / len;
+    const Stretch st(model_, x, a, b, c);
+    const double* d = st.d;
+    const double len2 = st.len2, k = st.k, geo = st.geo;
     for (int r = 0; r < 3; ++r) {
       const double K = k * (geo + (1.0 - geo) * d[r] * d[r] / len2);
       if (a < n) diag[3 * a + r] += K;
@@ -498,15 +506,13 @@ PetscErrorCode ForceModel::tangent_blocks(const double* x, Term::BlockAdd add, v
   const int n = model_.owned;
   if (static_cast<int>(tangent_.conn_start.size()) != n + 1) tangent_.create_rows(model_);
   for (int i = 0; i < n; ++i) {
-    const double* xi = x + 3 * i;
     double self[9] = {};
     for (int p = tangent_.conn_start[i]; p < tangent_.conn_start[i + 1]; ++p) {
       const int c = tangent_.row_conns[p];
       const int j = model_.end_a[c] == i ? model_.end_b[c] : model_.end_a[c];
-      const double* xj = x + 3 * j;
-      const double d[3] = {xj[0] - xi[0], xj[1] - xi[1], xj[2] - xi[2]};
-      const double len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2], len = std::sqrt(len2);
-      const double k = model_.k(c), geo = 1.0 - model_.l0(c) / len;
+      const Stretch st(model_, x, i, j, c);
+      const double* d = st.d;
+      const double len2 = st.len2, k = st.k, geo = st.geo;
       double minus[9];
       for (int r = 0; r < 3; ++r)
         for (int s = 0; s < 3; ++s) {

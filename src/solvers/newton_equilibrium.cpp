@@ -141,6 +141,18 @@ PetscErrorCode before_newton_step(SNES snes, PetscInt step) {
   PetscFunctionReturn(0);
 }
 
+// The preconditioner is rebuilt after this tangent exactly when the lag is -2 (see Reuse); pc: SNES's.
+PetscErrorCode rebuild_pending(SNES snes, PC* pc, bool* rebuild) {
+  PetscFunctionBeginUser;
+  PetscInt lag;
+  KSP ksp;
+  PetscCall(SNESGetLagPreconditioner(snes, &lag));
+  PetscCall(SNESGetKSP(snes, &ksp));
+  PetscCall(KSPGetPC(ksp, pc));
+  *rebuild = lag == -2;
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode tangent(SNES snes, Vec X, Mat J, Mat P, void* p) {
   PetscFunctionBeginUser;
   auto* ctx = static_cast<Context*>(p);
@@ -149,13 +161,10 @@ PetscErrorCode tangent(SNES snes, Vec X, Mat J, Mat P, void* p) {
     // Nothing to assemble: the shell takes the positions, and a rebuilt preconditioner's coarse operators come
     // from the force model's block stream at them (lattice_galerkin.hpp).
     PetscCall(ctx->shell->set_positions(ctx->state->x.array(), J));
-    PetscInt lag;
-    KSP ksp;
     PC pc;
-    PetscCall(SNESGetLagPreconditioner(snes, &lag));
-    PetscCall(SNESGetKSP(snes, &ksp));
-    PetscCall(KSPGetPC(ksp, &pc));
-    if (lag == -2) PetscCall(ctx->galerkin->update(*ctx->forces, ctx->shell->positions(), pc));
+    bool rebuild;
+    PetscCall(rebuild_pending(snes, &pc, &rebuild));
+    if (rebuild) PetscCall(ctx->galerkin->update(*ctx->forces, ctx->shell->positions(), pc));
     PetscFunctionReturn(0);
   }
   // A throw here (before or after the assembly's collectives: not known) is kept for the agreement after
@@ -168,15 +177,12 @@ PetscErrorCode tangent(SNES snes, Vec X, Mat J, Mat P, void* p) {
   if (ctx->galerkin) {
     // The preconditioner is rebuilt after this call exactly when the lag is -2 (see Reuse); then its coarse
     // operators must be this tangent's. -pc_mg_galerkin given by the user hands them back to PCMG.
-    PetscInt lag;
-    KSP ksp;
     PC pc;
+    bool rebuild;
     PCMGGalerkinType galerkin;
-    PetscCall(SNESGetLagPreconditioner(snes, &lag));
-    PetscCall(SNESGetKSP(snes, &ksp));
-    PetscCall(KSPGetPC(ksp, &pc));
+    PetscCall(rebuild_pending(snes, &pc, &rebuild));
     PetscCall(PCMGGetGalerkin(pc, &galerkin));
-    if (lag == -2 && galerkin == PC_MG_GALERKIN_NONE) PetscCall(ctx->galerkin->update(P, pc));
+    if (rebuild && galerkin == PC_MG_GALERKIN_NONE) PetscCall(ctx->galerkin->update(P, pc));
   }
   if (J != P) {
     PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));

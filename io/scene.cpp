@@ -431,7 +431,7 @@ CalibrationSpec read_calibration(const Section& s, const BodySpec* body, int ind
 SolverSpec read_solver(const Section& s) {
   SolverSpec v;
   s.allow({"kind", "tolerance", "time_step", "steps", "end_time", "max_iterations", "load_steps",
-           "allow_unstable_time_step", "time_step_growth", "max_time_step"});
+           "allow_unstable_time_step", "time_step_growth", "max_time_step", "operator"});
   v.kind = s.choice("kind", solver_names()).value_or(v.kind);
   v.tolerance = s.number("tolerance").value_or(v.tolerance);
   if (!(v.tolerance > 0 && v.tolerance < 1))
@@ -447,6 +447,7 @@ SolverSpec read_solver(const Section& s) {
   s.at_least("max_iterations", v.max_iterations, 0);
   v.load_steps = s.integer("load_steps").value_or(v.load_steps);
   s.at_least("load_steps", v.load_steps, 1);
+  v.tangent_operator = s.choice("operator", {"assembled", "matrix-free"}).value_or(v.tangent_operator);
   v.allow_unstable_time_step = s.boolean("allow_unstable_time_step").value_or(false);
   v.time_step_growth = s.number("time_step_growth").value_or(v.time_step_growth);
   if (!(v.time_step_growth >= 1.0 && v.time_step_growth <= 10.0))

@@ -172,6 +172,9 @@ struct SolverSpec {
   std::optional<double> max_time_step;
   long max_iterations = 0;             // relaxation/static cap; 0 = a default that grows with the lattice
   long load_steps = 1;                 // static: load increments
+  // static, quasi-static: the Newton tangent as an assembled matrix, or applied from the positions without being
+  // stored ("matrix-free": box lattices with the lattice multigrid only; elsewhere the assembled one, with a note)
+  std::string tangent_operator = "assembled";
   // A time_step above the critical one (explicit integration unstable) is refused unless this is true; then it
   // is used as given, with a warning (the critical step is a Gershgorin bound: the true limit may be higher).
   bool allow_unstable_time_step = false;

@@ -422,3 +422,117 @@ PetscErrorCode ForceModel::assemble_tangent(const double* x, Mat J) const {
 }
 
 }  // namespace tissue
+
+namespace tissue {
+
+// The matrix-free tangent (src/solvers/matrix_free.hpp): a connection's block is k [n n^T + g (I - n n^T)] with
+// g = 1 - l0 / l, as assemble_tangent writes it, so K u = k [g u + (1 - g) n (n . u)] needs no block stored;
+// a connection's term goes to both of its owned ends, so each is computed once.
+namespace {
+// Connection c from molecule a to b at positions x: d = x_b - x_a, |d|^2, its stiffness k and g = 1 - l0 / |d|.
+struct Stretch {
+  Stretch(const LocalModel& m, const double* x, int a, int b, int c) {
+    for (int r = 0; r < 3; ++r) d[r] = x[3 * b + r] - x[3 * a + r];
+    len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    k = m.k(c), geo = 1.0 - m.l0(c) / std::sqrt(len2);
+  }
+  double d[3], len2, k, geo;
+};
+}  // namespace
+
+PetscErrorCode ForceModel::apply_tangent(const double* x, double* in, double* out) const {
+  PetscFunctionBeginUser;
+  const int n = model_.owned, local = model_.local;
+  // Held components: their rows are the identity's (out = in), their columns zero (in read as 0).
+  std::vector<double> held_in(held_owned_.size());
+  for (std::size_t h = 0; h < held_owned_.size(); ++h) held_in[h] = in[held_owned_[h]];
+  for (int q = 0; q < 3 * local; ++q)
+    if (held_[q]) in[q] = 0.0;
+  std::fill(out, out + 3 * n, 0.0);
+  // Each connection once (one square root), both owned ends.
+  const int nc = model_.connections();
+  for (int c = 0; c < nc; ++c) {
+    const int a = model_.end_a[c], b = model_.end_b[c];
+    const Stretch st(model_, x, a, b, c);
+    const double* d = st.d;
+    const double len2 = st.len2, k = st.k, geo = st.geo;
+    const double u[3] = {in[3 * a] - in[3 * b], in[3 * a + 1] - in[3 * b + 1], in[3 * a + 2] - in[3 * b + 2]};
+    const double along = (1.0 - geo) * (d[0] * u[0] + d[1] * u[1] + d[2] * u[2]) / len2;
+    const double f[3] = {k * (geo * u[0] + along * d[0]), k * (geo * u[1] + along * d[1]), k * (geo * u[2] + along * d[2])};
+    if (a < n) out[3 * a] += f[0], out[3 * a + 1] += f[1], out[3 * a + 2] += f[2];
+    if (b < n) out[3 * b] -= f[0], out[3 * b + 1] -= f[1], out[3 * b + 2] -= f[2];
+  }
+  if (!terms_.empty()) {
+    struct Apply {
+      const double* in;
+      double* out;
+    } apply{in, out};
+    auto add = [](void* p, int row, int col, const double K[9]) -> PetscErrorCode {
+      const auto& a = *static_cast<const Apply*>(p);
+      const double* u = a.in + 3 * col;  // held components zero already
+      for (int r = 0; r < 3; ++r) a.out[3 * row + r] += K[3 * r] * u[0] + K[3 * r + 1] * u[1] + K[3 * r + 2] * u[2];
+      return 0;
+    };
+    for (const auto& t : terms_) PetscCall(t->add_tangent(x, add, &apply));
+  }
+  for (std::size_t h = 0; h < held_owned_.size(); ++h) out[held_owned_[h]] = held_in[h];
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ForceModel::tangent_diagonal(const double* x, double* diag) const {
+  PetscFunctionBeginUser;
+  const int n = model_.owned;
+  std::fill(diag, diag + 3 * n, 0.0);
+  const int nc = model_.connections();
+  for (int c = 0; c < nc; ++c) {
+    const int a = model_.end_a[c], b = model_.end_b[c];
+    const Stretch st(model_, x, a, b, c);
+    const double* d = st.d;
+    const double len2 = st.len2, k = st.k, geo = st.geo;
+    for (int r = 0; r < 3; ++r) {
+      const double K = k * (geo + (1.0 - geo) * d[r] * d[r] / len2);
+      if (a < n) diag[3 * a + r] += K;
+      if (b < n) diag[3 * b + r] += K;
+    }
+  }
+  if (!terms_.empty()) {
+    auto add = [](void* p, int row, int col, const double K[9]) -> PetscErrorCode {
+      if (row == col)
+        for (int r = 0; r < 3; ++r) static_cast<double*>(p)[3 * row + r] += K[4 * r];
+      return 0;
+    };
+    for (const auto& t : terms_) PetscCall(t->add_tangent(x, add, diag));
+  }
+  for (int h : held_owned_) diag[h] = 1.0;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ForceModel::tangent_blocks(const double* x, Term::BlockAdd add, void* ctx) const {
+  PetscFunctionBeginUser;
+  const int n = model_.owned;
+  if (static_cast<int>(tangent_.conn_start.size()) != n + 1) tangent_.create_rows(model_);
+  for (int i = 0; i < n; ++i) {
+    double self[9] = {};
+    for (int p = tangent_.conn_start[i]; p < tangent_.conn_start[i + 1]; ++p) {
+      const int c = tangent_.row_conns[p];
+      const int j = model_.end_a[c] == i ? model_.end_b[c] : model_.end_a[c];
+      const Stretch st(model_, x, i, j, c);
+      const double* d = st.d;
+      const double len2 = st.len2, k = st.k, geo = st.geo;
+      double minus[9];
+      for (int r = 0; r < 3; ++r)
+        for (int s = 0; s < 3; ++s) {
+          const double nn = d[r] * d[s] / len2;
+          const double K = k * (nn + geo * ((r == s ? 1.0 : 0.0) - nn));
+          self[3 * r + s] += K;
+          minus[3 * r + s] = -K;
+        }
+      PetscCall(add(ctx, i, j, minus));
+    }
+    PetscCall(add(ctx, i, i, self));
+  }
+  for (const auto& t : terms_) PetscCall(t->add_tangent(x, add, ctx));
+  PetscFunctionReturn(0);
+}
+
+}  // namespace tissue

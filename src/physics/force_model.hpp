@@ -35,6 +35,16 @@ public:
   // by identity (so the matrix stays symmetric). J must come from create_tangent (its row pattern is cached here).
   PetscErrorCode assemble_tangent(const double* x, Mat J) const;
   PetscErrorCode create_tangent(Mat* J) const;  // AIJ, block size 3, exactly preallocated
+  // The same tangent without storing it (the matrix-free static solver, src/solvers/matrix_free.hpp), each block
+  // recomputed from the positions x (local, ghosts up to date) as assemble_tangent computes it:
+  // out (3 * owned) = J in, in: 3 * local values (ghosts up to date), its held components zeroed here (scratch);
+  // held components' rows and columns the identity's.
+  PetscErrorCode apply_tangent(const double* x, double* in, double* out) const;
+  // J's diagonal (3 * owned).
+  PetscErrorCode tangent_diagonal(const double* x, double* diag) const;
+  // Every 3x3 block of -dF/dx (owned rows, local columns, held components not masked): the connections' row by
+  // row in owned order (the diagonal block last), then the terms' in their own order. Blocks may repeat.
+  PetscErrorCode tangent_blocks(const double* x, Term::BlockAdd add, void* ctx) const;
   // Collective: the smallest time step bound the terms impose by themselves (infinity: none; Term::critical_time_step).
   double terms_critical_time_step() const;
   // Adds each term's force scale per owned molecule (N) to scale (the residual's round-off floor).

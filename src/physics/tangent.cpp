@@ -6,22 +6,9 @@ namespace tissue {
 
 PetscErrorCode TangentStorage::create(const LocalModel& model, Mat* J, const std::vector<std::vector<int>>& extra) {
   PetscFunctionBeginUser;
-  const int n = model.owned, nc = model.connections();
-  // Each owned molecule's connections (counting sort by end), then its distinct neighbours sorted by block id.
-  conn_start.assign(n + 1, 0);
-  for (int c = 0; c < nc; ++c) {
-    if (model.end_a[c] < n) conn_start[model.end_a[c] + 1]++;
-    if (model.end_b[c] < n) conn_start[model.end_b[c] + 1]++;
-  }
-  for (int i = 0; i < n; ++i) conn_start[i + 1] += conn_start[i];
-  row_conns.assign(conn_start[n], 0);
-  {
-    std::vector<int> fill(conn_start.begin(), conn_start.end() - 1);
-    for (int c = 0; c < nc; ++c) {
-      if (model.end_a[c] < n) row_conns[fill[model.end_a[c]]++] = c;
-      if (model.end_b[c] < n) row_conns[fill[model.end_b[c]]++] = c;
-    }
-  }
+  const int n = model.owned;
+  // Each owned molecule's connections, then its distinct neighbours sorted by block id.
+  create_rows(model);
   row_start.assign(n + 1, 0);
   row_cols.clear();
   row_cols.reserve(conn_start[n] + n);
@@ -121,6 +108,23 @@ PetscErrorCode TangentStorage::create(const LocalModel& model, Mat* J, const std
     PetscCall(MatRestoreRowIJ(part, 0, PETSC_FALSE, PETSC_FALSE, &rows, &ia, &ja, &done));
   }
   PetscFunctionReturn(0);
+}
+
+void TangentStorage::create_rows(const LocalModel& model) {
+  const int n = model.owned, nc = model.connections();
+  // A counting sort of the connections by owned end.
+  conn_start.assign(n + 1, 0);
+  for (int c = 0; c < nc; ++c) {
+    if (model.end_a[c] < n) conn_start[model.end_a[c] + 1]++;
+    if (model.end_b[c] < n) conn_start[model.end_b[c] + 1]++;
+  }
+  for (int i = 0; i < n; ++i) conn_start[i + 1] += conn_start[i];
+  row_conns.assign(conn_start[n], 0);
+  std::vector<int> fill(conn_start.begin(), conn_start.end() - 1);
+  for (int c = 0; c < nc; ++c) {
+    if (model.end_a[c] < n) row_conns[fill[model.end_a[c]]++] = c;
+    if (model.end_b[c] < n) row_conns[fill[model.end_b[c]]++] = c;
+  }
 }
 
 void TangentStorage::release_arrays() {

@@ -16,6 +16,8 @@ public:
   // arrays are held here until J is destroyed (J must not outlive this object).
   // extra: per owned row, local columns beyond its connections' (terms' couplings; may be empty).
   PetscErrorCode create(const LocalModel& model, Mat* J, const std::vector<std::vector<int>>& extra = {});
+  // Only each owned molecule's connections (conn_start, row_conns): what the matrix-free tangent needs.
+  void create_rows(const LocalModel& model);
 
   // The tangent's block rows (built by create): row i's columns are the local molecules
   // row_cols[row_start[i] .. row_start[i+1]) sorted by PETSc block id, itself included; its connections are

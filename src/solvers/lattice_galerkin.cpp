@@ -194,10 +194,10 @@ PetscErrorCode LatticeGalerkin::applies(Mat fine, bool* ok) const {
 
 // Level l+1's operator from level l's: from the fine matrix (l = 0) or from level l's stencil rows. next receives
 // level l+1's rows (this rank's nodes, owned order, held components zeroed), and coarse_[l + 1] its matrix.
-PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Rows& next) {
+PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Stream* stream, const Rows* stencil, Rows& next) {
   PetscFunctionBeginUser;
   Rows acc;
-  PetscCall(accumulate_rows(l, fine, stencil, acc));
+  PetscCall(accumulate_rows(l, fine, stream, stencil, acc));
   Numbers num;
   PetscCall(number_coarse_nodes(l, acc, num));
   PetscCall(send_rows_to_owners(l, num, acc));
@@ -212,7 +212,8 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Rows* stencil, Ro
 // 1. Every fine node's row, a block at a time: T = sum_j A_ij w_jJ over a 4x4x4 box of coarse nodes J, then
 //    row I += w_iI T for the coarse nodes I that i interpolates from. Rows of coarse nodes owned elsewhere are
 //    collected too and sent in step 3.
-PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Rows* stencil, Rows& acc) const {
+PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* stream, const Rows* stencil,
+                                                Rows& acc) const {
   PetscFunctionBeginUser;
   const Body& shape = model_.shape;
   const auto& planes = levels_.planes;
@@ -227,7 +228,7 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Rows* ste
   const PetscInt *dia = nullptr, *dja = nullptr, *oia = nullptr, *oja = nullptr;
   const PetscScalar *dv = nullptr, *ov = nullptr;
   std::vector<int> off_local;  // local molecule of each off-diagonal column
-  if (l == 0) {
+  if (l == 0 && !stream) {
     bool ok = false;
     PetscCall(fine_parts(fine, &parts, &ok));
     PetscCheck(ok, model_.comm, PETSC_ERR_SUP, "lattice Galerkin product: the tangent is not AIJ");
@@ -259,52 +260,10 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Rows* ste
   }
   std::array<double, kSlots * kBlock> blocks{};
   std::array<double, 64 * kBlock> T{};
-  for (std::size_t n = 0; n < nnodes; ++n) {
-    const int i = l == 0 ? static_cast<int>(n) : nodes[n];
-    const int b = model_.body[i];
+  // Row i (level l, planes p) of level l's operator, its blocks src by stencil slot (present: which), into the
+  // rows of the coarse nodes I that i interpolates from.
+  auto scatter = [&](int b, const std::array<int, 3>& p, std::uint32_t present, const double* src) -> PetscErrorCode {
     const BoxGeometry& box = shape.body(b);
-    std::array<int, 3> p;
-    for (int a = 0; a < 3; ++a) p[a] = l == 0 ? ijk_[i][a] : position(planes[l][b][a], ijk_[i][a]);
-    // The node's blocks by stencil slot.
-    std::uint32_t present = 0;
-    const double* src = nullptr;
-    bool off_stencil = false;
-    if (l == 0) {
-      blocks.fill(0.0);
-      // Rows come in whole 3x3 blocks (applies() checked): three values a block column.
-      auto put = [&](int r, int j, const PetscScalar* v) {
-        if (j < 0) {
-          off_stencil = true;
-          return;
-        }
-        const int d0 = ijk_[j][0] - ijk_[i][0], d1 = ijk_[j][1] - ijk_[i][1], d2 = ijk_[j][2] - ijk_[i][2];
-        // The pattern was checked once (applies()); a block added since (a new contact pair) is not a stencil's.
-        if (std::abs(d0) > 1 || std::abs(d1) > 1 || std::abs(d2) > 1 || model_.body[j] != b) {
-          off_stencil = true;
-          return;
-        }
-        const int s = slot_of(d0, d1, d2);
-        double* to = blocks.data() + s * kBlock + 3 * r;
-        to[0] = v[0], to[1] = v[1], to[2] = v[2];
-        present |= 1u << s;
-      };
-      for (int r = 0; r < 3; ++r) {
-        if (held_[3 * i + r]) continue;  // the identity row of a held component: not in the masked product
-        const PetscInt row = 3 * i + r;
-        for (PetscInt e = dia[row]; e < dia[row + 1]; e += 3) put(r, static_cast<int>(dja[e] / 3), dv + e);
-        if (oia)
-          for (PetscInt e = oia[row]; e < oia[row + 1]; e += 3) put(r, off_local[oja[e]], ov + e);
-      }
-      PetscCheck(!off_stencil, PETSC_COMM_SELF, PETSC_ERR_SUP,
-                 "lattice Galerkin product: the tangent has a block beyond the lattice stencil");
-      src = blocks.data();
-    } else {
-      const int r = stencil->row[n];
-      if (r < 0) continue;  // every component held
-      present = stencil->present[r];
-      src = stencil->a.data() + static_cast<std::size_t>(r) * kSlots * kBlock;
-    }
-    if (!present) continue;
     const std::array<const AxisWeights*, 3> wi{&weights[b][0][p[0]], &weights[b][1][p[1]], &weights[b][2][p[2]]};
     std::array<int, 3> c0;
     for (int a = 0; a < 3; ++a) c0[a] = wi[a]->at[0] - 1;
@@ -368,8 +327,101 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Rows* ste
           }
           acc.present[r] |= bits;
         }
+    return PetscErrorCode(0);
+  };
+  if (l == 0 && stream) {
+    // The fine blocks straight from the force model (matrix-free: no fine matrix), collected while they belong
+    // to one row and scattered as a matrix row is. Held components as in the assembled tangent: their rows
+    // dropped, their columns zero. A row may come in several runs (a term's blocks): the sum is the same.
+    int row = -1;
+    std::uint32_t present = 0;
+    bool off_stencil = false;
+    auto flush = [&]() -> PetscErrorCode {
+      if (row >= 0 && present) PetscCall(scatter(model_.body[row], ijk_[row], present, blocks.data()));
+      for (std::uint32_t rest = present; rest; rest &= rest - 1)
+        std::fill_n(blocks.data() + __builtin_ctz(rest) * kBlock, kBlock, 0.0);
+      present = 0, row = -1;
+      return PetscErrorCode(0);
+    };
+    auto put = [&](int i, int j, const double K[9]) -> PetscErrorCode {
+      if (i != row) {
+        PetscCall(flush());
+        row = i;
+      }
+      const int d0 = ijk_[j][0] - ijk_[i][0], d1 = ijk_[j][1] - ijk_[i][1], d2 = ijk_[j][2] - ijk_[i][2];
+      if (std::abs(d0) > 1 || std::abs(d1) > 1 || std::abs(d2) > 1 || model_.body[j] != model_.body[i]) {
+        off_stencil = true;
+        return PetscErrorCode(0);
+      }
+      const int s = slot_of(d0, d1, d2);
+      double* to = blocks.data() + s * kBlock;
+      bool any = false;
+      for (int r = 0; r < 3; ++r) {
+        if (held_[3 * i + r]) continue;
+        any = true;
+        for (int c = 0; c < 3; ++c)
+          if (!held_[3 * j + c]) to[3 * r + c] += K[3 * r + c];
+      }
+      if (any) present |= 1u << s;
+      return PetscErrorCode(0);
+    };
+    using Put = decltype(put);
+    auto add = [](void* ctx, int i, int j, const double K[9]) -> PetscErrorCode {
+      return (*static_cast<Put*>(ctx))(i, j, K);
+    };
+    PetscCall(stream->forces->tangent_blocks(stream->x, add, &put));
+    PetscCall(flush());
+    PetscCheck(!off_stencil, PETSC_COMM_SELF, PETSC_ERR_SUP,
+               "lattice Galerkin product: the tangent has a block beyond the lattice stencil");
   }
-  if (l == 0) {
+  for (std::size_t n = 0; n < (l == 0 && stream ? 0 : nnodes); ++n) {
+    const int i = l == 0 ? static_cast<int>(n) : nodes[n];
+    const int b = model_.body[i];
+    std::array<int, 3> p;
+    for (int a = 0; a < 3; ++a) p[a] = l == 0 ? ijk_[i][a] : position(planes[l][b][a], ijk_[i][a]);
+    // The node's blocks by stencil slot.
+    std::uint32_t present = 0;
+    const double* src = nullptr;
+    bool off_stencil = false;
+    if (l == 0) {
+      blocks.fill(0.0);
+      // Rows come in whole 3x3 blocks (applies() checked): three values a block column.
+      auto put = [&](int r, int j, const PetscScalar* v) {
+        if (j < 0) {
+          off_stencil = true;
+          return;
+        }
+        const int d0 = ijk_[j][0] - ijk_[i][0], d1 = ijk_[j][1] - ijk_[i][1], d2 = ijk_[j][2] - ijk_[i][2];
+        // The pattern was checked once (applies()); a block added since (a new contact pair) is not a stencil's.
+        if (std::abs(d0) > 1 || std::abs(d1) > 1 || std::abs(d2) > 1 || model_.body[j] != b) {
+          off_stencil = true;
+          return;
+        }
+        const int s = slot_of(d0, d1, d2);
+        double* to = blocks.data() + s * kBlock + 3 * r;
+        to[0] = v[0], to[1] = v[1], to[2] = v[2];
+        present |= 1u << s;
+      };
+      for (int r = 0; r < 3; ++r) {
+        if (held_[3 * i + r]) continue;  // the identity row of a held component: not in the masked product
+        const PetscInt row = 3 * i + r;
+        for (PetscInt e = dia[row]; e < dia[row + 1]; e += 3) put(r, static_cast<int>(dja[e] / 3), dv + e);
+        if (oia)
+          for (PetscInt e = oia[row]; e < oia[row + 1]; e += 3) put(r, off_local[oja[e]], ov + e);
+      }
+      PetscCheck(!off_stencil, PETSC_COMM_SELF, PETSC_ERR_SUP,
+                 "lattice Galerkin product: the tangent has a block beyond the lattice stencil");
+      src = blocks.data();
+    } else {
+      const int r = stencil->row[n];
+      if (r < 0) continue;  // every component held
+      present = stencil->present[r];
+      src = stencil->a.data() + static_cast<std::size_t>(r) * kSlots * kBlock;
+    }
+    if (!present) continue;
+    PetscCall(scatter(b, p, present, src));
+  }
+  if (l == 0 && !stream) {
     PetscInt rows;
     PetscBool done;
     PetscCall(MatSeqAIJRestoreArrayRead(parts.Ad, &dv));
@@ -601,14 +653,42 @@ PetscErrorCode LatticeGalerkin::fill_coarse_matrix(int l, const Numbers& num, co
 }
 
 
-PetscErrorCode LatticeGalerkin::update(Mat fine, PC pc) {
+PetscErrorCode LatticeGalerkin::update(Mat fine, PC pc) { return update(fine, nullptr, pc); }
+
+PetscErrorCode LatticeGalerkin::update(const ForceModel& forces, const double* x, PC pc) {
+  const Stream stream{&forces, x};
+  return update(nullptr, &stream, pc);
+}
+
+PetscErrorCode LatticeGalerkin::applies(const ForceModel& forces, const double* x, bool* ok) const {
+  PetscFunctionBeginUser;
+  index_molecules();
+  bool good = true;
+  auto put = [&](int i, int j, const double*) -> PetscErrorCode {
+    for (int d = 0; d < 3; ++d) good = good && std::abs(ijk_[i][d] - ijk_[j][d]) <= 1;
+    good = good && model_.body[i] == model_.body[j];
+    return PetscErrorCode(0);
+  };
+  using Put = decltype(put);
+  auto add = [](void* ctx, int i, int j, const double K[9]) -> PetscErrorCode {
+    return (*static_cast<Put*>(ctx))(i, j, K);
+  };
+  PetscCall(forces.tangent_blocks(x, add, &put));
+  ijk_ = {};
+  int mine = good ? 1 : 0, all = 0;
+  PetscCallMPI(MPI_Allreduce(&mine, &all, 1, MPI_INT, MPI_MIN, model_.comm));
+  *ok = all == 1;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode LatticeGalerkin::update(Mat fine, const Stream* stream, PC pc) {
   PetscFunctionBeginUser;
   PetscCall(PetscLogEventBegin(galerkin_event(), pc, fine, 0, 0));
   index_molecules();
   const int L = static_cast<int>(levels_.planes.size());
   Rows stencil, next;
   for (int l = 0; l + 1 < L; ++l) {
-    PetscCall(coarsen(l, fine, l == 0 ? nullptr : &stencil, next));
+    PetscCall(coarsen(l, fine, stream, l == 0 ? nullptr : &stencil, next));
     std::swap(stencil, next);
     KSP level;
     PetscCall(PCMGGetSmoother(pc, L - 2 - l, &level));  // PCMG counts levels from the coarsest

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "partition/local_model.hpp"
+#include "src/physics/force_model.hpp"
 #include "src/solvers/lattice_mg.hpp"
 
 namespace tissue {
@@ -32,14 +33,25 @@ public:
   // Collective. The coarse operators of every level from fine's current values, set as the operators of pc's
   // (a PCMG with this hierarchy) coarser levels; the matrices are made on the first call and refilled after.
   PetscErrorCode update(Mat fine, PC pc);
+  // Collective. The same with no fine matrix (the matrix-free tangent, src/solvers/matrix_free.hpp): the fine
+  // blocks from forces.tangent_blocks at positions x (local, ghosts up to date), summed into the level-1 rows.
+  PetscErrorCode update(const ForceModel& forces, const double* x, PC pc);
+  // Collective. Whether every block forces.tangent_blocks gives at x joins molecules of one box at most one plane
+  // apart (what update(forces, x, pc) needs).
+  PetscErrorCode applies(const ForceModel& forces, const double* x, bool* ok) const;
 
 private:
   struct Rows;
   struct Numbers;
   struct Neighbours;
-  PetscErrorCode coarsen(int l, Mat fine, const Rows* stencil, Rows& next);
+  struct Stream {  // the fine blocks' source when there is no fine matrix
+    const ForceModel* forces;
+    const double* x;
+  };
+  PetscErrorCode update(Mat fine, const Stream* stream, PC pc);
+  PetscErrorCode coarsen(int l, Mat fine, const Stream* stream, const Rows* stencil, Rows& next);
   // coarsen's steps, in order (lattice_galerkin.cpp narrates each).
-  PetscErrorCode accumulate_rows(int l, Mat fine, const Rows* stencil, Rows& acc) const;
+  PetscErrorCode accumulate_rows(int l, Mat fine, const Stream* stream, const Rows* stencil, Rows& acc) const;
   PetscErrorCode number_coarse_nodes(int l, const Rows& acc, Numbers& num) const;
   PetscErrorCode send_rows_to_owners(int l, const Numbers& numbers, Rows& acc) const;
   PetscErrorCode mask_held(int l, const Numbers& num, Rows& acc, std::vector<PetscInt>& dnnz,

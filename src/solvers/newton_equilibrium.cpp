@@ -18,6 +18,7 @@
 #include "src/solvers/guards.hpp"
 #include "src/solvers/lattice_galerkin.hpp"
 #include "src/solvers/lattice_mg.hpp"
+#include "src/solvers/matrix_free.hpp"
 #include "src/solvers/molecule_report.hpp"
 #include "src/solvers/newton_equilibrium.hpp"
 #include "src/solvers/solver.hpp"
@@ -38,6 +39,8 @@ struct Context {
   double first_rtol = 0.0, rtol = 1e-10;
   // The lattice multigrid's coarse operators from the lattice structure (null: PCMG's own Galerkin product).
   LatticeGalerkin* galerkin = nullptr;
+  // The matrix-free tangent (solver.operator = "matrix-free"): J is its shell, and no fine matrix exists.
+  MatrixFreeTangent* shell = nullptr;
   // What a callback threw on this rank. An exception must not cross PETSc's C frames, and this rank must not leave
   // SNES while the others go on in its collectives: the callback keeps it, SNES ends the solve on every rank
   // (see residual()), and the ranks agree on it after SNESSolve.
@@ -138,10 +141,32 @@ PetscErrorCode before_newton_step(SNES snes, PetscInt step) {
   PetscFunctionReturn(0);
 }
 
+// The preconditioner is rebuilt after this tangent exactly when the lag is -2 (see Reuse); pc: SNES's.
+PetscErrorCode rebuild_pending(SNES snes, PC* pc, bool* rebuild) {
+  PetscFunctionBeginUser;
+  PetscInt lag;
+  KSP ksp;
+  PetscCall(SNESGetLagPreconditioner(snes, &lag));
+  PetscCall(SNESGetKSP(snes, &ksp));
+  PetscCall(KSPGetPC(ksp, pc));
+  *rebuild = lag == -2;
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode tangent(SNES snes, Vec X, Mat J, Mat P, void* p) {
   PetscFunctionBeginUser;
   auto* ctx = static_cast<Context*>(p);
   PetscCall(load_positions(ctx, X));
+  if (ctx->shell) {
+    // Nothing to assemble: the shell takes the positions, and a rebuilt preconditioner's coarse operators come
+    // from the force model's block stream at them (lattice_galerkin.hpp).
+    PetscCall(ctx->shell->set_positions(ctx->state->x.array(), J));
+    PC pc;
+    bool rebuild;
+    PetscCall(rebuild_pending(snes, &pc, &rebuild));
+    if (rebuild) PetscCall(ctx->galerkin->update(*ctx->forces, ctx->shell->positions(), pc));
+    PetscFunctionReturn(0);
+  }
   // A throw here (before or after the assembly's collectives: not known) is kept for the agreement after
   // SNESSolve; the tangent left may be partial, and the solve's result is discarded by that agreement.
   PetscErrorCode assembled = 0;
@@ -152,15 +177,12 @@ PetscErrorCode tangent(SNES snes, Vec X, Mat J, Mat P, void* p) {
   if (ctx->galerkin) {
     // The preconditioner is rebuilt after this call exactly when the lag is -2 (see Reuse); then its coarse
     // operators must be this tangent's. -pc_mg_galerkin given by the user hands them back to PCMG.
-    PetscInt lag;
-    KSP ksp;
     PC pc;
+    bool rebuild;
     PCMGGalerkinType galerkin;
-    PetscCall(SNESGetLagPreconditioner(snes, &lag));
-    PetscCall(SNESGetKSP(snes, &ksp));
-    PetscCall(KSPGetPC(ksp, &pc));
+    PetscCall(rebuild_pending(snes, &pc, &rebuild));
     PetscCall(PCMGGetGalerkin(pc, &galerkin));
-    if (lag == -2 && galerkin == PC_MG_GALERKIN_NONE) PetscCall(ctx->galerkin->update(P, pc));
+    if (rebuild && galerkin == PC_MG_GALERKIN_NONE) PetscCall(ctx->galerkin->update(P, pc));
   }
   if (J != P) {
     PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
@@ -232,6 +254,8 @@ struct NewtonEquilibrium::Impl {
   PC pc = nullptr;
   bool lattice_mg = false, set_ptap = false, switched = false;
   std::unique_ptr<LatticeGalerkin> galerkin;
+  std::unique_ptr<MatrixFreeTangent> shell;  // kept to the end once made (PETSc objects may still refer to it)
+  PetscErrorCode use_matrix_free(bool user_pc, bool user_lag, LatticeLevels& hierarchy);
   double reference = 1.0, tolerance = 0.0;
   Reuse reuse;
   bool record = false;  // record_load_steps()
@@ -241,11 +265,14 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
   PetscFunctionBeginUser;
   PetscCall(VecDuplicate(state.x.global(), &X));
   PetscCall(VecCopy(state.x.global(), X));
-  PetscCall(forces.create_tangent(&J));
+  // The matrix-free tangent is decided once the lattice multigrid is known (use_matrix_free); the assembled one
+  // is made here.
+  const bool want_matrix_free = scene.solver.tangent_operator == "matrix-free";
+  if (!want_matrix_free) PetscCall(forces.create_tangent(&J));
 
   PetscCall(SNESCreate(model.comm, &snes));
   PetscCall(SNESSetFunction(snes, nullptr, residual, &ctx));
-  PetscCall(SNESSetJacobian(snes, J, J, tangent, &ctx));
+  if (J) PetscCall(SNESSetJacobian(snes, J, J, tangent, &ctx));
   PetscCall(SNESSetType(snes, SNESNEWTONLS));
   PetscCall(SNESSetApplicationContext(snes, &ctx));
   PetscCall(SNESSetUpdate(snes, before_newton_step));
@@ -263,10 +290,11 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
   lattice_mg = mg_levels > 1;
   PetscBool user_lag = PETSC_FALSE;
   PetscCall(PetscOptionsHasName(nullptr, nullptr, "-snes_lag_preconditioner", &user_lag));
+  if (want_matrix_free) PetscCall(use_matrix_free(user_pc, user_lag, hierarchy));
   // The coarse operators from the lattice structure (lattice_galerkin.hpp) when the tangent is a lattice stencil
   // and the preconditioner's rebuilds are ours (Reuse): cheaper than hypre's triple product (docs/benchmarks.md).
-  if (lattice_mg && !user_lag) {
-    galerkin = std::make_unique<LatticeGalerkin>(model, forces.held(), std::move(hierarchy));
+  if (lattice_mg && !user_lag && !ctx.shell) {
+    if (!galerkin) galerkin = std::make_unique<LatticeGalerkin>(model, forces.held(), std::move(hierarchy));
     bool stencil = false;
     PetscCall(galerkin->applies(J, &stencil));
     if (stencil) {
@@ -287,7 +315,7 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
   // On one rank hypre's product of the sequential matrices came out wrong (the first Krylov solve diverged at
   // iteration 1 and every 1-rank run fell back to GAMG), so both are used on 2+ ranks only (sequential matrices
   // have neither).
-  if (model.size > 1 && !user_pc) {
+  if (model.size > 1 && !user_pc && !ctx.shell) {  // the shell's coarse operators are summed from its blocks
     PetscBool user_ptap = PETSC_FALSE, user_product = PETSC_FALSE;
     PetscCall(PetscOptionsHasName(nullptr, nullptr, "-matptap_via", &user_ptap));
     PetscCall(PetscOptionsHasName(nullptr, nullptr, "-mat_product_algorithm", &user_product));
@@ -341,6 +369,42 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
   PetscFunctionReturn(0);
 }
 
+// solver.operator = "matrix-free": J becomes the shell of MatrixFreeTangent and the lattice multigrid's coarse
+// operators come from the force model's block stream, so no fine matrix is stored (docs/benchmarks.md). Only with
+// the lattice multigrid and our preconditioner reuse, and when every tangent block stays within the lattice
+// stencil (not molecule-molecule contact); otherwise the assembled tangent, with a one-line note.
+PetscErrorCode NewtonEquilibrium::Impl::use_matrix_free(bool user_pc, bool user_lag, LatticeLevels& hierarchy) {
+  PetscFunctionBeginUser;
+  std::string why;
+  if (user_pc)
+    why = "a preconditioner is named (-pc_type) and needs the matrix";
+  else if (!lattice_mg)
+    why = "there is no lattice multigrid (a mesh or random cloud, or a lattice too small to coarsen)";
+  else if (user_lag)
+    why = "-snes_lag_preconditioner is given";
+  if (why.empty()) {
+    galerkin = std::make_unique<LatticeGalerkin>(model, forces.held(), std::move(hierarchy));
+    bool stencil = false;
+    PetscCall(galerkin->applies(forces, state.x.array(), &stencil));
+    if (!stencil) why = "a term couples molecules beyond the lattice stencil (contact)";
+  }
+  if (why.empty()) {
+    shell = std::make_unique<MatrixFreeTangent>(model, forces);
+    PetscCall(shell->create(&J));
+    ctx.shell = shell.get();
+    ctx.galerkin = galerkin.get();
+    PetscCall(PCMGSetGalerkin(pc, PC_MG_GALERKIN_NONE));
+    PetscCall(PetscInfo(pc, "matrix-free tangent\n"));
+  } else {
+    report.note += "solver.operator = matrix-free not used: " + why + ". ";
+    PetscCall(PetscPrintf(model.comm, "%s: solver.operator = \"matrix-free\" does not apply (%s): using the "
+                                      "assembled tangent\n", kind.c_str(), why.c_str()));
+    PetscCall(forces.create_tangent(&J));
+  }
+  PetscCall(SNESSetJacobian(snes, J, J, tangent, &ctx));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode NewtonEquilibrium::Impl::solve(long steps) {
   PetscFunctionBeginUser;
   double done = 0.0, increment = 1.0 / steps;
@@ -391,8 +455,18 @@ PetscErrorCode NewtonEquilibrium::Impl::solve(long steps) {
       continue;
     }
     if (lattice_mg) {
-      // GAMG is the more general of the two (it sees the matrix, not the lattice): retry the increment with it.
+      // GAMG is the more general of the two (it sees the matrix, not the lattice): retry the increment with it,
+      // on an assembled tangent.
       lattice_mg = false;
+      if (ctx.shell) {
+        ctx.shell = nullptr;
+        Mat assembled;
+        PetscCall(forces.create_tangent(&assembled));
+        PetscCall(SNESSetJacobian(snes, assembled, assembled, tangent, &ctx));
+        PetscCall(MatDestroy(&J));
+        J = assembled;
+        report.note += "matrix-free tangent replaced by the assembled one for GAMG. ";
+      }
       ctx.galerkin = nullptr;
       ctx.first_rtol = 0.0;  // see the forcing above
       PetscCall(KSPSetTolerances(ksp, ctx.rtol, PETSC_DEFAULT, PETSC_DEFAULT, 10000));

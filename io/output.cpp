@@ -37,9 +37,10 @@ std::vector<std::int64_t> written_connection_ids(const LocalModel& m) {
 bool scene_has_fibres(const Scene& scene) {
   const std::vector<BodySpec> specs = scene.bodies.empty() ? std::vector<BodySpec>{scene.body} : scene.bodies;
   for (std::size_t b = 0; b < specs.size(); ++b)
-    if (specs[b].has_fibres() &&
-        body_has_cells(specs[b], b < scene.calibrations.size() ? scene.calibrations[b] : scene.calibration))
-      return true;
+    if (specs[b].has_fibres()) {
+      const CalibrationSpec& c = b < scene.calibrations.size() ? scene.calibrations[b] : scene.calibration;
+      if (body_has_cells(specs[b], c) || body_has_tetrahedra(specs[b], c)) return true;  // lattice cells or tetrahedra
+    }
   return false;
 }
 
@@ -153,6 +154,7 @@ void Output::write_snapshot_stage(const SolverState& state, const ForceModel& fo
   present[kConnectionForce] = wants(scene_, "connection_force");
   present[kCellCorners] = present[kVolumeRatio] = cells.global_count > 0;
   present[kFibreDirection] = present[kFibreStretch] = scene_has_fibres(scene_);
+  present[kCellFibreStretch] = present[kVolumeRatio] && present[kFibreStretch];
   // Every field goes out in pieces, computed from the state as its rows are sent (RowStream): nothing the size of
   // a field is held, except a field that only exists whole (the connection forces on each molecule, the fibres).
   std::vector<double> fibre_direction, fibre_stretch;
@@ -205,6 +207,11 @@ void Output::write_snapshot_stage(const SolverState& state, const ForceModel& fo
       }
       case kVolumeRatio: {
         const std::vector<double> rows = cells_->to_natural(cells.volume_ratio.data(), 1);
+        file.write(dataset, cells.global_count, width, cells_->begin(), cells_->count(), rows.data());
+        break;
+      }
+      case kCellFibreStretch: {
+        const std::vector<double> rows = cells_->to_natural(cells.fibre_stretch.data(), 1);
         file.write(dataset, cells.global_count, width, cells_->begin(), cells_->count(), rows.data());
         break;
       }
@@ -465,7 +472,8 @@ std::string describe(const Hdf5File& file) {
   for (const char* d : {"/molecules/positions", "/molecules/displacements", "/molecules/velocities",
                         "/molecules/forces", "/molecules/fibre_direction", "/molecules/fibre_stretch",
                         "/connections/endpoints", "/connections/strain", "/connections/force",
-                        "/connections/history", "/cells/corners", "/cells/volume_ratio", "/cells/history"})
+                        "/connections/history", "/cells/corners", "/cells/volume_ratio", "/cells/fibre_stretch",
+                        "/cells/history"})
     if (file.exists(d)) {
       auto shape = file.shape(d);
       out += std::string(" ") + d + " [" + std::to_string(shape[0]) + " x " +

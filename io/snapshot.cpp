@@ -36,6 +36,7 @@ XdmfEntry write_snapshot(const std::string& path, MPI_Comm comm, const SnapshotF
       {"/cells/volume_ratio", 2, 1, f.volume_ratio.data(), nullptr, f.volume_ratio.size()},
       {"/molecules/fibre_direction", 0, 3, f.fibre_direction.data(), nullptr, f.fibre_direction.size()},
       {"/molecules/fibre_stretch", 0, 1, f.fibre_stretch.data(), nullptr, f.fibre_stretch.size()},
+      {"/cells/fibre_stretch", 2, 1, f.cell_fibre_stretch.data(), nullptr, f.cell_fibre_stretch.size()},
   };
   constexpr int n_fields = sizeof(fields) / sizeof(fields[0]);
   static_assert(n_fields == kSnapshotFields, "one entry a snapshot field, in SnapshotField's order");
@@ -102,7 +103,7 @@ XdmfEntry write_snapshot(const std::string& path, MPI_Comm comm, const SnapshotH
       {"/connections/endpoints", "", 1, 2},     {"/connections/strain", "1", 1, 1},
       {"/connections/force", "N", 1, 1},        {"/cells/corners", "", 2, h.cell_nodes},
       {"/cells/volume_ratio", "1", 2, 1},       {"/molecules/fibre_direction", "1", 0, 3},
-      {"/molecules/fibre_stretch", "1", 0, 1},
+      {"/molecules/fibre_stretch", "1", 0, 1},  {"/cells/fibre_stretch", "1", 2, 1},
   };
   const int64_t counts[3] = {h.molecules, h.connections, h.cells};
   int ranks = 1;
@@ -151,6 +152,7 @@ XdmfEntry write_snapshot(const std::string& path, MPI_Comm comm, const SnapshotH
   e.volume_ratio = present[kVolumeRatio];
   e.fibre_direction = present[kFibreDirection];
   e.fibre_stretch = present[kFibreStretch];
+  e.cell_fibre_stretch = present[kCellFibreStretch];
   return e;
 }
 

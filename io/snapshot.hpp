@@ -4,6 +4,7 @@
 //   /connections/endpoints [C x 2] int64 (a < b), strain [C x 1], force [C x 1] double
 //   /cells/corners [M x nodes] int64 (molecule ids: hexahedra of 8 corners in VTK order, or tetrahedra of 4),
 //   /cells/volume_ratio [M x 1] double (J = det F): only when the scene has cells (the cell term)
+//   /cells/fibre_stretch [M x 1] double (|F a|, 0 for a cell without fibres): cells of a scene with fibres
 //   root attributes: kind = "snapshot", program = "tissue", version, title, step, time, molecules, connections,
 //   ranks (the writer's communicator size)
 // Only the fields a frame holds are written: a scene asks for them, and absent fields cost nothing.
@@ -46,6 +47,7 @@ struct SnapshotFrame {
   int64_t cell_offset = 0, cell_rows = 0;
   std::vector<int64_t> cell_corners;  // cell_nodes * cell_rows
   std::vector<double> volume_ratio;   // cell_rows
+  std::vector<double> cell_fibre_stretch;  // cell_rows, or empty
 };
 
 // What every snapshot file says about itself (root attributes, the XDMF entry): the same on every rank.
@@ -61,7 +63,7 @@ struct SnapshotHeader {
 // The datasets a snapshot may hold, in the order they are written.
 enum SnapshotField {
   kPositions, kDisplacements, kVelocities, kForces, kEndpoints, kConnectionStrain, kConnectionForce, kCellCorners,
-  kVolumeRatio, kFibreDirection, kFibreStretch, kSnapshotFields
+  kVolumeRatio, kFibreDirection, kFibreStretch, kCellFibreStretch, kSnapshotFields
 };
 
 class Hdf5File;

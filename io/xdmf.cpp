@@ -86,6 +86,8 @@ void write_xdmf(const std::string& path, const std::vector<XdmfEntry>& frames) {
       os << "        </Topology>\n";
       geometry_and_nodes(os, f);
       if (f.volume_ratio) attribute(os, "volume_ratio", false, false, f.h5_file, "/cells/volume_ratio", f.cells);
+      if (f.cell_fibre_stretch)
+        attribute(os, "fibre_stretch", false, false, f.h5_file, "/cells/fibre_stretch", f.cells);
       os << "      </Grid>\n";
     }
     os << "    </Grid>\n";

@@ -22,6 +22,7 @@ struct XdmfEntry {
   int64_t cells = 0;                                               // /cells/corners rows (0: no cells)
   int cell_nodes = 0;                                              // 8: hexahedra, 4: tetrahedra
   bool volume_ratio = false;                                       // /cells/volume_ratio
+  bool cell_fibre_stretch = false;                                 // /cells/fibre_stretch
   int64_t lattice[3] = {0, 0, 0};  // a single box lattice: molecules along x, y, z (id = i + n_x (j + n_y k)); else 0
 };
 

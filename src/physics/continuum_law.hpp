@@ -176,6 +176,18 @@ bool stress(const T F[9], const Moduli& m, const Fibre* fibres, int nfibres, T P
   return true;
 }
 
+// The output of a cell's fibres (docs/anisotropy.md): the stiffest family's deformed direction F a (into Fa) and
+// its stretch |F a|; 0 and Fa = 0 when the cell has no fibre.
+inline double fibre_stretch(const double F[9], const Fibre* fibres, int nfibres, double Fa[3]) {
+  Fa[0] = Fa[1] = Fa[2] = 0.0;
+  if (nfibres <= 0) return 0.0;
+  const Fibre* f = fibres;  // a cell across a region boundary may hold two families
+  for (int q = 1; q < nfibres; ++q)
+    if (fibres[q].E_f > f->E_f) f = fibres + q;
+  for (int i = 0; i < 3; ++i) Fa[i] = F[3 * i] * f->a[0] + F[3 * i + 1] * f->a[1] + F[3 * i + 2] * f->a[2];
+  return std::sqrt(Fa[0] * Fa[0] + Fa[1] * Fa[1] + Fa[2] * Fa[2]);
+}
+
 inline double energy_density(const double F[9], const Moduli& m, const Fibre* fibres, int nfibres) {
   const double J = F[0] * (F[4] * F[8] - F[5] * F[7]) - F[1] * (F[3] * F[8] - F[5] * F[6]) +
                    F[2] * (F[3] * F[7] - F[4] * F[6]);

@@ -27,6 +27,7 @@ struct CellField {
   std::vector<std::int64_t> id;       // this rank's cells: global ids in 0 .. global_count - 1
   std::vector<std::int64_t> corners;  // nodes molecule ids (original) per cell
   std::vector<double> volume_ratio;   // J = det F per cell
+  std::vector<double> fibre_stretch;  // |F a| of the cell's stiffest fibre family per cell (0: no fibre)
 };
 
 struct TermContext {

@@ -390,16 +390,11 @@ public:
     std::fill(stretch, stretch + m_.owned, 0.0);
     for (int k = 0; k < cells_; ++k) {
       if (fibre_count(k) == 0) continue;
-      // The cell's stiffest family (a cell across a region boundary may hold two).
-      const Fibre* f = fibres(k);
-      for (int q = 1; q < fibre_count(k); ++q)
-        if (fibres(k)[q].E_f > f->E_f) f = fibres(k) + q;
       double F[9], Fa[3];
       int corner[8];
       corners(k, corner);
       gradient(x, corner, geometry_[kinds_[kind_[k]].body], F);
-      for (int i = 0; i < 3; ++i) Fa[i] = F[3 * i] * f->a[0] + F[3 * i + 1] * f->a[1] + F[3 * i + 2] * f->a[2];
-      const double l = std::sqrt(Fa[0] * Fa[0] + Fa[1] * Fa[1] + Fa[2] * Fa[2]);
+      const double l = fibre_stretch(F, fibres(k), fibre_count(k), Fa);
       for (int c = 0; c < 8; ++c) {
         const int i = corner[c];
         if (i >= m_.owned) continue;
@@ -433,6 +428,8 @@ public:
       for (int c : order) out.corners.push_back(m_.id[corner[c]]);
       out.volume_ratio.push_back(F[0] * (F[4] * F[8] - F[5] * F[7]) - F[1] * (F[3] * F[8] - F[5] * F[6]) +
                                  F[2] * (F[3] * F[7] - F[4] * F[6]));
+      double Fa[3];
+      out.fibre_stretch.push_back(fibre_begin_.empty() ? 0.0 : fibre_stretch(F, fibres(k), fibre_count(k), Fa));
     }
   }
 

@@ -237,7 +237,43 @@ public:
       for (int a = 0; a < 4; ++a) out.corners.push_back(m_.id[c[a]]);
       out.volume_ratio.push_back(F[0] * (F[4] * F[8] - F[5] * F[7]) - F[1] * (F[3] * F[8] - F[5] * F[6]) +
                                  F[2] * (F[3] * F[7] - F[4] * F[6]));
+      const Material& mat = materials_[body_[t]];
+      double Fa[3];
+      out.fibre_stretch.push_back(fibre_stretch(F, mat.fibres.data(), static_cast<int>(mat.fibres.size()), Fa));
     }
+  }
+
+  // Per molecule (the snapshots' /molecules/fibre_*): the mean over its tetrahedra with fibres, as the lattice
+  // cell term averages its cells.
+  bool fibre_field(const double* x, double* direction, double* stretch) const override {
+    bool any = false;
+    for (const Material& mat : materials_) any = any || !mat.fibres.empty();
+    if (!any) return false;
+    std::vector<int> count(m_.owned, 0);
+    std::fill(direction, direction + 3 * m_.owned, 0.0);
+    std::fill(stretch, stretch + m_.owned, 0.0);
+    for (std::size_t t = 0; t < geometry_.size(); ++t) {
+      const Material& mat = materials_[body_[t]];
+      if (mat.fibres.empty()) continue;
+      double F[9], Fa[3];
+      gradient(x, t, F);
+      const double l = fibre_stretch(F, mat.fibres.data(), static_cast<int>(mat.fibres.size()), Fa);
+      const int* c = &m_.tetrahedra[4 * t];
+      for (int a = 0; a < 4; ++a) {
+        if (c[a] >= m_.owned || l <= 0) continue;
+        for (int d = 0; d < 3; ++d) direction[3 * c[a] + d] += Fa[d] / l;
+        stretch[c[a]] += l;
+        ++count[c[a]];
+      }
+    }
+    for (int i = 0; i < m_.owned; ++i) {
+      if (count[i] == 0) continue;
+      stretch[i] /= count[i];
+      const double* d = direction + 3 * i;
+      const double n = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+      for (int j = 0; j < 3; ++j) direction[3 * i + j] /= n > 0 ? n : 1.0;
+    }
+    return true;
   }
 
 private:

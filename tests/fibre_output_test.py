@@ -1,0 +1,123 @@
+#!/usr/bin/env python3
+"""Fibre output (docs/anisotropy.md): /cells/fibre_stretch per cell and /molecules/fibre_direction, fibre_stretch
+per molecule, on a box lattice (hexahedra of the cell term) and on a Gmsh cube (tetrahedra of the tetrahedron
+term), read back with h5py. The bodies have fibres along x (homogenized: the calibration is exact, so a block in
+tension along the fibres is stretched uniformly) and are pulled along x on a roller at 1, 2 and 3 ranks. Checks:
+every cell's fibre stretch equals the uniform stretch measured from the block's x extent, and |F a| recomputed
+here from the written positions; every molecule's stretch the same and its direction (1, 0, 0); the same values
+at 1, 2 and 3 ranks (to round-off: the static solve's Krylov sums); the XDMF cells grid carries fibre_stretch as
+a cell attribute; a body without fibres writes none of these datasets.
+
+Usage: fibre_output_test.py --build BUILD_DIR --source SOURCE_DIR      Prints 'N passed, M failed'."""
+import argparse
+import os
+import shutil
+import sys
+import xml.etree.ElementTree as ET
+
+try:
+    import h5py
+    import numpy as np
+except ImportError:  # CMake may have found a python without Debian's h5py
+    if os.path.realpath(sys.executable) != "/usr/bin/python3" and os.path.exists("/usr/bin/python3"):
+        os.execv("/usr/bin/python3", ["/usr/bin/python3"] + sys.argv)
+    raise
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from checks import check, report, run_scene  # noqa: E402
+
+E_T, NU, E_L, NU_LT, STRAIN = 1000.0, 0.3, 20000.0, 0.3, 1e-4
+FIBRES = f"""[body.fibres]
+direction = [1.0, 0.0, 0.0]
+youngs_modulus = {E_L}
+poisson_ratio = {NU_LT}
+"""
+
+
+def scene(body, area, fibres=True):
+    return f"""title = "fibre output"
+[body]
+{body}youngs_modulus = {E_T}
+poisson_ratio = {NU}
+{FIBRES if fibres else ""}[calibration]
+method = "homogenized"
+[[fix]]
+face = "x-"
+mode = "roller"
+[[load]]
+face = "x+"
+force = [{(E_L if fibres else E_T) * STRAIN * area}, 0.0, 0.0]
+[solver]
+kind = "static"
+tolerance = 1e-11
+[output]
+fields = ["displacements"]
+progress = false
+"""
+
+
+def gradients(rest, corners):
+    """Per cell, the matrix G with F = x[corners]^T G (the one-point gradient of the output's cells): the
+    trilinear hexahedron's at its centre, or the linear tetrahedron's."""
+    if corners.shape[1] == 4:
+        X = rest[corners]
+        Dm = np.stack([X[:, a] - X[:, 0] for a in (1, 2, 3)], axis=-1)  # columns X_a - X_0
+        g = np.linalg.inv(Dm)  # rows: the gradients of the shape functions of corners 1..3
+        return np.concatenate([-g.sum(axis=1, keepdims=True), g], axis=1)
+    unit = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]])
+    h = rest[corners[:, 6]] - rest[corners[:, 0]]  # the cell's edge lengths (VTK order: corner 6 opposite 0)
+    return (2 * unit - 1)[None, :, :] / (4.0 * h[:, None, :])
+
+
+def check_fibres(out, label, nodes):
+    with h5py.File(os.path.join(out, "final.h5"), "r") as f:
+        x = f["/molecules/positions"][()]
+        u = f["/molecules/displacements"][()]
+        corners = f["/cells/corners"][()]
+        cell = f["/cells/fibre_stretch"][()][:, 0]
+        direction = f["/molecules/fibre_direction"][()]
+        stretch = f["/molecules/fibre_stretch"][()][:, 0]
+    check(corners.shape[1] == nodes and cell.shape == (corners.shape[0],), f"{label}: {corners.shape} {cell.shape}")
+    rest = x - u
+    along = (x[:, 0].max() - x[:, 0].min()) / (rest[:, 0].max() - rest[:, 0].min())
+    check(abs(along - 1 - STRAIN) < 0.05 * STRAIN, f"{label}: stretch {along} against 1 + {STRAIN}")
+    check(np.max(np.abs(cell - along)) < 1e-12, f"{label}: cells' fibre stretch {cell.min()}..{cell.max()} = {along}")
+    F = np.einsum("cai,caj->cij", x[corners], gradients(rest, corners))
+    check(np.max(np.abs(np.linalg.norm(F[:, :, 0], axis=1) - cell)) < 1e-12, f"{label}: |F a| of the positions")
+    check(np.max(np.abs(stretch - along)) < 1e-12, f"{label}: molecules' fibre stretch {stretch.min()}..{stretch.max()}")
+    check(np.max(np.abs(direction - [1.0, 0.0, 0.0])) < 1e-9, f"{label}: molecules' fibre direction along x")
+    grids = list(ET.parse(os.path.join(out, "tissue.xdmf")).getroot().find("Domain"))
+    names = {a.get("Name"): a.get("Center") for a in grids[0].find("Grid").findall("Attribute")}
+    check(names.get("fibre_stretch") == "Cell" and names.get("volume_ratio") == "Cell", f"{label}: xdmf {names}")
+    return cell
+
+
+def main():
+    p = argparse.ArgumentParser()
+    p.add_argument("--build", required=True)
+    p.add_argument("--source", required=True)
+    a = p.parse_args()
+    work = os.path.join(a.build, "tests", "out", "fibre_output")
+    shutil.rmtree(work, ignore_errors=True)
+    os.makedirs(work)
+    lattice = 'molecules = [5, 4, 4]\nsize = [4.0, 3.0, 1.5]\ntopology = "face-diagonals"\n'  # 1:1:1/2 cells
+    mesh = f'shape = "mesh"\nfile = "{os.path.join(a.source, "tests", "meshes", "cube_h0.5.msh")}"\n'
+    for label, body, area, nodes in (("lattice", lattice, 3.0 * 1.5, 8), ("mesh", mesh, 1.0, 4)):
+        cells = {}
+        for ranks in (1, 2, 3):
+            out, r = run_scene(a.build, work, f"{label}_np{ranks}", ranks, scene(body, area))
+            check(r.returncode == 0, f"{label} at {ranks} ranks: exit {r.returncode}: {r.stderr[-400:]}")
+            if r.returncode == 0:
+                cells[ranks] = check_fibres(out, f"{label} at {ranks} ranks", nodes)
+        if len(cells) == 3:
+            check(max(np.max(np.abs(cells[r] - cells[1])) for r in (2, 3)) < 1e-13, f"{label}: the same at 1-3 ranks")
+        out, r = run_scene(a.build, work, f"{label}_no_fibres", 2, scene(body, area, fibres=False))
+        check(r.returncode == 0, f"{label} without fibres: exit {r.returncode}: {r.stderr[-400:]}")
+        with h5py.File(os.path.join(out, "final.h5"), "r") as f:
+            check("fibre_stretch" not in f["/cells"] and "fibre_stretch" not in f["/molecules"],
+                  f"{label} without fibres: no fibre datasets")
+    return report()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

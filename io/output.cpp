@@ -366,9 +366,9 @@ void Output::write_summary(const TensionTest& test, const Measurements& measured
                            const std::string& failure, long peak_max) {
   using nlohmann::json;
   auto opt = [](const std::optional<double>& v) { return v ? json(*v) : json(nullptr); };
-  const double target =  // Eq. 3 reads the body the load is on
-      test.body < static_cast<int>(scene_.bodies.size()) ? scene_.bodies[test.body].youngs_modulus
-                                                          : scene_.body.youngs_modulus;
+  // Eq. 3 reads the body the load is on, along the load (a fibre body's E depends on the direction)
+  const double target = youngs_modulus_along(
+      test.body < static_cast<int>(scene_.bodies.size()) ? scene_.bodies[test.body] : scene_.body, test.axis);
   // What the solver kind reports (an unknown kind: a failure before any solve, reported as the scene's).
   const SolverStyle* kind = report.kind ? report.kind : find_solver(scene_.solver.kind);
   const bool dynamic = kind->integrates_time;

@@ -43,6 +43,7 @@
 #include "partition/agreement.hpp"
 #include "src/driver/fit.hpp"
 #include "src/driver/simulation.hpp"
+#include "src/model/cell_law.hpp"
 
 using namespace tissue;
 
@@ -159,12 +160,12 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
     const Scene& sc = sim.scene();
     const TensionTest& test = sim.test();
     const Measurements& measured = sim.measured();
+    const double target = test.valid ? youngs_modulus_along(sc.bodies[test.body], test.axis) : 0.0;
     if (test.valid && measured.youngs_modulus)
       std::printf("%s\n  E target %.6g Pa, measured %.6g Pa, error %+.4f %%; elongation %.6e m; %s %ld iterations, "
                   "residual %.2e\n",
-                  sc.title.c_str(), sc.bodies[test.body].youngs_modulus, *measured.youngs_modulus,
-                  100.0 * (*measured.youngs_modulus - sc.bodies[test.body].youngs_modulus) /
-                      sc.bodies[test.body].youngs_modulus,
+                  sc.title.c_str(), target, *measured.youngs_modulus,
+                  100.0 * (*measured.youngs_modulus - target) / target,
                   *measured.elongation, kind_name(report), report.iterations, report.residual);
     else
       std::printf("%s\n  %s: %ld steps, kinetic energy %.6e J\n", sc.title.c_str(), kind_name(report),

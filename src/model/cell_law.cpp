@@ -143,6 +143,14 @@ TransverseIsotropy transverse_isotropy(double E, double nu, const FibreSpec& fib
   return t;
 }
 
+double youngs_modulus_along(const BodySpec& body, int axis) {
+  if (!body.fibres || axis < 0 || axis > 2) return body.youngs_modulus;
+  const TransverseIsotropy t = transverse_isotropy(body.youngs_modulus, body.poisson_ratio.value_or(0.25), *body.fibres);
+  const Vec3& a = body.fibres->direction;
+  const double c2 = a[axis] * a[axis] / (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]), s2 = 1.0 - c2;
+  return 1.0 / (s2 * s2 / t.E_T + c2 * c2 / t.E_L + c2 * s2 * (1.0 / t.G_L - 2.0 * t.nu_LT / t.E_L));
+}
+
 double ti_stiffest_modulus(const TiStiffness& c) {
   // Normal block: the transverse antisymmetric mode C22 - C23, and the 2 x 2 block [[C11, sqrt2 C12],
   // [sqrt2 C12, C22 + C23]]; shears (Mandel) 2 C44, 2 C55.

@@ -64,6 +64,10 @@ struct FibreModuli {
 FibreModuli fibre_moduli(const TransverseIsotropy& t);
 // The material's five constants: the body's E and nu (NaN: 1/4) are E_T and nu_TT; G_L defaults to G_T.
 TransverseIsotropy transverse_isotropy(double youngs_modulus, double poisson_ratio, const FibreSpec& fibres);
+// The body's Young's modulus along lattice axis `axis` (what a tension test along it targets): the scene's E, or
+// with [body.fibres] the transversely isotropic material's, 1/E(n) = (1 - c^2)^2 / E_T + c^4 / E_L +
+// c^2 (1 - c^2) (1/G_L - 2 nu_LT / E_L) with c = n . a (E_L along the fibres, E_T across them).
+double youngs_modulus_along(const BodySpec& body, int axis);
 // The largest eigenvalue of the TI tensor (Mandel form): an upper bound of rho c^2 for every wave.
 double ti_stiffest_modulus(const TiStiffness& c);
 

@@ -83,12 +83,12 @@ void apply_poisson(const Section& body_table, BodySpec& b, const CalibrationSpec
                                  "method = \"homogenized\" or remove poisson_ratio", c.method));
   if (!homogenized) return;
   const TopologyStyle* lattice = b.unstructured() ? nullptr : find_topology(b.topology);
-  // Meshes and clouds: the per-tetrahedron term carries E, nu and fibres (body_has_tetrahedra), for the body's
-  // own material (a region's nu or fibres would need per-tetrahedron materials: not built).
+  // Meshes and clouds: the per-tetrahedron term carries E, nu and fibres (body_has_tetrahedra), per mesh region
+  // (each tetrahedron the material of its physical volume).
   const bool carries = b.unstructured() || (lattice && lattice->carries_poisson());
-  if (b.unstructured() && !b.regions.empty())
-    body_table.fail("region", "homogenized on a mesh or random cloud takes the body's own material; regions are not "
-                              "supported with it yet (docs/poisson.md)");
+  if (b.unstructured() && b.random && !b.regions.empty())
+    body_table.fail("region", "homogenized on molecules sampled in a mesh takes the body's own material; regions are "
+                              "not supported with it yet (docs/poisson.md)");
   if (b.unstructured() && !b.viscoelastic.empty())
     body_table.fail("viscoelastic", "homogenized on a mesh or random cloud is elastic only (docs/poisson.md)");
   if (given && !carries) {
@@ -290,11 +290,12 @@ BodySpec read_mesh_body(const Section& s, BodySpec b) {
   b.radius = s.number("radius");
   if (b.radius) s.positive("radius", *b.radius);
   for (const auto& r : s.tables("region")) {
-    r.allow({"name", "material", "youngs_modulus", "density"});
+    r.allow({"name", "material", "youngs_modulus", "density", "poisson_ratio", "fibres"});
     RegionSpec spec;
     r.require("name", "the physical volume of the mesh (a mesh's regions are named, not boxes)");
     spec.name = *r.string("name");
-    read_material(r, spec.material, spec.youngs_modulus, spec.density);
+    read_material(r, spec.material, spec.youngs_modulus, spec.density, &spec.poisson_ratio);
+    if (r.has("fibres")) read_fibre_material(r, spec.material, spec.youngs_modulus, spec.fibres);
     b.regions.push_back(spec);
   }
   return b;

@@ -58,6 +58,7 @@ struct ConnectionRow {
 // A tetrahedron on its way to the ranks that need it (global tetrahedron id, global corner ids).
 struct TetrahedronRow {
   std::int64_t id, v[4];
+  std::int32_t region, unused;  // the scene region (-1: the body's own material)
 };
 
 bool explicit_spec(const BodySpec& spec) { return spec.unstructured(); }
@@ -190,6 +191,7 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationIn
   // 1. Rank 0 reads every explicit body (the counts number the bodies one after another).
   struct Read {
     std::vector<std::array<std::int32_t, 4>> tets;  // the mesh's, as 4-byte ints: rank 0 holds them until handed out
+    std::vector<std::int32_t> region;  // kept tetrahedra of a body with regions: each one's scene region (or -1)
     MeshMolecules molecules;
   };
   std::vector<Read> read(nbodies);
@@ -219,6 +221,16 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationIn
         else
           mesh = spec.shape == BodySpec::Shape::mesh ? read_mesh(spec) : random_cloud(spec);
         read[i].molecules = mesh_molecules(spec, mesh, first, scene.file, key);
+        if (keep_tetrahedra[i] && !spec.regions.empty() && !mesh.tet_region.empty()) {
+          // Each kept tetrahedron's scene region (the last naming its physical volume), for its material.
+          std::vector<std::int32_t> spec_of(mesh.region_names.size(), -1);
+          for (std::size_t r = 0; r < spec.regions.size(); ++r)
+            for (std::size_t k = 0; k < mesh.region_names.size(); ++k)
+              if (mesh.region_names[k] == spec.regions[r].name) spec_of[k] = static_cast<std::int32_t>(r);
+          read[i].region.resize(mesh.tets.size());
+          for (std::size_t t = 0; t < mesh.tets.size(); ++t)
+            read[i].region[t] = mesh.tet_region[t] < 0 ? -1 : spec_of[mesh.tet_region[t]];
+        }
         mesh.nodes = {}, mesh.tet_region = {}, mesh.surfaces = {};
         count[i] = static_cast<std::int64_t>(read[i].molecules.points.size());
         if (count[i] > std::numeric_limits<std::int32_t>::max())
@@ -361,7 +373,8 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationIn
         if (m.rank == 0)
           for (std::int64_t t = t0; t < t1; ++t) {
             const auto& T = read[i].tets[t];
-            rows.push_back({t_first + t, {T[0] + b0, T[1] + b0, T[2] + b0, T[3] + b0}});
+            rows.push_back({t_first + t, {T[0] + b0, T[1] + b0, T[2] + b0, T[3] + b0},
+                            read[i].region.empty() ? -1 : read[i].region[t], 0});
           }
         const std::vector<TetrahedronRow> in =
             route_tetrahedra(comm, m.size, rows, [&](std::int64_t g) { return blocks.owner(g); });
@@ -646,6 +659,7 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationIn
           throw std::logic_error("build_explicit_model: a tetrahedron's corner is not local");
       }
       m.tetrahedron_id.push_back(t.id);
+      m.tetrahedron_region.push_back(t.region);
       m.tetrahedra.insert(m.tetrahedra.end(), v, v + 4);
     }
   });

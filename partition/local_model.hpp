@@ -90,6 +90,7 @@ struct MoleculeLayout {
   // neighbour of the owned one, hence local).
   std::vector<std::int64_t> tetrahedron_id;
   std::vector<int> tetrahedra;
+  std::vector<int> tetrahedron_region;  // each tetrahedron's scene region of its body (-1: the body's own material)
 
   int connections() const { return static_cast<int>(end_a.size()); }
   std::int64_t connection_id(int c) const {

@@ -9,7 +9,11 @@ at 1, 2 and 3 ranks (to round-off: the static solve's Krylov sums); the XDMF cel
 a cell attribute; a body without fibres writes none of these datasets. And summary.json's youngs_modulus_target
 of a fibre body is the transversely isotropic E along the load: E_L along the fibres, and for fibres at 45 degrees
 to the load the closed form 1/E = (1 - c^2)^2/E_T + c^4/E_L + c^2 (1 - c^2)(1/G_L - 2 nu_LT/E_L), which the
-lattice (a roller lets the block shear) measures to 1e-6.
+lattice (a roller lets the block shear) measures to 1e-6. Mesh regions (tests/meshes/two_layers.msh: "deep" below
+"surface", each 0.25 m): the deep layer isotropic (E_A, nu_A), the surface one with fibres along z (E_L, nu_LT)
+chosen so that nu_A / E_A = nu_LT / E_L; pulled along z both layers carry the same stress and contract alike, so
+the exact state is uniform per layer: E = 1 / (0.5 / E_A + 0.5 / E_L), lateral strain -nu_A sigma / E_A, the
+surface tetrahedra's fibre stretch 1 + sigma / E_L and the deep ones' 0, at 1, 2 and 3 ranks.
 
 Usage: fibre_output_test.py --build BUILD_DIR --source SOURCE_DIR      Prints 'N passed, M failed'."""
 import argparse
@@ -119,6 +123,7 @@ def main():
         with h5py.File(os.path.join(out, "final.h5"), "r") as f:
             check("fibre_stretch" not in f["/cells"] and "fibre_stretch" not in f["/molecules"],
                   f"{label} without fibres: no fibre datasets")
+    check_mesh_regions(a, work)
     # the summary's target along the load
     import json
     c2 = 0.5
@@ -135,6 +140,63 @@ def main():
         check(abs(summary["youngs_modulus_measured"] / target - 1) < 2 * STRAIN,  # geometric nonlinearity ~ strain
               f"{label}: measured {summary['youngs_modulus_measured']} against {target}")
     return report()
+
+
+def check_mesh_regions(a, work):
+    E_A, NU_A, E_L2, NU_LT2, SIGMA = 1000.0, 0.1, 2000.0, 0.2, 1e-4
+    text = f"""title = "two layers"
+[body]
+shape = "mesh"
+file = "{os.path.join(a.source, "tests", "meshes", "two_layers.msh")}"
+youngs_modulus = {E_A}
+poisson_ratio = {NU_A}
+[[body.region]]
+name = "surface"
+youngs_modulus = 500.0
+poisson_ratio = 0.3
+[body.region.fibres]
+direction = [0.0, 0.0, 1.0]
+youngs_modulus = {E_L2}
+poisson_ratio = {NU_LT2}
+[calibration]
+method = "homogenized"
+[[fix]]
+face = "bottom"
+mode = "roller"
+[[load]]
+face = "top"
+force = [0.0, 0.0, {SIGMA}]
+[solver]
+kind = "static"
+tolerance = 1e-10
+[output]
+fields = ["displacements"]
+progress = false
+"""
+    import json
+    E = 1 / (0.5 / E_A + 0.5 / E_L2)
+    for ranks in (1, 2, 3):
+        out, r = run_scene(a.build, work, f"layers_np{ranks}", ranks, text)
+        check(r.returncode == 0, f"layers at {ranks} ranks: exit {r.returncode}: {r.stderr[-400:]}")
+        if r.returncode != 0:
+            continue
+        with open(os.path.join(out, "summary.json")) as f:
+            measured = json.load(f)["youngs_modulus_measured"]
+        check(abs(measured / E - 1) < 1e-6, f"layers at {ranks} ranks: E {measured} against {E}")
+        with h5py.File(os.path.join(out, "final.h5"), "r") as f:
+            x = f["/molecules/positions"][()]
+            u = f["/molecules/displacements"][()]
+            corners = f["/cells/corners"][()]
+            stretch = f["/cells/fibre_stretch"][()][:, 0]
+        rest = x - u
+        for axis in (0, 1):
+            lateral = (x[:, axis].max() - x[:, axis].min()) / (rest[:, axis].max() - rest[:, axis].min()) - 1
+            check(abs(lateral / (-NU_A * SIGMA / E_A) - 1) < 1e-5,
+                  f"layers at {ranks} ranks: lateral strain {lateral} against {-NU_A * SIGMA / E_A}")
+        surface = rest[corners][:, :, 2].mean(axis=1) > 0.25
+        check(np.max(np.abs(stretch[surface] - (1 + SIGMA / E_L2))) < 1e-12 and np.all(stretch[~surface] == 0),
+              f"layers at {ranks} ranks: fibre stretch {stretch[surface].min()}..{stretch[surface].max()} on the "
+              f"surface layer's {surface.sum()} tetrahedra, 0 on the deep layer's {(~surface).sum()}")
 
 
 if __name__ == "__main__":

@@ -43,40 +43,50 @@ class TetrahedronElasticity final : public Term {
 public:
   TetrahedronElasticity(const Scene& scene, const LocalModel& model) : m_(model) {
     const std::vector<BodySpec> specs = scene.bodies.empty() ? std::vector<BodySpec>{scene.body} : scene.bodies;
-    // One material per body (the body's own: regions are refused with this term by the scene reader).
-    for (std::size_t b = 0; b < specs.size(); ++b) {
-      const BodySpec& spec = specs[b];
+    // One material per body and per region of it (a mesh's physical volumes: each tetrahedron has its region's).
+    auto material = [](double youngs_modulus, std::optional<double> poisson_ratio, const FibreSpec* fibres,
+                       double density) {
       Material mat;
-      mat.density = spec.density;
-      const double nu = spec.poisson_ratio.value_or(0.25);
-      double E = spec.youngs_modulus, n = nu;
-      if (spec.fibres) {
-        const TransverseIsotropy ti = transverse_isotropy(spec.youngs_modulus, nu, *spec.fibres);
+      mat.density = density;
+      const double nu = poisson_ratio.value_or(0.25);
+      double E = youngs_modulus, n = nu;
+      if (fibres) {
+        const TransverseIsotropy ti = transverse_isotropy(youngs_modulus, nu, *fibres);
         const FibreModuli fm = fibre_moduli(ti);
         E = fm.E_m, n = fm.nu_m;
         Fibre f;
-        for (int d = 0; d < 3; ++d) f.a[d] = spec.fibres->direction[d];
+        for (int d = 0; d < 3; ++d) f.a[d] = fibres->direction[d];
         f.E_f = fm.E_f, f.dG = fm.dG, f.alpha = fm.alpha;
-        f.tension_only = spec.fibres->tension_only;
-        f.toe_stretch = spec.fibres->toe_stretch, f.toe_exponent = spec.fibres->toe_exponent;
+        f.tension_only = fibres->tension_only;
+        f.toe_stretch = fibres->toe_stretch, f.toe_exponent = fibres->toe_exponent;
         mat.fibres.push_back(f);
       }
       mat.moduli.mu = E / (2.0 * (1.0 + n));
       mat.moduli.kappa = E / (3.0 * (1.0 - 2.0 * n));
       mat.force_modulus = mat.moduli.kappa + 2.0 * mat.moduli.mu;
       for (const Fibre& f : mat.fibres) mat.force_modulus += std::abs(f.E_f) + 2 * std::abs(f.dG) + 2 * std::abs(f.alpha);
-      materials_.push_back(mat);
+      return mat;
+    };
+    std::vector<int> first_material;  // per body: its own material, then its regions'
+    for (const BodySpec& spec : specs) {
+      first_material.push_back(static_cast<int>(materials_.size()));
+      const FibreSpec* body_fibres = spec.fibres ? &*spec.fibres : nullptr;
+      materials_.push_back(material(spec.youngs_modulus, spec.poisson_ratio, body_fibres, spec.density));
+      for (const RegionSpec& r : spec.regions)  // a region inherits the body's fibres and nu (the scene reader)
+        materials_.push_back(material(r.youngs_modulus, r.poisson_ratio, r.fibres ? &*r.fibres : body_fibres,
+                                      r.density));
     }
     const std::size_t count = model.tetrahedron_id.size();
     geometry_.resize(count);
-    body_.resize(count);
+    material_.resize(count);
     owns_energy_.resize(count);
     long long owned_energy = 0;
     std::vector<double> row_sum(3 * static_cast<std::size_t>(model.owned), 0.0);  // |K| row sums, owned rows
     for (std::size_t t = 0; t < count; ++t) {
       const int* c = &model.tetrahedra[4 * t];
       Geometry& geo = geometry_[t];
-      body_[t] = model.body[c[0]];
+      material_[t] = first_material[model.body[c[0]]] +
+                 (model.tetrahedron_region.empty() ? 0 : 1 + model.tetrahedron_region[t]);
       // Dm^-1 by cofactors: row r of Dm^-1 is g_(r+1).
       double D[3][3];
       for (int i = 0; i < 3; ++i)
@@ -104,7 +114,7 @@ public:
       // src/model/unstructured.cpp). K_t (at rest) is positive semi-definite with at most 6 non-zero eigenvalues,
       // so lambda_max <= trace(K_t^8)^(1/8) = |K_t^4|_F^(1/4) <= 6^(1/8) lambda_max: an upper bound within 1.25x.
       if (geo.volume > 0) {
-        const Material& mat = materials_[body_[t]];
+        const Material& mat = materials_[material_[t]];
         double K[12][12], K2[12][12], K4[12][12];
         element_stiffness(t, nullptr, K);
         for (int a = 0; a < 4; ++a)
@@ -151,7 +161,7 @@ public:
     for (std::size_t t = 0; t < geometry_.size(); ++t) {
       const int* c = &m_.tetrahedra[4 * t];
       const Geometry& geo = geometry_[t];
-      const Material& mat = materials_[body_[t]];
+      const Material& mat = materials_[material_[t]];
       double F[9], P[9];
       gradient(x, t, F);
       if (!stress(F, mat.moduli, mat.fibres.data(), static_cast<int>(mat.fibres.size()), P)) {
@@ -174,7 +184,7 @@ public:
     double e = 0;
     for (std::size_t t = 0; t < geometry_.size(); ++t) {
       if (!owns_energy_[t]) continue;
-      const Material& mat = materials_[body_[t]];
+      const Material& mat = materials_[material_[t]];
       double F[9];
       gradient(x, t, F);
       e += geometry_[t].volume * energy_density(F, mat.moduli, mat.fibres.data(), static_cast<int>(mat.fibres.size()));
@@ -220,7 +230,7 @@ public:
       const Geometry& geo = geometry_[t];
       for (int a = 0; a < 4; ++a) {
         const double* g = geo.g[a];
-        scale[c[a]] += geo.volume * materials_[body_[t]].force_modulus * std::sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+        scale[c[a]] += geo.volume * materials_[material_[t]].force_modulus * std::sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
       }
     }
   }
@@ -237,7 +247,7 @@ public:
       for (int a = 0; a < 4; ++a) out.corners.push_back(m_.id[c[a]]);
       out.volume_ratio.push_back(F[0] * (F[4] * F[8] - F[5] * F[7]) - F[1] * (F[3] * F[8] - F[5] * F[6]) +
                                  F[2] * (F[3] * F[7] - F[4] * F[6]));
-      const Material& mat = materials_[body_[t]];
+      const Material& mat = materials_[material_[t]];
       double Fa[3];
       out.fibre_stretch.push_back(fibre_stretch(F, mat.fibres.data(), static_cast<int>(mat.fibres.size()), Fa));
     }
@@ -253,7 +263,7 @@ public:
     std::fill(direction, direction + 3 * m_.owned, 0.0);
     std::fill(stretch, stretch + m_.owned, 0.0);
     for (std::size_t t = 0; t < geometry_.size(); ++t) {
-      const Material& mat = materials_[body_[t]];
+      const Material& mat = materials_[material_[t]];
       if (mat.fibres.empty()) continue;
       double F[9], Fa[3];
       gradient(x, t, F);
@@ -306,7 +316,7 @@ private:
   // false when the tetrahedron is inverted.
   bool element_stiffness(std::size_t t, const double* x, double K[12][12]) const {
     const Geometry& geo = geometry_[t];
-    const Material& mat = materials_[body_[t]];
+    const Material& mat = materials_[material_[t]];
     double F[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
     if (x) gradient(x, t, F);
     double D[9][9];  // D[kl][ij] = dP_ij / dF_kl
@@ -333,7 +343,7 @@ private:
   const LocalModel& m_;
   std::vector<Material> materials_;  // per body
   std::vector<Geometry> geometry_;   // per held tetrahedron (model.tetrahedron_id order)
-  std::vector<int> body_;
+  std::vector<int> material_;  // per tetrahedron: its body's or region's, index into materials_
   std::vector<char> owns_energy_;
   long long global_count_ = 0;
   double dt_ = std::numeric_limits<double>::infinity();

@@ -341,7 +341,7 @@ private:
   }
 
   const LocalModel& m_;
-  std::vector<Material> materials_;  // per body
+  std::vector<Material> materials_;  // per body: its own, then one per region
   std::vector<Geometry> geometry_;   // per held tetrahedron (model.tetrahedron_id order)
   std::vector<int> material_;  // per tetrahedron: its body's or region's, index into materials_
   std::vector<char> owns_energy_;

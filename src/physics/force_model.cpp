@@ -474,7 +474,7 @@ PetscErrorCode ForceModel::apply_tangent(const double* x, double* in, double* ou
       return 0;
     };
     for (const auto& t : terms_)
-      if (!(skip_cached && t->tangent_worth_caching())) PetscCall(t->add_tangent(x, add, &apply));
+      if (!skip_cached) PetscCall(t->add_tangent(x, add, &apply));
   }
   for (std::size_t h = 0; h < held_owned_.size(); ++h) out[held_owned_[h]] = held_in[h];
   PetscFunctionReturn(0);
@@ -503,7 +503,7 @@ PetscErrorCode ForceModel::tangent_diagonal(const double* x, double* diag, bool 
       return 0;
     };
     for (const auto& t : terms_)
-      if (!(skip_cached && t->tangent_worth_caching())) PetscCall(t->add_tangent(x, add, diag));
+      if (!skip_cached) PetscCall(t->add_tangent(x, add, diag));
   }
   for (int h : held_owned_) diag[h] = 1.0;
   PetscFunctionReturn(0);
@@ -521,10 +521,12 @@ bool ForceModel::has_cached_tangent() const {
   return false;
 }
 
+// Once one term is worth caching, every term's blocks go to the cache: its 27 blocks a molecule are there anyway,
+// and the viscoelastic term's (a history trial per connection) cost as much again as the springs' on every product.
 PetscErrorCode ForceModel::cached_tangent_blocks(const double* x, Term::BlockAdd add, void* ctx) const {
   PetscFunctionBeginUser;
-  for (const auto& t : terms_)
-    if (t->tangent_worth_caching()) PetscCall(t->add_tangent(x, add, ctx));
+  if (!has_cached_tangent()) PetscFunctionReturn(0);
+  for (const auto& t : terms_) PetscCall(t->add_tangent(x, add, ctx));
   PetscFunctionReturn(0);
 }
 

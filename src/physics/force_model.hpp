@@ -39,8 +39,7 @@ public:
   // recomputed from the positions x (local, ghosts up to date) as assemble_tangent computes it:
   // out (3 * owned) = J in, in: 3 * local values (ghosts up to date), its held components zeroed here (scratch);
   // held components' rows and columns the identity's.
-  // skip_cached: without the blocks of the terms worth caching (Term::tangent_worth_caching), which the caller
-  // adds from its own copy (cached_tangent_blocks).
+  // skip_cached: without the terms' blocks, which the caller adds from its own copy (cached_tangent_blocks).
   PetscErrorCode apply_tangent(const double* x, double* in, double* out, bool skip_cached = false) const;
   // J's diagonal (3 * owned).
   PetscErrorCode tangent_diagonal(const double* x, double* diag, bool skip_cached = false) const;
@@ -48,7 +47,8 @@ public:
   // tangent needs them; the next tangent_blocks builds them again. The matrix-free solver keeps them only while
   // it makes the coarse operators, not through the linear solves.
   void release_block_rows() const;
-  // Whether some term's tangent is worth caching, and those terms' blocks alone (held components not masked).
+  // Whether some term's tangent is worth caching (Term::tangent_worth_caching), and then every term's blocks (the
+  // cache holds a molecule's 27 blocks anyway), held components not masked; nothing when none is.
   bool has_cached_tangent() const;
   PetscErrorCode cached_tangent_blocks(const double* x, Term::BlockAdd add, void* ctx) const;
   // Collective. Gershgorin's bound on the largest eigenvalue of D^-1 J (D: J's diagonal; held rows the identity's):

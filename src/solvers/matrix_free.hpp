@@ -3,9 +3,9 @@
 // fine-level matrix (the lattice multigrid's coarse operators come from the same block stream,
 // LatticeGalerkin::update(forces, x, pc)). It is the matrix assemble_tangent would fill: held components' rows
 // and columns are the identity's. MatMult and MatGetDiagonal only: the smoothers on it are Chebyshev on Jacobi.
-// The blocks of terms worth caching (Term::tangent_worth_caching: the cell term) are computed once per Newton
-// iteration, in set_positions, and kept per owned molecule (up to 27, a lattice stencil: 2,052 B a molecule, only
-// in scenes with such a term); every other block is recomputed on every product.
+// In scenes with a term worth caching (Term::tangent_worth_caching: the cell term) every term's blocks are computed
+// once per Newton iteration, in set_positions, and kept per owned molecule (up to 27, a lattice stencil: 2,052 B a
+// molecule, only in such scenes); the springs' blocks are recomputed on every product.
 #pragma once
 #include <petscmat.h>
 
@@ -42,7 +42,7 @@ private:
   const ForceModel& forces_;
   const double* x_;
   GhostedVector in_;  // the input with its ghosts
-  // The cached terms' blocks at x_ (empty without such a term): per owned molecule up to kSlots columns (local
+  // The terms' blocks at x_ (empty without a term worth caching): per owned molecule up to kSlots columns (local
   // molecule; -1 ends the row) and their 3x3 blocks, duplicates summed, held rows and columns zero.
   static constexpr int kSlots = 27;
   const bool cached_;

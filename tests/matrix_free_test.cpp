@@ -4,6 +4,8 @@
 //  - the shell's MatMult and diagonal equal the assembled matrix's at deformed positions, to round-off;
 //  - the lattice multigrid's coarse operators from the force model's block stream equal those from the
 //    assembled matrix (LatticeGalerkin::update both ways), to round-off;
+//  - the finest level's Gershgorin bound from the block stream (ForceModel::jacobi_gershgorin) equals the
+//    assembled matrix's row sums, and is refused (not exact) when a term adds blocks;
 //  - a static tension test gives the same displacements and elongation as the assembled solve, to the
 //    solve's tolerance, with the Newton and Krylov counts printed.
 // Run at 1, 2 and 3 ranks: ghosts of the shell's input and coarse rows owned elsewhere travel.
@@ -187,7 +189,49 @@ void compare_operators(const std::string& text, bool viscoelastic_step) {
   MatDestroy(&A), MatDestroy(&S);
 }
 
+// 1 + sum_j!=i |A_ij| / A_ii, largest over the assembled matrix's rows (held rows: the identity's, 1).
+double matrix_gershgorin(Mat A) {
+  PetscInt lo, hi;
+  PetscCallAbort(PETSC_COMM_WORLD, MatGetOwnershipRange(A, &lo, &hi));
+  double bound = 1.0;
+  for (PetscInt r = lo; r < hi; ++r) {
+    PetscInt n;
+    const PetscInt* cols;
+    const PetscScalar* v;
+    PetscCallAbort(PETSC_COMM_WORLD, MatGetRow(A, r, &n, &cols, &v));
+    double diag = 0, off = 0;
+    for (PetscInt e = 0; e < n; ++e) (cols[e] == r ? diag : off) += cols[e] == r ? v[e] : std::abs(v[e]);
+    bound = std::max(bound, 1.0 + off / diag);
+    PetscCallAbort(PETSC_COMM_WORLD, MatRestoreRow(A, r, &n, &cols, &v));
+  }
+  double all = 0;
+  MPI_Allreduce(&bound, &all, 1, MPI_DOUBLE, MPI_MAX, PETSC_COMM_WORLD);
+  return all;
+}
+
+void compare_gershgorin(const std::string& text, bool expect_exact) {
+  auto r = run(text, PETSC_COMM_WORLD, {}, false);
+  Mat A;
+  ASSERT_EQ(r->forces->create_tangent(&A), 0);
+  for (double amplitude : {0.03, 0.08}) {
+    const std::vector<double> x = deformed(*r, amplitude);
+    ASSERT_EQ(r->forces->assemble_tangent(x.data(), A), 0);
+    double bound = 0;
+    bool exact = false;
+    ASSERT_EQ(r->forces->jacobi_gershgorin(x.data(), &bound, &exact), 0);
+    EXPECT_EQ(exact, expect_exact) << text;
+    if (!expect_exact) continue;
+    const double reference = matrix_gershgorin(A);
+    EXPECT_GT(reference, 1.5);  // the rows are coupled: not the identity's bound
+    EXPECT_NEAR(bound / reference, 1.0, 1e-13) << text << " amplitude " << amplitude;
+  }
+  MatDestroy(&A);
+}
+
 }  // namespace
+
+TEST(MatrixFree, GershgorinBoundSprings) { compare_gershgorin(springs, true); }
+TEST(MatrixFree, GershgorinBoundRefusedWithCellTerm) { compare_gershgorin(cells, false); }
 
 TEST(MatrixFree, ShellEqualsAssembledSprings) { compare_operators(springs, false); }
 TEST(MatrixFree, ShellEqualsAssembledCellTerm) { compare_operators(cells, false); }

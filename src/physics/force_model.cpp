@@ -440,7 +440,7 @@ struct Stretch {
 };
 }  // namespace
 
-PetscErrorCode ForceModel::apply_tangent(const double* x, double* in, double* out) const {
+PetscErrorCode ForceModel::apply_tangent(const double* x, double* in, double* out, bool skip_cached) const {
   PetscFunctionBeginUser;
   const int n = model_.owned, local = model_.local;
   // Held components: their rows are the identity's (out = in), their columns zero (in read as 0).
@@ -473,13 +473,14 @@ PetscErrorCode ForceModel::apply_tangent(const double* x, double* in, double* ou
       for (int r = 0; r < 3; ++r) a.out[3 * row + r] += K[3 * r] * u[0] + K[3 * r + 1] * u[1] + K[3 * r + 2] * u[2];
       return 0;
     };
-    for (const auto& t : terms_) PetscCall(t->add_tangent(x, add, &apply));
+    for (const auto& t : terms_)
+      if (!skip_cached) PetscCall(t->add_tangent(x, add, &apply));
   }
   for (std::size_t h = 0; h < held_owned_.size(); ++h) out[held_owned_[h]] = held_in[h];
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode ForceModel::tangent_diagonal(const double* x, double* diag) const {
+PetscErrorCode ForceModel::tangent_diagonal(const double* x, double* diag, bool skip_cached) const {
   PetscFunctionBeginUser;
   const int n = model_.owned;
   std::fill(diag, diag + 3 * n, 0.0);
@@ -501,13 +502,96 @@ PetscErrorCode ForceModel::tangent_diagonal(const double* x, double* diag) const
         for (int r = 0; r < 3; ++r) static_cast<double*>(p)[3 * row + r] += K[4 * r];
       return 0;
     };
-    for (const auto& t : terms_) PetscCall(t->add_tangent(x, add, diag));
+    for (const auto& t : terms_)
+      if (!skip_cached) PetscCall(t->add_tangent(x, add, diag));
   }
   for (int h : held_owned_) diag[h] = 1.0;
   PetscFunctionReturn(0);
 }
 
+void ForceModel::release_block_rows() const {
+  if (!tangent_.row_start.empty()) return;  // create_tangent's pattern: the assembled tangent's
+  tangent_.conn_start = {};
+  tangent_.row_conns = {};
+}
+
+bool ForceModel::has_cached_tangent() const {
+  for (const auto& t : terms_)
+    if (t->tangent_worth_caching()) return true;
+  return false;
+}
+
+// Once one term is worth caching, every term's blocks go to the cache: its 27 blocks a molecule are there anyway,
+// and the viscoelastic term's (a history trial per connection) cost as much again as the springs' on every product.
+PetscErrorCode ForceModel::cached_tangent_blocks(const double* x, Term::BlockAdd add, void* ctx) const {
+  PetscFunctionBeginUser;
+  if (!has_cached_tangent()) PetscFunctionReturn(0);
+  for (const auto& t : terms_) PetscCall(t->add_tangent(x, add, ctx));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ForceModel::jacobi_gershgorin(const double* x, double* bound, bool* exact) const {
+  PetscFunctionBeginUser;
+  // Any block from a term makes the bound inexact (see the header); the cached terms' are not even computed.
+  struct Count {
+    long blocks = 0;
+  } count;
+  auto tally = [](void* p, int, int, const double*) -> PetscErrorCode {
+    static_cast<Count*>(p)->blocks++;
+    return 0;
+  };
+  bool mine_exact = !has_cached_tangent();
+  for (const auto& t : terms_)
+    if (mine_exact) PetscCall(t->add_tangent(x, tally, &count));
+  mine_exact = mine_exact && count.blocks == 0;
+  // Row by row as connection_blocks streams them (each connection's block once, the diagonal block last), so no
+  // array is needed.
+  struct Rows {
+    const std::vector<std::uint8_t>& held;
+    int row = -1;
+    double diag[3] = {}, off[3] = {};
+    double bound = 1.0;  // a held row's
+    void close() {
+      for (int r = 0; r < 3 && row >= 0; ++r)
+        if (!held[3 * row + r]) bound = std::max(bound, 1.0 + off[r] / diag[r]);
+    }
+  } rows{held_};
+  auto add = [](void* p, int i, int j, const double K[9]) -> PetscErrorCode {
+    auto& s = *static_cast<Rows*>(p);
+    if (i != s.row) {
+      s.close();
+      s.row = i;
+      for (int r = 0; r < 3; ++r) s.diag[r] = s.off[r] = 0.0;
+    }
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) {
+        if (s.held[3 * i + r] || s.held[3 * j + c]) continue;
+        if (i == j && r == c)
+          s.diag[r] += K[4 * r];
+        else
+          s.off[r] += std::abs(K[3 * r + c]);
+      }
+    return 0;
+  };
+  if (mine_exact) {
+    PetscCall(connection_blocks(x, add, &rows));
+    rows.close();
+  }
+  int mine = mine_exact ? 1 : 0, all = 0;
+  PetscCallMPI(MPI_Allreduce(&mine, &all, 1, MPI_INT, MPI_MIN, model_.comm));
+  PetscCallMPI(MPI_Allreduce(&rows.bound, bound, 1, MPI_DOUBLE, MPI_MAX, model_.comm));
+  *exact = all == 1;
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode ForceModel::tangent_blocks(const double* x, Term::BlockAdd add, void* ctx) const {
+  PetscFunctionBeginUser;
+  PetscCall(connection_blocks(x, add, ctx));
+  for (const auto& t : terms_) PetscCall(t->add_tangent(x, add, ctx));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ForceModel::connection_blocks(const double* x, Term::BlockAdd add, void* ctx) const {
   PetscFunctionBeginUser;
   const int n = model_.owned;
   if (static_cast<int>(tangent_.conn_start.size()) != n + 1) tangent_.create_rows(model_);
@@ -531,7 +615,6 @@ PetscErrorCode ForceModel::tangent_blocks(const double* x, Term::BlockAdd add, v
     }
     PetscCall(add(ctx, i, i, self));
   }
-  for (const auto& t : terms_) PetscCall(t->add_tangent(x, add, ctx));
   PetscFunctionReturn(0);
 }
 

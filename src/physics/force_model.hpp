@@ -39,9 +39,23 @@ public:
   // recomputed from the positions x (local, ghosts up to date) as assemble_tangent computes it:
   // out (3 * owned) = J in, in: 3 * local values (ghosts up to date), its held components zeroed here (scratch);
   // held components' rows and columns the identity's.
-  PetscErrorCode apply_tangent(const double* x, double* in, double* out) const;
+  // skip_cached: without the terms' blocks, which the caller adds from its own copy (cached_tangent_blocks).
+  PetscErrorCode apply_tangent(const double* x, double* in, double* out, bool skip_cached = false) const;
   // J's diagonal (3 * owned).
-  PetscErrorCode tangent_diagonal(const double* x, double* diag) const;
+  PetscErrorCode tangent_diagonal(const double* x, double* diag, bool skip_cached = false) const;
+  // Frees the connections by row that tangent_blocks built (76 B a molecule at face diagonals), when no assembled
+  // tangent needs them; the next tangent_blocks builds them again. The matrix-free solver keeps them only while
+  // it makes the coarse operators, not through the linear solves.
+  void release_block_rows() const;
+  // Whether some term's tangent is worth caching (Term::tangent_worth_caching), and then every term's blocks (the
+  // cache holds a molecule's 27 blocks anyway), held components not masked; nothing when none is.
+  bool has_cached_tangent() const;
+  PetscErrorCode cached_tangent_blocks(const double* x, Term::BlockAdd add, void* ctx) const;
+  // Collective. Gershgorin's bound on the largest eigenvalue of D^-1 J (D: J's diagonal; held rows the identity's):
+  // max over rows of 1 + sum_j!=i |J_ij| / J_ii. exact = false (and the bound not computed) when a term adds
+  // blocks: they come after the connections' rows, and summing their magnitudes block by block would overstate
+  // the bound. The Chebyshev smoother's interval on the finest level (src/solvers/newton_equilibrium.cpp).
+  PetscErrorCode jacobi_gershgorin(const double* x, double* bound, bool* exact) const;
   // Every 3x3 block of -dF/dx (owned rows, local columns, held components not masked): the connections' row by
   // row in owned order (the diagonal block last), then the terms' in their own order. Blocks may repeat.
   PetscErrorCode tangent_blocks(const double* x, Term::BlockAdd add, void* ctx) const;
@@ -127,6 +141,8 @@ private:
   mutable std::vector<double> held_force_;  // parallel to held_owned_: the last forces() call's force there
   bool moves_held_ = false;              // some fix has a displacement
   mutable std::vector<double> load_scale_;  // per [[load]]: its history factor at time_ (1 without history)
+  // tangent_blocks' connection rows alone (owned order, the diagonal block last).
+  PetscErrorCode connection_blocks(const double* x, Term::BlockAdd add, void* ctx) const;
   // The tangent's block-row pattern and CSR storage (src/physics/tangent.hpp), built by create_tangent.
   mutable TangentStorage tangent_;
 };

@@ -57,6 +57,10 @@ public:
   // drops held components. Terms whose force does not depend on x add nothing.
   using BlockAdd = PetscErrorCode (*)(void* ctx, int row, int col, const double K[9]);
   virtual PetscErrorCode add_tangent(const double* x, BlockAdd add, void* ctx) const { return 0; }
+  // Terms whose add_tangent costs far more than the springs' blocks (the cell term: nine dual-number stress
+  // evaluations a cell): the matrix-free tangent computes their blocks once per Newton iteration and keeps them
+  // (src/solvers/matrix_free.hpp) instead of recomputing them on every matrix-vector product.
+  virtual bool tangent_worth_caching() const { return false; }
   // Contact terms: the force totals of the last evaluation (this rank's owned molecules).
   virtual void add_totals(ContactTotals& t) const {}
   // Terms whose tangent couples molecules no connection joins: the local columns each owned row needs beyond its

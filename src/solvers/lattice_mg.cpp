@@ -73,6 +73,22 @@ PetscErrorCode lattice_lookup(MPI_Comm comm, std::int64_t total, const std::vect
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode estimate_chebyshev_interval(KSP smoother) {
+  PetscFunctionBeginUser;
+  PetscCall(KSPChebyshevEstEigSet(smoother, 0, 0.1, 0, 1.1));
+  // Galerkin operators of an SPD tangent are SPD: CG estimates the eigenvalues with 4 work vectors where the
+  // default GMRES keeps ~15 per level (340 B per molecule at 64,000). -mg_levels_esteig_ksp_type overrides.
+  // 6 CG iterations instead of PETSc's 10: the same Krylov iterations (3 + 9) on the peer problem at 8,000,
+  // 64,000 and 262,144 molecules (5 gave 3 + 11 at 64,000); -mg_levels_esteig_ksp_max_it overrides.
+  KSP estimator;
+  PetscCall(KSPChebyshevEstEigGetKSP(smoother, &estimator));
+  if (estimator) {
+    PetscCall(KSPSetType(estimator, KSPCG));
+    PetscCall(KSPSetTolerances(estimator, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, 6));
+  }
+  PetscFunctionReturn(0);
+}
+
 PlaneWeights plane_weights(const std::vector<long>& coarse, long x) {
   PlaneWeights pw;
   const auto c = static_cast<int>(std::lower_bound(coarse.begin(), coarse.end(), x) - coarse.begin());
@@ -274,17 +290,7 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
     PC spc;
     PetscCall(PCMGGetSmoother(pc, k, &smoother));
     PetscCall(KSPSetType(smoother, KSPCHEBYSHEV));
-    PetscCall(KSPChebyshevEstEigSet(smoother, 0, 0.1, 0, 1.1));
-    // Galerkin operators of an SPD tangent are SPD: CG estimates the eigenvalues with 4 work vectors where the
-    // default GMRES keeps ~15 per level (340 B per molecule at 64,000). -mg_levels_esteig_ksp_type overrides.
-    // 6 CG iterations instead of PETSc's 10: the same Krylov iterations (3 + 9) on the peer problem at 8,000,
-    // 64,000 and 262,144 molecules (5 gave 3 + 11 at 64,000); -mg_levels_esteig_ksp_max_it overrides.
-    KSP estimator;
-    PetscCall(KSPChebyshevEstEigGetKSP(smoother, &estimator));
-    if (estimator) {
-      PetscCall(KSPSetType(estimator, KSPCG));
-      PetscCall(KSPSetTolerances(estimator, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, 6));
-    }
+    PetscCall(estimate_chebyshev_interval(smoother));
     PetscCall(KSPSetTolerances(smoother, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, 2));
     PetscCall(KSPGetPC(smoother, &spc));
     PetscCall(PCSetType(spc, PCJACOBI));

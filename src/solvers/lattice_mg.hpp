@@ -7,7 +7,7 @@
 // set-up is a fraction of GAMG's and the coarse operators stay 27-point stencils. Held components get no
 // coarse correction (their rows of the finest interpolation are empty).
 #pragma once
-#include <petscpc.h>
+#include <petscksp.h>
 
 #include <array>
 #include <cstdint>
@@ -42,6 +42,10 @@ PlaneWeights plane_weights(const std::vector<long>& coarse, long x);
 // given and levels > 1, receives the levels' planes and numbering.
 PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::uint8_t>& held, PC pc,
                                 long coarse_nodes, PetscInt* levels, LatticeLevels* hierarchy = nullptr);
+
+// A level's Chebyshev smoother estimates its eigenvalue interval as [0.1, 1.1] x the largest eigenvalue a short CG
+// run finds (what setup_lattice_mg sets on every level; the matrix-free finest level may set bounds instead).
+PetscErrorCode estimate_chebyshev_interval(KSP smoother);
 
 // Collective. The numbers `answers` of molecules (global ids `asked`), from their owners' (ids `mine`, numbers
 // `nums`), through a directory: id g lives on rank g / chunk, so no rank holds more than its chunk of it.

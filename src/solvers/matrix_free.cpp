@@ -1,12 +1,13 @@
 #include "src/solvers/matrix_free.hpp"
 
+#include <algorithm>
 #include <cstring>
 #include <exception>
 
 namespace tissue {
 
 MatrixFreeTangent::MatrixFreeTangent(const LocalModel& model, const ForceModel& forces)
-    : model_(model), forces_(forces), x_(model.rest.begin(), model.rest.begin() + 3 * model.local), in_(model) {}
+    : model_(model), forces_(forces), x_(model.rest.data()), in_(model), cached_(forces.has_cached_tangent()) {}
 
 MatrixFreeTangent::~MatrixFreeTangent() = default;
 
@@ -25,9 +26,34 @@ PetscErrorCode MatrixFreeTangent::create(Mat* J) {
 
 PetscErrorCode MatrixFreeTangent::set_positions(const double* x, Mat J) {
   PetscFunctionBeginUser;
-  std::memcpy(x_.data(), x, sizeof(double) * x_.size());
+  x_ = x;
+  if (cached_) PetscCall(cache_blocks());
   PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));  // a new state: PCSetUp sees a changed operator
   PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode MatrixFreeTangent::cache_blocks() {
+  PetscFunctionBeginUser;
+  const std::size_t n = model_.owned;
+  if (cache_col_.empty()) cache_col_.assign(kSlots * n, -1), cache_K_.assign(9 * kSlots * n, 0.0);
+  else std::fill(cache_K_.begin(), cache_K_.end(), 0.0);
+  // A row's columns fill its slots in the order they first come (the same every time: the cells' order).
+  auto put = [](void* p, int i, int j, const double K[9]) -> PetscErrorCode {
+    auto& self = *static_cast<MatrixFreeTangent*>(p);
+    int* col = self.cache_col_.data() + static_cast<std::size_t>(kSlots) * i;
+    int s = 0;
+    while (s < kSlots && col[s] >= 0 && col[s] != j) ++s;
+    PetscCheck(s < kSlots, PETSC_COMM_SELF, PETSC_ERR_SUP, "matrix-free tangent: a term couples a molecule to more than 27");
+    col[s] = j;
+    double* to = self.cache_K_.data() + 9 * (static_cast<std::size_t>(kSlots) * i + s);
+    const auto& held = self.forces_.held();
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c)
+        if (!held[3 * i + r] && !held[3 * j + c]) to[3 * r + c] += K[3 * r + c];
+    return 0;
+  };
+  PetscCall(forces_.cached_tangent_blocks(x_, put, this));
   PetscFunctionReturn(0);
 }
 
@@ -46,7 +72,22 @@ PetscErrorCode MatrixFreeTangent::mult(Mat J, Vec in, Vec out) {
   }
   PetscScalar* y;
   PetscCall(VecGetArray(out, &y));
-  PetscCall(self->forces_.apply_tangent(self->x_.data(), self->in_.array(), y));
+  double* w = self->in_.array();
+  PetscCall(self->forces_.apply_tangent(self->x_, w, y, self->cached_));
+  if (self->cached_) {
+    // Held rows and columns of the cached blocks are zero: the identity rows apply_tangent wrote stay.
+    const int n = self->model_.owned;
+    for (int i = 0; i < n; ++i) {
+      const int* col = self->cache_col_.data() + static_cast<std::size_t>(kSlots) * i;
+      const double* K = self->cache_K_.data() + 9 * static_cast<std::size_t>(kSlots) * i;
+      double acc[3] = {0.0, 0.0, 0.0};
+      for (int s = 0; s < kSlots && col[s] >= 0; ++s, K += 9) {
+        const double* v = w + 3 * col[s];
+        for (int r = 0; r < 3; ++r) acc[r] += K[3 * r] * v[0] + K[3 * r + 1] * v[1] + K[3 * r + 2] * v[2];
+      }
+      for (int r = 0; r < 3; ++r) y[3 * i + r] += acc[r];
+    }
+  }
   PetscCall(VecRestoreArray(out, &y));
   PetscFunctionReturn(0);
 }
@@ -57,7 +98,18 @@ PetscErrorCode MatrixFreeTangent::diagonal(Mat J, Vec d) {
   PetscCall(MatShellGetContext(J, &self));
   PetscScalar* y;
   PetscCall(VecGetArray(d, &y));
-  PetscCall(self->forces_.tangent_diagonal(self->x_.data(), y));
+  PetscCall(self->forces_.tangent_diagonal(self->x_, y, self->cached_));
+  if (self->cached_) {
+    const int n = self->model_.owned;
+    for (int i = 0; i < n; ++i) {
+      const int* col = self->cache_col_.data() + static_cast<std::size_t>(kSlots) * i;
+      for (int s = 0; s < kSlots && col[s] >= 0; ++s)
+        if (col[s] == i) {
+          const double* K = self->cache_K_.data() + 9 * (static_cast<std::size_t>(kSlots) * i + s);
+          for (int r = 0; r < 3; ++r) y[3 * i + r] += K[4 * r];
+        }
+    }
+  }
   PetscCall(VecRestoreArray(d, &y));
   PetscFunctionReturn(0);
 }

@@ -3,6 +3,9 @@
 // fine-level matrix (the lattice multigrid's coarse operators come from the same block stream,
 // LatticeGalerkin::update(forces, x, pc)). It is the matrix assemble_tangent would fill: held components' rows
 // and columns are the identity's. MatMult and MatGetDiagonal only: the smoothers on it are Chebyshev on Jacobi.
+// In scenes with a term worth caching (Term::tangent_worth_caching: the cell term) every term's blocks are computed
+// once per Newton iteration, in set_positions, and kept per owned molecule (up to 27, a lattice stencil: 2,052 B a
+// molecule, only in such scenes); the springs' blocks are recomputed on every product.
 #pragma once
 #include <petscmat.h>
 
@@ -24,18 +27,27 @@ public:
   // Collective. The shell matrix (3 unknowns a molecule in owned order, block size 3, symmetric); it refers to
   // this object, which must outlive it.
   PetscErrorCode create(Mat* J);
-  // The positions J is taken at (3 * local, ghosts up to date): copied, so later force evaluations (line
-  // search) do not move it. Marks J changed (a preconditioner set up on it is stale).
+  // The positions J is taken at (3 * local, ghosts up to date): not copied (3 doubles a molecule saved), so x must
+  // not change while J is applied. SNES keeps to that: it computes the tangent at the iterate, solves, and only
+  // then moves the positions (line search), and the next iteration's tangent comes first. Marks J changed (a
+  // preconditioner set up on it is stale). Computes the cached terms' blocks at x.
   PetscErrorCode set_positions(const double* x, Mat J);
-  const double* positions() const { return x_.data(); }
+  const double* positions() const { return x_; }
 
 private:
   static PetscErrorCode mult(Mat J, Vec in, Vec out);
   static PetscErrorCode diagonal(Mat J, Vec d);
+  PetscErrorCode cache_blocks();
   const LocalModel& model_;
   const ForceModel& forces_;
-  std::vector<double> x_;
+  const double* x_;
   GhostedVector in_;  // the input with its ghosts
+  // The terms' blocks at x_ (empty without a term worth caching): per owned molecule up to kSlots columns (local
+  // molecule; -1 ends the row) and their 3x3 blocks, duplicates summed, held rows and columns zero.
+  static constexpr int kSlots = 27;
+  const bool cached_;
+  std::vector<int> cache_col_;
+  std::vector<double> cache_K_;
 };
 
 }  // namespace tissue

@@ -255,6 +255,8 @@ public:
     return e;
   }
 
+  bool tangent_worth_caching() const override { return true; }
+
   PetscErrorCode add_tangent(const double* x, BlockAdd add, void* ctx) const override {
     for (int k = 0; k < cells_; ++k) {
       int corner[8];

@@ -174,6 +174,14 @@ def main():
         # The restart carried the history: the column still creeps after the checkpoint's step.
         r2 = rows(out)
         check(float(r2[-1]["elongation"]) > 1.05 * float(r2[8]["elongation"]), f"restart {src} -> {dst}: creeps on")
+    # A hold stepped by more than a lattice spacing inverts the cells beside it at once: one line, exit 3 (before,
+    # a NaN tolerance reached PETSc, which aborted every rank).
+    bad = SCENE.replace('[[load]]\nface = "z+"\nforce = [0.0, 0.0, 4.0e-7]\n',
+                        '[[fix]]\nface = "z+"\nmode = "roller"\ndisplacement = [0.0, 0.0, -2.5e-3]\n')
+    out, r = run_scene(a.build, work, "inverting_step", 2, bad)
+    lines = [l for l in r.stderr.strip().splitlines() if l.startswith("tissue: quasi-static")]
+    check(r.returncode == 3 and len(lines) == 1 and "not finite" in lines[0],
+          f"a hold stepped past the lattice spacing: exit {r.returncode}, {r.stderr.strip()[-300:]!r}")
     return report()
 
 

@@ -662,18 +662,6 @@ Scene build_scene(const Value& root, const std::string& file) {
                      "only a quasi-static run grows its time step");
   if (scene.output.checkpoint_every > 0 && !solver.checkpointed)
     throw InputError(file, "output.checkpoint_every", fmt::format("a {} run is not checkpointed yet (give 0)", solver.name));
-  // The cell term's viscoelastic history (poisson_ratio, fibres) lives per cell (src/physics/terms/
-  // cell_elasticity.cpp) and follows the body's Prony series: a region's own series would relax its springs and
-  // cells differently.
-  for (std::size_t b = 0; b < scene.bodies.size(); ++b) {
-    const BodySpec& body = scene.bodies[b];
-    if (!body_has_cells(body, b < scene.calibrations.size() ? scene.calibrations[b] : scene.calibration)) continue;
-    for (const RegionSpec& r : body.regions)
-      if (!r.viscoelastic.empty())
-        throw InputError(file, "body.region.viscoelastic",
-                         "a region's own Prony series with the cell term (poisson_ratio or fibres) is not supported "
-                         "yet (give the body one series)");
-  }
   if (top.has("partition")) {
     Section p = top.table("partition");
     p.allow({"method"});

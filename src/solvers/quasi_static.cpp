@@ -5,6 +5,8 @@
 // each step advances by solver.time_step up to solver.steps steps or solver.end_time, shortened to land exactly
 // on every history's breakpoints. One Newton solver (newton_equilibrium.hpp) serves every step, so the lattice
 // multigrid is built once and reused.
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cfloat>
 #include <cmath>
@@ -118,6 +120,13 @@ SolveReport solve_quasi_static(const Scene& scene, const LocalModel& model, cons
     forces.forces(state.x.array(), state.v.data(), state.f.data());
     const double start = relative_residual(model, forces, state.f.data()) *
                          (forces.applied_norm() > 0 ? forces.applied_norm() : 1.0);
+    // The held molecules move alone at first: a step of them by more than about a lattice spacing inverts the
+    // cells beside them (non-finite forces), which no Newton solve recovers from. One agreed line (a reduced value).
+    if (!std::isfinite(start))
+      throw SolverFailure(fmt::format("quasi-static: the step to t = {:g} s moves the holds so far that the forces "
+                                      "beside them are not finite (cells or connections inverted): ramp the hold "
+                                      "(a [[fix]] history over several steps)", next),
+                          SolverFailure::State::nothing);
     const double carried = std::max({start, norm(reactions), forces.applied_norm()});
     // solver.tolerance is reachable when the round-off of the spring forces is below it relative to what the step
     // carries (the reactions of a scene driven by displacements, not 1 N): else the floor is used (one warning)

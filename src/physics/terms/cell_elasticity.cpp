@@ -68,6 +68,16 @@ public:
       const BoxGeometry& box = model.shape.body(b);
       global_cells_ += static_cast<std::int64_t>(box.n[0] - 1) * (box.n[1] - 1) * (box.n[2] - 1);
     }
+    // The Prony tables, in the springs' order (viscoelastic.cpp): one per body, then one per region with its own.
+    std::vector<const PronySpec*> tables;
+    for (const auto& s : specs) tables.push_back(&s.viscoelastic);
+    std::vector<std::vector<int>> region_table(specs.size());  // per body and region: its table or -1
+    for (std::size_t b = 0; b < specs.size(); ++b)
+      for (const auto& r : specs[b].regions) {
+        region_table[b].push_back(r.viscoelastic.empty() ? -1 : static_cast<int>(tables.size()));
+        if (!r.viscoelastic.empty()) tables.push_back(&r.viscoelastic);
+      }
+    const bool region_tables = tables.size() > specs.size();
     std::vector<std::int64_t> bases;
     for (int i = 0; i < model.owned; ++i) {
       const int b = model.body[i];
@@ -130,12 +140,25 @@ public:
           if (o.same_law(f)) o.E_f += f.E_f, o.dG += f.dG, o.alpha += f.alpha, merged = true;
         if (!merged) families.push_back(f);
       }
-      if (!specs[b].viscoelastic.empty()) {
+      // The cell's Prony table: that of the region whose box (the body's frame) holds the cell's rest centre, the
+      // last such one, else its body's (the springs' rule with the rest midpoint).
+      int table = b;
+      for (std::size_t r = 0; region_tables && r < specs[b].regions.size(); ++r) {
+        if (region_table[b][r] < 0) continue;
+        bool inside = true;
+        for (int d = 0; d < 3; ++d) {
+          const double centre = model.rest[3 * corner[0] + d] + 0.5 * box.h[d] - specs[b].offset[d];
+          inside = inside && centre >= specs[b].regions[r].lo[d] && centre <= specs[b].regions[r].hi[d];
+        }
+        if (inside) table = region_table[b][r];
+      }
+      if (!tables[table]->empty()) {
         // Quasi-linear viscoelasticity: a history per Prony term on this cell's stress (the springs carry theirs).
         if (history_.empty()) history_.assign(k, -1);
         history_.push_back(history_cells_++);
+        if (region_tables) table_.push_back(static_cast<std::uint16_t>(table));
         double sum = 0;
-        for (double g : specs[b].viscoelastic.gamma) sum += g;
+        for (double g : tables[table]->gamma) sum += g;
         modulus *= 1.0 + sum;  // the explicit step follows the instantaneous modulus (an upper bound here)
       } else if (!history_.empty()) {
         history_.push_back(-1);
@@ -174,17 +197,19 @@ public:
     }
     // Whether cells carry a history is the scene's (every rank agrees, for the checkpoint's collective writes),
     // though a rank may hold none of those cells.
-    for (int b = 0; b < model.shape.bodies(); ++b)
-      if (!specs[b].viscoelastic.empty() &&
-          body_has_cells(specs[b], b < static_cast<int>(scene.calibrations.size()) ? scene.calibrations[b]
-                                                                                   : scene.calibration))
-        for (const auto& spec : specs) width_ = std::max(width_, static_cast<int>(spec.viscoelastic.gamma.size()));
+    for (int b = 0; b < model.shape.bodies(); ++b) {
+      bool prony = !specs[b].viscoelastic.empty();
+      for (int t : region_table[b]) prony = prony || t >= 0;
+      if (prony && body_has_cells(specs[b], b < static_cast<int>(scene.calibrations.size()) ? scene.calibrations[b]
+                                                                                            : scene.calibration))
+        for (const PronySpec* t : tables) width_ = std::max(width_, static_cast<int>(t->gamma.size()));
+    }
     if (history_cells_ > 0) {
-      const int nb = static_cast<int>(specs.size());
-      gamma_.assign(nb * width_, 0.0), tau_.assign(nb * width_, 1.0);
-      for (int b = 0; b < nb; ++b)
-        for (std::size_t i = 0; i < specs[b].viscoelastic.gamma.size(); ++i)
-          gamma_[b * width_ + i] = specs[b].viscoelastic.gamma[i], tau_[b * width_ + i] = specs[b].viscoelastic.tau[i];
+      const int nt = static_cast<int>(tables.size());
+      gamma_.assign(nt * width_, 0.0), tau_.assign(nt * width_, 1.0);
+      for (int t = 0; t < nt; ++t)
+        for (std::size_t i = 0; i < tables[t]->gamma.size(); ++i)
+          gamma_[t * width_ + i] = tables[t]->gamma[i], tau_[t * width_ + i] = tables[t]->tau[i];
       decay_.assign(gamma_.size(), 1.0), weight_.assign(gamma_.size(), 0.0);
       s_old_.assign(9 * static_cast<std::size_t>(history_cells_), 0.0);
       h_.assign(9 * static_cast<std::size_t>(history_cells_) * width_, 0.0);
@@ -347,8 +372,8 @@ public:
       corners(k, corner);
       gradient(x, corner, geometry_[kinds_[kind_[k]].body], F);
       if (!cell_pk2(F, kinds_[kind_[k]].moduli, fibres(k), fibre_count(k), S)) continue;
-      const double* w = weight_.data() + kinds_[kind_[k]].body * width_;
-      const double* e = decay_.data() + kinds_[kind_[k]].body * width_;
+      const double* w = weight_.data() + table(k, c) * width_;
+      const double* e = decay_.data() + table(k, c) * width_;
       double* so = &s_old_[9 * static_cast<std::size_t>(c)];
       for (int i = 0; i < width_; ++i) {
         double* h = &h_[(static_cast<std::size_t>(c) * width_ + i) * 9];
@@ -449,8 +474,8 @@ private:
     if (stepping_) {
       T S[9];
       if (!cell_pk2(F, kinds_[kind_[k]].moduli, fibres(k), fibre_count(k), S)) return false;
-      const double* w = weight_.data() + kinds_[kind_[k]].body * width_;
-      const double* e = decay_.data() + kinds_[kind_[k]].body * width_;
+      const double* w = weight_.data() + table(k, c) * width_;
+      const double* e = decay_.data() + table(k, c) * width_;
       for (int i = 0; i < width_; ++i)
         for (int q = 0; q < 9; ++q)
           H[q] = H[q] + T(e[i] * h_[(c * width_ + i) * 9 + q]) + T(w[i]) * (S[q] - T(s_old_[9 * c + q]));
@@ -463,6 +488,9 @@ private:
         P[3 * i + j] = P[3 * i + j] + F[3 * i] * H[j] + F[3 * i + 1] * H[3 + j] + F[3 * i + 2] * H[6 + j];
     return true;
   }
+
+  // The Prony table of cell k (history slot c): its region's, else its body's.
+  int table(int k, std::size_t c) const { return table_.empty() ? kinds_[kind_[k]].body : table_[c]; }
 
   // Cell k's row of a checkpoint: its committed S, then h per Prony term.
   void history_row(int k, double* row) const {
@@ -506,7 +534,8 @@ private:
   // Viscoelastic cells only (all empty otherwise): history_[k] = the cell's history slot or -1.
   std::vector<int> history_;
   int history_cells_ = 0, width_ = 0;
-  std::vector<double> gamma_, tau_, decay_, weight_;  // per body and Prony term
+  std::vector<std::uint16_t> table_;  // per history cell, only when some region has its own table
+  std::vector<double> gamma_, tau_, decay_, weight_;  // per table (bodies, then regions with their own) and term
   std::vector<double> s_old_, h_;                     // per history cell: committed S (9), h per term (9 each)
   bool active_ = false, stepping_ = false;
   // A cell's 8 local corner indices (corner c = (c & 1, c >> 1 & 1, c >> 2 & 1)): base_ + patterns_[pattern_].

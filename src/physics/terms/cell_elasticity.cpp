@@ -61,23 +61,46 @@ constexpr int kCellBlock = 64;
 // operation for operation (stress() for plain moduli, with the same order of sums), with the cells as the
 // vector lanes of structure-of-arrays steps; the forces are added cell by cell in order, so every molecule sums
 // its cells in the same order as there. g: the gradient weights' magnitudes 1/(4h) per axis.
+//
+// rows: the cells are consecutive along x (base[i] = base[0] + i) and corner 2r + 1 follows corner 2r (r = 0..3:
+// the four lattice rows of the block's corners, more than n molecules apart). Then each row's molecules are read
+// once (not twice, as corners 2r and 2r + 1 of neighbouring cells), and each row's forces are added in two
+// passes, first the cells' corner 2r + 1 (the cell before a molecule), then corner 2r (the cell after it): each
+// molecule still sums its cells in increasing order.
 TISSUE_CELL_CLONES
-void cell_block_forces(int n, const int* __restrict base, const int* __restrict offset, const double* __restrict x,
-                       const double* __restrict X, const Moduli& m, double volume, const double g[3], int owned,
-                       double* __restrict f) {
+void cell_block_forces(int n, const int* __restrict base, const int* __restrict offset, bool rows,
+                       const double* __restrict x, const double* __restrict X, const Moduli& m, double volume,
+                       const double g[3], int owned, double* __restrict f) {
   alignas(64) double F[9][kCellBlock], P[9][kCellBlock], J[kCellBlock];
   const double gx = g[0], gy = g[1], gz = g[2];
-  for (int d = 0; d < 3; ++d)
-    for (int i = 0; i < n; ++i) {
-      double u[8];
-      for (int c = 0; c < 8; ++c) {
-        const int j = 3 * (base[i] + offset[c]) + d;
-        u[c] = x[j] - X[j];
-      }
-      F[3 * d][i] = ((u[1] - u[0]) + (u[3] - u[2]) + (u[5] - u[4]) + (u[7] - u[6])) * gx;
-      F[3 * d + 1][i] = ((u[2] - u[0]) + (u[3] - u[1]) + (u[6] - u[4]) + (u[7] - u[5])) * gy;
-      F[3 * d + 2][i] = ((u[4] - u[0]) + (u[5] - u[1]) + (u[6] - u[2]) + (u[7] - u[3])) * gz;
+  if (rows) {
+    alignas(64) double ur[4][3 * (kCellBlock + 1)];  // the rows' displacements, interleaved as x
+    for (int r = 0; r < 4; ++r) {
+      const int s = 3 * (base[0] + offset[2 * r]);
+      for (int j = 0; j < 3 * (n + 1); ++j) ur[r][j] = x[s + j] - X[s + j];
     }
+    for (int d = 0; d < 3; ++d)
+      for (int i = 0; i < n; ++i) {
+        const int a = 3 * i + d, b = 3 * (i + 1) + d;
+        const double u0 = ur[0][a], u1 = ur[0][b], u2 = ur[1][a], u3 = ur[1][b], u4 = ur[2][a], u5 = ur[2][b],
+                     u6 = ur[3][a], u7 = ur[3][b];
+        F[3 * d][i] = ((u1 - u0) + (u3 - u2) + (u5 - u4) + (u7 - u6)) * gx;
+        F[3 * d + 1][i] = ((u2 - u0) + (u3 - u1) + (u6 - u4) + (u7 - u5)) * gy;
+        F[3 * d + 2][i] = ((u4 - u0) + (u5 - u1) + (u6 - u2) + (u7 - u3)) * gz;
+      }
+  } else {
+    for (int d = 0; d < 3; ++d)
+      for (int i = 0; i < n; ++i) {
+        double u[8];
+        for (int c = 0; c < 8; ++c) {
+          const int j = 3 * (base[i] + offset[c]) + d;
+          u[c] = x[j] - X[j];
+        }
+        F[3 * d][i] = ((u[1] - u[0]) + (u[3] - u[2]) + (u[5] - u[4]) + (u[7] - u[6])) * gx;
+        F[3 * d + 1][i] = ((u[2] - u[0]) + (u[3] - u[1]) + (u[6] - u[4]) + (u[7] - u[5])) * gy;
+        F[3 * d + 2][i] = ((u[4] - u[0]) + (u[5] - u[1]) + (u[6] - u[2]) + (u[7] - u[3])) * gz;
+      }
+  }
   for (int i = 0; i < n; ++i) F[0][i] += 1.0, F[4][i] += 1.0, F[8][i] += 1.0;
   // stress(): J, cof = J F^-T, then each part added to P = 0.
   alignas(64) double cof[9][kCellBlock];
@@ -130,6 +153,29 @@ void cell_block_forces(int n, const int* __restrict base, const int* __restrict 
       q[3 * r + 1][i] = volume * P[3 * r + 1][i] * gy;
       q[3 * r + 2][i] = volume * P[3 * r + 2][i] * gz;
     }
+  bool inverted = false;
+  for (int i = 0; i < n; ++i) inverted |= !(J[i] > 0);
+  if (rows && !inverted) {
+    // add[c][d][i]: cell i's force on its corner c, component d.
+    alignas(64) double add[8][3][kCellBlock];
+    for (int d = 0; d < 3; ++d)
+      for (int i = 0; i < n; ++i) {
+        const double q0 = q[3 * d][i], q1 = q[3 * d + 1][i], q2 = q[3 * d + 2][i];
+        const double lo = q0 + q1, hi = q1 - q0;
+        add[0][d][i] = lo + q2, add[1][d][i] = hi + q2, add[2][d][i] = -hi + q2, add[3][d][i] = -lo + q2;
+        add[4][d][i] = lo - q2, add[5][d][i] = hi - q2, add[6][d][i] = -hi - q2, add[7][d][i] = -lo - q2;
+      }
+    for (int r = 0; r < 4; ++r) {
+      const int s = base[0] + offset[2 * r];
+      const int touched = std::min(n + 1, owned - s);  // the row's owned molecules: s .. s + touched - 1
+      double* __restrict fr = f + 3 * s;
+      for (int i = 1; i < std::min(n + 1, touched); ++i)
+        for (int d = 0; d < 3; ++d) fr[3 * i + d] += add[2 * r + 1][d][i - 1];
+      for (int i = 0; i < std::min(n, touched); ++i)
+        for (int d = 0; d < 3; ++d) fr[3 * i + d] += add[2 * r][d][i];
+    }
+    return;
+  }
   for (int i = 0; i < n; ++i) {
     if (!(J[i] > 0)) {
       // An inverted cell: its energy is infinite; NaN forces make every solver's guard stop or cut back.
@@ -306,11 +352,18 @@ public:
       int n = 1;
       if (plain) {
         while (n < kCellBlock && k + n < cells_ && kind_[k + n] == kind_[k] && pattern_[k + n] == pattern_[k]) ++n;
+        const std::array<int, 8>& p = patterns_[pattern_[k]];
+        int along = 1;  // cells consecutive along x from k
+        while (along < n && base_[k + along] == base_[k] + along) ++along;
+        bool rows = along >= 8 && p[1] == 1 && p[3] == p[2] + 1 && p[5] == p[4] + 1 && p[7] == p[6] + 1;
+        for (int r = 0; rows && r < 4; ++r)  // the rows' molecules (along + 1 each) must not overlap
+          for (int t = r + 1; t < 4; ++t) rows = rows && std::abs(p[2 * t] - p[2 * r]) > along;
+        if (rows) n = along;  // short runs stay with the general gather
         const Kind& kind = kinds_[kind_[k]];
         const Geometry& geo = geometry_[kind.body];
         const double g[3] = {geo.g[1][0], geo.g[2][1], geo.g[4][2]};
-        cell_block_forces(n, base_.data() + k, patterns_[pattern_[k]].data(), x, m_.rest.data(), kind.moduli,
-                          geo.volume, g, m_.owned, f);
+        cell_block_forces(n, base_.data() + k, p.data(), rows, x, m_.rest.data(), kind.moduli, geo.volume, g,
+                          m_.owned, f);
       } else {
         cell_forces(k, x, f);
       }

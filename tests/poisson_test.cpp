@@ -146,10 +146,13 @@ TEST(Poisson, ShearAndConfinedCompression) {
 // the force: central differences at a large strain, for an isochoric (nu < 1/4), a volumetric (nu > 1/4) and a
 // flat-cell (virtual diagonals) cell term. One rank holds everything here (MPI_COMM_SELF).
 TEST(Poisson, CellTermDerivatives) {
-  struct D { double nu; Vec3 h; };
-  for (const D d : {D{0.1, {1, 1, 1}}, D{0.45, {1, 1, 1}}, D{0.3, {1, 1, 0.25}}, D{0.05, {1, 0.5, 2}}}) {
+  // Rows of 11 cells take the explicit loop's row blocks (src/physics/terms/cell_elasticity.cpp), rows of 2 its
+  // general gather.
+  struct D { double nu; Vec3 h; long nx; };
+  for (const D d : {D{0.1, {1, 1, 1}, 3}, D{0.45, {1, 1, 1}, 3}, D{0.3, {1, 1, 0.25}, 3}, D{0.05, {1, 0.5, 2}, 3},
+                     D{0.45, {1, 1, 1}, 12}, D{0.1, {1, 1, 0.5}, 12}}) {
     Case c;
-    c.n = {3, 3, 3}, c.h = d.h, c.nu = d.nu;
+    c.n = {d.nx, 3, 3}, c.h = d.h, c.nu = d.nu;
     auto r = run(scene_text(c), MPI_COMM_SELF, {}, /*do_solve=*/false);
     ASSERT_EQ(r->forces->term_names().size(), 1u);
     std::vector<double> x;
@@ -161,11 +164,14 @@ TEST(Poisson, CellTermDerivatives) {
 // Forces at a large deformation bit for bit those of one rank, on any partition (the cell term's order), and the
 // static solution to 1e-10 of the one-rank one.
 TEST(Poisson, SameOnEveryRankCount) {
-  Case c;
-  c.n = {5, 4, 6}, c.h = {1, 1, 0.5}, c.nu = 0.45;
-  auto world = run(scene_text(c), PETSC_COMM_WORLD);
-  auto self = run(scene_text(c), MPI_COMM_SELF);
-  expect_same_as_one_rank(*world, *self, 1e-10 * 5);
+  // 14 molecules along x: rows of 13 cells (the explicit loop's row blocks), cut by the partition.
+  for (const long nx : {5L, 14L}) {
+    Case c;
+    c.n = {nx, 4, 6}, c.h = {1, 1, 0.5}, c.nu = 0.45;
+    auto world = run(scene_text(c), PETSC_COMM_WORLD);
+    auto self = run(scene_text(c), MPI_COMM_SELF);
+    expect_same_as_one_rank(*world, *self, 1e-10 * nx);
+  }
 }
 
 // The critical time step of a body with the cell term is 0.8 h / c_p, c_p = sqrt((lambda + 2 mu) / rho); a

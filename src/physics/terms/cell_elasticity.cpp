@@ -51,6 +51,149 @@ bool cell_pk2(const T F[9], const Moduli& m, const Fibre* fibres, int nfibres, T
   return true;
 }
 
+// Each kernel is compiled for AVX-512, AVX2 and the baseline, the loader picking the best the CPU has; with no
+// fused multiply-add (CMakeLists.txt) every clone rounds as the baseline does (as src/physics/spring_kernel.cpp).
+#define TISSUE_CELL_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+constexpr int kCellBlock = 64;
+
+// The forces of n <= kCellBlock cells of one moduli (no fibres, no history) and one corner pattern (cell i's
+// corner c is base[i] + offset[c]), added to their owned corners: CellElasticity::cell_forces's arithmetic,
+// operation for operation (stress() for plain moduli, with the same order of sums), with the cells as the
+// vector lanes of structure-of-arrays steps; the forces are added cell by cell in order, so every molecule sums
+// its cells in the same order as there. g: the gradient weights' magnitudes 1/(4h) per axis.
+//
+// rows: the cells are consecutive along x (base[i] = base[0] + i) and corner 2r + 1 follows corner 2r (r = 0..3:
+// the four lattice rows of the block's corners, more than n molecules apart). Then each row's molecules are read
+// once (not twice, as corners 2r and 2r + 1 of neighbouring cells), and each row's forces are added in two
+// passes, first the cells' corner 2r + 1 (the cell before a molecule), then corner 2r (the cell after it): each
+// molecule still sums its cells in increasing order.
+TISSUE_CELL_CLONES
+void cell_block_forces(int n, const int* __restrict base, const int* __restrict offset, bool rows,
+                       const double* __restrict x, const double* __restrict X, const Moduli& m, double volume,
+                       const double g[3], int owned, double* __restrict f) {
+  alignas(64) double F[9][kCellBlock], P[9][kCellBlock], J[kCellBlock];
+  const double gx = g[0], gy = g[1], gz = g[2];
+  if (rows) {
+    alignas(64) double ur[4][3 * (kCellBlock + 1)];  // the rows' displacements, interleaved as x
+    for (int r = 0; r < 4; ++r) {
+      const int s = 3 * (base[0] + offset[2 * r]);
+      for (int j = 0; j < 3 * (n + 1); ++j) ur[r][j] = x[s + j] - X[s + j];
+    }
+    for (int d = 0; d < 3; ++d)
+      for (int i = 0; i < n; ++i) {
+        const int a = 3 * i + d, b = 3 * (i + 1) + d;
+        const double u0 = ur[0][a], u1 = ur[0][b], u2 = ur[1][a], u3 = ur[1][b], u4 = ur[2][a], u5 = ur[2][b],
+                     u6 = ur[3][a], u7 = ur[3][b];
+        F[3 * d][i] = ((u1 - u0) + (u3 - u2) + (u5 - u4) + (u7 - u6)) * gx;
+        F[3 * d + 1][i] = ((u2 - u0) + (u3 - u1) + (u6 - u4) + (u7 - u5)) * gy;
+        F[3 * d + 2][i] = ((u4 - u0) + (u5 - u1) + (u6 - u2) + (u7 - u3)) * gz;
+      }
+  } else {
+    for (int d = 0; d < 3; ++d)
+      for (int i = 0; i < n; ++i) {
+        double u[8];
+        for (int c = 0; c < 8; ++c) {
+          const int j = 3 * (base[i] + offset[c]) + d;
+          u[c] = x[j] - X[j];
+        }
+        F[3 * d][i] = ((u[1] - u[0]) + (u[3] - u[2]) + (u[5] - u[4]) + (u[7] - u[6])) * gx;
+        F[3 * d + 1][i] = ((u[2] - u[0]) + (u[3] - u[1]) + (u[6] - u[4]) + (u[7] - u[5])) * gy;
+        F[3 * d + 2][i] = ((u[4] - u[0]) + (u[5] - u[1]) + (u[6] - u[2]) + (u[7] - u[3])) * gz;
+      }
+  }
+  for (int i = 0; i < n; ++i) F[0][i] += 1.0, F[4][i] += 1.0, F[8][i] += 1.0;
+  // stress(): J, cof = J F^-T, then each part added to P = 0.
+  alignas(64) double cof[9][kCellBlock];
+  for (int i = 0; i < n; ++i) {
+    const double F0 = F[0][i], F1 = F[1][i], F2 = F[2][i], F3 = F[3][i], F4 = F[4][i], F5 = F[5][i], F6 = F[6][i],
+                 F7 = F[7][i], F8 = F[8][i];
+    J[i] = F0 * (F4 * F8 - F5 * F7) - F1 * (F3 * F8 - F5 * F6) + F2 * (F3 * F7 - F4 * F6);
+    cof[0][i] = F4 * F8 - F5 * F7, cof[1][i] = F5 * F6 - F3 * F8, cof[2][i] = F3 * F7 - F4 * F6;
+    cof[3][i] = F2 * F7 - F1 * F8, cof[4][i] = F0 * F8 - F2 * F6, cof[5][i] = F1 * F6 - F0 * F7;
+    cof[6][i] = F1 * F5 - F2 * F4, cof[7][i] = F2 * F3 - F0 * F5, cof[8][i] = F0 * F4 - F1 * F3;
+    for (int q = 0; q < 9; ++q) P[q][i] = 0.0;
+  }
+  if (m.mu != 0) {
+    alignas(64) double scale[kCellBlock];
+    for (int i = 0; i < n; ++i) scale[i] = J[i] > 0 ? std::pow(J[i], -2.0 / 3.0) : 0.0;  // pow is not vectorized
+    for (int i = 0; i < n; ++i) {
+      double I1 = 0.0;
+      for (int q = 0; q < 9; ++q) I1 = I1 + F[q][i] * F[q][i];
+      const double s = m.mu * scale[i], third = I1 / (3.0 * J[i]);
+      for (int q = 0; q < 9; ++q) P[q][i] = P[q][i] + s * (F[q][i] - third * cof[q][i]);
+    }
+  }
+  if (m.kappa != 0) {
+    const double half = 0.5 * m.kappa;
+    for (int i = 0; i < n; ++i) {
+      const double vol = half * (J[i] * J[i] - 1.0) / J[i];
+      for (int q = 0; q < 9; ++q) P[q][i] = P[q][i] + vol * cof[q][i];
+    }
+  }
+  for (int w = 0; w < 3; ++w) {
+    if (m.alpha[w] == 0) continue;
+    const int a = (w + 1) % 3, b = (w + 2) % 3;
+    for (const double sign : {1.0, -1.0})
+      for (int i = 0; i < n; ++i) {
+        double Fn[3];
+        for (int r = 0; r < 3; ++r) Fn[r] = (F[3 * r + a][i] + sign * F[3 * r + b][i]) * M_SQRT1_2;
+        const double stretch = Fn[0] * Fn[0] + Fn[1] * Fn[1] + Fn[2] * Fn[2] - 1.0;
+        const double c = m.alpha[w] * stretch * M_SQRT1_2;
+        for (int r = 0; r < 3; ++r) {
+          P[3 * r + a][i] = P[3 * r + a][i] + c * Fn[r];
+          P[3 * r + b][i] = P[3 * r + b][i] + c * sign * Fn[r];
+        }
+      }
+  }
+  // Q = V0 P g per column, then the signed sums per corner, added cell by cell.
+  alignas(64) double q[9][kCellBlock];
+  for (int r = 0; r < 3; ++r)
+    for (int i = 0; i < n; ++i) {
+      q[3 * r][i] = volume * P[3 * r][i] * gx;
+      q[3 * r + 1][i] = volume * P[3 * r + 1][i] * gy;
+      q[3 * r + 2][i] = volume * P[3 * r + 2][i] * gz;
+    }
+  bool inverted = false;
+  for (int i = 0; i < n; ++i) inverted |= !(J[i] > 0);
+  if (rows && !inverted) {
+    // add[c][d][i]: cell i's force on its corner c, component d.
+    alignas(64) double add[8][3][kCellBlock];
+    for (int d = 0; d < 3; ++d)
+      for (int i = 0; i < n; ++i) {
+        const double q0 = q[3 * d][i], q1 = q[3 * d + 1][i], q2 = q[3 * d + 2][i];
+        const double lo = q0 + q1, hi = q1 - q0;
+        add[0][d][i] = lo + q2, add[1][d][i] = hi + q2, add[2][d][i] = -hi + q2, add[3][d][i] = -lo + q2;
+        add[4][d][i] = lo - q2, add[5][d][i] = hi - q2, add[6][d][i] = -hi - q2, add[7][d][i] = -lo - q2;
+      }
+    for (int r = 0; r < 4; ++r) {
+      const int s = base[0] + offset[2 * r];
+      const int touched = std::min(n + 1, owned - s);  // the row's owned molecules: s .. s + touched - 1
+      double* __restrict fr = f + 3 * s;
+      for (int i = 1; i < std::min(n + 1, touched); ++i)
+        for (int d = 0; d < 3; ++d) fr[3 * i + d] += add[2 * r + 1][d][i - 1];
+      for (int i = 0; i < std::min(n, touched); ++i)
+        for (int d = 0; d < 3; ++d) fr[3 * i + d] += add[2 * r][d][i];
+    }
+    return;
+  }
+  for (int i = 0; i < n; ++i) {
+    if (!(J[i] > 0)) {
+      // An inverted cell: its energy is infinite; NaN forces make every solver's guard stop or cut back.
+      for (int c = 0; c < 8; ++c)
+        if (base[i] + offset[c] < owned)
+          for (int r = 0; r < 3; ++r) f[3 * (base[i] + offset[c]) + r] = std::numeric_limits<double>::quiet_NaN();
+      continue;
+    }
+    for (int r = 0; r < 3; ++r) {
+      const double q0 = q[3 * r][i], q1 = q[3 * r + 1][i], q2 = q[3 * r + 2][i];
+      const double lo = q0 + q1, hi = q1 - q0;
+      const double add[8] = {lo + q2, hi + q2, -hi + q2, -lo + q2, lo - q2, hi - q2, -hi - q2, -lo - q2};
+      for (int c = 0; c < 8; ++c)
+        if (base[i] + offset[c] < owned) f[3 * (base[i] + offset[c]) + r] += add[c];
+    }
+  }
+}
+
 class CellElasticity final : public Term {
 public:
   CellElasticity(const Scene& scene, const LocalModel& model) : m_(model) {
@@ -226,43 +369,30 @@ public:
   }
 
   void add_forces(const double* x, const double*, double, double* f) override {
-    // The explicit solvers' inner loop: g_a = (s_x / 4h_x, s_y / 4h_y, s_z / 4h_z) is used through its signs, so
-    // F is sums of corner differences along each axis and a corner's force is a signed sum of Q = V0 P / (4 h)'s
-    // columns (about 3x fewer operations than the general products; gradient() and the tangent keep them).
-    const double* X = m_.rest.data();
-    for (int k = 0; k < cells_; ++k) {
-      int corner[8];
-      corners(k, corner);
-      const Kind& kind = kinds_[kind_[k]];
-      const Geometry& geo = geometry_[kind.body];
-      double u[8][3];
-      for (int c = 0; c < 8; ++c) {
-        const int j = 3 * corner[c];
-        u[c][0] = x[j] - X[j], u[c][1] = x[j + 1] - X[j + 1], u[c][2] = x[j + 2] - X[j + 2];
+    // The explicit solvers' inner loop. Without fibres and a running history, runs of cells that share their
+    // moduli and corner pattern go through cell_block_forces (vectorized across cells); the general loop below
+    // does the same arithmetic one cell at a time.
+    const bool plain = fibre_begin_.empty() && (history_.empty() || !active_);
+    for (int k = 0; k < cells_;) {
+      int n = 1;
+      if (plain) {
+        while (n < kCellBlock && k + n < cells_ && kind_[k + n] == kind_[k] && pattern_[k + n] == pattern_[k]) ++n;
+        const std::array<int, 8>& p = patterns_[pattern_[k]];
+        int along = 1;  // cells consecutive along x from k
+        while (along < n && base_[k + along] == base_[k] + along) ++along;
+        bool rows = along >= 8 && p[1] == 1 && p[3] == p[2] + 1 && p[5] == p[4] + 1 && p[7] == p[6] + 1;
+        for (int r = 0; rows && r < 4; ++r)  // the rows' molecules (along + 1 each) must not overlap
+          for (int t = r + 1; t < 4; ++t) rows = rows && std::abs(p[2 * t] - p[2 * r]) > along;
+        if (rows) n = along;  // short runs stay with the general gather
+        const Kind& kind = kinds_[kind_[k]];
+        const Geometry& geo = geometry_[kind.body];
+        const double g[3] = {geo.g[1][0], geo.g[2][1], geo.g[4][2]};
+        cell_block_forces(n, base_.data() + k, p.data(), rows, x, m_.rest.data(), kind.moduli, geo.volume, g,
+                          m_.owned, f);
+      } else {
+        cell_forces(k, x, f);
       }
-      double F[9], P[9];
-      for (int i = 0; i < 3; ++i) {
-        F[3 * i] = ((u[1][i] - u[0][i]) + (u[3][i] - u[2][i]) + (u[5][i] - u[4][i]) + (u[7][i] - u[6][i])) * geo.g[1][0];
-        F[3 * i + 1] = ((u[2][i] - u[0][i]) + (u[3][i] - u[1][i]) + (u[6][i] - u[4][i]) + (u[7][i] - u[5][i])) * geo.g[2][1];
-        F[3 * i + 2] = ((u[4][i] - u[0][i]) + (u[5][i] - u[1][i]) + (u[6][i] - u[2][i]) + (u[7][i] - u[3][i])) * geo.g[4][2];
-      }
-      F[0] += 1.0, F[4] += 1.0, F[8] += 1.0;
-      if (!stress(F, kind.moduli, fibres(k), fibre_count(k), P) || !add_history(F, k, P)) {
-        // An inverted cell: its energy is infinite; NaN forces make every solver's guard stop or cut back.
-        for (int c = 0; c < 8; ++c)
-          if (corner[c] < m_.owned)
-            for (int i = 0; i < 3; ++i) f[3 * corner[c] + i] = std::numeric_limits<double>::quiet_NaN();
-        continue;
-      }
-      for (int i = 0; i < 3; ++i) {
-        // corner c's force f_c[i] = -V0 sum_j P_ij g_c[j] = -(s_x q0 + s_y q1 + s_z q2)
-        const double q0 = geo.volume * P[3 * i] * geo.g[1][0], q1 = geo.volume * P[3 * i + 1] * geo.g[2][1],
-                     q2 = geo.volume * P[3 * i + 2] * geo.g[4][2];
-        const double lo = q0 + q1, hi = q1 - q0;  // corners (-x, -y) and (+x, -y); their opposites negate them
-        const double add[8] = {lo + q2, hi + q2, -hi + q2, -lo + q2, lo - q2, hi - q2, -hi - q2, -lo - q2};
-        for (int c = 0; c < 8; ++c)
-          if (corner[c] < m_.owned) f[3 * corner[c] + i] += add[c];
-      }
+      k += n;
     }
   }
 
@@ -491,6 +621,46 @@ private:
 
   // The Prony table of cell k (history slot c): its region's, else its body's.
   int table(int k, std::size_t c) const { return table_.empty() ? kinds_[kind_[k]].body : table_[c]; }
+
+  // Cell k's corner forces added to f (owned corners): g_a = (s_x / 4h_x, s_y / 4h_y, s_z / 4h_z) is used through
+  // its signs, so F is sums of corner differences along each axis and a corner's force is a signed sum of
+  // Q = V0 P / (4 h)'s columns (about 3x fewer operations than the general products; gradient() and the tangent
+  // keep them). cell_block_forces does the same operations in the same order.
+  void cell_forces(int k, const double* x, double* f) const {
+    const double* X = m_.rest.data();
+    int corner[8];
+    corners(k, corner);
+    const Kind& kind = kinds_[kind_[k]];
+    const Geometry& geo = geometry_[kind.body];
+    double u[8][3];
+    for (int c = 0; c < 8; ++c) {
+      const int j = 3 * corner[c];
+      u[c][0] = x[j] - X[j], u[c][1] = x[j + 1] - X[j + 1], u[c][2] = x[j + 2] - X[j + 2];
+    }
+    double F[9], P[9];
+    for (int i = 0; i < 3; ++i) {
+      F[3 * i] = ((u[1][i] - u[0][i]) + (u[3][i] - u[2][i]) + (u[5][i] - u[4][i]) + (u[7][i] - u[6][i])) * geo.g[1][0];
+      F[3 * i + 1] = ((u[2][i] - u[0][i]) + (u[3][i] - u[1][i]) + (u[6][i] - u[4][i]) + (u[7][i] - u[5][i])) * geo.g[2][1];
+      F[3 * i + 2] = ((u[4][i] - u[0][i]) + (u[5][i] - u[1][i]) + (u[6][i] - u[2][i]) + (u[7][i] - u[3][i])) * geo.g[4][2];
+    }
+    F[0] += 1.0, F[4] += 1.0, F[8] += 1.0;
+    if (!stress(F, kind.moduli, fibres(k), fibre_count(k), P) || !add_history(F, k, P)) {
+      // An inverted cell: its energy is infinite; NaN forces make every solver's guard stop or cut back.
+      for (int c = 0; c < 8; ++c)
+        if (corner[c] < m_.owned)
+          for (int i = 0; i < 3; ++i) f[3 * corner[c] + i] = std::numeric_limits<double>::quiet_NaN();
+      return;
+    }
+    for (int i = 0; i < 3; ++i) {
+      // corner c's force f_c[i] = -V0 sum_j P_ij g_c[j] = -(s_x q0 + s_y q1 + s_z q2)
+      const double q0 = geo.volume * P[3 * i] * geo.g[1][0], q1 = geo.volume * P[3 * i + 1] * geo.g[2][1],
+                   q2 = geo.volume * P[3 * i + 2] * geo.g[4][2];
+      const double lo = q0 + q1, hi = q1 - q0;  // corners (-x, -y) and (+x, -y); their opposites negate them
+      const double add[8] = {lo + q2, hi + q2, -hi + q2, -lo + q2, lo - q2, hi - q2, -hi - q2, -lo - q2};
+      for (int c = 0; c < 8; ++c)
+        if (corner[c] < m_.owned) f[3 * corner[c] + i] += add[c];
+    }
+  }
 
   // Cell k's row of a checkpoint: its committed S, then h per Prony term.
   void history_row(int k, double* row) const {

@@ -1,9 +1,9 @@
 // The cantilever the locking test meshes (tests/poisson_mesh_test.cpp, PoissonMesh.CantileverDoesNotLock): a
-// 10 x 1 x 1 beam along x, faces named x- .. z+ (clamped x-, tip load on x+). Element size h (-setnumber h 0.5).
-// Regenerate: gmsh -3 -format msh41 -setnumber h 0.5 beam.geo -o beam_h0.5.msh
+// 10 x 1 x 1 beam along x, faces named x- .. z+ (clamped x-, tip load on x+). Element size h (-setnumber h 0.34).
+// Regenerate: gmsh -3 -format msh41 -setnumber h 0.34 beam.geo -o beam_h0.34.msh
 SetFactory("OpenCASCADE");
 If (!Exists(h))
-  h = 0.5;
+  h = 0.34;
 EndIf
 Box(1) = {0, 0, 0, 10, 1, 1};
 e = 1e-6;

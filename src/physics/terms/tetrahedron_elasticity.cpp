@@ -126,31 +126,13 @@ public:
       // so lambda_max <= trace(K_t^8)^(1/8) = |K_t^4|_F^(1/4) <= 6^(1/8) lambda_max: an upper bound within 1.25x.
       if (geo.volume > 0) {
         const Material& mat = materials_[material_[t]];
-        double K[12][12], K2[12][12], K4[12][12];
+        double K[12][12];
         element_stiffness(t, nullptr, nullptr, K);
         for (int a = 0; a < 4; ++a)
           if (c[a] < model.owned)
             for (int i = 0; i < 3; ++i)
               for (int q = 0; q < 12; ++q) row_sum[3 * c[a] + i] += std::abs(K[3 * a + i][q]);
-        double largest = 0;  // K / largest: the eighth power stays in range
-        for (int r = 0; r < 12; ++r)
-          for (int q = 0; q < 12; ++q) largest = std::max(largest, std::abs(K[r][q]));
-        for (int r = 0; r < 12; ++r)
-          for (int q = 0; q < 12; ++q) K[r][q] /= largest;
-        auto square = [](const double A[12][12], double B[12][12]) {
-          for (int r = 0; r < 12; ++r)
-            for (int q = 0; q < 12; ++q) {
-              double s = 0;
-              for (int k = 0; k < 12; ++k) s += A[r][k] * A[k][q];
-              B[r][q] = s;
-            }
-        };
-        square(K, K2);
-        square(K2, K4);
-        double frobenius = 0;
-        for (int r = 0; r < 12; ++r)
-          for (int q = 0; q < 12; ++q) frobenius += K4[r][q] * K4[r][q];
-        const double lambda = largest * std::pow(frobenius, 0.125);
+        const double lambda = largest_eigenvalue_bound(K);
         dt_ = std::min(dt_, 2.0 / std::sqrt(lambda / (0.25 * mat.density * geo.volume)));
       }
     }
@@ -185,6 +167,7 @@ public:
         patch_volume_[static_cast<std::size_t>(nmat_) * c + material_[t]] += 0.25 * geometry_[t].volume;
       }
     jbar_.assign(patch_volume_.size(), 1.0);
+    dt_ = std::max(dt_, averaged_time_step());
   }
 
   void add_forces(const double* x, const double*, double, double* f) override {
@@ -427,6 +410,74 @@ private:
             K[3 * a + i][3 * b + k] = geo.volume * (Dg[3 * k][a][i] * geo.g[b][0] + Dg[3 * k + 1][a][i] * geo.g[b][1] +
                                                     Dg[3 * k + 2][a][i] * geo.g[b][2]);
     return true;
+  }
+
+  // Collective. A stable step from the averaged stiffness itself (the bounds above are those of the stiffer
+  // per-tetrahedron volumetric part, valid but loose once it is averaged). K = K_iso + sum_patches K_a, so
+  // lambda_max(M^-1 K) <= max_t lambda(M_t^-1 K_iso,t) + max_a lambda(M_a^-1 K_a), each element by element: a
+  // tetrahedron's corners get rho V_t / 4 (as above), and patch (a, m) the share rho V_t / 16 of each of its
+  // tetrahedra's corners (over a's four corners these shares sum to the molecule's mass), so K_a's only non-zero
+  // eigenvalue is kappa / V_am sum_b |g_b|^2 / mu_b.
+  double averaged_time_step() const {
+    double iso = 0, vol = 0;
+    for (std::size_t t = 0; t < geometry_.size(); ++t) {
+      if (geometry_[t].volume <= 0) continue;
+      const double zero = 0;
+      double K[12][12];
+      element_stiffness(t, nullptr, &zero, K);
+      iso = std::max(iso, largest_eigenvalue_bound(K) / (0.25 * materials_[material_[t]].density * geometry_[t].volume));
+    }
+    std::vector<int> nodes;
+    std::vector<double> g, share;
+    for (int a = 0; a < m_.owned; ++a)
+      for (int m = 0; m < nmat_; ++m) {
+        const std::size_t q = static_cast<std::size_t>(nmat_) * a + m;
+        if (patch_volume_[q] == 0) continue;
+        patch_gradient(m_.rest.data(), a, m, nodes, g);
+        share.assign(nodes.size(), 0.0);
+        for (int s = star_start_[a]; s < star_start_[a + 1]; ++s) {
+          const std::size_t t = star_tets_[s];
+          if (material_[t] != m) continue;
+          for (int k = 0; k < 4; ++k) {
+            const auto at = std::lower_bound(nodes.begin(), nodes.end(), m_.tetrahedra[4 * t + k]) - nodes.begin();
+            share[at] += materials_[m].density * geometry_[t].volume / 16.0;
+          }
+        }
+        double sum = 0;
+        for (std::size_t b = 0; b < nodes.size(); ++b)
+          if (share[b] > 0) sum += (g[3 * b] * g[3 * b] + g[3 * b + 1] * g[3 * b + 1] + g[3 * b + 2] * g[3 * b + 2]) / share[b];
+        vol = std::max(vol, materials_[m].moduli.kappa / patch_volume_[q] * sum);
+      }
+    double local[2] = {iso, vol}, global[2];
+    MPI_Allreduce(local, global, 2, MPI_DOUBLE, MPI_MAX, m_.comm);
+    const double rate = global[0] + global[1];
+    return rate > 0 ? 2.0 / std::sqrt(rate) : 0.0;
+  }
+
+  // lambda_max of a symmetric positive semi-definite 12 x 12 K from above: trace(K^8)^(1/8) (within 6^(1/8) of
+  // it when K has at most 6 non-zero eigenvalues).
+  static double largest_eigenvalue_bound(double K[12][12]) {
+    double largest = 0;  // K / largest: the eighth power stays in range
+    for (int r = 0; r < 12; ++r)
+      for (int q = 0; q < 12; ++q) largest = std::max(largest, std::abs(K[r][q]));
+    if (largest == 0) return 0;
+    double A[12][12], B[12][12];
+    for (int r = 0; r < 12; ++r)
+      for (int q = 0; q < 12; ++q) A[r][q] = K[r][q] / largest;
+    auto square = [](const double X[12][12], double Y[12][12]) {
+      for (int r = 0; r < 12; ++r)
+        for (int q = 0; q < 12; ++q) {
+          double s = 0;
+          for (int k = 0; k < 12; ++k) s += X[r][k] * X[k][q];
+          Y[r][q] = s;
+        }
+    };
+    square(A, B);
+    square(B, A);
+    double frobenius = 0;
+    for (int r = 0; r < 12; ++r)
+      for (int q = 0; q < 12; ++q) frobenius += A[r][q] * A[r][q];
+    return largest * std::pow(frobenius, 0.125);
   }
 
   static int material_count(const Scene& scene) {

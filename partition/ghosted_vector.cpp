@@ -10,9 +10,9 @@ void check(PetscErrorCode ierr, const char* what) {
 }
 }  // namespace
 
-GhostedVector::GhostedVector(const LocalModel& model) {
+GhostedVector::GhostedVector(const LocalModel& model, int width) {
   std::vector<PetscInt> ghosts(model.block.begin() + model.owned, model.block.end());
-  check(VecCreateGhostBlock(model.comm, 3, 3 * model.owned, PETSC_DECIDE, static_cast<PetscInt>(ghosts.size()),
+  check(VecCreateGhostBlock(model.comm, width, width * model.owned, PETSC_DECIDE, static_cast<PetscInt>(ghosts.size()),
                             ghosts.data(), &vec_), "VecCreateGhostBlock");
   // The local form stays open for the vector's lifetime: the kernels read and write it directly.
   check(VecGhostGetLocalForm(vec_, &local_), "VecGhostGetLocalForm");
@@ -36,3 +36,12 @@ void GhostedVector::update_ghosts() {
 
 }  // namespace tissue
 
+
+namespace tissue {
+
+void GhostedVector::add_ghosts_to_owners() {
+  check(VecGhostUpdateBegin(vec_, ADD_VALUES, SCATTER_REVERSE), "VecGhostUpdateBegin");
+  check(VecGhostUpdateEnd(vec_, ADD_VALUES, SCATTER_REVERSE), "VecGhostUpdateEnd");
+}
+
+}  // namespace tissue

@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "partition/exchange.hpp"
 #include "src/physics/named_faces.hpp"
 
 namespace tissue {
@@ -267,7 +268,33 @@ PetscErrorCode ForceModel::create_tangent(Mat* J) const {
   bool any = false;
   for (const auto& e : extra) any = any || !e.empty();
   if (!any) extra.clear();
-  return tangent_.create(model_, J, extra);
+  if (!ghost_rows()) return tangent_.create(model_, J, extra);
+  // Rows of ghosts (couplings two rings deep): each (row, column) pair goes to the row's owner, whose pattern
+  // gets the column (its block id: it need not be local there).
+  std::vector<std::int64_t> pairs;
+  for (const auto& t : terms_) t->add_remote_couplings(pairs);
+  std::vector<std::int64_t> firsts(model_.size + 1, 0);
+  const std::int64_t mine = model_.first_block;
+  MPI_Allgather(&mine, 1, MPI_INT64_T, firsts.data(), 1, MPI_INT64_T, model_.comm);
+  firsts[model_.size] = std::numeric_limits<std::int64_t>::max();
+  auto owner = [&](std::int64_t block) {
+    return static_cast<int>(std::upper_bound(firsts.begin(), firsts.end() - 1, block) - firsts.begin()) - 1;
+  };
+  std::vector<int> counts(model_.size, 0);
+  for (std::size_t q = 0; q < pairs.size(); q += 2) ++counts[owner(pairs[q])];
+  std::vector<int> start(model_.size, 0);
+  for (int r = 1; r < model_.size; ++r) start[r] = start[r - 1] + counts[r - 1];
+  std::vector<std::int64_t> grouped(pairs.size());
+  for (std::size_t q = 0; q < pairs.size(); q += 2) {
+    const int at = start[owner(pairs[q])]++;
+    grouped[2 * at] = pairs[q], grouped[2 * at + 1] = pairs[q + 1];
+  }
+  const ExchangePlan plan(model_.comm, counts);
+  const std::vector<std::int64_t> mine_pairs = plan.forward(grouped, 2);
+  std::vector<std::vector<PetscInt>> extra_blocks(model_.owned);
+  for (std::size_t q = 0; q < mine_pairs.size(); q += 2)
+    extra_blocks[mine_pairs[q] - model_.first_block].push_back(static_cast<PetscInt>(mine_pairs[q + 1]));
+  return tangent_.create(model_, J, extra, extra_blocks, model_.size > 1);
 }
 
 double ForceModel::terms_critical_time_step() const {
@@ -326,6 +353,10 @@ PetscErrorCode ForceModel::assemble_tangent(const double* x, Mat J) const {
     const int begin = tangent_.row_start[i], ncols = tangent_.row_start[i + 1] - begin;
     const int* rc = tangent_.row_cols.data() + begin;
     const int width = 3 * ncols;
+    // With couplings two rings deep the row's pattern has columns beyond rc (zero here, the terms add them).
+    const bool whole = !tangent_.block_start.empty();
+    const PetscInt* pattern = whole ? tangent_.row_blocks.data() + tangent_.block_start[i] : nullptr;
+    const int npattern = whole ? tangent_.block_start[i + 1] - tangent_.block_start[i] : ncols;
     vals.assign(3 * width, 0.0);
     cols.resize(ncols);
     for (int q = 0; q < ncols; ++q) cols[q] = model_.block[rc[q]];
@@ -365,9 +396,15 @@ PetscErrorCode ForceModel::assemble_tangent(const double* x, Mat J) const {
       double* d = dv + dia[3 * i + r];
       double* o = ov ? ov + oia[3 * i + r] : nullptr;
       const double* v = vals.data() + r * width;
-      for (int q = 0; q < ncols; ++q, v += 3) {
-        double*& to = cols[q] >= first && cols[q] < last ? d : o;
-        to[0] = v[0], to[1] = v[1], to[2] = v[2];
+      for (int p = 0, q = 0; p < npattern; ++p) {
+        const PetscInt col = whole ? pattern[p] : cols[q];
+        double*& to = col >= first && col < last ? d : o;
+        if (q < ncols && cols[q] == col) {
+          to[0] = v[0], to[1] = v[1], to[2] = v[2];
+          v += 3, ++q;
+        } else {
+          to[0] = to[1] = to[2] = 0.0;
+        }
         to += 3;
       }
     }
@@ -386,7 +423,7 @@ PetscErrorCode ForceModel::assemble_tangent(const double* x, Mat J) const {
       OffBlock b{model_.block[row], model_.block[col], {}};
       for (int r = 0; r < 3; ++r)
         for (int s = 0; s < 3; ++s) b.K[3 * r + s] = held_[3 * row + r] || held_[3 * col + s] ? 0.0 : K[3 * r + s];
-      if (b.col < first || b.col >= last) {
+      if (row >= n || b.col < first || b.col >= last) {  // a ghost's row or column
         off.push_back(b);
         return 0;
       }
@@ -473,8 +510,16 @@ PetscErrorCode ForceModel::apply_tangent(const double* x, double* in, double* ou
       for (int r = 0; r < 3; ++r) a.out[3 * row + r] += K[3 * r] * u[0] + K[3 * r + 1] * u[1] + K[3 * r + 2] * u[2];
       return 0;
     };
-    for (const auto& t : terms_)
-      if (!skip_cached) PetscCall(t->add_tangent(x, add, &apply));
+    if (!skip_cached) {
+      // Rows of ghosts go to a ghosted buffer whose ghost slots are then added to their owners.
+      double* rows = ghost_rows() ? ghost_row_buffer() : out;
+      apply.out = rows;
+      for (const auto& t : terms_) PetscCall(t->add_tangent(x, add, &apply));
+      if (rows != out) {
+        ghost_rows_->add_ghosts_to_owners();
+        for (int q = 0; q < 3 * n; ++q) out[q] += rows[q];
+      }
+    }
   }
   for (std::size_t h = 0; h < held_owned_.size(); ++h) out[held_owned_[h]] = held_in[h];
   PetscFunctionReturn(0);
@@ -502,8 +547,14 @@ PetscErrorCode ForceModel::tangent_diagonal(const double* x, double* diag, bool 
         for (int r = 0; r < 3; ++r) static_cast<double*>(p)[3 * row + r] += K[4 * r];
       return 0;
     };
-    for (const auto& t : terms_)
-      if (!skip_cached) PetscCall(t->add_tangent(x, add, diag));
+    if (!skip_cached) {
+      double* rows = ghost_rows() ? ghost_row_buffer() : diag;  // as in apply_tangent
+      for (const auto& t : terms_) PetscCall(t->add_tangent(x, add, rows));
+      if (rows != diag) {
+        ghost_rows_->add_ghosts_to_owners();
+        for (int q = 0; q < 3 * n; ++q) diag[q] += rows[q];
+      }
+    }
   }
   for (int h : held_owned_) diag[h] = 1.0;
   PetscFunctionReturn(0);
@@ -584,8 +635,22 @@ PetscErrorCode ForceModel::jacobi_gershgorin(const double* x, double* bound, boo
   PetscFunctionReturn(0);
 }
 
+bool ForceModel::ghost_rows() const {
+  for (const auto& t : terms_)
+    if (t->tangent_has_ghost_rows()) return true;
+  return false;
+}
+
+double* ForceModel::ghost_row_buffer() const {
+  if (!ghost_rows_) ghost_rows_ = std::make_unique<GhostedVector>(model_);
+  double* rows = ghost_rows_->array();
+  std::fill(rows, rows + 3 * model_.local, 0.0);
+  return rows;
+}
+
 PetscErrorCode ForceModel::tangent_blocks(const double* x, Term::BlockAdd add, void* ctx) const {
   PetscFunctionBeginUser;
+  PetscCheck(!ghost_rows(), model_.comm, PETSC_ERR_SUP, "tangent_blocks: a term's tangent has rows of ghosts");
   PetscCall(connection_blocks(x, add, ctx));
   for (const auto& t : terms_) PetscCall(t->add_tangent(x, add, ctx));
   PetscFunctionReturn(0);

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "src/model/scene.hpp"
+#include "partition/ghosted_vector.hpp"
 #include "partition/local_model.hpp"
 #include "src/physics/spring_kernel.hpp"
 #include "src/physics/tangent.hpp"
@@ -145,6 +146,11 @@ private:
   PetscErrorCode connection_blocks(const double* x, Term::BlockAdd add, void* ctx) const;
   // The tangent's block-row pattern and CSR storage (src/physics/tangent.hpp), built by create_tangent.
   mutable TangentStorage tangent_;
+  // Terms whose tangent has rows of ghosts (Term::tangent_has_ghost_rows): the matrix-free product's and the
+  // diagonal's buffer for them (3 * local, zeroed), made on first use.
+  bool ghost_rows() const;
+  double* ghost_row_buffer() const;
+  mutable std::unique_ptr<GhostedVector> ghost_rows_;
 };
 
 }  // namespace tissue

@@ -4,7 +4,8 @@
 
 namespace tissue {
 
-PetscErrorCode TangentStorage::create(const LocalModel& model, Mat* J, const std::vector<std::vector<int>>& extra) {
+PetscErrorCode TangentStorage::create(const LocalModel& model, Mat* J, const std::vector<std::vector<int>>& extra,
+                                      const std::vector<std::vector<PetscInt>>& extra_blocks, bool off_process) {
   PetscFunctionBeginUser;
   const int n = model.owned;
   // Each owned molecule's connections, then its distinct neighbours sorted by block id.
@@ -12,6 +13,8 @@ PetscErrorCode TangentStorage::create(const LocalModel& model, Mat* J, const std
   row_start.assign(n + 1, 0);
   row_cols.clear();
   row_cols.reserve(conn_start[n] + n);
+  block_start.assign(extra_blocks.empty() ? 0 : 1, 0);
+  row_blocks.clear();
   std::vector<PetscInt> dnnz(n), onnz(n);
   const PetscInt first = model.first_block, last = model.first_block + n;
   auto by_block = [&](int p, int q) { return model.block[p] < model.block[q]; };
@@ -29,6 +32,16 @@ PetscErrorCode TangentStorage::create(const LocalModel& model, Mat* J, const std
                     row_cols.end());
     row_start[i + 1] = static_cast<int>(row_cols.size());
     dnnz[i] = onnz[i] = 0;
+    if (!extra_blocks.empty()) {
+      const std::size_t b0 = row_blocks.size();
+      for (std::size_t p = begin; p < row_cols.size(); ++p) row_blocks.push_back(model.block[row_cols[p]]);
+      row_blocks.insert(row_blocks.end(), extra_blocks[i].begin(), extra_blocks[i].end());
+      std::sort(row_blocks.begin() + b0, row_blocks.end());
+      row_blocks.erase(std::unique(row_blocks.begin() + b0, row_blocks.end()), row_blocks.end());
+      block_start.push_back(static_cast<int>(row_blocks.size()));
+      for (std::size_t p = b0; p < row_blocks.size(); ++p) (row_blocks[p] >= first && row_blocks[p] < last ? dnnz[i] : onnz[i])++;
+      continue;
+    }
     for (std::size_t p = begin; p < row_cols.size(); ++p) {
       const PetscInt bj = model.block[row_cols[p]];
       (bj >= first && bj < last ? dnnz[i] : onnz[i])++;
@@ -52,8 +65,9 @@ PetscErrorCode TangentStorage::create(const LocalModel& model, Mat* J, const std
   for (int i = 0; i < n; ++i)
     for (int r = 0; r < 3; ++r) {
       PetscInt d = di_[3 * i + r], o = oi_[3 * i + r];
-      for (int p = row_start[i]; p < row_start[i + 1]; ++p) {
-        const PetscInt bj = model.block[row_cols[p]];
+      const bool whole = !block_start.empty();
+      for (int p = whole ? block_start[i] : row_start[i]; p < (whole ? block_start[i + 1] : row_start[i + 1]); ++p) {
+        const PetscInt bj = whole ? row_blocks[p] : model.block[row_cols[p]];
         for (int s = 0; s < 3; ++s) {
           if (bj >= first && bj < last)
             dj_[d++] = 3 * (bj - first) + s;
@@ -86,7 +100,8 @@ PetscErrorCode TangentStorage::create(const LocalModel& model, Mat* J, const std
   PetscCall(MatSetOption(*J, MAT_SYMMETRIC, PETSC_TRUE));
   PetscCall(MatSetOption(*J, MAT_SYMMETRY_ETERNAL, PETSC_TRUE));
   PetscCall(MatSetOption(*J, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
-  PetscCall(MatSetOption(*J, MAT_NO_OFF_PROC_ENTRIES, PETSC_TRUE));  // owned rows only: assembly sends nothing
+  // Owned rows only: assembly sends nothing (unless a term adds rows of ghosts).
+  if (!off_process) PetscCall(MatSetOption(*J, MAT_NO_OFF_PROC_ENTRIES, PETSC_TRUE));
   PetscCall(MatAssemblyBegin(*J, MAT_FINAL_ASSEMBLY));
   PetscCall(MatAssemblyEnd(*J, MAT_FINAL_ASSEMBLY));
   // The direct writes rely on each scalar row holding, in the diagonal part, 3 columns per on-rank block

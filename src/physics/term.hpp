@@ -66,6 +66,12 @@ public:
   // Terms whose tangent couples molecules no connection joins: the local columns each owned row needs beyond its
   // connections' (extra[i] for owned molecule i), for the tangent's fixed pattern.
   virtual void add_couplings(std::vector<std::vector<int>>& extra) const {}
+  // Terms whose tangent has rows of ghosts (add_tangent then passes rows >= owned too, columns local: the
+  // tetrahedron term's patches couple molecules two rings apart): the force model adds those rows on their
+  // owners (off-process assembly; the matrix-free product and the diagonal send them back to the owners).
+  virtual bool tangent_has_ghost_rows() const { return false; }
+  // Such terms: (row, column) PETSc block id pairs of those ghost rows, flat, for the owners' fixed pattern.
+  virtual void add_remote_couplings(std::vector<std::int64_t>& pairs) const {}
   // A bound on the stable explicit time step the term imposes by itself (s), used instead of the springs'
   // Gershgorin bound when finite (a wave-speed bound: the cell term's h / c_p).
   virtual double critical_time_step() const { return std::numeric_limits<double>::infinity(); }

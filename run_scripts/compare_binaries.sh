@@ -59,9 +59,14 @@
 #   OLD=/tmp/old/tissue NEW=build/tissue SCENES='table2_* restart_*' RANKS=2 run_scripts/compare_binaries.sh
 #   SCENES=list run_scripts/compare_binaries.sh                # print the scene names and exit
 #   SCENES=none BASE=main run_scripts/compare_binaries.sh      # only build OLD; print "OLD path", "NEW path" (compare_speed.sh)
+#   BASE=d47e42f PATCHES="$(ls run_scripts/compare_patches/*.patch)" run_scripts/compare_binaries.sh
+#                                                              # OLD = d47e42f plus the bug fixes made since (the
+#                                                              # "bug-fix baseline"; run_scripts/compare_patches/README.md)
 # Knobs (environment): OLD, NEW (binaries; the arguments win; NEW defaults to build/tissue), BASE (a git revision:
 # OLD is built from it with `git worktree add --detach $WORK/base-<sha>` and `cmake --build ... --target tissue`
 # under nice, once: a later run reuses it; remove it with `git worktree remove --force $WORK/base-<sha>`),
+# PATCHES (with BASE: patch files, relative to the root, applied in order with `git apply` to the BASE worktree,
+# which is then $WORK/base-<sha>-patched-<hash of the patches>),
 # SCENES (space-separated names or shell patterns, default all), RANKS (default "1 2"), RTOL (default 1e-12),
 # WORK (default out/compare; runs in $WORK/runs/<scene>/np<ranks>/{old,new}, each with its .log),
 # RUN_TIMEOUT (s per run, default 300; exit 124 = timed out), CROSS (default 1), H5 (default 1 if h5diff exists),
@@ -107,11 +112,22 @@ if [[ "$SCENES" != list ]]; then
     [[ -n "${BASE:-}" ]] || die "no OLD binary: give OLD NEW as arguments, OLD=path, or BASE=<git revision> (see the header)"
     sha=$(git rev-parse --verify "${BASE}^{commit}") || die "BASE=$BASE is not a git revision"
     tree=$WORK/base-$sha
+    read -r -a patches <<< "${PATCHES:-}"
+    if (( ${#patches[@]} )); then  # a patched OLD lives apart from the plain one, named by the patches' contents
+      for p in "${patches[@]}"; do [[ -f "$p" ]] || die "PATCHES: no file $p"; done
+      tree=$tree-patched-$(cat "${patches[@]}" | sha1sum | cut -c1-12)
+    fi
     OLD=$tree/build/tissue
     if [[ ! -x "$OLD" ]]; then
       echo "building OLD from $BASE ($sha) in $tree (log: $tree.build.log)" >&2
-      [[ -d "$tree" ]] || git worktree add --detach "$tree" "$sha" > "$tree.build.log" 2>&1 \
-        || die "git worktree add failed, see $tree.build.log"
+      if [[ ! -d "$tree" ]]; then
+        git worktree add --detach "$tree" "$sha" > "$tree.build.log" 2>&1 \
+          || die "git worktree add failed, see $tree.build.log"
+        for p in "${patches[@]}"; do  # (a patch not applying leaves the tree: remove it as above)
+          git -C "$tree" apply --index "$ROOT/$p" >> "$tree.build.log" 2>&1 || die "patch $p does not apply to $BASE"
+          echo "applied $p" >> "$tree.build.log"
+        done
+      fi
       t0=$(date +%s)
       ( cd "$tree" && nice -n 10 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DTISSUE_TESTS=OFF \
           && nice -n 10 cmake --build build -j2 --target tissue ) >> "$tree.build.log" 2>&1 \

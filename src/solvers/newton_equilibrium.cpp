@@ -57,10 +57,12 @@ struct Context {
 // of a tissue test the tangent hardly changes between Newton iterations and load steps, so the lattice
 // multigrid is built once (SNES preconditioner lag -1, persisting across solves) and rebuilt, on the next
 // tangent, only when a linear solve takes more than twice the iterations (plus 10) of the first solve after
-// the last rebuild, or fails. GAMG is rebuilt every iteration as before: on the small, mechanism-prone lattices
-// it serves (rectangular topology) a stale GAMG took 149 iterations instead of 16 and moved an unloaded body by
-// 3e-14 m where the test allows 1e-14. Off when the user sets -snes_lag_preconditioner (-snes_lag_preconditioner
-// -2 -snes_lag_preconditioner_persists gives GAMG the same reuse).
+// the last rebuild, or fails. GAMG gets the same reuse on large meshes and random clouds at 2+ ranks (see
+// kGamgReuseMolecules), where its all-at-once Galerkin products would otherwise be redone every Newton iteration.
+// Elsewhere GAMG is rebuilt every iteration as before: on the small, mechanism-prone lattices it serves
+// (rectangular topology) a stale GAMG took 149 iterations instead of 16 and moved an unloaded body by 3e-14 m
+// where the test allows 1e-14. Off when the user sets -snes_lag_preconditioner (-snes_lag_preconditioner -2
+// -snes_lag_preconditioner_persists gives GAMG the same reuse).
 struct Reuse {
   bool active = false;
   bool fresh = true;    // the next linear solve uses a freshly built preconditioner
@@ -248,6 +250,11 @@ PetscErrorCode attach_rigid_modes(const LocalModel& model, Vec like, Mat J) {
 
 // GAMG's PtAP algorithm at 2+ ranks (see setup()).
 constexpr const char* kGamgPtap = "allatonce_merged";
+// From this many molecules on, a mesh's or random cloud's GAMG at 2+ ranks is kept across Newton iterations (see
+// Reuse): the all-at-once products that keep its memory low cost more than PETSc's default ones, and done once
+// instead of every Newton iteration they cost less in all (docs/benchmarks.md). Smaller bodies keep the rebuild
+// every iteration and so their results. -static_gamg_reuse_molecules N sets it (0: every size).
+constexpr PetscInt kGamgReuseMolecules = 20000;
 
 struct NewtonEquilibrium::Impl {
   Impl(const Scene& scene, const LocalModel& model, const ForceModel& forces, SolverState& state,
@@ -385,7 +392,15 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
     PetscCall(PetscOptionsGetReal(nullptr, nullptr, "-static_first_rtol", &first, nullptr));
     if (!user_rtol && !user_ew && lattice_mg && tolerance >= 1e-9) ctx.first_rtol = first;
   }
-  if (lattice_mg) {
+  bool gamg_reuse = false;
+  if (!lattice_mg && !user_pc && !user_lag && !ctx.shell && model.size > 1) {
+    bool explicit_topology = false;
+    for (const BodySpec& b : scene.bodies) explicit_topology = explicit_topology || b.unstructured();
+    PetscInt from = kGamgReuseMolecules;
+    PetscCall(PetscOptionsGetInt(nullptr, nullptr, "-static_gamg_reuse_molecules", &from, nullptr));
+    gamg_reuse = explicit_topology && model.global_molecules >= from;
+  }
+  if (lattice_mg || gamg_reuse) {
     PetscCall(SNESSetLagPreconditioner(snes, -2));
     PetscCall(SNESSetLagPreconditionerPersists(snes, PETSC_TRUE));
   }
@@ -396,7 +411,7 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
     if (gamg) PetscCall(attach_rigid_modes(model, X, J));
   }
   {
-    reuse.active = lattice_mg && !user_lag;
+    reuse.active = (lattice_mg || gamg_reuse) && !user_lag;
     if (reuse.active) PetscCall(SNESMonitorSet(snes, watch_reuse, &reuse, nullptr));
   }
   PetscCall(VecDuplicate(X, &saved));

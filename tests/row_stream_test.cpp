@@ -50,6 +50,19 @@ std::vector<std::int64_t> slots() {
   return s;
 }
 
+// The whole datasets the tests write, from the closed form: 3 values a row, and (id, -id).
+std::vector<double> closed_form_values() {
+  std::vector<double> v;
+  for (std::int64_t id = 0; id < N; ++id)
+    for (int c = 0; c < 3; ++c) v.push_back(value(id, c));
+  return v;
+}
+std::vector<std::int64_t> closed_form_ids() {
+  std::vector<std::int64_t> v;
+  for (std::int64_t id = 0; id < N; ++id) v.push_back(id), v.push_back(-id);
+  return v;
+}
+
 std::string path() {
   std::filesystem::create_directories(TISSUE_TEST_OUT_DIR);
   return std::string(TISSUE_TEST_OUT_DIR) + "/row_stream_np" + std::to_string(comm_size()) + ".h5";
@@ -77,12 +90,8 @@ TEST(RowStream, PiecesGiveTheWholeBlockWrite) {
   f.write("/whole", N, 3, first, end - first, block.data());
   f.close();
 
-  std::vector<double> expected;
-  std::vector<std::int64_t> expected_ids;
-  for (std::int64_t id = 0; id < N; ++id) {
-    for (int c = 0; c < 3; ++c) expected.push_back(value(id, c));
-    expected_ids.push_back(id), expected_ids.push_back(-id);
-  }
+  const std::vector<double> expected = closed_form_values();
+  const std::vector<std::int64_t> expected_ids = closed_form_ids();
   EXPECT_EQ(hash, row_hash_sum(expected.data(), 3, N, 0));
   EXPECT_EQ(hash_ids, row_hash_sum(expected_ids.data(), 2, N, 0));
   Hdf5File h = Hdf5File::open(path(), MPI_COMM_WORLD, "file", nullptr);
@@ -122,12 +131,8 @@ TEST(RowStream, ReadsBackInPieces) {
     });
     f.close();
   }
-  std::vector<double> expected;
-  std::vector<std::int64_t> expected_ids;
-  for (std::int64_t id = 0; id < N; ++id) {
-    for (int c = 0; c < 3; ++c) expected.push_back(value(id, c));
-    expected_ids.push_back(id), expected_ids.push_back(-id);
-  }
+  const std::vector<double> expected = closed_form_values();
+  const std::vector<std::int64_t> expected_ids = closed_form_ids();
   Hdf5File h = Hdf5File::open(file, MPI_COMM_WORLD, "file", nullptr);
   std::int64_t wrong = 0, taken = 0, last = -1;
   RowStream::ReadCheck check = stream.read_double(h, "/values", 3, [&](std::int64_t k, const double* row) {

@@ -15,7 +15,6 @@
 
 #include "io/hdf5_file.hpp"
 #include "io/row_stream.hpp"
-#include "partition/exchange.hpp"
 #include "partition/agreement.hpp"
 
 namespace tissue {
@@ -45,43 +44,6 @@ constexpr const char* kHistory = "/connections/history";
 constexpr std::int64_t kMaxHistoryWidth = 1024;
 // The per-cell history (ForceModel::cell_history: the cell term with a Prony series), in cell id order.
 constexpr const char* kCellHistory = "/cells/history";
-
-// Rows of a dataset in original order, one per id in `wanted` (ids may be wanted by several ranks): `block` holds
-// this rank's natural block (order.begin() .. + order.count(), `width` values each); each id gets its row from the
-// rank whose block holds it. Collective.
-std::vector<double> rows_of_ids(const NaturalOrder& order, const std::vector<std::int64_t>& wanted,
-                                const std::vector<double>& block, int width) {
-  int size = 1;
-  MPI_Comm_size(order.comm(), &size);
-  const int n = static_cast<int>(wanted.size());
-  std::vector<int> owner(n), counts(size, 0);
-  for (int c = 0; c < n; ++c) ++counts[owner[c] = NaturalOrder::block_owner(order.global_count(), size, wanted[c])];
-  std::vector<int> slot(size, 0);
-  for (int r = 1; r < size; ++r) slot[r] = slot[r - 1] + counts[r - 1];
-  std::vector<std::int64_t> ids(n);
-  std::vector<int> where(n);  // send slot of wanted[c]
-  for (int c = 0; c < n; ++c) ids[where[c] = slot[owner[c]]++] = wanted[c];
-  ExchangePlan plan(order.comm(), counts);
-  const std::vector<std::int64_t> asked = plan.forward(ids);
-  std::vector<double> answer(asked.size() * width);
-  for (std::size_t q = 0; q < asked.size(); ++q)
-    std::copy(block.begin() + (asked[q] - order.begin()) * width, block.begin() + (asked[q] - order.begin() + 1) * width,
-              answer.begin() + q * width);
-  std::vector<double> got(static_cast<std::size_t>(n) * width), rows(got.size());
-  plan.backward(answer.data(), got.data(), width);
-  for (int c = 0; c < n; ++c)
-    std::copy(got.begin() + static_cast<std::size_t>(where[c]) * width,
-              got.begin() + static_cast<std::size_t>(where[c] + 1) * width, rows.begin() + static_cast<std::size_t>(c) * width);
-  return rows;
-}
-
-// Every local connection's row (ghost-ended ones too, which another rank writes).
-std::vector<double> rows_of_local_connections(const LocalModel& m, const NaturalOrder& order,
-                                              const std::vector<double>& block, int width) {
-  std::vector<std::int64_t> ids(m.connections());
-  for (int c = 0; c < m.connections(); ++c) ids[c] = m.connection_id(c);
-  return rows_of_ids(order, ids, block, width);
-}
 
 // The natural order of the per-cell history: the cells each rank writes.
 NaturalOrder cell_order(const Term& cells, MPI_Comm comm, std::vector<double>* rows = nullptr) {
@@ -334,29 +296,20 @@ CheckpointHeader read_checkpoint_header(const std::string& path, MPI_Comm comm) 
       h = header_metadata(f, path, stat(path.c_str(), &st) == 0 ? static_cast<std::int64_t>(st.st_size) : 0);
     });
     // Every dataset is verified here (shape, checksum, finiteness), before the run prints anything or builds the
-    // model, so that a damaged file stops the restart with its one line. Each rank checks an even block of rows.
-    int rank = 0, size = 1;
-    MPI_Comm_rank(comm, &rank);
-    MPI_Comm_size(comm, &size);
+    // model, so that a damaged file stops the restart with its one line. Read in pieces (io/row_stream.hpp) that no
+    // rank keeps: each rank checks its part of each piece.
     auto verify = [&](const char* name, std::int64_t rows, int width, auto tag) {
       using T = decltype(tag);
-      const std::int64_t first = rows * rank / size, count = rows * (rank + 1) / size - first;
-      // Agreed: a read or a check that fails on one rank stops every rank here, not in the checksum's reduction.
-      std::vector<T> block;
       std::int64_t expected = 0;
-      agree(comm, [&] {
-        fault_point("restart", comm);
-        if constexpr (std::is_same_v<T, double>) block = f.read_double(name, first, count);
-        else block = f.read_int64(name, first, count);
-        expected = f.int64_attribute(name, "checksum");
-      });
-      if (as_signed(checksum(block, width, first, comm)) != expected)
-        throw InputError(path, name, "checksum mismatch: the file is corrupt");
-      int bad = 0, any = 0;
+      agree(comm, [&] { expected = f.int64_attribute(name, "checksum"); });
+      const RowStream nobody(comm, rows, 0, [](std::int64_t) { return std::int64_t{-1}; }, RowStream::Shared{});
+      RowStream::ReadCheck got;
       if constexpr (std::is_same_v<T, double>)
-        for (double v : block) bad |= !std::isfinite(v);
-      MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, comm);
-      if (any) throw InputError(path, name, "holds a NaN or infinite value");
+        got = nobody.read_double(f, name, width, [](std::int64_t, const double*) {}, "restart");
+      else
+        got = nobody.read_int64(f, name, width, [](std::int64_t, const std::int64_t*) {}, "restart");
+      if (as_signed(got.hash) != expected) throw InputError(path, name, "checksum mismatch: the file is corrupt");
+      if (!got.finite) throw InputError(path, name, "holds a NaN or infinite value");
     };
     verify("/molecules/positions", h.molecules, 3, double());
     verify("/molecules/velocities", h.molecules, 3, double());
@@ -375,87 +328,97 @@ CheckpointHeader read_checkpoint_header(const std::string& path, MPI_Comm comm) 
   return h;
 }
 
-void read_checkpoint_state(const std::string& path, const LocalModel& model, const NaturalOrder& molecules,
-                           const NaturalOrder& connections, SolverState& state, bool check_stiffness,
+void read_checkpoint_state(const std::string& path, const LocalModel& model, const RowStream& molecules,
+                           const RowStream& connections, SolverState& state, bool check_stiffness,
                            const ForceModel* forces) {
   try {
     Hdf5File f = open_checkpoint(path, model.comm);
-    auto load = [&](const char* name, std::int64_t rows, int width, const NaturalOrder& order, auto tag) {
-      using T = decltype(tag);
-      // Agreed, as in read_checkpoint_header: one rank's failed read or check stops every rank here.
-      std::vector<T> block;
+    // Each dataset streamed in pieces (io/row_stream.hpp): no rank holds more than a piece of the file, and each
+    // row goes straight to where the run keeps it. A damaged file may leave the state half loaded: the restart
+    // stops then (exit 2), and nothing is written.
+    auto load = [&](const char* name, std::int64_t rows, int width, const RowStream& stream, auto take) {
       std::int64_t expected = 0;
+      // Agreed, as in read_checkpoint_header: one rank's failed check stops every rank here.
       agree(model.comm, [&] {
-        fault_point("restart", model.comm);
         if (!f.exists(name)) throw InputError(path, name, "dataset missing");
         auto shape = f.shape(name);
         if (shape.size() != 2 || shape[0] != rows || shape[1] != width)
           throw InputError(path, name, "has the wrong shape for this scene");
-        if constexpr (std::is_same_v<T, double>) block = f.read_double(name, order.begin(), order.count());
-        else block = f.read_int64(name, order.begin(), order.count());
         if (!f.has_attribute(name, "checksum")) throw InputError(path, name, "checksum missing");
         expected = f.int64_attribute(name, "checksum");
       });
-      if (as_signed(checksum(block, width, order.begin(), model.comm)) != expected)
-        throw InputError(path, name, "checksum mismatch: the file is corrupt");
-      int bad = 0, any = 0;
-      if constexpr (std::is_same_v<T, double>)
-        for (double v : block) bad |= !std::isfinite(v);
-      MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, model.comm);
-      if (any) throw InputError(path, name, "holds a NaN or infinite value");
-      return block;
+      RowStream::ReadCheck got;
+      if constexpr (std::is_invocable_v<decltype(take), std::int64_t, const double*>)
+        got = stream.read_double(f, name, width, take, "restart");
+      else
+        got = stream.read_int64(f, name, width, take, "restart");
+      if (as_signed(got.hash) != expected) throw InputError(path, name, "checksum mismatch: the file is corrupt");
+      if (!got.finite) throw InputError(path, name, "holds a NaN or infinite value");
     };
-    auto x = load("/molecules/positions", model.global_molecules, 3, molecules, double());
-    auto v = load("/molecules/velocities", model.global_molecules, 3, molecules, double());
-    auto ends = load("/connections/endpoints", model.global_connections, 2, connections, std::int64_t());
-    auto k = load("/connections/stiffness", model.global_connections, 1, connections, double());
-    auto l0 = load("/connections/rest_length", model.global_connections, 1, connections, double());
+    auto into = [](double* to, int width) {
+      return [to, width](std::int64_t k, const double* row) { std::copy(row, row + width, to + width * k); };
+    };
+    load("/molecules/positions", model.global_molecules, 3, molecules, into(state.x.array(), 3));
+    load("/molecules/velocities", model.global_molecules, 3, molecules, into(state.v.data(), 3));
 
     // The model rebuilt from the scene must be the one that was saved: same connections, same stiffness.
-    auto mine_ends = connections.from_natural_ids(ends.data(), 2);
-    auto mine_k = connections.from_natural(k.data(), 1);
-    auto mine_l0 = connections.from_natural(l0.data(), 1);
-    int mismatch = 0;
-    const char* what = "";
-    std::size_t w = 0;
-    for (int c : model.written_here()) {
-      if (mine_ends[2 * w] != model.id[model.end_a[c]] || mine_ends[2 * w + 1] != model.id[model.end_b[c]])
-        mismatch = 1, what = "/connections/endpoints";
-      else if (mine_l0[w] != model.l0(c)) mismatch = 2, what = "/connections/rest_length";
-      else if (check_stiffness && mine_k[w] != model.k(c)) mismatch = 3, what = "/connections/stiffness";
-      ++w;
-    }
+    int ends_differ = 0, k_differs = 0, l0_differs = 0;
+    load("/connections/endpoints", model.global_connections, 2, connections,
+         [&](std::int64_t c, const std::int64_t* row) {
+           ends_differ |= row[0] != model.id[model.end_a[c]] || row[1] != model.id[model.end_b[c]];
+         });
+    load("/connections/stiffness", model.global_connections, 1, connections, [&](std::int64_t c, const double* row) {
+      k_differs |= check_stiffness && row[0] != model.k(static_cast<int>(c));
+    });
+    load("/connections/rest_length", model.global_connections, 1, connections,
+         [&](std::int64_t c, const double* row) { l0_differs |= row[0] != model.l0(static_cast<int>(c)); });
+    const int mismatch = ends_differ ? 1 : l0_differs ? 2 : k_differs ? 3 : 0;
     int worst = 0;
     MPI_Allreduce(&mismatch, &worst, 1, MPI_INT, MPI_MAX, model.comm);
     static const char* names[] = {"", "/connections/endpoints", "/connections/rest_length", "/connections/stiffness"};
-    (void)what;
     if (worst) throw InputError(path, names[worst], "does not match the model rebuilt from the checkpoint's scene");
 
-    auto mine_x = molecules.from_natural(x.data(), 3);
-    auto mine_v = molecules.from_natural(v.data(), 3);
-    std::copy(mine_x.begin(), mine_x.end(), state.x.array());
-    std::copy(mine_v.begin(), mine_v.end(), state.v.begin());
     if (f.exists(kHalfStepVelocities)) {
-      auto half = load(kHalfStepVelocities, model.global_molecules, 3, molecules, double());
-      state.v_half = molecules.from_natural(half.data(), 3);
+      state.v_half.assign(3 * static_cast<std::size_t>(model.owned), 0.0);
+      load(kHalfStepVelocities, model.global_molecules, 3, molecules, into(state.v_half.data(), 3));
     }
     if (const int width = forces ? forces->history_width() : 0) {
       // The scene has internal variables: a checkpoint without them (or of another width) cannot continue it.
       agree(model.comm, [&] {
         if (!f.exists(kHistory)) throw InputError(path, kHistory, "dataset missing: the scene has a viscoelastic history");
       });
-      auto block = load(kHistory, model.global_connections, width, connections, double());
-      forces->set_history(rows_of_local_connections(model, connections, block, width));
+      // Every local connection's row: a cut connection is held (and its history kept) on both sides.
+      const RowStream local(model.comm, model.global_connections, model.connections(),
+                            [&](std::int64_t c) { return model.connection_id(static_cast<int>(c)); },
+                            RowStream::Shared{});
+      std::vector<double> rows(static_cast<std::size_t>(model.connections()) * width);
+      load(kHistory, model.global_connections, width, local, into(rows.data(), width));
+      forces->set_history(rows);
     }
     if (Term* cells = forces ? forces->cell_history() : nullptr) {
       agree(model.comm, [&] {
         if (!f.exists(kCellHistory))
           throw InputError(path, kCellHistory, "dataset missing: the scene's cells have a viscoelastic history");
       });
-      const NaturalOrder order = cell_order(*cells, model.comm);
       const int width = cells->cell_history_width();
-      auto block = load(kCellHistory, order.global_count(), width, order, double());
-      cells->load_cell_history(rows_of_ids(order, cells->cell_history_ids(), block, width).data());
+      // The cells this rank holds, in increasing id (a stream's slots must be): by position, a cell held twice read
+      // once and copied.
+      const std::vector<std::int64_t> ids = cells->cell_history_ids();
+      std::vector<std::int64_t> by_id(ids.size());
+      for (std::size_t i = 0; i < ids.size(); ++i) by_id[i] = static_cast<std::int64_t>(i);
+      std::stable_sort(by_id.begin(), by_id.end(), [&](std::int64_t a, std::int64_t b) { return ids[a] < ids[b]; });
+      auto repeated = [&](std::int64_t k) { return k > 0 && ids[by_id[k]] == ids[by_id[k - 1]]; };
+      const RowStream held(model.comm, cells->cell_history_count(), static_cast<std::int64_t>(ids.size()),
+                           [&](std::int64_t k) { return repeated(k) ? std::int64_t{-1} : ids[by_id[k]]; },
+                           RowStream::Shared{});
+      std::vector<double> rows(ids.size() * width);
+      load(kCellHistory, cells->cell_history_count(), width, held, [&](std::int64_t k, const double* row) {
+        std::copy(row, row + width, rows.begin() + by_id[k] * width);
+      });
+      for (std::size_t k = 1; k < ids.size(); ++k)
+        if (repeated(static_cast<std::int64_t>(k)))
+          std::copy_n(rows.begin() + by_id[k - 1] * width, width, rows.begin() + by_id[k] * width);
+      cells->load_cell_history(rows.data());
     }
     state.x.update_ghosts();
     agree(model.comm, [&] {  // local reads before the file's collective close

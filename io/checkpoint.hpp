@@ -41,13 +41,14 @@ std::string write_checkpoint(const std::string& directory, int keep, const Scene
 // and the attribute or dataset.
 CheckpointHeader read_checkpoint_header(const std::string& path, MPI_Comm comm);
 
-// Collective. Loads positions, velocities and solver state into `state`, after checking every dataset's shape,
+// Collective. Loads positions, velocities and solver state into `state`, streamed in pieces over the streams a run
+// writes with (Output::molecule_rows, connection_rows), after checking every dataset's shape,
 // checksum, finiteness and that endpoints, rest lengths and (unless the calibration follows the deformation and
 // is refreshed from the positions anyway) stiffness match the model rebuilt from the scene. With `forces` whose
 // terms have internal variables, /connections/history (and /cells/history for the cell term's) must be there with
 // their width, and is put back.
-void read_checkpoint_state(const std::string& path, const LocalModel& model, const NaturalOrder& molecules,
-                           const NaturalOrder& connections, SolverState& state, bool check_stiffness = true,
+void read_checkpoint_state(const std::string& path, const LocalModel& model, const RowStream& molecules,
+                           const RowStream& connections, SolverState& state, bool check_stiffness = true,
                            const ForceModel* forces = nullptr);
 
 }  // namespace tissue

@@ -536,8 +536,16 @@ std::vector<int64_t> Hdf5File::read_int64(const std::string& dataset, int64_t of
   return out;
 }
 
-void Hdf5File::read_block(const std::string& dataset, int64_t offset, int64_t rows, void* data,
-                          hid_t mem_type) const {
+void Hdf5File::read_rows(const std::string& dataset, int64_t offset, int64_t rows, int width, double* data) const {
+  read_block(dataset, offset, rows, data, H5T_NATIVE_DOUBLE, true, width);
+}
+
+void Hdf5File::read_rows(const std::string& dataset, int64_t offset, int64_t rows, int width, int64_t* data) const {
+  read_block(dataset, offset, rows, data, H5T_NATIVE_INT64, true, width);
+}
+
+void Hdf5File::read_block(const std::string& dataset, int64_t offset, int64_t rows, void* data, hid_t mem_type,
+                          bool collective, int width) const {
   if (comm_ == MPI_COMM_NULL) fail(dataset, "parallel read on a file opened without MPI");
   Handle dset(H5Dopen2(file_, dataset.c_str(), H5P_DEFAULT), H5Dclose);
   if (!dset.ok()) fail(dataset, "no such dataset");
@@ -547,12 +555,14 @@ void Hdf5File::read_block(const std::string& dataset, int64_t offset, int64_t ro
   hsize_t dims[2] = {0, 1};
   if (ndims < 1 || ndims > 2 || H5Sget_simple_extent_dims(file_space.get(), dims, nullptr) < 0)
     fail(dataset, "expected a 1-D or 2-D dataset");
-  // Each rank reads its block alone (an independent transfer, no collective), so that a rank whose read or
-  // check fails leaves no other rank waiting in the read: the caller agrees on the outcome (io/checkpoint.cpp).
+  // read_double/read_int64: each rank reads its block alone (an independent transfer, no collective), so that a
+  // rank whose read or check fails leaves no other rank waiting in the read: the caller agrees on the outcome
+  // (io/checkpoint.cpp). read_rows: one collective read, after the caller has agreed on the shape.
   if (offset < 0 || rows < 0 || static_cast<hsize_t>(offset + rows) > dims[0])
     throw std::runtime_error(path_ + ": " + dataset + ": rows [" + std::to_string(offset) + ", " +
                              std::to_string(offset + rows) + ") lie outside the dataset's " +
                              std::to_string(dims[0]) + " rows");
+  if (width > 0 && static_cast<hsize_t>(width) != (ndims == 2 ? dims[1] : 1)) fail(dataset, "has another width");
   const hsize_t start[2] = {static_cast<hsize_t>(offset), 0};
   const hsize_t count[2] = {static_cast<hsize_t>(rows), ndims == 2 ? dims[1] : 1};
   const hsize_t mem_dims[2] = {rows > 0 ? count[0] : 1, count[1]};
@@ -562,7 +572,8 @@ void Hdf5File::read_block(const std::string& dataset, int64_t offset, int64_t ro
                         : H5Sselect_none(file_space.get());
   if (sel < 0 || (rows == 0 && H5Sselect_none(mem_space.get()) < 0)) fail(dataset, "cannot select rows");
   Handle dxpl(H5Pcreate(H5P_DATASET_XFER), H5Pclose);
-  if (!dxpl.ok() || H5Pset_dxpl_mpio(dxpl.get(), H5FD_MPIO_INDEPENDENT) < 0) fail(dataset, "cannot set up transfer");
+  if (!dxpl.ok() || H5Pset_dxpl_mpio(dxpl.get(), collective ? H5FD_MPIO_COLLECTIVE : H5FD_MPIO_INDEPENDENT) < 0)
+    fail(dataset, "cannot set up transfer");
   double dummy[1];
   if (H5Dread(dset.get(), mem_type, mem_space.get(), file_space.get(), dxpl.get(), rows > 0 ? data : dummy) < 0)
     fail(dataset, "cannot read rows [" + std::to_string(offset) + ", " + std::to_string(offset + rows) + ")");

@@ -91,6 +91,11 @@ public:
   // so that one rank's failure leaves no rank waiting): a caller whose ranks go on to a collective agrees first.
   std::vector<double> read_double(const std::string& dataset, int64_t offset, int64_t rows) const;
   std::vector<int64_t> read_int64(const std::string& dataset, int64_t offset, int64_t rows) const;
+  // Collective: rows [offset, offset + rows) of a dataset `width` values wide into data (rows * width values), in
+  // one collective MPI-IO read (io/row_stream.hpp reads a restart's pieces so). Every rank calls it, with rows
+  // 0 if it has none; the dataset's shape must be agreed first (a rank that throws here leaves the others waiting).
+  void read_rows(const std::string& dataset, int64_t offset, int64_t rows, int width, double* data) const;
+  void read_rows(const std::string& dataset, int64_t offset, int64_t rows, int width, int64_t* data) const;
 
   // Attributes on a group or dataset ("/" is the file root). Writing replaces an existing attribute.
   void set_attribute(const std::string& object, const std::string& name, const std::string& value);
@@ -117,7 +122,8 @@ private:
                     int64_t pieces, const Piece& piece);
   void write_numeric_attribute(const std::string& object, const std::string& name, hid_t file_type,
                                hid_t mem_type, const void* value);
-  void read_block(const std::string& dataset, int64_t offset, int64_t rows, void* data, hid_t mem_type) const;
+  void read_block(const std::string& dataset, int64_t offset, int64_t rows, void* data, hid_t mem_type,
+                  bool collective = false, int width = 0) const;
   void read_attribute(const std::string& object, const std::string& name, hid_t mem_type, void* value) const;
   // The open attribute (caller closes), after checking its class (H5T_STRING: fixed-length only; otherwise a
   // number), that it is a scalar, its size (1 .. max_size bytes) and that the file stores exactly that many bytes.

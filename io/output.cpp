@@ -25,13 +25,6 @@ namespace tissue {
 
 namespace {
 
-std::vector<std::int64_t> written_connection_ids(const LocalModel& m) {
-  std::vector<std::int64_t> ids;
-  ids.reserve(m.written_here().size());
-  for (int c : m.written_here()) ids.push_back(m.connection_id(c));
-  return ids;
-}
-
 // Bodies with fibres (docs/anisotropy.md): the deformed fibre direction and stretch per molecule, 0 where no fibre
 // cell touches the molecule. Decided from the scene, so every rank takes part in the collective reordering.
 bool scene_has_fibres(const Scene& scene) {
@@ -64,20 +57,6 @@ void make_directories(const std::string& path) {
 Output::Output(const Scene& scene, const LocalModel& model)
     : scene_(scene),
       model_(model) {}
-
-const NaturalOrder& Output::molecules() {
-  if (!molecules_)
-    molecules_ = std::make_unique<NaturalOrder>(
-        model_.comm, std::vector<std::int64_t>(model_.id.begin(), model_.id.begin() + model_.owned),
-        model_.global_molecules);
-  return *molecules_;
-}
-
-const NaturalOrder& Output::connections() {
-  if (!connections_)
-    connections_ = std::make_unique<NaturalOrder>(model_.comm, written_connection_ids(model_), model_.global_connections);
-  return *connections_;
-}
 
 void Output::make_directory() {
   if (directory_made_) return;

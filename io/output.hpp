@@ -25,11 +25,10 @@ public:
   // Collective. DIR/checkpoint_<step>.h5 (the newest 2 kept); returns its path.
   // With `forces`, the internal variables of its terms too (the viscoelastic history).
   std::string checkpoint(const SolverState& state, const ForceModel* forces = nullptr);
-  // The exchange plans to original order, built on first use (collective), for reading a checkpoint back (a
-  // restart): writing streams the rows instead (molecule_rows, connection_rows), so a run that only writes never
-  // builds them (about 16 bytes per connection).
-  const NaturalOrder& molecules();
-  const NaturalOrder& connections();
+  // The pieces files are written and read in (io/row_stream.hpp), planned on first use (collective): a few
+  // numbers per piece. A restart reads its checkpoint over them.
+  const RowStream& molecule_rows();
+  const RowStream& connection_rows();
   // Collective; rank 0 writes DIR/summary.json.
   void summary(const TensionTest& test, const Measurements& measured, const Measurements& initial,
                const SolveReport& report, const SolverState& state, double wall_seconds, const std::string& failure);
@@ -48,15 +47,12 @@ private:
   static std::string snapshot_name(long step);
   double stage_bytes() const;  // a bound on one file's size, for its StageDeadline
   void write_snapshot_stage(const SolverState& state, const ForceModel& forces, bool final, const char* name);
-  // The pieces files are written in (io/row_stream.hpp), planned on first use: a few numbers per piece.
-  const RowStream& molecule_rows();
-  const RowStream& connection_rows();
   void write_summary(const TensionTest& test, const Measurements& measured, const Measurements& initial,
                      const SolveReport& report, const SolverState& state, double wall_seconds,
                      const std::string& failure, long peak_max);
   const Scene& scene_;
   const LocalModel& model_;
-  std::unique_ptr<NaturalOrder> molecules_, connections_, cells_;  // cells_: built on the first snapshot with cells
+  std::unique_ptr<NaturalOrder> cells_;  // built on the first snapshot with cells
   std::unique_ptr<RowStream> molecule_rows_, connection_rows_;
   std::vector<XdmfEntry> frames_;
   bool directory_made_ = false;

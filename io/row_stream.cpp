@@ -1,10 +1,12 @@
 #include "io/row_stream.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <stdexcept>
 #include <type_traits>
 
+#include "partition/agreement.hpp"
 #include "partition/natural_order.hpp"
 
 namespace tissue {
@@ -44,8 +46,19 @@ std::int64_t RowStream::part_begin(std::int64_t p, int r) const {
 
 RowStream::RowStream(MPI_Comm comm, std::int64_t global_rows, std::int64_t slots, Id id, std::int64_t piece_rows)
     : comm_(comm), global_rows_(global_rows), slots_(slots), piece_rows_(piece_rows), id_(std::move(id)) {
-  check_mpi(MPI_Comm_rank(comm, &rank_), "MPI_Comm_rank");
-  check_mpi(MPI_Comm_size(comm, &size_), "MPI_Comm_size");
+  plan(false);
+}
+
+RowStream::RowStream(MPI_Comm comm, std::int64_t global_rows, std::int64_t slots, Id id, Shared,
+                     std::int64_t piece_rows)
+    : comm_(comm), global_rows_(global_rows), slots_(slots), piece_rows_(piece_rows), shared_(true),
+      id_(std::move(id)) {
+  plan(true);
+}
+
+void RowStream::plan(bool shared) {
+  check_mpi(MPI_Comm_rank(comm_, &rank_), "MPI_Comm_rank");
+  check_mpi(MPI_Comm_size(comm_, &size_), "MPI_Comm_size");
   if (piece_rows_ <= 0) throw std::invalid_argument("RowStream: pieces of no rows");
   pieces_ = std::max<std::int64_t>(1, (global_rows_ + piece_rows_ - 1) / piece_rows_);
   const std::int64_t parts = pieces_ * size_;
@@ -79,7 +92,7 @@ RowStream::RowStream(MPI_Comm comm, std::int64_t global_rows, std::int64_t slots
   for (int r = 0; r < size_; ++r)
     for (std::int64_t p = 0; p < pieces_; ++p) recv_[p * size_ + r] = in[r * pieces_ + p];
   // Every part must receive exactly its rows' count (duplicates are caught as each piece is written).
-  for (std::int64_t p = 0; p < pieces_ && !bad; ++p) {
+  for (std::int64_t p = 0; p < pieces_ && !bad && !shared; ++p) {
     std::int64_t got = 0;
     for (int r = 0; r < size_; ++r) got += recv_[p * size_ + r];
     bad = got != part_begin(p, rank_ + 1) - part_begin(p, rank_);
@@ -87,13 +100,15 @@ RowStream::RowStream(MPI_Comm comm, std::int64_t global_rows, std::int64_t slots
   int any = 0;
   check_mpi(MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, comm_), "MPI_Allreduce");
   if (any)
-    throw std::invalid_argument("RowStream: the ranks' ids are not an increasing permutation of 0.." +
+    throw std::invalid_argument(std::string("RowStream: the ranks' ids are not ") +
+                                (shared ? "increasing ids in " : "an increasing permutation of ") + "0.." +
                                 std::to_string(global_rows_ - 1));
 }
 
 template <typename T>
 std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int width,
                                const std::function<void(std::int64_t, T*)>& fill) const {
+  if (shared_) throw std::logic_error("RowStream: a stream whose ids repeat across ranks writes no file");
   const int row = width + 1;  // the id (its bytes), then the values
   std::vector<T> outgoing, incoming, rows;
   std::vector<char> seen;
@@ -152,6 +167,82 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
   std::uint64_t total = 0;
   check_mpi(MPI_Allreduce(&hash, &total, 1, MPI_UINT64_T, MPI_SUM, comm_), "MPI_Allreduce");
   return total;
+}
+
+template <typename T>
+RowStream::ReadCheck RowStream::read(const Hdf5File& file, const std::string& dataset, int width,
+                                     const std::function<void(std::int64_t, const T*)>& take,
+                                     const char* fault_stage) const {
+  // One row of `width` values is one element of the exchanges: counts stay rows, far below 2^31 in a piece.
+  MPI_Datatype row_type;
+  check_mpi(MPI_Type_contiguous(width, std::is_same_v<T, double> ? MPI_DOUBLE : MPI_INT64_T, &row_type),
+            "MPI_Type_contiguous");
+  check_mpi(MPI_Type_commit(&row_type), "MPI_Type_commit");
+  struct Free {
+    MPI_Datatype* t;
+    ~Free() { MPI_Type_free(t); }
+  } free_type{&row_type};
+  std::vector<T> part, answer, got;
+  std::vector<std::int64_t> wanted, asked;
+  std::vector<int> want_n(size_), want_at(size_), ask_n(size_), ask_at(size_);
+  std::uint64_t hash = 0;
+  int bad = 0;  // a value that is not finite, or a request outside this rank's part (a broken plan)
+  for (std::int64_t p = 0; p < pieces_; ++p) {
+    const std::int64_t first = part_begin(p, rank_), length = part_begin(p, rank_ + 1) - first;
+    part.resize(static_cast<std::size_t>(length) * width);
+    // The injected failure first, agreed on its own: a rank that threw there would never reach the collective read.
+    if (fault_stage) agree(comm_, [&] { fault_point(fault_stage, comm_); });
+    agree(comm_, [&] { file.read_rows(dataset, first, length, width, part.data()); });
+    hash += row_hash_sum(part.data(), width, length, first);
+    if constexpr (std::is_same_v<T, double>)
+      for (double v : part) bad |= !std::isfinite(v);
+    // The ids this rank wants from each rank's part of the piece, in slot order (they increase).
+    wanted.clear();
+    for (int r = 0; r < size_; ++r) {
+      want_at[r] = static_cast<int>(wanted.size());
+      for (std::int64_t k = start_[p * size_ + r]; k < start_[p * size_ + r + 1]; ++k)
+        if (const std::int64_t i = id_(k); i >= 0) wanted.push_back(i);
+      want_n[r] = static_cast<int>(wanted.size()) - want_at[r];
+    }
+    int asked_total = 0;
+    for (int r = 0; r < size_; ++r) ask_at[r] = asked_total, asked_total += ask_n[r] = recv_[p * size_ + r];
+    asked.resize(asked_total);
+    check_mpi(MPI_Alltoallv(wanted.data(), want_n.data(), want_at.data(), MPI_INT64_T, asked.data(), ask_n.data(),
+                            ask_at.data(), MPI_INT64_T, comm_),
+              "MPI_Alltoallv");
+    answer.resize(static_cast<std::size_t>(asked_total) * width);
+    for (int q = 0; q < asked_total; ++q) {
+      const std::int64_t r = asked[q] - first;
+      if (r < 0 || r >= length) {
+        bad = 1;
+        continue;
+      }
+      std::copy(&part[r * width], &part[r * width] + width, &answer[static_cast<std::size_t>(q) * width]);
+    }
+    got.resize(wanted.size() * width);
+    check_mpi(MPI_Alltoallv(answer.data(), ask_n.data(), ask_at.data(), row_type, got.data(), want_n.data(),
+                            want_at.data(), row_type, comm_),
+              "MPI_Alltoallv");
+    std::size_t q = 0;
+    for (std::int64_t k = start_[p * size_]; k < start_[(p + 1) * size_]; ++k)
+      if (id_(k) >= 0) take(k, &got[q++ * width]);
+  }
+  ReadCheck check;
+  int any = 0;
+  check_mpi(MPI_Allreduce(&hash, &check.hash, 1, MPI_UINT64_T, MPI_SUM, comm_), "MPI_Allreduce");
+  check_mpi(MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, comm_), "MPI_Allreduce");
+  check.finite = !any;
+  return check;
+}
+
+RowStream::ReadCheck RowStream::read_double(const Hdf5File& file, const std::string& dataset, int width,
+                                            const TakeDouble& take, const char* fault_stage) const {
+  return read<double>(file, dataset, width, take, fault_stage);
+}
+
+RowStream::ReadCheck RowStream::read_int64(const Hdf5File& file, const std::string& dataset, int width,
+                                           const TakeInt& take, const char* fault_stage) const {
+  return read<std::int64_t>(file, dataset, width, take, fault_stage);
 }
 
 std::uint64_t RowStream::write_double(Hdf5File& file, const std::string& dataset, int width,

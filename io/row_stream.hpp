@@ -11,6 +11,11 @@
 // part in one collective hyperslab write. Per rank and piece that is at most kPieceRows rows in and out, whatever
 // the sample's size or the rank count: a 10^6-molecule snapshot costs a few MB on top of the run, not a copy of
 // every field (docs/benchmarks.md, "Snapshots without the memory spike").
+//
+// Reading (a restart) runs the same pieces backwards: each rank reads its part of a piece in one collective
+// hyperslab read, the ranks send it the ids they want from that part, and it answers with the rows (two
+// MPI_Alltoallv a piece). A stream for reading may let several ranks want the same row (a connection cut by the
+// partition is held on both sides), or none.
 #pragma once
 #include <mpi.h>
 
@@ -39,6 +44,11 @@ public:
   // Keeps O(pieces x ranks) numbers, nothing per item.
   using Id = std::function<std::int64_t(std::int64_t slot)>;
   RowStream(MPI_Comm comm, std::int64_t global_rows, std::int64_t slots, Id id, std::int64_t piece_rows = kPieceRows);
+  // Collective; for reading only: as above, but any rank may want any id (increasing in its slots), once, several
+  // times across the ranks, or not at all. Ids outside [0, global_rows) throw std::invalid_argument on every rank.
+  struct Shared {};
+  RowStream(MPI_Comm comm, std::int64_t global_rows, std::int64_t slots, Id id, Shared,
+            std::int64_t piece_rows = kPieceRows);
 
   // Collective: writes the new dataset [global_rows x width] of `file`; fill(k, row) gives slot k's `width` values.
   // Returns the row hash of the whole dataset (row_hash_sum, summed over the ranks), the same on every rank.
@@ -47,18 +57,38 @@ public:
   std::uint64_t write_double(Hdf5File& file, const std::string& dataset, int width, const FillDouble& fill) const;
   std::uint64_t write_int64(Hdf5File& file, const std::string& dataset, int width, const FillInt& fill) const;
 
+  // Collective: reads the dataset [global_rows x width] of `file` (its shape checked by the caller) and calls
+  // take(k, row) with each slot's row, in slot order. `fault_stage`: a fault_point (partition/agreement.hpp) before
+  // each piece's read, agreed, for the fault tests. Returns the dataset's row hash (row_hash_sum, summed over the
+  // ranks) and whether every value is finite, the same on every rank: the caller refuses a damaged file.
+  struct ReadCheck {
+    std::uint64_t hash = 0;
+    bool finite = true;
+  };
+  using TakeDouble = std::function<void(std::int64_t slot, const double* row)>;
+  using TakeInt = std::function<void(std::int64_t slot, const std::int64_t* row)>;
+  ReadCheck read_double(const Hdf5File& file, const std::string& dataset, int width, const TakeDouble& take,
+                        const char* fault_stage = nullptr) const;
+  ReadCheck read_int64(const Hdf5File& file, const std::string& dataset, int width, const TakeInt& take,
+                       const char* fault_stage = nullptr) const;
+
   std::int64_t pieces() const { return pieces_; }  // ceil(global_rows / piece_rows), at least 1
 
 private:
   template <typename T>
   std::uint64_t write(Hdf5File& file, const std::string& dataset, int width,
                       const std::function<void(std::int64_t, T*)>& fill) const;
+  template <typename T>
+  ReadCheck read(const Hdf5File& file, const std::string& dataset, int width,
+                 const std::function<void(std::int64_t, const T*)>& take, const char* fault_stage) const;
+  void plan(bool shared);
   // Rows [first, end) of piece p that rank r writes.
   std::int64_t part_begin(std::int64_t p, int r) const;
 
   MPI_Comm comm_;
   int rank_ = 0, size_ = 1;
   std::int64_t global_rows_ = 0, slots_ = 0, piece_rows_ = 0, pieces_ = 1;
+  bool shared_ = false;  // for reading only
   Id id_;
   // Indexed by piece * size + rank: the first slot whose item goes to that (piece, rank) part (one more entry at
   // the end: slots), how many items this rank sends there, and how many it receives from that rank for the piece.

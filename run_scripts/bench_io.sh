@@ -22,7 +22,10 @@
 #                positions and velocities every 10 steps (snapshots at steps 10 and 20, and final.h5): the peak
 #                (summary.json's peak_memory_bytes, the largest rank) per molecule of both and their ratio (target:
 #                at most 1.2, issue 18 item 4). Files are streamed in pieces (io/row_stream.hpp), so the ratio
-#                should not grow with the sample or the rank count.
+#                should not grow with the sample or the rank count. Then the restart (issue 18 item 1, target 1.2):
+#                the same 20 steps with a checkpoint at step 10 (`output.fields = []`), and `tissue restart` of
+#                that checkpoint on the same ranks to step 20; the table's last columns are the two peaks per
+#                molecule and the restart's over the run without output. Restarts read in pieces too.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 TISSUE=${TISSUE:-build/tissue}
@@ -90,23 +93,26 @@ MEM_SIDE=${MEM_SIDE:-100}
 MEM_RANKS=${MEM_RANKS:-"1 2"}
 [[ "$MEM_SIDE" -gt 0 ]] || exit 0
 echo
-printf "%10s %6s %16s %16s %8s\n" molecules ranks "B/mol(no out)" "B/mol(output)" ratio
+printf "%10s %6s %16s %16s %8s %16s %16s %8s\n" molecules ranks "B/mol(no out)" "B/mol(output)" ratio \
+  "B/mol(ckpt run)" "B/mol(restart)" ratio
 for r in $MEM_RANKS; do
   peaks=()
-  for mode in none snapshots; do
+  for mode in none snapshots checkpoint restart; do
     dir="$OUT/mem_np${r}_$mode"
     rm -rf "$dir"
-    if [[ $mode == none ]]; then
-      sets=(--set 'output.fields=[]')
-    else
-      sets=(--set 'output.fields=["positions","velocities"]' --set output.snapshot_every=10)
-    fi
-    mpirun --oversubscribe -np "$r" "$TISSUE" run run_scripts/scenes/peer_lattice.toml \
-      --set "body.molecules=[$MEM_SIDE,$MEM_SIDE,$MEM_SIDE]" --set solver.steps=20 "${sets[@]}" \
+    what=(run run_scripts/scenes/peer_lattice.toml --set "body.molecules=[$MEM_SIDE,$MEM_SIDE,$MEM_SIDE]")
+    case $mode in
+      none) sets=(--set 'output.fields=[]') ;;
+      snapshots) sets=(--set 'output.fields=["positions","velocities"]' --set output.snapshot_every=10) ;;
+      checkpoint) sets=(--set 'output.fields=[]' --set output.checkpoint_every=10) ;;
+      restart) what=(restart "$OUT/mem_np${r}_checkpoint/checkpoint_0000000010.h5"); sets=() ;;
+    esac
+    mpirun --oversubscribe -np "$r" "$TISSUE" "${what[@]}" --set solver.steps=20 "${sets[@]}" \
       --output "$dir" > "$dir.log" 2>&1 || { echo "np $r $mode: tissue failed, see $dir.log"; continue 2; }
     peaks+=("$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["peak_memory_bytes"])' "$dir/summary.json")")
-    [[ $mode == none ]] || ls "$dir" | grep -c '\.h5$' | xargs -I{} echo "  np $r: {} snapshot files in $dir" >&2
+    [[ $mode != snapshots ]] || ls "$dir" | grep -c '\.h5$' | xargs -I{} echo "  np $r: {} snapshot files in $dir" >&2
   done
-  awk -v m=$((MEM_SIDE * MEM_SIDE * MEM_SIDE)) -v r=$r -v a="${peaks[0]}" -v b="${peaks[1]}" \
-    'BEGIN { printf "%10d %6d %16.0f %16.0f %8.3f\n", m, r, a / m, b / m, b / a }'
+  awk -v m=$((MEM_SIDE * MEM_SIDE * MEM_SIDE)) -v r=$r -v a="${peaks[0]}" -v b="${peaks[1]}" -v c="${peaks[2]}" \
+    -v d="${peaks[3]}" 'BEGIN { printf "%10d %6d %16.0f %16.0f %8.3f %16.0f %16.0f %8.3f\n", m, r, a / m, b / m, b / a,
+                                  c / m, d / m, d / a }'
 done

@@ -136,7 +136,7 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
   Output out(sim.scene(), model);
   if (!checkpoint.empty())
     agree(comm, [&] {
-      read_checkpoint_state(checkpoint, model, out.molecules(), out.connections(), sim.state(),
+      read_checkpoint_state(checkpoint, model, out.molecule_rows(), out.connection_rows(), sim.state(),
                             /*check_stiffness=*/!sim.refresh(), &sim.forces());
       out.continue_history(sim.state().step);
     });

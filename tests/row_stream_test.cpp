@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -49,6 +50,19 @@ std::vector<std::int64_t> slots() {
   return s;
 }
 
+// The whole datasets the tests write, from the closed form: 3 values a row, and (id, -id).
+std::vector<double> closed_form_values() {
+  std::vector<double> v;
+  for (std::int64_t id = 0; id < N; ++id)
+    for (int c = 0; c < 3; ++c) v.push_back(value(id, c));
+  return v;
+}
+std::vector<std::int64_t> closed_form_ids() {
+  std::vector<std::int64_t> v;
+  for (std::int64_t id = 0; id < N; ++id) v.push_back(id), v.push_back(-id);
+  return v;
+}
+
 std::string path() {
   std::filesystem::create_directories(TISSUE_TEST_OUT_DIR);
   return std::string(TISSUE_TEST_OUT_DIR) + "/row_stream_np" + std::to_string(comm_size()) + ".h5";
@@ -76,12 +90,8 @@ TEST(RowStream, PiecesGiveTheWholeBlockWrite) {
   f.write("/whole", N, 3, first, end - first, block.data());
   f.close();
 
-  std::vector<double> expected;
-  std::vector<std::int64_t> expected_ids;
-  for (std::int64_t id = 0; id < N; ++id) {
-    for (int c = 0; c < 3; ++c) expected.push_back(value(id, c));
-    expected_ids.push_back(id), expected_ids.push_back(-id);
-  }
+  const std::vector<double> expected = closed_form_values();
+  const std::vector<std::int64_t> expected_ids = closed_form_ids();
   EXPECT_EQ(hash, row_hash_sum(expected.data(), 3, N, 0));
   EXPECT_EQ(hash_ids, row_hash_sum(expected_ids.data(), 2, N, 0));
   Hdf5File h = Hdf5File::open(path(), MPI_COMM_WORLD, "file", nullptr);
@@ -101,4 +111,67 @@ TEST(RowStream, RefusesIdsThatAreNotAnIncreasingPermutation) {
   if (comm_rank() == comm_size() - 1) ids.pop_back(), ids.pop_back();
   EXPECT_THROW(RowStream(MPI_COMM_WORLD, N, static_cast<std::int64_t>(ids.size()), [&](std::int64_t k) { return ids[k]; }),
                std::invalid_argument);
+}
+
+TEST(RowStream, ReadsBackInPieces) {
+  // Written as the first test does, read back in pieces of 7 rows: every slot gets its row of the closed form,
+  // and the row hash is the closed form's.
+  const std::vector<std::int64_t> ids = slots();
+  const std::string file = std::string(TISSUE_TEST_OUT_DIR) + "/row_stream_read_np" + std::to_string(comm_size()) + ".h5";
+  std::filesystem::create_directories(TISSUE_TEST_OUT_DIR);
+  RowStream stream(MPI_COMM_WORLD, N, static_cast<std::int64_t>(ids.size()), [&](std::int64_t k) { return ids[k]; }, 7);
+  {
+    Hdf5File f = Hdf5File::create(file, MPI_COMM_WORLD);
+    stream.write_double(f, "/values", 3, [&](std::int64_t k, double* row) {
+      for (int c = 0; c < 3; ++c) row[c] = value(ids[k], c);
+    });
+    stream.write_int64(f, "/ids", 2, [&](std::int64_t k, std::int64_t* row) { row[0] = ids[k], row[1] = -ids[k]; });
+    stream.write_double(f, "/one_nan", 1, [&](std::int64_t k, double* row) {
+      row[0] = ids[k] == N / 2 ? std::numeric_limits<double>::quiet_NaN() : 1.0;
+    });
+    f.close();
+  }
+  const std::vector<double> expected = closed_form_values();
+  const std::vector<std::int64_t> expected_ids = closed_form_ids();
+  Hdf5File h = Hdf5File::open(file, MPI_COMM_WORLD, "file", nullptr);
+  std::int64_t wrong = 0, taken = 0, last = -1;
+  RowStream::ReadCheck check = stream.read_double(h, "/values", 3, [&](std::int64_t k, const double* row) {
+    wrong += k <= last || ids[k] < 0;
+    last = k, ++taken;
+    for (int c = 0; c < 3; ++c) wrong += row[c] != value(ids[k], c);
+  });
+  EXPECT_EQ(wrong, 0);
+  std::int64_t mine = 0;
+  for (std::int64_t i : ids) mine += i >= 0;
+  EXPECT_EQ(taken, mine);
+  EXPECT_EQ(check.hash, row_hash_sum(expected.data(), 3, N, 0));
+  EXPECT_TRUE(check.finite);
+  check = stream.read_int64(h, "/ids", 2, [&](std::int64_t k, const std::int64_t* row) {
+    wrong += row[0] != ids[k] || row[1] != -ids[k];
+  });
+  EXPECT_EQ(wrong, 0);
+  EXPECT_EQ(check.hash, row_hash_sum(expected_ids.data(), 2, N, 0));
+
+  // Shared: every rank wants every fifth row and the last one (all ranks the same rows), pieces of 64.
+  std::vector<std::int64_t> every_fifth;
+  for (std::int64_t id = 0; id < N; id += 5) every_fifth.push_back(id);
+  every_fifth.push_back(N - 1);
+  const RowStream shared(MPI_COMM_WORLD, N, static_cast<std::int64_t>(every_fifth.size()),
+                         [&](std::int64_t k) { return every_fifth[k]; }, RowStream::Shared{}, 64);
+  taken = 0;
+  check = shared.read_double(h, "/values", 3, [&](std::int64_t k, const double* row) {
+    ++taken;
+    for (int c = 0; c < 3; ++c) wrong += row[c] != value(every_fifth[k], c);
+  });
+  EXPECT_EQ(wrong, 0);
+  EXPECT_EQ(taken, static_cast<std::int64_t>(every_fifth.size()));
+  EXPECT_EQ(check.hash, row_hash_sum(expected.data(), 3, N, 0));
+  // A NaN in one row is seen by whichever rank reads it, and reported on every rank.
+  check = shared.read_double(h, "/one_nan", 1, [](std::int64_t, const double*) {});
+  EXPECT_FALSE(check.finite);
+  // A shared stream writes nothing; ids out of range are refused on every rank.
+  EXPECT_THROW(RowStream(MPI_COMM_WORLD, N, 1, [&](std::int64_t) { return comm_rank() == 0 ? N : 0; },
+                         RowStream::Shared{}),
+               std::invalid_argument);
+  h.close();
 }

@@ -25,10 +25,10 @@
 
 #include "io/checkpoint.hpp"
 #include "io/gmsh_mesh.hpp"
+#include "io/row_stream.hpp"
 #include "io/scene.hpp"
 #include "partition/local_model.hpp"
 #include "partition/metis_partition.hpp"
-#include "partition/natural_order.hpp"
 #include "src/model/body.hpp"
 #include "src/solvers/solver.hpp"
 
@@ -38,7 +38,7 @@ namespace {
 struct Fixture {
   Scene scene;
   LocalModel model;
-  std::unique_ptr<NaturalOrder> molecules, connections;
+  std::unique_ptr<RowStream> molecules, connections;
   std::string path;
 };
 Fixture* fx = nullptr;
@@ -69,11 +69,12 @@ extern "C" int LLVMFuzzerInitialize(int* argc, char*** argv) {
   CalibrationInputs inputs;  // the fixture never calibrates
   fx->model = build_local_model(fx->scene, PETSC_COMM_WORLD, inputs, read_mesh);
   const LocalModel& m = fx->model;
-  fx->molecules = std::make_unique<NaturalOrder>(
-      m.comm, std::vector<std::int64_t>(m.id.begin(), m.id.begin() + m.owned), m.global_molecules);
-  std::vector<std::int64_t> ids;
-  for (int c : m.written_here()) ids.push_back(m.connection_id(c));
-  fx->connections = std::make_unique<NaturalOrder>(m.comm, ids, m.global_connections);
+  // The streams a run reads its checkpoint over (Output::molecule_rows, connection_rows).
+  fx->molecules = std::make_unique<RowStream>(m.comm, m.global_molecules, m.owned,
+                                              [&m](std::int64_t k) { return m.id[k]; });
+  fx->connections = std::make_unique<RowStream>(m.comm, m.global_connections, m.connections(), [&m](std::int64_t c) {
+    return m.end_a[c] < m.owned ? m.connection_id(static_cast<int>(c)) : std::int64_t{-1};
+  });
   const char* tmp = std::getenv("TMPDIR");
   fx->path = std::string(tmp ? tmp : "/tmp") + "/fuzz_checkpoint_" + std::to_string(::getpid()) + ".h5";
   return 0;

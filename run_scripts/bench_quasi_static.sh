@@ -39,9 +39,9 @@ esac
 petsc=(-snes_converged_reason -ksp_converged_reason)
 [ "${LOGVIEW:-0}" = 1 ] && petsc+=(-log_view)
 # The watcher: one "seconds row-count" line each time history.csv grows.
-/usr/bin/python3 - "$out/run/history.csv" "$out/stamps.txt" <<'PY' &
+/usr/bin/python3 - "$out/run/history.csv" "$out/stamps.txt" "$out/done" <<'PY' &
 import os, sys, time
-path, stamps = sys.argv[1], sys.argv[2]
+path, stamps, done = sys.argv[1], sys.argv[2], sys.argv[3]
 seen = 0
 with open(stamps, "w") as log:
     while True:
@@ -54,7 +54,7 @@ with open(stamps, "w") as log:
             log.write(f"{time.monotonic():.4f} {n}\n")
             log.flush()
             seen = n
-        if os.path.exists(path + ".done"):
+        if os.path.exists(done):
             break
         time.sleep(0.01)
 PY
@@ -67,9 +67,8 @@ mpirun --oversubscribe -np "$NP" "$TISSUE" run run_scripts/scenes/example_cartil
   > "$out/run.log" 2>&1
 rc=$?
 set -e
-touch "$out/run/history.csv.done"
+touch "$out/done"  # the run's end (even a failed one): the watcher stops
 wait "$watcher"
-rm -f "$out/run/history.csv.done"
 [ "$rc" = 0 ] || { tail -5 "$out/run.log"; exit "$rc"; }
 /usr/bin/python3 - "$out" "$STEPS" "$N" "$NP" "$MODE" "$DISP" <<'PY'
 import json, re, statistics, sys

@@ -592,8 +592,10 @@ std::unique_ptr<Term> make_tetrahedron_elasticity(const TermContext& c) {
 }
 
 TISSUE_TERM(tetrahedron_elasticity, {"tetrahedron-elasticity", scene_has_tetrahedra, make_tetrahedron_elasticity,
-                                     "homogenized on a mesh or random cloud: one continuum energy per tetrahedron "
-                                     "(E, nu and fibres exact for affine states; docs/poisson.md)",
+                                     "homogenized on a mesh or random cloud: one continuum energy per tetrahedron, "
+                                     "its volumetric part averaged per molecule against locking (E, nu and fibres "
+                                     "exact for affine "
+                                     "states; docs/poisson.md)",
                                      6, /*energy_never_grows=*/true});
 
 }  // namespace tissue

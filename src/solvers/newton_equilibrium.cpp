@@ -349,7 +349,8 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
   // default (scalable) algorithm, in no more time (docs/benchmarks.md).
   // GAMG's products with hypre gave NaN on a contact test: GAMG's (meshes, random clouds) go by PETSc's
   // all-at-once algorithm instead, whose lower peak (the default kept intermediate products that made each of 3
-  // ranks need as much memory for the solve as 1 rank did) gives the same numbers (#21, docs/benchmarks.md).
+  // ranks need as much memory for the solve as 1 rank did) gives the same numbers (#21, docs/benchmarks.md); on
+  // large bodies it is kept across Newton iterations (kGamgReuseMolecules), which pays for its slower products.
   // The option is global, so it is set only for this solve and only for our choice of preconditioner (not with
   // the user's -pc_type); -matptap_via or -mat_product_algorithm override it (-matptap_via scalable: PETSc's
   // default: faster products, the higher peak).

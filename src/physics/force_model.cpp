@@ -312,8 +312,8 @@ bool ForceModel::fibre_field(const double* x, double* direction, double* stretch
   return false;
 }
 
-void ForceModel::add_force_scale(std::vector<double>& scale) const {
-  for (const auto& t : terms_) t->add_force_scale(scale);
+void ForceModel::add_force_scale(const double* x, std::vector<double>& scale, std::vector<double>& squares) const {
+  for (const auto& t : terms_) t->add_force_scale(x, scale, squares);
 }
 
 CellField ForceModel::cells(const double* x) const {

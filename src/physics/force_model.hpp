@@ -63,7 +63,7 @@ public:
   // Collective: the smallest time step bound the terms impose by themselves (infinity: none; Term::critical_time_step).
   double terms_critical_time_step() const;
   // Adds each term's force scale per owned molecule (N) to scale (the residual's round-off floor).
-  void add_force_scale(std::vector<double>& scale) const;
+  void add_force_scale(const double* x, std::vector<double>& scale, std::vector<double>& squares) const;
   // The fibre field of the terms that carry fibres (Term::fibre_field), 3 and 1 values per owned molecule; false
   // (and nothing written) when no term has fibres on this rank.
   bool fibre_field(const double* x, double* direction, double* stretch) const;

@@ -75,8 +75,11 @@ public:
   // A bound on the stable explicit time step the term imposes by itself (s), used instead of the springs'
   // Gershgorin bound when finite (a wave-speed bound: the cell term's h / c_p).
   virtual double critical_time_step() const { return std::numeric_limits<double>::infinity(); }
-  // The scale of the term's forces per owned molecule (N), added in squares to the residual's round-off floor.
-  virtual void add_force_scale(std::vector<double>& scale) const {}
+  // The scale of the term's force round-off per local molecule (N; the floor multiplies it by eps), for the
+  // residual's round-off floor: `scale` += the force at unit strain (summed, a worst case), `squares` += the
+  // squares of the forces' share from positions, resolved only to eps R / 2 at magnitude R (a corner of a cell
+  // with gradients g sees a strain round-off of eps R |g| / 2; these add at random). `x`: 3 * local positions.
+  virtual void add_force_scale(const double* x, std::vector<double>& scale, std::vector<double>& squares) const {}
   // Terms that carry fibres (the cell term, docs/anisotropy.md): per owned molecule the mean over its fibre cells
   // of the deformed fibre direction F a / |F a| (3 values, normalized; 0 where no cell has fibres) and of the
   // fibre stretch |F a| (0 there). Returns false when the term has no fibres on any molecule of this rank.

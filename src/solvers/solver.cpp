@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <algorithm>
 #include <ctime>
 #include <vector>
 #include <limits>
@@ -23,14 +24,24 @@ double critical_time_step(const ForceModel& forces) {
 }
 
 double force_round_off(const LocalModel& model, const ForceModel& forces) {
-  std::vector<double> scale(model.local, 0.0);
+  // Per molecule: the forces at unit strain (k l0 for a spring), summed, plus those from positions resolved only
+  // to eps R / 2 at magnitude R (k R / 2 for a spring), in squares: a slender body far from the origin stalls at
+  // R / l0 times its springs' floor (a 10 x 1 x 1 beam of 0.25 tetrahedra: 3.6e-7 relative at R = 10, 5.2e-6 at
+  // R = 110; docs/benchmarks.md).
+  std::vector<double> scale(model.local, 0.0), squares(model.local, 0.0);
+  const double* x = model.rest.data();
+  auto magnitude = [&](int i) {
+    return std::max({std::fabs(x[3 * i]), std::fabs(x[3 * i + 1]), std::fabs(x[3 * i + 2])});
+  };
   for (int c = 0; c < model.connections(); ++c) {
-    const double kl = std::fabs(model.k(c)) * model.l0(c);
-    scale[model.end_a[c]] += kl, scale[model.end_b[c]] += kl;
+    const int a = model.end_a[c], b = model.end_b[c];
+    const double k = std::fabs(model.k(c)), kl = k * model.l0(c), kr = k * std::max(magnitude(a), magnitude(b)) / 2;
+    scale[a] += kl, scale[b] += kl;
+    squares[a] += kr * kr, squares[b] += kr * kr;
   }
-  forces.add_force_scale(scale);  // the terms' own (cells): Newton stalls at nu -> 1/2 without them
+  forces.add_force_scale(x, scale, squares);  // the terms' own (cells): Newton stalls at nu -> 1/2 without them
   double sum = 0, total = 0;
-  for (int i = 0; i < model.owned; ++i) sum += scale[i] * scale[i];
+  for (int i = 0; i < model.owned; ++i) sum += scale[i] * scale[i] + squares[i];
   MPI_Allreduce(&sum, &total, 1, MPI_DOUBLE, MPI_SUM, model.comm);
   return 2.0 * std::numeric_limits<double>::epsilon() * std::sqrt(total);
 }

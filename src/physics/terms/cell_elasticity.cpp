@@ -463,8 +463,9 @@ public:
 
   double critical_time_step() const override { return dt_; }
 
-  void add_force_scale(std::vector<double>& scale) const override {
-    // A corner's force at unit strain: V0 |g| times the cell's moduli.
+  void add_force_scale(const double* x, std::vector<double>& scale, std::vector<double>& squares) const override {
+    // A corner's force at unit strain: V0 |g| times the cell's moduli; from positions, that times R |g| / 2
+    // (Term::add_force_scale).
     for (int k = 0; k < cells_; ++k) {
       const Moduli& md = kinds_[kind_[k]].moduli;
       const Geometry& geo = geometry_[kinds_[kind_[k]].body];
@@ -473,9 +474,14 @@ public:
         modulus += std::abs(fibres(k)[q].E_f) + 2 * std::abs(fibres(k)[q].dG) + 2 * std::abs(fibres(k)[q].alpha);
       int corner[8];
       corners(k, corner);
+      double R = 0;
+      for (int a = 0; a < 8; ++a)
+        for (int d = 0; d < 3; ++d) R = std::max(R, std::fabs(x[3 * corner[a] + d]));
       for (int a = 0; a < 8; ++a) {
         const double* g = geo.g[a];
-        scale[corner[a]] += geo.volume * modulus * std::sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+        const double norm = std::sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+        const double unit = geo.volume * modulus * norm, positions = unit * R * norm / 2;
+        scale[corner[a]] += unit, squares[corner[a]] += positions * positions;
       }
     }
   }

@@ -290,14 +290,20 @@ public:
 
   double critical_time_step() const override { return dt_; }
 
-  void add_force_scale(std::vector<double>& scale) const override {
-    // A corner's force at unit strain: V |g_a| times the tetrahedron's moduli.
+  void add_force_scale(const double* x, std::vector<double>& scale, std::vector<double>& squares) const override {
+    // A corner's force at unit strain: V |g_a| times the tetrahedron's moduli; from positions, that times
+    // R |g_a| / 2 (Term::add_force_scale).
     for (std::size_t t = 0; t < geometry_.size(); ++t) {
       const int* c = &m_.tetrahedra[4 * t];
       const Geometry& geo = geometry_[t];
+      double R = 0;
+      for (int a = 0; a < 4; ++a)
+        for (int d = 0; d < 3; ++d) R = std::max(R, std::fabs(x[3 * c[a] + d]));
       for (int a = 0; a < 4; ++a) {
         const double* g = geo.g[a];
-        scale[c[a]] += geo.volume * materials_[material_[t]].force_modulus * std::sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+        const double norm = std::sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+        const double unit = geo.volume * materials_[material_[t]].force_modulus * norm, positions = unit * R * norm / 2;
+        scale[c[a]] += unit, squares[c[a]] += positions * positions;
       }
     }
   }

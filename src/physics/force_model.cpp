@@ -89,6 +89,12 @@ bool ForceModel::energy_never_grows() const {
   return true;
 }
 
+bool ForceModel::energy_line_search() const {
+  for (const TermStyle* s : term_styles_)
+    if (s->energy_line_search) return true;
+  return false;
+}
+
 bool ForceModel::reads_velocity() const {
   for (const TermStyle* s : term_styles_)
     if (s->reads_velocity) return true;

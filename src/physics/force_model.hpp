@@ -119,6 +119,8 @@ public:
   bool energy_never_grows() const;
   // Some listed term reads the velocities (TermStyle::reads_velocity).
   bool reads_velocity() const;
+  // Some listed term asks Newton's line search to go by the energy (TermStyle::energy_line_search).
+  bool energy_line_search() const;
   // Collective: the contact force totals of the last force evaluation, summed over the ranks; nullopt-like
   // (has_obstacles/has_contact false) when the scene has no such term.
   struct Contact {

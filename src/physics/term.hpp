@@ -131,6 +131,10 @@ struct TermStyle {
   // The term reads the velocities (viscous friction): a checkpoint of a dynamic run then keeps the half-step
   // velocity its last evaluation read, so that a restart evaluates the same forces.
   bool reads_velocity = false;
+  // The term is an energy of each cell's deformation gradient: in bending and near incompressibility a good
+  // Newton step can raise the residual norm many-fold, so Newton's line search goes by the energy instead
+  // (PETSc's cp: the energy's critical point along the step; docs/benchmarks.md).
+  bool energy_line_search = false;
 };
 
 // Registers a term, in its own file: TISSUE_TERM(gravity, {"gravity", listed, make, "...", 10, true}).

@@ -405,6 +405,11 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
     PetscCall(SNESSetLagPreconditioner(snes, -2));
     PetscCall(SNESSetLagPreconditionerPersists(snes, PETSC_TRUE));
   }
+  if (forces.energy_line_search()) {  // cell energies (TermStyle::energy_line_search); -snes_linesearch_type wins
+    SNESLineSearch line_search;
+    PetscCall(SNESGetLineSearch(snes, &line_search));
+    PetscCall(SNESLineSearchSetType(line_search, SNESLINESEARCHCP));
+  }
   PetscCall(SNESSetFromOptions(snes));  // the user's -snes_*, -ksp_*, -pc_* options win
   {
     PetscBool gamg = PETSC_FALSE;

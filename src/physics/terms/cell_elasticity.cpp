@@ -743,6 +743,7 @@ std::unique_ptr<Term> make_cell_elasticity(const TermContext& c) {
 TISSUE_TERM(cell_elasticity, {"cell-elasticity", scene_has_cells, make_cell_elasticity,
                               "homogenized with poisson_ratio != 1/4 or flat cells: one energy per lattice cell of "
                               "its centre deformation gradient (docs/poisson.md)",
-                              5, /*energy_never_grows=*/true});
+                              5, /*energy_never_grows=*/true, ContactReport::none, /*reads_velocity=*/false,
+                              /*energy_line_search=*/true});
 
 }  // namespace tissue

@@ -602,6 +602,7 @@ TISSUE_TERM(tetrahedron_elasticity, {"tetrahedron-elasticity", scene_has_tetrahe
                                      "its volumetric part averaged per molecule against locking (E, nu and fibres "
                                      "exact for affine "
                                      "states; docs/poisson.md)",
-                                     6, /*energy_never_grows=*/true});
+                                     6, /*energy_never_grows=*/true, ContactReport::none,
+                                     /*reads_velocity=*/false, /*energy_line_search=*/true});
 
 }  // namespace tissue

@@ -409,6 +409,10 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
     SNESLineSearch line_search;
     PetscCall(SNESGetLineSearch(snes, &line_search));
     PetscCall(SNESLineSearchSetType(line_search, SNESLINESEARCHCP));
+    // Its default stop when the step's energy slope is below 1e-15 |step| left the last step of a strain-1e-7
+    // test untaken (and SNES still said converged); the slope is what the step is for, however small.
+    PetscCall(SNESLineSearchSetTolerances(line_search, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, 0.0,
+                                          PETSC_DEFAULT, PETSC_DEFAULT));
   }
   PetscCall(SNESSetFromOptions(snes));  // the user's -snes_*, -ksp_*, -pc_* options win
   {

@@ -454,6 +454,9 @@ PetscErrorCode NewtonEquilibrium::Impl::use_matrix_free(bool user_pc, bool user_
       user_smoother = user_smoother || has ? PETSC_TRUE : PETSC_FALSE;
     }
     ctx.gershgorin = !user_smoother;
+    // Level 1 as a shell over its stencil rows (no CSR copy: docs/benchmarks.md), unless the user's smoother
+    // options may need its entries (SOR, ILU, ...).
+    if (!user_smoother) galerkin->keep_level_one_as_stencil();
     PetscCall(PetscOptionsGetReal(nullptr, nullptr, "-static_chebyshev_fraction", &ctx.chebyshev_fraction, nullptr));
   } else {
     report.note += "solver.operator = matrix-free not used: " + why + ". ";

@@ -19,7 +19,7 @@
 #   run_scripts/bench_static_peer.sh
 # Knobs (environment): TISSUE (default build-bench/tissue), LMP (default lmp), RANKS (ours and the Verlet peer,
 # default 2), FIRE_N, FIRE_RANKS, VV_N ("" skips that comparison), REPEAT (pairs per comparison, default 2), WORK,
-# CSV, TOL (default 1e-8).
+# CSV, TOL (default 1e-8), OPERATOR (solver.operator of ours: "" = the scene's default, assembled; matrix-free).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -36,6 +36,7 @@ FIRE_RANKS=${FIRE_RANKS:-1}
 VV_N=${VV_N-100}
 REPEAT=${REPEAT:-2}
 TOL=${TOL:-1e-8}
+OPERATOR=${OPERATOR:-}
 WORK=${WORK:-/tmp/tissue_bench_static_peer}
 CSV=${CSV:-docs/bench_static_peer.csv}
 [[ -x "$TISSUE" ]] || { echo "bench_static_peer: $TISSUE not built (see the header)" >&2; exit 1; }
@@ -47,9 +48,11 @@ echo "comparison,pair,code,N,molecules,ranks,seconds,what,peak_bytes_largest_ran
 ours() {
   local comparison=$1 pair=$2 n=$3 dir="$WORK/ours-$1-$2" force
   force=$("$PYTHON" -c "print(0.001*$n*$n)")
+  local extra=()
+  [[ -n "$OPERATOR" ]] && extra+=(--set "solver.operator=$OPERATOR")
   rm -rf "$dir"
   mpirun -np "$RANKS" "$TISSUE" run "$SCENE" --set "body.molecules=[$n,$n,$n]" --set "load.0.force=[0,0,-$force]" \
-    --set "solver.tolerance=$TOL" --set output.fields=[] --set output.progress=false --output "$dir" > "$dir.log" 2>&1 \
+    --set "solver.tolerance=$TOL" "${extra[@]}" --set output.fields=[] --set output.progress=false --output "$dir" > "$dir.log" 2>&1 \
     || { echo "bench_static_peer: our run failed, see $dir.log" >&2; return 1; }
   "$PYTHON" - "$dir/summary.json" "$comparison" "$pair" "$n" >> "$CSV" <<'EOF'
 import json, sys

@@ -30,6 +30,7 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "io/atomic_file.hpp"
@@ -67,6 +68,28 @@ void check_restart_overrides(const std::vector<std::string>& overrides) {
 }
 
 void on_signal(int) { stop_requested = 1; }
+
+// The pipeline's stages as PETSc log stages: -log_view then gives each its time, flops and messages (what the
+// set-up costs beside the solve; docs/benchmarks.md). Registered once (a fit runs many scenes); free otherwise.
+class LogStage {
+public:
+  explicit LogStage(const char* name) {
+    static std::vector<std::pair<std::string, PetscLogStage>> known;
+    PetscLogStage stage = -1;
+    for (const auto& [n, s] : known)
+      if (n == name) stage = s;
+    if (stage < 0 && PetscLogStageRegister(name, &stage) == 0) known.emplace_back(name, stage);
+    pushed_ = stage >= 0 && PetscLogStagePush(stage) == 0;
+  }
+  ~LogStage() {
+    if (pushed_) (void)PetscLogStagePop();
+  }
+  LogStage(const LogStage&) = delete;
+  LogStage& operator=(const LogStage&) = delete;
+
+private:
+  bool pushed_ = false;
+};
 
 // Runs one scene end to end, from its start or from a checkpoint. Returns the exit code. A fit's forward runs
 // give the scene as text (`scene_text`, named scene_path in messages) and run `quiet` (no lines but failures).
@@ -109,7 +132,10 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
   //      molecules, their ghosts and their connections, with material and mass per molecule. Box lattices are
   //      generated rank by rank from the topology's stencil: no rank holds the whole body. Mesh files are read
   //      by io's reader (io/gmsh_mesh.hpp).
-  sim.build(read_mesh);
+  {
+    LogStage stage("Build model");
+    sim.build(read_mesh);
+  }
   const LocalModel& model = sim.model();
   if (root && !quiet)
     std::printf("tissue: %lld molecules, %lld connections on %d ranks; edge cut %ld, imbalance %.3f, "
@@ -121,10 +147,16 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
   // 4. Calibrate: a stiffness per connection from the material (one method per file), each body by its own
   //    method (Scene::calibrations). A k that no longer changes is stored by connection type: 2 bytes a
   //    connection instead of 16, and less memory traffic in the force kernel; what only calibration reads goes.
-  sim.calibrate();
+  {
+    LogStage stage("Calibrate");
+    sim.calibrate();
+  }
 
   // 5. The force model: the connection forces plus only the terms the scene lists; loads and holds.
-  sim.make_forces();
+  {
+    LogStage stage("Force model");
+    sim.make_forces();
+  }
   if (root && !quiet) {
     std::printf("tissue: critical time step %.6e s\n", sim.critical_time_step());
     std::fflush(stdout);
@@ -145,17 +177,26 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
   std::string last_checkpoint;
   hooks.checkpoint = [&](const SolverState& s) { last_checkpoint = out.checkpoint(s, &sim.forces()); };
   hooks.record = [&](const SolverState& s) { out.history_row(s, sim.forces(), sim.test()); };
-  sim.solve(hooks);
+  {
+    LogStage stage("Solve");
+    sim.solve(hooks);
+  }
   const SolveReport& report = sim.report();
   if (report.interrupted && root)
     std::fprintf(stderr, "tissue: stop requested (SIGTERM/SIGINT): checkpoint written at step %ld; continue "
                          "with: tissue restart %s\n", sim.state().step, last_checkpoint.c_str());
 
   // 7. Measure: Eq. 3, Poisson ratio, centre of mass, kinetic energy.
-  sim.measure();
+  {
+    LogStage stage("Measure");
+    sim.measure();
+  }
 
   // 8. Write the final state (unless it is not finite) and summary.json.
-  sim.write(out, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+  {
+    LogStage stage("Write");
+    sim.write(out, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+  }
   if (root && !quiet) {
     const Scene& sc = sim.scene();
     const TensionTest& test = sim.test();

@@ -132,6 +132,23 @@ double relative_difference(Mat A, Mat B) {
   return diff / ref;
 }
 
+// B's product with u and its diagonal against A's, relative to A's (A the reference); the product is not zero.
+void expect_same_products(Mat A, Mat B, Vec u, double tol, const std::string& what) {
+  Vec ya, yb, da, db;
+  ASSERT_EQ(MatCreateVecs(A, nullptr, &ya), 0);
+  VecDuplicate(ya, &yb), VecDuplicate(ya, &da), VecDuplicate(ya, &db);
+  ASSERT_EQ(MatMult(A, u, ya), 0);
+  ASSERT_EQ(MatMult(B, u, yb), 0);
+  ASSERT_EQ(MatGetDiagonal(A, da), 0);
+  ASSERT_EQ(MatGetDiagonal(B, db), 0);
+  EXPECT_LT(norm_difference(yb, ya), tol) << what;
+  EXPECT_LT(norm_difference(db, da), tol) << what;
+  PetscReal size = 0;
+  VecNorm(ya, NORM_2, &size);
+  EXPECT_GT(size, 0.0);
+  for (Vec* v : {&ya, &yb, &da, &db}) VecDestroy(v);
+}
+
 // Shell against assembled (MatMult, diagonal) and stream against matrix (coarse operators) at two deformations.
 void compare_operators(const std::string& text, bool viscoelastic_step) {
   auto r = run(text, PETSC_COMM_WORLD, {}, false);
@@ -156,24 +173,15 @@ void compare_operators(const std::string& text, bool viscoelastic_step) {
     bool stencil = false;
     ASSERT_EQ(g2.applies(*r->forces, x.data(), &stencil), 0);
     EXPECT_TRUE(stencil);
-    Vec u, ya, ys, da, ds;
-    ASSERT_EQ(MatCreateVecs(A, &u, &ya), 0);
-    VecDuplicate(ya, &ys), VecDuplicate(ya, &da), VecDuplicate(ya, &ds);
+    Vec u;
+    ASSERT_EQ(MatCreateVecs(A, &u, nullptr), 0);
     PetscScalar* pu;
     VecGetArray(u, &pu);
     for (int i = 0; i < r->model.owned; ++i)
       for (int d = 0; d < 3; ++d) pu[3 * i + d] = std::sin(0.37 * static_cast<double>(r->model.id[i]) + 1.3 * d);
     VecRestoreArray(u, &pu);
-    ASSERT_EQ(MatMult(A, u, ya), 0);
-    ASSERT_EQ(MatMult(S, u, ys), 0);
-    ASSERT_EQ(MatGetDiagonal(A, da), 0);
-    ASSERT_EQ(MatGetDiagonal(S, ds), 0);
-    EXPECT_LT(norm_difference(ys, ya), 1e-14) << text << " amplitude " << amplitude;
-    EXPECT_LT(norm_difference(ds, da), 1e-14) << text << " amplitude " << amplitude;
-    PetscReal size = 0;
-    VecNorm(ya, NORM_2, &size);
-    EXPECT_GT(size, 0.0);
-    for (Vec* v : {&u, &ya, &ys, &da, &ds}) VecDestroy(v);
+    expect_same_products(A, S, u, 1e-14, text + " amplitude " + std::to_string(amplitude));
+    VecDestroy(&u);
 
     ASSERT_EQ(g1.update(A, by_matrix), 0);
     ASSERT_EQ(g2.update(*r->forces, x.data(), by_stream), 0);
@@ -187,6 +195,56 @@ void compare_operators(const std::string& text, bool viscoelastic_step) {
   }
   PCDestroy(&by_matrix), PCDestroy(&by_stream);
   MatDestroy(&A), MatDestroy(&S);
+}
+
+// Level 1 as a shell over its stencil rows (LatticeGalerkin::keep_level_one_as_stencil, the matrix-free solve's
+// default): its products and diagonal equal those of the CSR level 1 summed from the assembled matrix, and the
+// coarser levels summed from those rows equal the matrix's, to round-off.
+void compare_stencil_level(const std::string& text) {
+  auto r = run(text, PETSC_COMM_WORLD, {}, false);
+  Mat A;
+  ASSERT_EQ(r->forces->create_tangent(&A), 0);
+  PC by_matrix, by_stencil;
+  PetscInt levels = 0, levels2 = 0;
+  LatticeLevels h1, h2;
+  ASSERT_EQ(PCCreate(PETSC_COMM_WORLD, &by_matrix), 0);
+  ASSERT_EQ(PCCreate(PETSC_COMM_WORLD, &by_stencil), 0);
+  ASSERT_EQ(setup_lattice_mg(r->model, r->forces->held(), by_matrix, 40, &levels, &h1), 0);
+  ASSERT_EQ(setup_lattice_mg(r->model, r->forces->held(), by_stencil, 40, &levels2, &h2), 0);
+  ASSERT_GE(levels, 3);
+  LatticeGalerkin g1(r->model, r->forces->held(), std::move(h1)), g2(r->model, r->forces->held(), std::move(h2));
+  g2.keep_level_one_as_stencil();
+  for (double amplitude : {0.03, 0.08}) {  // the second update refills the same shell
+    const std::vector<double> x = deformed(*r, amplitude);
+    ASSERT_EQ(r->forces->assemble_tangent(x.data(), A), 0);
+    ASSERT_EQ(g1.update(A, by_matrix), 0);
+    ASSERT_EQ(g2.update(*r->forces, x.data(), by_stencil), 0);
+    for (PetscInt l = 0; l + 1 < levels; ++l) {  // PCMG's numbering: levels - 2 is our level 1
+      KSP k1, k2;
+      Mat c1, c2;
+      PCMGGetSmoother(by_matrix, l, &k1), PCMGGetSmoother(by_stencil, l, &k2);
+      KSPGetOperators(k1, &c1, nullptr), KSPGetOperators(k2, &c2, nullptr);
+      PetscBool shell = PETSC_FALSE;
+      PetscObjectTypeCompare(reinterpret_cast<PetscObject>(c2), MATSHELL, &shell);
+      EXPECT_EQ(shell == PETSC_TRUE, l == levels - 2) << "level " << l;
+      if (!shell) {
+        EXPECT_LT(relative_difference(c2, c1), 1e-13) << text << " level " << l << " amplitude " << amplitude;
+        continue;
+      }
+      Vec u;
+      ASSERT_EQ(MatCreateVecs(c1, &u, nullptr), 0);
+      PetscInt lo, hi;
+      VecGetOwnershipRange(u, &lo, &hi);
+      PetscScalar* pu;
+      VecGetArray(u, &pu);
+      for (PetscInt i = lo; i < hi; ++i) pu[i - lo] = std::sin(0.37 * static_cast<double>(i) + 0.2);
+      VecRestoreArray(u, &pu);
+      expect_same_products(c1, c2, u, 1e-13, text + " level 1 amplitude " + std::to_string(amplitude));
+      VecDestroy(&u);
+    }
+  }
+  PCDestroy(&by_matrix), PCDestroy(&by_stencil);
+  MatDestroy(&A);
 }
 
 // 1 + sum_j!=i |A_ij| / A_ii, largest over the assembled matrix's rows (held rows: the identity's, 1).
@@ -237,6 +295,8 @@ TEST(MatrixFree, ShellEqualsAssembledSprings) { compare_operators(springs, false
 TEST(MatrixFree, ShellEqualsAssembledCellTerm) { compare_operators(cells, false); }
 TEST(MatrixFree, ShellEqualsAssembledFibres) { compare_operators(fibres, false); }
 TEST(MatrixFree, ShellEqualsAssembledViscoelasticStep) { compare_operators(visco, true); }
+TEST(MatrixFree, StencilLevelOneSprings) { compare_stencil_level(springs); }
+TEST(MatrixFree, StencilLevelOneCellTerm) { compare_stencil_level(cells); }
 
 // A static tension test both ways: displacements and elongation to the solve's tolerance.
 // Above 1,000 molecules: smaller lattices get GAMG, and the assembled tangent with a note.

@@ -106,6 +106,23 @@ struct LatticeGalerkin::Numbers {
   }
 };
 
+// Level 1 behind a shell (keep_level_one_as_stencil): its masked rows as coarsen leaves them (27 blocks a node by
+// stencil slot), and per owned coarse node where its unknowns and each present slot's neighbour's are in the
+// input: 8 * offset + free mask, offsets into [owned unknowns | the ghost values the scatter brings].
+struct LatticeGalerkin::StencilOperator {
+  Rows rows;
+  std::vector<PetscInt> first;  // per owned coarse node: 8 * its first unknown (local) + its free mask
+  std::vector<PetscInt> col;    // per owned coarse node and slot: 8 * offset + mask of the neighbour; -1: no block
+  PetscInt n = 0;               // owned unknowns
+  Vec ghosts = nullptr;
+  VecScatter scatter = nullptr;
+  void release() {
+    (void)VecDestroy(&ghosts);
+    (void)VecScatterDestroy(&scatter);
+  }
+  ~StencilOperator() { release(); }
+};
+
 // A coarse node's present stencil slots (coarsen, step 4): each slot's column number, and the slots by column.
 struct LatticeGalerkin::Neighbours {
   std::array<PetscInt, kSlots> jnum{};
@@ -131,7 +148,7 @@ void LatticeGalerkin::index_molecules() const {
 }
 
 LatticeGalerkin::~LatticeGalerkin() {
-  for (Mat& m : coarse_)
+  for (Mat& m : coarse_)  // before level_one_: a shell refers to it
     if (m) (void)MatDestroy(&m);
 }
 
@@ -203,7 +220,10 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Stream* stream, c
   PetscCall(send_rows_to_owners(l, num, acc));
   std::vector<PetscInt> dnnz(levels_.count[l + 1], 0), onnz(levels_.count[l + 1], 0);
   PetscCall(mask_held(l, num, acc, dnnz, onnz));
-  PetscCall(fill_coarse_matrix(l, num, acc, dnnz, onnz));
+  if (l == 0 && level_one_)
+    PetscCall(stencil_operator(num, acc));
+  else
+    PetscCall(fill_coarse_matrix(l, num, acc, dnnz, onnz));
   acc.index = {};
   next = std::move(acc);
   PetscFunctionReturn(0);
@@ -686,16 +706,156 @@ PetscErrorCode LatticeGalerkin::update(Mat fine, const Stream* stream, PC pc) {
   PetscCall(PetscLogEventBegin(galerkin_event(), pc, fine, 0, 0));
   index_molecules();
   const int L = static_cast<int>(levels_.planes.size());
+  // Level 1 as a shell over its rows only without a fine matrix (the assembled path keeps its CSR, unchanged) and
+  // where it is not the coarsest level (PCMG factors that one).
+  if (stencil_level_one_ && stream && L >= 3 && !level_one_) level_one_ = std::make_unique<StencilOperator>();
+  if (level_one_) level_one_->rows = Rows();  // the last rows go before the new ones are summed
   Rows stencil, next;
+  const Rows* prev = nullptr;
   for (int l = 0; l + 1 < L; ++l) {
-    PetscCall(coarsen(l, fine, stream, l == 0 ? nullptr : &stencil, next));
-    std::swap(stencil, next);
+    PetscCall(coarsen(l, fine, stream, prev, next));
+    if (l == 0 && level_one_) {
+      level_one_->rows = std::move(next);
+      prev = &level_one_->rows;
+    } else {
+      std::swap(stencil, next);
+      prev = &stencil;
+    }
     KSP level;
     PetscCall(PCMGGetSmoother(pc, L - 2 - l, &level));  // PCMG counts levels from the coarsest
     PetscCall(KSPSetOperators(level, coarse_[l + 1], coarse_[l + 1]));
   }
   ijk_ = {};
   PetscCall(PetscLogEventEnd(galerkin_event(), pc, fine, 0, 0));
+  PetscFunctionReturn(0);
+}
+
+}  // namespace tissue
+
+namespace tissue {
+
+// Level 1's shell (keep_level_one_as_stencil), from coarsen's masked rows: the column of every present block and
+// the scatter of the neighbours' unknowns owned elsewhere, made again at every update (a rebuild is rare, and its
+// rows are new).
+PetscErrorCode LatticeGalerkin::stencil_operator(const Numbers& num, const Rows& acc) {
+  PetscFunctionBeginUser;
+  StencilOperator& op = *level_one_;
+  op.release();
+  const auto& cnodes = levels_.owned_nodes[1];
+  const auto& cbase = levels_.base[1];
+  const PetscInt cfirst = levels_.first[1], n = levels_.count[1], clast = cfirst + n;
+  op.n = n;
+  op.first.assign(cnodes.size(), 0);
+  op.col.assign(kSlots * cnodes.size(), -1);
+  Neighbours nb;
+  // Pass 1: the neighbours owned elsewhere (8 * first unknown + mask), sorted.
+  std::vector<PetscInt> away;
+  for (std::size_t c = 0; c < cnodes.size(); ++c) {
+    const int mask = static_cast<int>(num.packed[c] % 8);
+    op.first[c] = 8 * (cbase[c] - cfirst) + mask;
+    if (!mask) continue;
+    neighbours(0, num, acc, c, nb);
+    for (int q = 0; q < nb.norder; ++q) {
+      const PetscInt jb = nb.jnum[nb.order[q]] / 8;
+      if (jb < cfirst || jb >= clast) away.push_back(nb.jnum[nb.order[q]]);
+    }
+  }
+  std::sort(away.begin(), away.end());
+  away.erase(std::unique(away.begin(), away.end()), away.end());
+  std::vector<PetscInt> offset(away.size() + 1, 0), gidx;  // each one's first value among the ghosts
+  for (std::size_t a = 0; a < away.size(); ++a) {
+    const int m = static_cast<int>(away[a] % 8);
+    for (int k = 0; k < __builtin_popcount(m); ++k) gidx.push_back(away[a] / 8 + k);
+    offset[a + 1] = offset[a] + __builtin_popcount(m);
+  }
+  // Pass 2: every present block's column.
+  for (std::size_t c = 0; c < cnodes.size(); ++c) {
+    if (!(op.first[c] % 8)) continue;
+    neighbours(0, num, acc, c, nb);
+    for (int q = 0; q < nb.norder; ++q) {
+      const int s = nb.order[q];
+      const PetscInt jnum = nb.jnum[s], jb = jnum / 8;
+      PetscInt at = jb - cfirst;
+      if (jb < cfirst || jb >= clast)
+        at = n + offset[std::lower_bound(away.begin(), away.end(), jnum) - away.begin()];
+      op.col[kSlots * c + s] = 8 * at + jnum % 8;
+    }
+  }
+  Vec layout;
+  IS is;
+  PetscCall(VecCreateMPIWithArray(model_.comm, 1, n, PETSC_DETERMINE, nullptr, &layout));
+  PetscCall(ISCreateGeneral(PETSC_COMM_SELF, static_cast<PetscInt>(gidx.size()), gidx.data(), PETSC_COPY_VALUES, &is));
+  PetscCall(VecCreateSeq(PETSC_COMM_SELF, static_cast<PetscInt>(gidx.size()), &op.ghosts));
+  PetscCall(VecScatterCreate(layout, is, op.ghosts, nullptr, &op.scatter));
+  PetscCall(ISDestroy(&is));
+  PetscCall(VecDestroy(&layout));
+  Mat& C = coarse_[1];
+  if (!C) {
+    PetscCall(MatCreateShell(model_.comm, n, n, PETSC_DETERMINE, PETSC_DETERMINE, &op, &C));
+    PetscCall(MatShellSetOperation(C, MATOP_MULT, reinterpret_cast<void (*)(void)>(stencil_mult)));
+    PetscCall(MatShellSetOperation(C, MATOP_MULT_TRANSPOSE, reinterpret_cast<void (*)(void)>(stencil_mult)));
+    PetscCall(MatShellSetOperation(C, MATOP_GET_DIAGONAL, reinterpret_cast<void (*)(void)>(stencil_diagonal)));
+    PetscCall(MatSetOption(C, MAT_SYMMETRIC, PETSC_TRUE));
+    PetscCall(MatSetOption(C, MAT_SYMMETRY_ETERNAL, PETSC_TRUE));
+  } else {
+    PetscCall(PetscObjectStateIncrease(reinterpret_cast<PetscObject>(C)));  // new rows behind the same shell
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode LatticeGalerkin::stencil_mult(Mat A, Vec in, Vec out) {
+  PetscFunctionBeginUser;
+  StencilOperator* op;
+  PetscCall(MatShellGetContext(A, &op));
+  PetscCall(VecScatterBegin(op->scatter, in, op->ghosts, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterEnd(op->scatter, in, op->ghosts, INSERT_VALUES, SCATTER_FORWARD));
+  const PetscScalar *u, *g;
+  PetscScalar* y;
+  PetscCall(VecGetArrayRead(in, &u));
+  PetscCall(VecGetArrayRead(op->ghosts, &g));
+  PetscCall(VecGetArray(out, &y));
+  const Rows& rows = op->rows;
+  const PetscInt n = op->n;
+  for (std::size_t c = 0; c < op->first.size(); ++c) {
+    const int mask = static_cast<int>(op->first[c] % 8);
+    if (!mask) continue;
+    const double* blk = rows.block(rows.row[c], 0);
+    const PetscInt* col = op->col.data() + kSlots * c;
+    double acc[3] = {0.0, 0.0, 0.0};
+    for (int s = 0; s < kSlots; ++s, blk += kBlock) {
+      if (col[s] < 0) continue;
+      const int jm = static_cast<int>(col[s] % 8);
+      const PetscInt at = col[s] / 8;
+      const double* src = at < n ? u + at : g + (at - n);
+      double v[3];
+      for (int m = 0, q = 0; m < 3; ++m) v[m] = jm >> m & 1 ? src[q++] : 0.0;
+      for (int k = 0; k < 3; ++k) acc[k] += blk[3 * k] * v[0] + blk[3 * k + 1] * v[1] + blk[3 * k + 2] * v[2];
+    }
+    PetscScalar* to = y + op->first[c] / 8;
+    for (int k = 0, q = 0; k < 3; ++k)
+      if (mask >> k & 1) to[q++] = acc[k];
+  }
+  PetscCall(VecRestoreArray(out, &y));
+  PetscCall(VecRestoreArrayRead(op->ghosts, &g));
+  PetscCall(VecRestoreArrayRead(in, &u));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode LatticeGalerkin::stencil_diagonal(Mat A, Vec d) {
+  PetscFunctionBeginUser;
+  StencilOperator* op;
+  PetscCall(MatShellGetContext(A, &op));
+  PetscScalar* y;
+  PetscCall(VecGetArray(d, &y));
+  for (std::size_t c = 0; c < op->first.size(); ++c) {
+    const int mask = static_cast<int>(op->first[c] % 8);
+    if (!mask) continue;
+    const double* blk = op->rows.block(op->rows.row[c], slot_of(0, 0, 0));
+    PetscScalar* to = y + op->first[c] / 8;
+    for (int k = 0, q = 0; k < 3; ++k)
+      if (mask >> k & 1) to[q++] = blk[4 * k];
+  }
+  PetscCall(VecRestoreArray(d, &y));
   PetscFunctionReturn(0);
 }
 

@@ -13,6 +13,7 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "partition/local_model.hpp"
@@ -39,11 +40,16 @@ public:
   // Collective. Whether every block forces.tangent_blocks gives at x joins molecules of one box at most one plane
   // apart (what update(forces, x, pc) needs).
   PetscErrorCode applies(const ForceModel& forces, const double* x, bool* ok) const;
+  // From the next update on, level 1 (when it is not the coarsest) is a shell matrix over its stencil rows, which
+  // level 2 is summed from anyway: no CSR copy of it (about 360 B a fine molecule, the largest matrix of the
+  // matrix-free solve). Its MatMult and diagonal only: Chebyshev-Jacobi smoothing and its estimator need no more.
+  void keep_level_one_as_stencil() { stencil_level_one_ = true; }
 
 private:
   struct Rows;
   struct Numbers;
   struct Neighbours;
+  struct StencilOperator;  // level 1 as its rows behind a shell (keep_level_one_as_stencil)
   struct Stream {  // the fine blocks' source when there is no fine matrix
     const ForceModel* forces;
     const double* x;
@@ -59,6 +65,9 @@ private:
   PetscErrorCode fill_coarse_matrix(int l, const Numbers& num, const Rows& acc, const std::vector<PetscInt>& dnnz,
                                     const std::vector<PetscInt>& onnz);
   void neighbours(int l, const Numbers& num, const Rows& acc, std::size_t c, Neighbours& nb) const;
+  PetscErrorCode stencil_operator(const Numbers& num, const Rows& acc);
+  static PetscErrorCode stencil_mult(Mat A, Vec in, Vec out);
+  static PetscErrorCode stencil_diagonal(Mat A, Vec d);
 
   const LocalModel& model_;
   const std::vector<std::uint8_t>& held_;
@@ -71,6 +80,8 @@ private:
   };
   std::vector<Csr> csr_;     // the storage of coarse_ (PETSc does not copy it): destroyed after the matrices
   std::vector<Mat> coarse_;  // coarse_[l]: the operator of level l (l >= 1; coarse_[0] unused)
+  bool stencil_level_one_ = false;
+  std::unique_ptr<StencilOperator> level_one_;  // when level 1 is a shell: its rows, columns and ghost scatter
 };
 
 }  // namespace tissue

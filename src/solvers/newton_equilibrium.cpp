@@ -463,6 +463,9 @@ PetscErrorCode NewtonEquilibrium::Impl::use_matrix_free(bool user_pc, bool user_
       user_smoother = user_smoother || has ? PETSC_TRUE : PETSC_FALSE;
     }
     ctx.gershgorin = !user_smoother;
+    // Level 1 as a shell over its stencil rows (no CSR copy: docs/benchmarks.md), unless the user's smoother
+    // options may need its entries (SOR, ILU, ...).
+    if (!user_smoother) galerkin->keep_level_one_as_stencil();
     PetscCall(PetscOptionsGetReal(nullptr, nullptr, "-static_chebyshev_fraction", &ctx.chebyshev_fraction, nullptr));
   } else {
     report.note += "solver.operator = matrix-free not used: " + why + ". ";
@@ -585,11 +588,20 @@ PetscErrorCode NewtonEquilibrium::Impl::solve(long steps) {
 
 PetscErrorCode NewtonEquilibrium::Impl::finish() {
   PetscFunctionBeginUser;
+  // The solve is over (finish is the last call): its Krylov, multigrid and line-search vectors, the tangent and
+  // the preconditioner's coarse operators go before the final check allocates (the guard's copy of the state, 48 B
+  // a molecule); with all of them alive this was the run's peak (docs/benchmarks.md). Results are not touched.
+  PetscCall(SNESReset(snes));
+  PetscCall(MatDestroy(&J));
+  PetscCall(VecDestroy(&saved));
+  ctx.galerkin = nullptr;
+  galerkin.reset();
   // The final state and its residual, in the common definition.
   ctx.load_factor = 1.0;
   Vec R;
   PetscCall(VecDuplicate(X, &R));
   PetscCall(residual(snes, X, R, &ctx));
+  PetscCall(VecDestroy(&R));  // the residual is read from state.f
   agree(model.comm, [&] {
     if (ctx.error) std::rethrow_exception(std::exchange(ctx.error, nullptr));
   });
@@ -600,7 +612,6 @@ PetscErrorCode NewtonEquilibrium::Impl::finish() {
     StepGuard guard(kind.c_str(), scene, model, forces, state);
     guard.full_check();  // a collapsed (inverted) connection at equilibrium is a failure too
   }
-  PetscCall(VecDestroy(&R));
   PetscFunctionReturn(0);
 }
 

@@ -18,10 +18,14 @@ trilinear interpolation (src/solvers/lattice_mg.cpp), coarsest level solved dire
 Coarse operators: galerkin (P^T A P, what src/solvers/lattice_galerkin.cpp computes) or redisc (springs by
 Galerkin, the cell term rediscretized on the coarse cells, same lambda_c, one-point).
 
-Prints, for nu = 0.25 / 0.45 / 0.49, the CG iterations to a relative residual of 1e-8.
+--mixed instead solves the mixed form with one pressure per cell, p = lambda_c V div u (the volumetric part kept
+out of the multigrid): MINRES preconditioned by diag(one V-cycle of the springs-only, nu = 1/4, operator with the
+smoother above, the cell-diagonal Schur complement V (1 / w + 1 / lambda_c)), w = --schur (lambda_s + 2 mu_s = 1.5).
+
+Prints, for nu = 0.25 / 0.45 / 0.49, the Krylov iterations to a relative residual of 1e-8.
 Needs numpy and scipy (Debian: python3-numpy python3-scipy). About a minute at N = 17 (star: a few).
   python3 run_scripts/mg_near_incompressible.py [N] [--smoother jacobi|cell|star] [--coarse galerkin|redisc]
-      [--steps S] [--fraction F]
+      [--steps S] [--fraction F] [--mixed [--schur W]]
 """
 import argparse
 
@@ -72,6 +76,20 @@ def cells(n, h, lam):
                     rows.append(3 * corner[a] + p), cols.append(3 * corner[c] + q)
                     vals.append(np.full(len(i), ke[3 * a + p, 3 * c + q]))
     return coo(rows, cols, vals, 3 * n**3)
+
+
+def divergence(n, h):
+    """Each cell's one-point div u (rows: cells)."""
+    signs = [(sx, sy, sz) for sz in (-1, 1) for sy in (-1, 1) for sx in (-1, 1)]
+    i, j, k = (a.ravel() for a in np.meshgrid(range(n - 1), range(n - 1), range(n - 1), indexing="ij"))
+    cell = i + (n - 1) * (j + (n - 1) * k)
+    rows, cols, vals = [], [], []
+    for s in signs:
+        c = node(n, i + (s[0] > 0), j + (s[1] > 0), k + (s[2] > 0))
+        for d in range(3):
+            rows.append(cell), cols.append(3 * c + d), vals.append(np.full(len(i), s[d] / (4 * h)))
+    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=((n - 1) ** 3, 3 * n**3))
 
 
 def interpolation(nf):
@@ -167,7 +185,8 @@ class Chebyshev:
 def krylov(n, nu, args):
     mu = 0.5
     lam = max(mu * (2 * nu / (1 - 2 * nu) - 1), 0.0)
-    sizes, fr, ops, interps = hierarchy(n, lam, args.coarse, args.levels)
+    # --mixed: the multigrid is the springs-only one; the cell term enters through the pressures
+    sizes, fr, ops, interps = hierarchy(n, 0.0 if args.mixed else lam, args.coarse, args.levels)
     smoothers = [Chebyshev(a, None if args.smoother == "jacobi" else schwarz(a, sizes[l], fr[l], args.smoother),
                            args.fraction, args.steps) for l, a in enumerate(ops[:-1])]
     coarsest = spla.splu(ops[-1].tocsc())
@@ -189,11 +208,23 @@ def krylov(n, nu, args):
     def tick(_):
         count[0] += 1
 
-    pc = spla.LinearOperator(ops[0].shape, matvec=lambda r: vcycle(0, r))
+    if not args.mixed:
+        pc = spla.LinearOperator(ops[0].shape, matvec=lambda r: vcycle(0, r))
+        return solve(spla.cg, ops[0], b, pc, tick, count)
+    div = divergence(n, 1.0)[:, fr[0]].tocsr()
+    nu_, nc = ops[0].shape[0], div.shape[0]
+    lam = max(lam, 1e-12)  # nu = 1/4: no cell term, the pressures vanish
+    k = sp.bmat([[ops[0], div.T], [div, -sp.identity(nc) / lam]]).tocsr()  # V = 1
+    schur = 1.0 / args.schur + 1.0 / lam
+    pc = spla.LinearOperator(k.shape, matvec=lambda r: np.concatenate([vcycle(0, r[:nu_]), r[nu_:] / schur]))
+    return solve(spla.minres, k, np.concatenate([b, np.zeros(nc)]), pc, tick, count)
+
+
+def solve(method, a, b, pc, tick, count):
     try:
-        spla.cg(ops[0], b, rtol=1e-8, M=pc, callback=tick, maxiter=1000)
+        method(a, b, rtol=1e-8, M=pc, callback=tick, maxiter=2000)
     except TypeError:  # scipy < 1.12
-        spla.cg(ops[0], b, tol=1e-8, M=pc, callback=tick, maxiter=1000)
+        method(a, b, tol=1e-8, M=pc, callback=tick, maxiter=2000)
     return count[0]
 
 
@@ -205,10 +236,12 @@ def main():
     ap.add_argument("--coarse", choices=("galerkin", "redisc"), default="galerkin")
     ap.add_argument("--steps", type=int, default=2)
     ap.add_argument("--fraction", type=float, default=0.1, help="Chebyshev's lower bound / largest eigenvalue")
+    ap.add_argument("--mixed", action="store_true", help="pressures per cell, MINRES with a block preconditioner")
+    ap.add_argument("--schur", type=float, default=1.5, help="--mixed: w in the Schur complement V (1/w + 1/lambda_c)")
     args = ap.parse_args()
     counts = [krylov(args.n, nu, args) for nu in (0.25, 0.45, 0.49)]
     print(f"N={args.n} levels={args.levels} smoother={args.smoother} coarse={args.coarse} steps={args.steps} "
-          f"fraction={args.fraction}: Krylov iterations at nu = 0.25 / 0.45 / 0.49: {counts[0]} / {counts[1]} / {counts[2]}")
+          f"fraction={args.fraction}{' mixed schur=%g' % args.schur if args.mixed else ''}: Krylov iterations at nu = 0.25 / 0.45 / 0.49: {counts[0]} / {counts[1]} / {counts[2]}")
 
 
 if __name__ == "__main__":

@@ -24,7 +24,7 @@ smoother above, the cell-diagonal Schur complement V (1 / w + 1 / lambda_c)), w 
 
 Prints, for nu = 0.25 / 0.45 / 0.49, the Krylov iterations to a relative residual of 1e-8.
 Needs numpy and scipy (Debian: python3-numpy python3-scipy). About a minute at N = 17 (star: a few).
-  python3 run_scripts/mg_near_incompressible.py [N] [--smoother jacobi|cell|star] [--coarse galerkin|redisc]
+  /usr/bin/python3 run_scripts/mg_near_incompressible.py [N] [--smoother jacobi|cell|star] [--coarse galerkin|redisc]
       [--steps S] [--fraction F] [--mixed [--schur W]]
 """
 import argparse

@@ -2,7 +2,8 @@
 # Installs the Debian 12 packages tissue needs, and nothing when they are all present.
 #
 #   bash run_scripts/install_deps.sh          # build + test dependencies
-#   TISSUE_EXTRAS=1 bash run_scripts/install_deps.sh   # also ParaView for rendering pictures
+#   TISSUE_EXTRAS=1 bash run_scripts/install_deps.sh   # also ParaView for rendering pictures, and SciPy for
+#                                                      # run_scripts/mg_near_incompressible.py
 set -euo pipefail
 pkgs=(build-essential cmake pkg-config git
       openmpi-bin libopenmpi-dev
@@ -12,7 +13,7 @@ pkgs=(build-essential cmake pkg-config git
       libcgal-dev gmsh libgmsh-dev   # libgmsh-dev: meshes through the Gmsh library (io/gmsh_mesh.cpp)
       python3 python3-h5py python3-meshio python3-numpy python3-matplotlib
       clang-14 libclang-rt-14-dev)   # the libFuzzer targets that test.sh runs (run_scripts/fuzz.sh)
-if [ "${TISSUE_EXTRAS:-0}" = 1 ]; then pkgs+=(paraview python3-paraview xvfb); fi
+if [ "${TISSUE_EXTRAS:-0}" = 1 ]; then pkgs+=(paraview python3-paraview xvfb python3-scipy); fi
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || missing+=("$p")

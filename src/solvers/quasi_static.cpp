@@ -64,8 +64,8 @@ void load_state(Vec X, const LocalModel& model, SolverState& state) {
 
 // The start of a step's Newton solve: x_n + (x_n - x_(n-1)) dt_n / dt_(n-1) on the free components, linear in
 // time from the last two equilibria, exact for a linear response to a linear ramp, so that a moving step's Newton
-// begins within the motion's curvature of its answer instead of a whole step's motion away (on a ramp at 8,000
-// molecules: 3 Newton iterations a step before). The held components keep the positions their [[fix]] gives.
+// begins within the motion's curvature of its answer instead of a whole step's motion away (a ramp at 8,000
+// molecules: 1 Newton iteration a step instead of 2). The held components keep the positions their [[fix]] gives.
 // There is no rate to extrapolate (the step starts from x_n) after t = 0 (its dt = 0 is a jump, not a rate), after
 // a step that ended on a history breakpoint (the loads' and holds' rates change there), at a restart (x_(n-1) is
 // not in the checkpoint) and after a step that wrote a checkpoint (so the uninterrupted run and the restarted one

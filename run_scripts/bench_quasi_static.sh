@@ -14,7 +14,8 @@
 # MODE=hold (default): the compression is held (the relaxation test itself). MODE=ramp: the top moves by a
 # further 2 % over the STEPS steps, so every step moves the holds and Newton works (the reuse under motion).
 # Newton and Krylov counts per step from PETSc's -snes_converged_reason / -ksp_converged_reason; peak RSS from
-# summary.json (the largest rank's). LOGVIEW=1 adds -log_view (out/bench_quasi_static[_TAG]/run.log).
+# summary.json (the largest rank's). LOGVIEW=1 adds -log_view (out/bench_quasi_static[_TAG]/run.log); PETSC='...'
+# adds PETSc options (PETSC='-quasi_static_extrapolate false': each step starts from the last equilibrium).
 #   bash run_scripts/bench_quasi_static.sh [N] [NP] [STEPS]     # defaults 100, 2, 100
 #   MODE=ramp bash run_scripts/bench_quasi_static.sh 40 2 20
 #   TISSUE=path/to/tissue bash run_scripts/bench_quasi_static.sh     # another binary (default build/tissue)
@@ -38,6 +39,8 @@ case "$MODE" in
 esac
 petsc=(-snes_converged_reason -ksp_converged_reason)
 [ "${LOGVIEW:-0}" = 1 ] && petsc+=(-log_view)
+# shellcheck disable=SC2206  # PETSc options, split on spaces
+[ -n "${PETSC:-}" ] && petsc+=(${PETSC})
 # The watcher: one "seconds row-count" line each time history.csv grows.
 /usr/bin/python3 - "$out/run/history.csv" "$out/stamps.txt" "$out/done" <<'PY' &
 import os, sys, time

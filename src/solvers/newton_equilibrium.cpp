@@ -37,6 +37,9 @@ struct Context {
   const SolverHooks* hooks;
   // Krylov tolerance of the first Newton step of each load step and of the later ones (first_rtol 0: no change).
   double first_rtol = 0.0, rtol = 1e-10;
+  // Above 0: the first Newton step's Krylov tolerance is this fraction of what takes the residual from its start
+  // to the Newton tolerance, within [rtol, kFirstRtol] (NewtonEquilibrium::target_first_krylov).
+  double targeted = 0.0;
   // The lattice multigrid's coarse operators from the lattice structure (null: PCMG's own Galerkin product).
   LatticeGalerkin* galerkin = nullptr;
   // The matrix-free tangent (solver.operator = "matrix-free"): J is its shell, and no fine matrix exists.
@@ -141,10 +144,17 @@ PetscErrorCode before_newton_step(SNES snes, PetscInt step) {
     const std::exception_ptr error = attempt([&] { ctx->hooks->refresh(ctx->state->x.array()); });
     if (!ctx->error) ctx->error = error;
   }
-  if (ctx->first_rtol > 0) {
+  if (ctx->first_rtol > 0 || ctx->targeted > 0) {
+    double rtol = step == 0 && ctx->first_rtol > 0 ? ctx->first_rtol : ctx->rtol;
+    if (step == 0 && ctx->targeted > 0) {
+      PetscReal start, atol;
+      PetscCall(SNESGetFunctionNorm(snes, &start));
+      PetscCall(SNESGetTolerances(snes, &atol, nullptr, nullptr, nullptr, nullptr));
+      if (start > 0) rtol = std::clamp(ctx->targeted * atol / start, ctx->rtol, kFirstRtol);
+    }
     KSP ksp;
     PetscCall(SNESGetKSP(snes, &ksp));
-    PetscCall(KSPSetTolerances(ksp, step == 0 ? ctx->first_rtol : ctx->rtol, PETSC_DEFAULT, PETSC_DEFAULT, 10000));
+    PetscCall(KSPSetTolerances(ksp, rtol, PETSC_DEFAULT, PETSC_DEFAULT, 10000));
   }
   PetscFunctionReturn(0);
 }
@@ -643,6 +653,14 @@ void NewtonEquilibrium::set_force_reference(double reference) {
 double NewtonEquilibrium::tolerance() const { return impl_->tolerance; }
 
 void NewtonEquilibrium::record_load_steps() { impl_->record = true; }
+
+void NewtonEquilibrium::target_first_krylov(double fraction) {
+  PetscBool user_rtol = PETSC_FALSE, user_ew = PETSC_FALSE;
+  if (PetscOptionsHasName(nullptr, nullptr, "-ksp_rtol", &user_rtol) ||
+      PetscOptionsHasName(nullptr, nullptr, "-snes_ksp_ew", &user_ew))
+    throw SolverFailure(impl_->kind + ": a PETSc call failed");
+  impl_->ctx.targeted = user_rtol || user_ew ? 0.0 : fraction;
+}
 
 void NewtonEquilibrium::rebuild_preconditioner() {
   if (impl_->reuse.active && rebuild_next(impl_->snes, &impl_->reuse))

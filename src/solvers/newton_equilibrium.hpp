@@ -35,6 +35,11 @@ public:
   void rebuild_preconditioner();
   // Calls hooks.record after every converged load step, with the state's load_factor set (the static solver).
   void record_load_steps();
+  // The first Newton step of each solve stops its Krylov solve at `fraction` of the reduction that takes the
+  // starting residual to the Newton tolerance (between the tight 1e-10 and 1e-4): a solve that starts close to
+  // its answer (the quasi-static solver's extrapolated start) then ends in one Newton step without 10 decades of
+  // Krylov work. 0: off; -ksp_rtol or -snes_ksp_ew turn it off.
+  void target_first_krylov(double fraction);
 
 private:
   struct Impl;

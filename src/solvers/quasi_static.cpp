@@ -4,14 +4,18 @@
 // history at t = 0-; the factors at t = 0 are a step solved at t = 0 (dt = 0: the instantaneous response), then
 // each step advances by solver.time_step up to solver.steps steps or solver.end_time, shortened to land exactly
 // on every history's breakpoints. One Newton solver (newton_equilibrium.hpp) serves every step, so the lattice
-// multigrid is built once and reused.
+// multigrid is built once and reused. Each step's Newton starts from the last two equilibria extrapolated (see
+// Extrapolation), so that a steady motion (a ramp, creep) costs few Newton iterations.
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <cfloat>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <vector>
+
+#include <petscsys.h>
 
 #include "src/solvers/newton_equilibrium.hpp"
 #include "src/solvers/progress.hpp"
@@ -58,6 +62,53 @@ void load_state(Vec X, const LocalModel& model, SolverState& state) {
   state.x.update_ghosts();
 }
 
+// The start of a step's Newton solve: x_n + (x_n - x_(n-1)) dt_n / dt_(n-1) on the free components, linear in
+// time from the last two equilibria, exact for a linear response to a linear ramp, so that a moving step's Newton
+// begins within the motion's curvature of its answer instead of a whole step's motion away (a ramp at 8,000
+// molecules: 1 Newton iteration a step instead of 2). The held components keep the positions their [[fix]] gives.
+// There is no rate to extrapolate (the step starts from x_n) after t = 0 (its dt = 0 is a jump, not a rate), after
+// a step that ended on a history breakpoint (the loads' and holds' rates change there), at a restart (x_(n-1) is
+// not in the checkpoint) and after a step that wrote a checkpoint (so the uninterrupted run and the restarted one
+// start the next step alike: restarts stay byte for byte). -quasi_static_extrapolate false turns it off. Costs
+// one vector of positions (only quasi-static runs).
+class Extrapolation {
+public:
+  Extrapolation(const ForceModel& forces, Vec like) : held_(forces.held()) {
+    PetscBool on = PETSC_TRUE;
+    if (PetscOptionsGetBool(nullptr, nullptr, "-quasi_static_extrapolate", &on, nullptr) ||
+        (on && VecDuplicate(like, &previous_)))
+      throw SolverFailure("quasi-static: a PETSc call failed");
+  }
+  ~Extrapolation() { VecDestroy(&previous_); }
+  Extrapolation(const Extrapolation&) = delete;
+  Extrapolation& operator=(const Extrapolation&) = delete;
+  // X holds x_n (its held components already moved to the step's end, which this leaves alone): keeps x_n for
+  // the next step and, when the last step gave a rate, moves the free components to the guess for a step of dt.
+  void guess(Vec X, double dt) {
+    if (!previous_) return;
+    PetscScalar *x, *p;
+    PetscInt n;
+    if (VecGetLocalSize(X, &n) || VecGetArray(X, &x) || VecGetArray(previous_, &p))
+      throw SolverFailure("quasi-static: a PETSc call failed");
+    const double ratio = last_dt_ > 0 && dt > 0 ? dt / last_dt_ : 0.0;
+    for (PetscInt j = 0; j < n; ++j) {
+      if (held_[j]) continue;
+      const double now = x[j];
+      if (ratio > 0) x[j] = now + (now - p[j]) * ratio;
+      p[j] = now;
+    }
+    if (VecRestoreArray(previous_, &p) || VecRestoreArray(X, &x))
+      throw SolverFailure("quasi-static: a PETSc call failed");
+    last_dt_ = dt;
+  }
+  void reset() { last_dt_ = 0.0; }  // the next step starts from x_n
+
+private:
+  const std::vector<std::uint8_t>& held_;
+  Vec previous_ = nullptr;  // x_(n-1), free components (null: off)
+  double last_dt_ = 0.0;    // the last step's dt, 0: no rate to extrapolate
+};
+
 }  // namespace
 
 SolveReport solve_quasi_static(const Scene& scene, const LocalModel& model, const ForceModel& forces,
@@ -79,6 +130,17 @@ SolveReport solve_quasi_static(const Scene& scene, const LocalModel& model, cons
   // The residual's reference is this solver's (below): the round-off floor is checked against it, step by step.
   NewtonEquilibrium newton(scene, model, forces, state, hooks, report, "quasi-static", /*own_reference=*/true);
   Vec X = newton.solution();
+  Extrapolation extrapolation(forces, X);
+  {
+    // A step starting close to its answer needs only the Krylov decades that reach the tolerance (see
+    // target_first_krylov): -quasi_static_targeted_krylov 0.01 halves a moving step's Krylov iterations
+    // (docs/benchmarks.md). Off by default: its answers are exact to the tolerance only, not to the round-off
+    // a tight last solve gives, and rank counts then differ by more than viscoelastic_test's 1e-10 (1.3e-10).
+    PetscReal fraction = 0.0;
+    if (PetscOptionsGetReal(nullptr, nullptr, "-quasi_static_targeted_krylov", &fraction, nullptr))
+      throw SolverFailure("quasi-static: a PETSc call failed");
+    newton.target_first_krylov(fraction);
+  }
   Progress progress("quasi-static", scene.output.progress, model.comm);
   const long total = static_cast<long>(std::ceil(end / dt - 1e-9));
   std::vector<Vec3> reactions(scene.fixes.size(), Vec3{0, 0, 0});
@@ -140,6 +202,9 @@ SolveReport solve_quasi_static(const Scene& scene, const LocalModel& model, cons
     }
     const double reference = std::max(carried, floor);
     newton.set_force_reference(reference);
+    // The reference above is the unbalanced force of the last equilibrium with the holds moved, extrapolated or
+    // not, so the tolerance does not depend on the guess.
+    extrapolation.guess(X, next - state.time);
     newton.solve(1);
     load_state(X, model, state);
     forces.forces(state.x.array(), state.v.data(), state.f.data());
@@ -147,7 +212,9 @@ SolveReport solve_quasi_static(const Scene& scene, const LocalModel& model, cons
     const double residual = relative_residual(model, forces, state.f.data()) *
                             (forces.applied_norm() > 0 ? forces.applied_norm() : 1.0) / reference;
     worst = std::max(worst, residual);
-    reactions = forces.reactions(state.x.array(), state.v.data(), state.f.data());
+    // The held components' forces of that evaluation: the same sums as reactions() at these positions, without
+    // a second evaluation.
+    reactions = forces.last_reactions();
     if (history) forces.commit_step(state.x.array());
     state.time = next;
     if (!initial) ++state.step;
@@ -162,7 +229,11 @@ SolveReport solve_quasi_static(const Scene& scene, const LocalModel& model, cons
     // Checkpoints (and a stop asked by a signal) at the step's end, after its history.csv row; a checkpoint
     // rebuilds the preconditioner at the next tangent, as the restart does.
     const long cadence = scene.output.checkpoint_every;
-    if (cadence > 0 && state.step > 0 && state.step % cadence == 0) newton.rebuild_preconditioner();
+    if (cadence > 0 && state.step > 0 && state.step % cadence == 0) {
+      newton.rebuild_preconditioner();
+      extrapolation.reset();  // a restart from here has no x_(n-1)
+    }
+    if (landed) extrapolation.reset();  // the rates change at a breakpoint
     if (state.time < end - slack && step_boundary(scene, model, state, hooks, 1)) {
       report.interrupted = true;
       break;

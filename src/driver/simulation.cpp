@@ -25,7 +25,12 @@ void Simulation::calibrate() {
     fault_point("calibration", comm_);
   });
   agree(comm_, [&] {
-    if (stiffness_is_final(scene_, refresh_)) model_.table.compact();
+    if (stiffness_is_final(scene_, refresh_)) {
+      model_.table.compact();
+      // Only calibration reads a connection's class: once k is final its byte a connection goes, as the inputs do.
+      if (!options_.keep_calibration_inputs && !solver_wrapping_calibration(scene_))
+        std::vector<ConnectionClass>().swap(model_.connection_class);
+    }
     // A refresher (angles-update) took what it reads when it was made; a solver-wrapping method reads the inputs
     // at every update.
     if (!options_.keep_calibration_inputs && !solver_wrapping_calibration(scene_)) inputs_ = CalibrationInputs();

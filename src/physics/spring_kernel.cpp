@@ -67,12 +67,22 @@ constexpr int kMaxDirections = 32, kStencilBlock = 64;
 // gets them from the lower end a first, as the generic kernel (the connection order) adds them. Each molecule's
 // own sum runs over its directions in connection order, and is added after every force it receives as end b
 // from the block (all from lower ends a: offsets are positive), again as the generic kernel does.
+//
+// f's owned rows are zeroed just ahead of the block that first writes them (`zeroed`: rows below it are zeroed;
+// a block writes rows up to a0 + n - 1 + max_offset): a row then comes to the kernel from the cache, written
+// back once, instead of a separate pass over memory before the kernel (docs/benchmarks.md).
 TISSUE_CLONES
 void stencil_forces(int first, int count, int directions, const int* offset, const int* scatter, const double* k,
-                    const double* l0, const double* __restrict x, double* __restrict f) {
+                    const double* l0, const double* __restrict x, double* __restrict f, int owned, int max_offset,
+                    int* zeroed) {
   alignas(64) double g[kMaxDirections][3][kStencilBlock];
   for (int a0 = first; a0 < first + count; a0 += kStencilBlock) {
     const int n = std::min(kStencilBlock, first + count - a0);
+    const int reach = std::min(owned, a0 + n + max_offset);
+    if (reach > *zeroed) {
+      std::fill(f + 3 * static_cast<std::size_t>(*zeroed), f + 3 * static_cast<std::size_t>(reach), 0.0);
+      *zeroed = reach;
+    }
     const double* __restrict xa = x + 3 * a0;
     for (int q = 0; q < directions; ++q) {
       const int s = scatter[q];
@@ -126,6 +136,17 @@ SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
       if (b[c + s] <= a[c]) return false;
     return true;
   };
+  // The owned rows of f that generic connections [c0, c1) write: below the returned index.
+  const int owned = model.owned;
+  auto reach_of = [&](int c0, int c1) {
+    int reach = 0;
+    for (int c = c0; c < c1; ++c) {
+      if (a[c] < owned) reach = std::max(reach, a[c] + 1);
+      if (b[c] < owned) reach = std::max(reach, b[c] + 1);
+    }
+    return reach;
+  };
+  int generic_begin = 0;
   constexpr int kShortest = 4;  // shorter runs of molecules stay generic
   for (int c = 0; c < nc;) {
     const int e = run_end(c), len = e - c;
@@ -159,18 +180,30 @@ SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
         k_.push_back(kc.value[type[c + s]]), l0_.push_back(lc.value[type[c + s]]);
         scatter_.push_back(s);
       }
+      reach_.push_back(*std::max_element(offsets_.begin() + start, offsets_.end()));
       std::sort(scatter_.begin() + start, scatter_.end(),
                 [&](int s, int t) { return offsets_[start + s] > offsets_[start + t]; });
     }
-    segments_.push_back({c, a[c], molecules, pattern});
+    segments_.push_back({c, a[c], molecules, pattern, reach_of(generic_begin, c)});
     structured_ += static_cast<long>(molecules) * len;
     c = next;
+    generic_begin = c;
   }
+  tail_reach_ = reach_of(generic_begin, nc);
+}
+
+void SpringKernel::zero_ahead(double* f, int& zeroed, int reach) const {
+  reach = std::min(reach, model_.owned);
+  if (reach <= zeroed) return;
+  std::fill(f + 3 * static_cast<std::size_t>(zeroed), f + 3 * static_cast<std::size_t>(reach), 0.0);
+  zeroed = reach;
 }
 
 void SpringKernel::forces(const double* x, double* f) const {
   const LocalModel& m = model_;
-  std::fill(f, f + 3 * m.local, 0.0);
+  // The ghost rows (scratch, few) now; the owned rows just ahead of their first write (zero_ahead).
+  std::fill(f + 3 * static_cast<std::size_t>(m.owned), f + 3 * static_cast<std::size_t>(m.local), 0.0);
+  int zeroed = 0;
   const int* a = m.end_a.data();
   const int* b = m.end_b.data();
   // Each of k and l0 is per connection or by type (partition/connection_table.hpp).
@@ -179,13 +212,20 @@ void SpringKernel::forces(const double* x, double* f) const {
   const double *ks = kc.value, *ls = lc.value;
   int c = 0;
   for (const Segment& seg : segments_) {
-    if (c < seg.first_connection) generic_forces(c, seg.first_connection, a, b, ktype, ltype, ks, ls, x, f);
+    if (c < seg.first_connection) {
+      zero_ahead(f, zeroed, seg.generic_reach);
+      generic_forces(c, seg.first_connection, a, b, ktype, ltype, ks, ls, x, f);
+    }
     const int p = seg.pattern, start = pattern_start_[p];
     stencil_forces(seg.first_molecule, seg.molecules, directions_[p], offsets_.data() + start,
-                   scatter_.data() + start, k_.data() + start, l0_.data() + start, x, f);
+                   scatter_.data() + start, k_.data() + start, l0_.data() + start, x, f, m.owned, reach_[p], &zeroed);
     c = seg.first_connection + seg.molecules * directions_[p];
   }
-  if (c < m.connections()) generic_forces(c, m.connections(), a, b, ktype, ltype, ks, ls, x, f);
+  if (c < m.connections()) {
+    zero_ahead(f, zeroed, tail_reach_);
+    generic_forces(c, m.connections(), a, b, ktype, ltype, ks, ls, x, f);
+  }
+  zero_ahead(f, zeroed, m.owned);
 }
 
 }  // namespace tissue

@@ -10,6 +10,7 @@
 // fused multiply-add, so forces do not depend on which form ran, nor on the partition.
 #pragma once
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "partition/local_model.hpp"
@@ -29,7 +30,10 @@ private:
   struct Segment {
     int first_connection, first_molecule, molecules;  // molecules [first_molecule, + molecules), local indices
     int pattern;                                      // index into offsets_ / types_ (directions_ entries each)
+    int generic_reach;  // the generic connections before it: 1 + the highest owned molecule they write
   };
+  // Zeroes f's owned rows [zeroed, reach) (reach clamped to the owned molecules) and advances `zeroed`.
+  void zero_ahead(double* f, int& zeroed, int reach) const;
   const LocalModel& model_;
   std::vector<Segment> segments_;         // in connection order; generic connections between them
   std::vector<int> offsets_;              // per pattern and direction: end b - end a
@@ -38,6 +42,9 @@ private:
   std::vector<int> scatter_;              // per pattern: its directions by decreasing offset
   std::vector<int> directions_;           // per pattern: forward connections per molecule
   std::vector<int> pattern_start_;        // per pattern: start in offsets_ / types_
+  std::vector<int> reach_;                // per pattern: its largest offset
+  // The generic connections after the last segment, as generic_reach (untyped models: all of them, all rows).
+  int tail_reach_ = std::numeric_limits<int>::max();
   long structured_ = 0;
 };
 

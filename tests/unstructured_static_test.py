@@ -5,8 +5,9 @@ indices, so the solver must take GAMG, not the lattice multigrid (which once bui
 size and stopped in PETSc on mismatched sizes). Each body is pulled in tension at 1, 2 and 3 ranks: the static
 solve must converge, the elongation must agree across rank counts to 1e-9 relative (round-off only), and the
 relaxation solver (FIRE, another method) must reach the same elongation to 1e-6. At 2 and 3 ranks also with
-GAMG kept across Newton iterations (-static_gamg_reuse_molecules 0: what bodies from 20,000 molecules get): the
-same elongation as 1 rank to 1e-9, converged, and no more than the rebuild rule's Krylov iterations.
+GAMG kept across Newton iterations and aggregating unsmoothed (-static_gamg_reuse_molecules 0: what bodies from
+20,000 molecules get): the same elongation as 1 rank to 1e-9, converged, and no more than the rebuild rule's
+Krylov iterations.
 
 Usage: unstructured_static_test.py --build BUILD_DIR --source SOURCE_DIR      Prints 'N passed, M failed'."""
 import argparse

@@ -265,6 +265,10 @@ constexpr const char* kGamgPtap = "allatonce_merged";
 // instead of every Newton iteration they cost less in all (docs/benchmarks.md). Smaller bodies keep the rebuild
 // every iteration and so their results. -static_gamg_reuse_molecules N sets it (0: every size).
 constexpr PetscInt kGamgReuseMolecules = 20000;
+// The same large bodies get unsmoothed aggregation (one nonzero a row in each block column of the interpolation):
+// its Galerkin products are a fraction of the smoothed ones' in time and memory, for more Krylov iterations
+// (docs/benchmarks.md, "GAMG's unsmoothed aggregation"). -pc_gamg_agg_nsmooths N sets it.
+constexpr PetscInt kGamgSmooths = 0;
 
 struct NewtonEquilibrium::Impl {
   Impl(const Scene& scene, const LocalModel& model, const ForceModel& forces, SolverState& state,
@@ -360,7 +364,8 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
   // GAMG's products with hypre gave NaN on a contact test: GAMG's (meshes, random clouds) go by PETSc's
   // all-at-once algorithm instead, whose lower peak (the default kept intermediate products that made each of 3
   // ranks need as much memory for the solve as 1 rank did) gives the same numbers (#21, docs/benchmarks.md); on
-  // large bodies it is kept across Newton iterations (kGamgReuseMolecules), which pays for its slower products.
+  // large bodies it is kept across Newton iterations (kGamgReuseMolecules) and aggregates unsmoothed
+  // (kGamgSmooths), which keeps its products small.
   // The option is global, so it is set only for this solve and only for our choice of preconditioner (not with
   // the user's -pc_type); -matptap_via or -mat_product_algorithm override it (-matptap_via scalable: PETSc's
   // default: faster products, the higher peak).
@@ -424,6 +429,7 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
     PetscCall(SNESLineSearchSetTolerances(line_search, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, 0.0,
                                           PETSC_DEFAULT, PETSC_DEFAULT));
   }
+  if (gamg_reuse) PetscCall(PCGAMGSetNSmooths(pc, kGamgSmooths));  // before SNESSetFromOptions: the user's wins
   PetscCall(SNESSetFromOptions(snes));  // the user's -snes_*, -ksp_*, -pc_* options win
   {
     PetscBool gamg = PETSC_FALSE;

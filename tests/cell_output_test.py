@@ -17,13 +17,8 @@ import subprocess
 import sys
 import xml.etree.ElementTree as ET
 
-try:
-    import h5py
-    import numpy as np
-except ImportError:  # CMake may have found a python without Debian's h5py
-    if os.path.realpath(sys.executable) != "/usr/bin/python3" and os.path.exists("/usr/bin/python3"):
-        os.execv("/usr/bin/python3", ["/usr/bin/python3"] + sys.argv)
-    raise
+import h5py
+import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from checks import check, report  # noqa: E402

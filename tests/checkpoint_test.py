@@ -30,13 +30,8 @@ import subprocess
 import sys
 import time
 
-try:
-    import h5py
-    import numpy as np
-except ImportError:  # CMake may have found a python without Debian's h5py
-    if os.path.realpath(sys.executable) != "/usr/bin/python3" and os.path.exists("/usr/bin/python3"):
-        os.execv("/usr/bin/python3", ["/usr/bin/python3"] + sys.argv)
-    raise
+import h5py
+import numpy as np
 
 SCENE = """
 title = "ligament under load"

@@ -13,14 +13,9 @@ import shutil
 import subprocess
 import sys
 
-try:
-    import h5py
-    import meshio
-    import numpy as np
-except ImportError:  # CMake may have found a python without Debian's h5py and meshio
-    if os.path.realpath(sys.executable) != "/usr/bin/python3" and os.path.exists("/usr/bin/python3"):
-        os.execv("/usr/bin/python3", ["/usr/bin/python3"] + sys.argv)
-    raise
+import h5py
+import meshio
+import numpy as np
 
 SCENE = """
 title = "outputs"

@@ -12,16 +12,9 @@ import shutil
 import subprocess
 import sys
 
-try:
-    import h5py
-    import meshio
-    import numpy as np
-except ImportError:
-    # CMake may have found a python without Debian's h5py and meshio: use the system one instead.
-    system = "/usr/bin/python3"
-    if os.path.realpath(sys.executable) != os.path.realpath(system) and os.path.exists(system):
-        os.execv(system, [system] + sys.argv)
-    raise
+import h5py
+import meshio
+import numpy as np
 
 NX, NY, NZ = 4, 3, 2
 N = NX * NY * NZ

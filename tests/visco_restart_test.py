@@ -21,15 +21,9 @@ import glob
 import json
 import os
 import shutil
-import subprocess
 import sys
 
-try:
-    import h5py
-except ImportError:  # CMake may have found a python without Debian's h5py
-    if os.path.realpath(sys.executable) != "/usr/bin/python3" and os.path.exists("/usr/bin/python3"):
-        os.execv("/usr/bin/python3", ["/usr/bin/python3"] + sys.argv)
-    raise
+import h5py
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from checks import check, report, tissue  # noqa: E402

@@ -107,6 +107,11 @@ const RowStream& Output::connection_rows() {
   return *connection_rows_;
 }
 
+void Output::release_row_buffers() {
+  if (molecule_rows_) molecule_rows_->release();
+  if (connection_rows_) connection_rows_->release();
+}
+
 void Output::write_snapshot_stage(const SolverState& state, const ForceModel& forces, bool final,
                                   const char* file_name) {
   make_directory();
@@ -144,40 +149,41 @@ void Output::write_snapshot_stage(const SolverState& state, const ForceModel& fo
                                  (xb[2] - xa[2]) * (xb[2] - xa[2]));
     return len - m.l0(c);
   };
+  constexpr RowStream::Checksum kSkip = RowStream::Checksum::skip;  // a snapshot carries no row hashes
   auto write_field = [&](Hdf5File& file, SnapshotField field, const char* dataset, std::int64_t, int width) {
     auto copy3 = [](const double* from) {
       return [from](std::int64_t k, double* row) { std::copy(from + 3 * k, from + 3 * k + 3, row); };
     };
     switch (field) {
-      case kPositions: molecule_rows().write_double(file, dataset, width, copy3(x)); break;
+      case kPositions: molecule_rows().write_double(file, dataset, width, copy3(x), kSkip); break;
       case kDisplacements:
         molecule_rows().write_double(file, dataset, width, [&](std::int64_t k, double* row) {
           for (int d = 0; d < 3; ++d) row[d] = x[3 * k + d] - m.rest[3 * k + d];
-        });
+        }, kSkip);
         break;
-      case kVelocities: molecule_rows().write_double(file, dataset, width, copy3(state.v.data())); break;
+      case kVelocities: molecule_rows().write_double(file, dataset, width, copy3(state.v.data()), kSkip); break;
       case kForces: {
         // The connection forces on each molecule: they balance the loads at equilibrium and are the reactions at
         // held molecules (the net force, zero at equilibrium, would show nothing).
         std::vector<double> f(3 * m.local);
         forces.connection_forces(x, f.data());
-        molecule_rows().write_double(file, dataset, width, copy3(f.data()));
+        molecule_rows().write_double(file, dataset, width, copy3(f.data()), kSkip);
         break;
       }
       case kEndpoints:  // original molecule ids
         connection_rows().write_int64(file, dataset, width, [&](std::int64_t c, std::int64_t* row) {
           row[0] = m.id[m.end_a[c]], row[1] = m.id[m.end_b[c]];
-        });
+        }, kSkip);
         break;
       case kConnectionStrain:
         connection_rows().write_double(file, dataset, width, [&](std::int64_t c, double* row) {
           row[0] = stretch_of(static_cast<int>(c)) / m.l0(static_cast<int>(c));
-        });
+        }, kSkip);
         break;
       case kConnectionForce:
         connection_rows().write_double(file, dataset, width, [&](std::int64_t c, double* row) {
           row[0] = m.k(static_cast<int>(c)) * stretch_of(static_cast<int>(c));
-        });
+        }, kSkip);
         break;
       case kCellCorners: {
         const std::vector<std::int64_t> rows = cells_->to_natural_ids(cells.corners.data(), cells.nodes);
@@ -199,11 +205,11 @@ void Output::write_snapshot_stage(const SolverState& state, const ForceModel& fo
         // no fibre cell touches the molecule.
         fibre_direction.assign(3 * m.owned, 0.0), fibre_stretch.assign(m.owned, 0.0);
         forces.fibre_field(x, fibre_direction.data(), fibre_stretch.data());
-        molecule_rows().write_double(file, dataset, width, copy3(fibre_direction.data()));
+        molecule_rows().write_double(file, dataset, width, copy3(fibre_direction.data()), kSkip);
         break;
       case kFibreStretch:
         molecule_rows().write_double(file, dataset, width,
-                                     [&](std::int64_t k, double* row) { row[0] = fibre_stretch[k]; });
+                                     [&](std::int64_t k, double* row) { row[0] = fibre_stretch[k]; }, kSkip);
         break;
       case kSnapshotFields: break;
     }
@@ -211,6 +217,7 @@ void Output::write_snapshot_stage(const SolverState& state, const ForceModel& fo
   const std::string name = file_name ? file_name : final ? "final.h5" : snapshot_name(state.step);
   const std::string dir = scene_.output.directory + "/";
   frames_.push_back(write_snapshot(dir + name, m.comm, header, present, write_field));
+  release_row_buffers();
   // A single box lattice is also a structured grid: lattice.xdmf, the same series without the connection list.
   const bool box = m.shape.bodies() == 1 && !m.shape.unstructured() &&
                    static_cast<std::int64_t>(m.shape.n[0]) * m.shape.n[1] * m.shape.n[2] == m.global_molecules;
@@ -230,8 +237,10 @@ std::string Output::checkpoint(const SolverState& state, const ForceModel* force
   StageDeadline deadline(model_.comm, path, stage_seconds(stage_bytes()), path + ".tmp");
   return agree(model_.comm, [&] {
     make_directory();
-    return write_checkpoint(scene_.output.directory, 2, scene_, model_, molecule_rows(), connection_rows(), state,
-                            forces);
+    const std::string written = write_checkpoint(scene_.output.directory, 2, scene_, model_, molecule_rows(),
+                                                 connection_rows(), state, forces);
+    release_row_buffers();
+    return written;
   });
 }
 

@@ -5,8 +5,14 @@
 #include <gtest/gtest.h>
 #include <mpi.h>
 
+#include <cmath>
 #include <cstdint>
+#include <cstdio>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <algorithm>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -174,4 +180,79 @@ TEST(RowStream, ReadsBackInPieces) {
                          RowStream::Shared{}),
                std::invalid_argument);
   h.close();
+}
+
+namespace {
+// FNV-1a, one byte at a time: the reference for the writer's interleaved hashes.
+std::uint64_t fnv1a(std::uint64_t h, const void* p, std::size_t n) {
+  const unsigned char* b = static_cast<const unsigned char*>(p);
+  for (std::size_t i = 0; i < n; ++i) h = (h ^ b[i]) * 1099511628211ULL;
+  return h;
+}
+constexpr std::uint64_t kFnvBasis = 1469598103934665603ULL;
+}  // namespace
+
+// The row hash (hashed four rows side by side) is the sum of each row's FNV-1a(row index, row bytes), for any row
+// count (whole groups of four and a remainder) and first row.
+TEST(RowStream, RowHashIsEachRowsFnv1a) {
+  std::vector<double> values(3 * 11);
+  std::vector<std::int64_t> ints(2 * 11);
+  for (std::size_t i = 0; i < values.size(); ++i) values[i] = 0.1 * static_cast<double>(i) - 1.0;
+  for (std::size_t i = 0; i < ints.size(); ++i) ints[i] = static_cast<std::int64_t>(i * i) - 7;
+  for (std::int64_t count = 0; count <= 11; ++count)
+    for (std::int64_t first : {std::int64_t{0}, std::int64_t{5}, std::int64_t{1} << 40}) {
+      std::uint64_t want = 0, want_ints = 0;
+      for (std::int64_t r = 0; r < count; ++r) {
+        const std::int64_t row = first + r;
+        want += fnv1a(fnv1a(kFnvBasis, &row, sizeof row), &values[3 * r], 3 * sizeof(double));
+        want_ints += fnv1a(fnv1a(kFnvBasis, &row, sizeof row), &ints[2 * r], 2 * sizeof(std::int64_t));
+      }
+      EXPECT_EQ(row_hash_sum(values.data(), 3, count, first), want) << count << " rows from " << first;
+      EXPECT_EQ(row_hash_sum(ints.data(), 2, count, first), want_ints) << count << " rows from " << first;
+    }
+}
+
+// A file of 48 MiB (eight 1 MiB blocks hashed side by side on each rank, and the shares' last blocks one by one):
+// its seal equals the sum over 1 MiB blocks of FNV-1a(block offset, block bytes), computed here from the bytes on
+// disk. A stream asked for no checksum returns 0.
+TEST(RowStream, SealIsTheBlockHashOfEveryByte) {
+  const std::int64_t rows = std::int64_t{1} << 21;
+  const std::int64_t first = NaturalOrder::block_begin(rows, comm_size(), comm_rank()),
+                     end = NaturalOrder::block_begin(rows, comm_size(), comm_rank() + 1);
+  const RowStream stream(MPI_COMM_WORLD, rows, end - first, [&](std::int64_t k) { return first + k; });
+  const std::string file = std::string(TISSUE_TEST_OUT_DIR) + "/row_stream_seal_np" + std::to_string(comm_size()) +
+                           ".h5";
+  Hdf5File f = Hdf5File::create(file, MPI_COMM_WORLD);
+  const std::uint64_t hash = stream.write_double(
+      f, "/values", 3,
+      [&](std::int64_t k, double* row) {
+        for (int c = 0; c < 3; ++c) row[c] = std::sqrt(static_cast<double>(3 * (first + k) + c));
+      },
+      RowStream::Checksum::skip);
+  EXPECT_EQ(hash, 0u);
+  f.close();
+  stream.release();
+  if (comm_rank() == 0) {
+    std::ifstream in(file, std::ios::binary);
+    const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    ASSERT_GT(bytes.size(), std::size_t{48} << 20);
+    const std::size_t user_block = 512, block = std::size_t{1} << 20;
+    std::uint64_t sum = 0;
+    for (std::size_t offset = user_block; offset < bytes.size(); offset += block) {
+      const std::uint64_t at = offset;
+      unsigned char le[8];
+      for (int i = 0; i < 8; ++i) le[i] = static_cast<unsigned char>((at >> (8 * i)) & 0xff);
+      sum += fnv1a(fnv1a(kFnvBasis, le, 8), &bytes[offset], std::min(block, bytes.size() - offset));
+    }
+    char header[128];
+    std::snprintf(header, sizeof header, "TISSUE-HDF5-SEAL 1 %zu %016llx\n", bytes.size(),
+                  static_cast<unsigned long long>(sum));
+    EXPECT_EQ(std::string(bytes.begin(), bytes.begin() + static_cast<long>(std::strlen(header))), header);
+  }
+  Hdf5File h = Hdf5File::open(file, MPI_COMM_WORLD, "file", nullptr);  // the seal checked by the reader too
+  const std::vector<double> back = h.read_double("/values", rows - 1, 1);
+  ASSERT_EQ(back.size(), 3u);
+  EXPECT_EQ(back[2], std::sqrt(static_cast<double>(3 * (rows - 1) + 2)));
+  h.close();
+  if (comm_rank() == 0) std::filesystem::remove(file);
 }

@@ -117,8 +117,7 @@ std::uint64_t seal_hash(const std::string& path, std::uint64_t size, MPI_Comm co
   if (first < last) {
     int fd = ::open(path.c_str(), O_RDONLY);
     // Eight blocks a read, hashed side by side: FNV-1a is one chain of multiplications a byte, so independent blocks
-    // keep the multiplier busy (the same hashes as one block at a time; a byte at a time was 4.5 % of a snapshot
-    // run's CPU time, docs/benchmarks.md).
+    // keep the multiplier busy (the same hashes as one block at a time).
     constexpr std::uint64_t kLanes = 8, kBasis = 1469598103934665603ULL, kPrime = 1099511628211ULL;
     std::vector<unsigned char> buffer(kLanes * block);
     for (std::uint64_t b = first; b < last && fd >= 0 && !failed; b += kLanes) {

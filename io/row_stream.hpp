@@ -54,8 +54,8 @@ public:
   // Collective: writes the new dataset [global_rows x width] of `file`; fill(k, row) gives slot k's `width` values.
   // Returns the row hash of the whole dataset (row_hash_sum, summed over the ranks), the same on every rank, or 0
   // with Checksum::skip (snapshots carry no row hash).
-  // The piece buffers stay allocated from one dataset to the next (each fresh allocation's first touch cost more
-  // than the rest of the write, docs/benchmarks.md): release() gives them back once the file is written.
+  // The piece buffers stay allocated from one dataset to the next (a fresh allocation's first touch cost more than
+  // the rest of the write): release() gives them back once the file is written.
   enum class Checksum { compute, skip };
   using FillDouble = std::function<void(std::int64_t slot, double* row)>;
   using FillInt = std::function<void(std::int64_t slot, std::int64_t* row)>;

@@ -116,29 +116,34 @@ std::uint64_t seal_hash(const std::string& path, std::uint64_t size, MPI_Comm co
   int failed = 0;
   if (first < last) {
     int fd = ::open(path.c_str(), O_RDONLY);
-    // Eight blocks a read, hashed side by side: FNV-1a is one chain of multiplications a byte, so independent blocks
-    // keep the multiplier busy (the same hashes as one block at a time).
+    // Eight blocks hashed side by side, an eighth of each at a time (1 MiB of buffer): FNV-1a is one chain of
+    // multiplications a byte, so independent blocks keep the multiplier busy (the same hashes as one block at a
+    // time, as the share's last blocks are hashed).
     constexpr std::uint64_t kLanes = 8, kBasis = 1469598103934665603ULL, kPrime = 1099511628211ULL;
-    std::vector<unsigned char> buffer(kLanes * block);
+    const std::size_t chunk = block / kLanes;
+    std::vector<unsigned char> buffer(block);
+    auto read = [&](std::uint64_t offset, std::size_t n, unsigned char* to) {
+      if (!failed && ::pread(fd, to, n, static_cast<off_t>(offset)) != static_cast<ssize_t>(n)) failed = 1;
+    };
     for (std::uint64_t b = first; b < last && fd >= 0 && !failed; b += kLanes) {
       const std::uint64_t lanes = std::min(kLanes, last - b), offset = kUserBlock + b * block;
-      const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(lanes * block, size - offset));
-      if (::pread(fd, buffer.data(), n, static_cast<off_t>(offset)) != static_cast<ssize_t>(n)) {
-        failed = 1;
-        break;
-      }
       std::uint64_t h[kLanes];
       for (std::uint64_t l = 0; l < kLanes; ++l) {
         h[l] = kBasis;
         for (int i = 0; i < 8; ++i) h[l] = (h[l] ^ (((offset + l * block) >> (8 * i)) & 0xff)) * kPrime;
       }
-      if (lanes == kLanes && n == kLanes * block) {
-        for (std::size_t i = 0; i < block; ++i)
-          for (std::uint64_t l = 0; l < kLanes; ++l) h[l] = (h[l] ^ buffer[l * block + i]) * kPrime;
-      } else {  // the share's last blocks
-        for (std::uint64_t l = 0; l < lanes; ++l)
-          for (std::size_t i = l * block; i < std::min<std::size_t>(n, (l + 1) * block); ++i)
-            h[l] = (h[l] ^ buffer[i]) * kPrime;
+      if (lanes == kLanes && offset + kLanes * block <= size) {
+        for (std::size_t c = 0; c < kLanes && !failed; ++c) {
+          for (std::uint64_t l = 0; l < kLanes; ++l) read(offset + l * block + c * chunk, chunk, &buffer[l * chunk]);
+          for (std::size_t i = 0; i < chunk; ++i)
+            for (std::uint64_t l = 0; l < kLanes; ++l) h[l] = (h[l] ^ buffer[l * chunk + i]) * kPrime;
+        }
+      } else {
+        for (std::uint64_t l = 0; l < lanes; ++l) {
+          const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(block, size - offset - l * block));
+          read(offset + l * block, n, buffer.data());
+          for (std::size_t i = 0; i < n; ++i) h[l] = (h[l] ^ buffer[i]) * kPrime;
+        }
       }
       for (std::uint64_t l = 0; l < lanes; ++l) sum += h[l];
     }

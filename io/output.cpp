@@ -107,11 +107,6 @@ const RowStream& Output::connection_rows() {
   return *connection_rows_;
 }
 
-void Output::release_row_buffers() {
-  if (molecule_rows_) molecule_rows_->release();
-  if (connection_rows_) connection_rows_->release();
-}
-
 void Output::write_snapshot_stage(const SolverState& state, const ForceModel& forces, bool final,
                                   const char* file_name) {
   make_directory();
@@ -217,7 +212,7 @@ void Output::write_snapshot_stage(const SolverState& state, const ForceModel& fo
   const std::string name = file_name ? file_name : final ? "final.h5" : snapshot_name(state.step);
   const std::string dir = scene_.output.directory + "/";
   frames_.push_back(write_snapshot(dir + name, m.comm, header, present, write_field));
-  release_row_buffers();
+  RowStream::release();
   // A single box lattice is also a structured grid: lattice.xdmf, the same series without the connection list.
   const bool box = m.shape.bodies() == 1 && !m.shape.unstructured() &&
                    static_cast<std::int64_t>(m.shape.n[0]) * m.shape.n[1] * m.shape.n[2] == m.global_molecules;
@@ -239,7 +234,7 @@ std::string Output::checkpoint(const SolverState& state, const ForceModel* force
     make_directory();
     const std::string written = write_checkpoint(scene_.output.directory, 2, scene_, model_, molecule_rows(),
                                                  connection_rows(), state, forces);
-    release_row_buffers();
+    RowStream::release();
     return written;
   });
 }

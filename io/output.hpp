@@ -29,7 +29,6 @@ public:
   // numbers per piece. A restart reads its checkpoint over them.
   const RowStream& molecule_rows();
   const RowStream& connection_rows();
-  void release_row_buffers();  // the streams' piece buffers, once a file is written
   // Collective; rank 0 writes DIR/summary.json.
   void summary(const TensionTest& test, const Measurements& measured, const Measurements& initial,
                const SolveReport& report, const SolverState& state, double wall_seconds, const std::string& failure);

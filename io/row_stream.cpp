@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <memory>
 #include <stdexcept>
 #include <type_traits>
 
@@ -127,19 +128,43 @@ void RowStream::plan(bool shared) {
                                 std::to_string(global_rows_ - 1));
 }
 
-template <>
-RowStream::Buffers<double>& RowStream::buffers<double>() const {
-  return double_buffers_;
-}
-template <>
-RowStream::Buffers<std::int64_t>& RowStream::buffers<std::int64_t>() const {
-  return int_buffers_;
+namespace {
+
+// The piece buffers of writes, left uninitialized (every value is written before it is read): the rows of this
+// rank's part, and the rows (id first) sent to and received from other ranks. One set a process, of the type being
+// written (the other type's is given back), kept until RowStream::release().
+template <typename T>
+struct Scratch {
+  std::unique_ptr<T[]> data;
+  std::size_t size = 0;
+  T* at_least(std::size_t n) {
+    if (n > size) data.reset(), data.reset(new T[n]), size = n;
+    return data.get();
+  }
+};
+template <typename T>
+struct Buffers {
+  Scratch<T> rows, outgoing, incoming;
+  std::vector<char> seen;
+};
+Buffers<double> double_buffers;
+Buffers<std::int64_t> int_buffers;
+template <typename T>
+Buffers<T>& buffers_for() {
+  if constexpr (std::is_same_v<T, double>) {
+    int_buffers = {};
+    return double_buffers;
+  } else {
+    double_buffers = {};
+    return int_buffers;
+  }
 }
 
-void RowStream::release() const {
-  double_buffers_ = {};
-  int_buffers_ = {};
-  std::vector<char>().swap(seen_);
+}  // namespace
+
+void RowStream::release() {
+  double_buffers = {};
+  int_buffers = {};
 }
 
 template <typename T>
@@ -147,20 +172,21 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
                                const std::function<void(std::int64_t, T*)>& fill, Checksum checksum) const {
   if (shared_) throw std::logic_error("RowStream: a stream whose ids repeat across ranks writes no file");
   const int row = width + 1;  // the id (its bytes), then the values
-  Buffers<T>& buffer = buffers<T>();
+  Buffers<T>& buffer = buffers_for<T>();
+  std::vector<char>& seen = buffer.seen;
   std::vector<int> send_bytes(size_), send_displs(size_), recv_bytes(size_), recv_displs(size_);
   std::uint64_t hash = 0;
   auto piece = [&](std::int64_t p, std::int64_t* offset, std::int64_t* count) -> const void* {
     const std::int64_t first = part_begin(p, rank_), length = part_begin(p, rank_ + 1) - first;
     T* rows = buffer.rows.at_least(static_cast<std::size_t>(length) * width);
-    seen_.assign(static_cast<std::size_t>(length), 0);
+    seen.assign(static_cast<std::size_t>(length), 0);
     // This rank's own items go straight to their rows (plan() checked their ids: increasing, inside this part);
     // only the other ranks' items travel, with their ids.
     for (std::int64_t k = start_[p * size_ + rank_]; k < start_[p * size_ + rank_ + 1]; ++k) {
       const std::int64_t i = id_(k);
       if (i < 0) continue;
       fill(k, rows + (i - first) * width);
-      seen_[i - first] = 1;
+      seen[i - first] = 1;
     }
     int bad = 0;
     if (size_ > 1) {
@@ -197,11 +223,11 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
         std::int64_t i = 0;
         std::memcpy(&i, incoming + q * row, sizeof i);
         const std::int64_t r = i - first;
-        if (r < 0 || r >= length || seen_[r]) {
+        if (r < 0 || r >= length || seen[r]) {
           bad = 1;
           break;
         }
-        seen_[r] = 1;
+        seen[r] = 1;
         std::copy(incoming + q * row + 1, incoming + q * row + 1 + width, rows + r * width);
       }
     }

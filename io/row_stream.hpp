@@ -54,8 +54,9 @@ public:
   // Collective: writes the new dataset [global_rows x width] of `file`; fill(k, row) gives slot k's `width` values.
   // Returns the row hash of the whole dataset (row_hash_sum, summed over the ranks), the same on every rank, or 0
   // with Checksum::skip (snapshots carry no row hash).
-  // The piece buffers stay allocated from one dataset to the next (a fresh allocation's first touch cost more than
-  // the rest of the write): release() gives them back once the file is written.
+  // The piece buffers (one set a process, shared by every stream) stay allocated from one dataset to the next (a
+  // fresh allocation's first touch cost more than the rest of the write): release() gives them back once the file
+  // is written.
   enum class Checksum { compute, skip };
   using FillDouble = std::function<void(std::int64_t slot, double* row)>;
   using FillInt = std::function<void(std::int64_t slot, std::int64_t* row)>;
@@ -63,7 +64,7 @@ public:
                              Checksum checksum = Checksum::compute) const;
   std::uint64_t write_int64(Hdf5File& file, const std::string& dataset, int width, const FillInt& fill,
                             Checksum checksum = Checksum::compute) const;
-  void release() const;
+  static void release();
 
   // Collective: reads the dataset [global_rows x width] of `file` (its shape checked by the caller) and calls
   // take(k, row) with each slot's row, in slot order. `fault_stage`: a fault_point (partition/agreement.hpp) before
@@ -103,26 +104,6 @@ private:
   std::vector<std::int64_t> start_;
   std::vector<int> send_, recv_;
 
-  // A write's piece buffers, left uninitialized (every value is written before it is read) and kept until
-  // release(): the rows of this rank's part, and the rows (id first) sent to and received from other ranks.
-  template <typename T>
-  struct Scratch {
-    std::unique_ptr<T[]> data;
-    std::size_t size = 0;
-    T* at_least(std::size_t n) {
-      if (n > size) data.reset(), data.reset(new T[n]), size = n;
-      return data.get();
-    }
-  };
-  template <typename T>
-  struct Buffers {
-    Scratch<T> rows, outgoing, incoming;
-  };
-  template <typename T>
-  Buffers<T>& buffers() const;
-  mutable Buffers<double> double_buffers_;
-  mutable Buffers<std::int64_t> int_buffers_;
-  mutable std::vector<char> seen_;
 };
 
 }  // namespace tissue

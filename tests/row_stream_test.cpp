@@ -231,7 +231,7 @@ TEST(RowStream, SealIsTheBlockHashOfEveryByte) {
       RowStream::Checksum::skip);
   EXPECT_EQ(hash, 0u);
   f.close();
-  stream.release();
+  RowStream::release();
   if (comm_rank() == 0) {
     std::ifstream in(file, std::ios::binary);
     const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());

@@ -15,6 +15,21 @@ trilinear interpolation (src/solvers/lattice_mg.cpp), coarsest level solved dire
   cell    additive Schwarz over the 8 molecules of every cell (24 x 24 blocks, overlapping; assembled, M has the
           tangent's 27-point pattern)
   star    additive Schwarz over the 27 molecules around every molecule (81 x 81 blocks; M is a 125-point stencil)
+  cellsm  additive over cells, each cell's block D_c + lambda_c V b_c b_c^T (D_c the springs' diagonal on the
+          cell's 8 molecules times --weight: pou = 1 / cells of the molecule, count = cells of the molecule, so
+          that sum_c D_c^-1 = D^-1, or a number), inverted by Sherman-Morrison (~170 flops a cell)
+  bs      the same rank-one structure summed over all cells (Woodbury): M^-1 = D^-1 - D^-1 B^T Q B D^-1, Q an
+          approximation of T^-1, T = I / (lambda_c V) + B D^-1 B^T the cells' Schur complement (B: each cell's
+          divergence b_c as a row). --schur-steps 0: Q = theta diag(T)^-1 (--theta); m > 0: m steps of the
+          Neumann series of omega diag(T)^-1 (or, with --schur-block B, of block Jacobi over B^3 cells), omega =
+          1 / (1.05 lambda_max), so Q < T^-1 and M stays SPD (m = 1: ~110 flops a cell, 2: ~210); -1: Q = T^-1
+          exactly, M = D + B^T lambda_c V B (a sparse direct solve: a bound, not a candidate)
+--sm-levels: cellsm/bs on every level, the finest, or the coarse levels (there with the coarse cells'
+rediscretized b_c, 2h, and the Galerkin operator); --pre/--post: Chebyshev steps before/after the coarse
+correction; --w-levels K: a W-cycle on the finest K levels; --colours 0,1,...,7: instead of Chebyshev, Richardson
+over the 8 colours of cells (no two cells of a colour share a molecule; each colour a block Jacobi of the cells'
+D_c + lambda_c V b_c b_c^T, damped by 1 / lambda_max), the colours in that order before the coarse correction and
+reversed after it (each colour step costs a product for its residual).
 Coarse operators: galerkin (P^T A P, what src/solvers/lattice_galerkin.cpp computes) or redisc (springs by
 Galerkin, the cell term rediscretized on the coarse cells, same lambda_c, one-point).
 
@@ -24,8 +39,10 @@ smoother above, the cell-diagonal Schur complement V (1 / w + 1 / lambda_c)), w 
 
 Prints, for nu = 0.25 / 0.45 / 0.49, the Krylov iterations to a relative residual of 1e-8.
 Needs numpy and scipy (Debian: python3-numpy python3-scipy). About a minute at N = 17 (star: a few).
-  /usr/bin/python3 run_scripts/mg_near_incompressible.py [N] [--smoother jacobi|cell|star] [--coarse galerkin|redisc]
-      [--steps S] [--fraction F] [--mixed [--schur W]]
+  /usr/bin/python3 run_scripts/mg_near_incompressible.py [N] [--smoother jacobi|cell|star|cellsm|bs]
+      [--coarse galerkin|redisc] [--steps S] [--fraction F] [--mixed [--schur W]] [--weight pou|count|X]
+      [--theta T] [--schur-steps M] [--schur-block B] [--sm-levels all|finest|coarse] [--pre S1] [--post S2]
+      [--w-levels K] [--colours C,C,...]
 """
 import argparse
 
@@ -156,10 +173,146 @@ def schwarz(a, n, fr, kind):
     return coo(rows, cols, vals, len(fr))
 
 
+class CellShermanMorrison:
+    """The smoothers cellsm and bs (module docstring). cellsm: M^-1 r = sum_c R_c^T (D_c + lambda_c V b_c b_c^T)^-1
+    R_c r by Sherman-Morrison; a colour given to __call__ restricts the sum to that colour's cells (ColourSweep).
+    bs (theta given): D^-1 - D^-1 B^T Q B D^-1 with Q from schur_steps / schur_block."""
+
+    def __init__(self, n, h, fr, lam, dspring, weight, theta=None, schur_steps=0, schur_block=0):
+        pos = -np.ones(3 * n**3, int)
+        pos[fr] = np.arange(len(fr))
+        signs = [(sx, sy, sz) for sz in (-1, 1) for sy in (-1, 1) for sx in (-1, 1)]
+        i, j, k = (a.ravel() for a in np.meshgrid(range(n - 1), range(n - 1), range(n - 1), indexing="ij"))
+        self.colour = (i % 2) + 2 * (j % 2) + 4 * (k % 2)
+        corner = [node(n, i + (s[0] > 0), j + (s[1] > 0), k + (s[2] > 0)) for s in signs]
+        dofs = np.stack([3 * corner[a] + d for a in range(8) for d in range(3)], axis=1)
+        self.idx = pos[dofs]
+        self.mask = self.idx >= 0
+        self.idx = np.where(self.mask, self.idx, 0)
+        b = np.array([s[d] / (4 * h) for s in signs for d in range(3)])
+        self.b = np.where(self.mask, b[None, :], 0.0)
+        count = np.bincount(self.idx[self.mask], minlength=len(fr)).astype(float)  # cells per free dof
+        if weight == "pou":
+            w = 1.0 / count[self.idx]
+        elif weight == "count":  # sum_c D_c^-1 = D^-1: Jacobi exactly when lambda_c = 0
+            w = count[self.idx]
+        else:
+            w = float(weight) * np.ones(self.idx.shape)
+        self.d = np.where(self.mask, dspring[self.idx] * w, 1.0)
+        self.k = lam * h**3
+        self.size = len(fr)
+        self.theta = theta
+        if theta is not None:  # global Braess-Sarazin-like
+            self.dinv = 1.0 / dspring
+            s = (self.b ** 2 * self.dinv[self.idx]).sum(axis=1)
+            self.schur = 1.0 / (1.0 / max(self.k, 1e-300) + s)
+            self.steps = schur_steps
+            if schur_steps != 0:  # the cells' Schur complement T = 1/k + B D^-1 B^T, assembled
+                nc = self.idx.shape[0]
+                bm = sp.csr_matrix((self.b.ravel(), (np.repeat(np.arange(nc), 24), self.idx.ravel())),
+                                   shape=(nc, self.size))
+                self.bm = bm
+                t = (bm @ sp.diags(self.dinv) @ bm.T + sp.identity(nc) / max(self.k, 1e-300)).tocsc()
+                if schur_steps < 0:
+                    self.lu = spla.splu(t)
+                elif schur_block > 0:  # block Jacobi of T over schur_block^3 cells, scaled to stay below T^-1
+                    nb = n - 1
+                    ci, cj, ck = i, j, k
+                    blk = (ci // schur_block) + (nb // schur_block + 1) * ((cj // schur_block) + (nb // schur_block + 1) * (ck // schur_block))
+                    tc = t.tocoo()
+                    keep = blk[tc.row] == blk[tc.col]
+                    bd = sp.csr_matrix((tc.data[keep], (tc.row[keep], tc.col[keep])), shape=t.shape).tocsc()
+                    self.q = spla.splu(bd)
+                    v = np.random.RandomState(1).rand(nc)
+                    for _ in range(60):
+                        v = self.q.solve(t @ v)
+                        top = np.linalg.norm(v)
+                        v /= top
+                    self.omega = 1.0 / (1.05 * top)
+                    self.t = t.tocsr()
+                else:
+                    self.t = t.tocsr()
+                    g = 1.0 / self.t.diagonal()
+                    v = np.random.RandomState(1).rand(nc)
+                    for _ in range(40):
+                        v = g * (self.t @ v)
+                        top = np.linalg.norm(v)
+                        v /= top
+                    self.omega = 1.0 / (1.05 * top)
+                    self.g = g
+        else:
+            self.bd = self.b / self.d
+            self.denom = self.k / (1.0 + self.k * (self.b * self.bd).sum(axis=1))
+
+    def __call__(self, r, colour=None):
+        if self.theta is not None:
+            y = self.dinv * r
+            bd = (self.b * y[self.idx]).sum(axis=1)
+            if self.steps < 0:
+                q = self.lu.solve(bd)
+            elif hasattr(self, "q"):
+                q = self.omega * self.q.solve(bd)
+                for _ in range(self.steps - 1):
+                    q = q + self.omega * self.q.solve(bd - self.t @ q)
+            elif self.steps > 0:  # Neumann series of Jacobi on T: below T^-1, so M stays SPD
+                q = np.zeros_like(bd)
+                for _ in range(self.steps):
+                    q = q + self.omega * self.g * (bd - self.t @ q)
+            else:
+                q = bd * self.schur
+            corr = np.bincount(self.idx.ravel(), weights=(self.b * q[:, None]).ravel(), minlength=self.size)
+            return y - self.theta * self.dinv * corr
+        sel = slice(None) if colour is None else (self.colour == colour)
+        rc = np.where(self.mask[sel], r[self.idx[sel]], 0.0)
+        y = rc / self.d[sel]
+        beta = self.denom[sel] * (self.b[sel] * y).sum(axis=1)
+        y -= beta[:, None] * self.bd[sel]
+        y = np.where(self.mask[sel], y, 0.0)
+        return np.bincount(self.idx[sel].ravel(), weights=y.ravel(), minlength=self.size)
+
+
+def spring_diagonals(sizes, fr, interps, n):
+    """The springs' part of each level's diagonal (Galerkin of the springs alone): what D_c is made of."""
+    s = springs(n, 1.0)[fr[0]][:, fr[0]].tocsr()
+    out = [s.diagonal()]
+    for p in interps:
+        s = (p.T @ s @ p).tocsr()
+        out.append(s.diagonal())
+    return out
+
+
+class ColourSweep:
+    """The cells' 8 colours (no two cells of a colour share a molecule) as non-overlapping blocks
+    D_c + lambda_c V b_c b_c^T (D_c the springs' diagonal, Sherman-Morrison), one colour per Richardson step:
+    x += omega M_colour^-1 (b - A x), omega = 1 / lambda_max(M_colour^-1 A); colours in the given order before the
+    coarse correction and reversed after it (a symmetric V-cycle). Each step costs a product (the residual)."""
+
+    def __init__(self, a, cellsm, order):
+        self.a, self.m, self.order = a, cellsm, order
+        self.omega = []
+        for c in range(8):
+            v = np.random.RandomState(c).rand(a.shape[0])
+            for _ in range(30):
+                v = self.m(a @ v, c)
+                top = np.linalg.norm(v)
+                v /= top
+            self.omega.append(1.0 / (1.05 * top))
+
+    def __call__(self, b, x, steps=None, post=False):
+        for c in (reversed(self.order) if post else self.order):
+            x = x + self.omega[c] * self.m(b - self.a @ x, c)
+        return x
+
+
 class Chebyshev:
     def __init__(self, a, m, fraction, steps):
         self.a, self.steps = a, steps
-        self.apply = (lambda r, d=1.0 / a.diagonal(): d * r) if m is None else (lambda r: m @ r)
+        if m is None:
+            self.apply = lambda r, d=1.0 / a.diagonal(): d * r
+        elif callable(m) and not sp.issparse(m):
+            self.apply = m
+        else:
+            self.apply = lambda r: m @ r
         v = np.random.RandomState(0).rand(a.shape[0])
         for _ in range(30):
             v = self.apply(a @ v)
@@ -167,14 +320,15 @@ class Chebyshev:
             v /= top
         self.hi, self.lo = 1.1 * top, fraction * top
 
-    def __call__(self, b, x):
+    def __call__(self, b, x, steps=None):
+        steps = self.steps if steps is None else steps
         theta, delta = (self.hi + self.lo) / 2, (self.hi - self.lo) / 2
         sigma = theta / delta
         rho = 1 / sigma
         d = self.apply(b - self.a @ x) / theta
-        for s in range(self.steps):
+        for s in range(steps):
             x = x + d
-            if s == self.steps - 1:
+            if s == steps - 1:
                 break
             rho_next = 1 / (2 * sigma - rho)
             d = rho_next * rho * d + 2 * rho_next / delta * self.apply(b - self.a @ x)
@@ -187,16 +341,36 @@ def krylov(n, nu, args):
     lam = max(mu * (2 * nu / (1 - 2 * nu) - 1), 0.0)
     # --mixed: the multigrid is the springs-only one; the cell term enters through the pressures
     sizes, fr, ops, interps = hierarchy(n, 0.0 if args.mixed else lam, args.coarse, args.levels)
-    smoothers = [Chebyshev(a, None if args.smoother == "jacobi" else schwarz(a, sizes[l], fr[l], args.smoother),
-                           args.fraction, args.steps) for l, a in enumerate(ops[:-1])]
+    def preconditioner(l, a):
+        if args.smoother == "jacobi":
+            return None
+        if args.smoother in ("cellsm", "bs"):
+            if (l > 0 and args.sm_levels == "finest") or (l == 0 and args.sm_levels == "coarse"):
+                return None
+            h = 2.0 ** l
+            dspring = sprdiag[l]
+            return CellShermanMorrison(sizes[l], h, fr[l], 0.0 if args.mixed else lam, dspring, args.weight,
+                                       args.theta if args.smoother == "bs" else None, args.schur_steps,
+                                       args.schur_block)
+        return schwarz(a, sizes[l], fr[l], args.smoother)
+
+    sprdiag = spring_diagonals(sizes, fr, interps, n)
+    if args.colours:  # Richardson over the cells' colours (ColourSweep), every level
+        order = [int(c) for c in args.colours.split(",")]
+        smoothers = [ColourSweep(a, CellShermanMorrison(sizes[l], 2.0 ** l, fr[l], lam, sprdiag[l], 1.0), order)
+                     for l, a in enumerate(ops[:-1])]
+    else:
+        smoothers = [Chebyshev(a, preconditioner(l, a), args.fraction, args.steps) for l, a in enumerate(ops[:-1])]
     coarsest = spla.splu(ops[-1].tocsc())
 
     def vcycle(l, b):
         if l == len(ops) - 1:
             return coarsest.solve(b)
-        x = smoothers[l](b, np.zeros_like(b))
+        x = smoothers[l](b, np.zeros_like(b), args.pre)
         x = x + interps[l] @ vcycle(l + 1, interps[l].T @ (b - ops[l] @ x))
-        return smoothers[l](b, x)
+        if l < args.w_levels:  # a W-cycle here: a second coarse correction
+            x = x + interps[l] @ vcycle(l + 1, interps[l].T @ (b - ops[l] @ x))
+        return smoothers[l](b, x, args.post, post=True) if args.colours else smoothers[l](b, x, args.post)
 
     b = np.zeros(3 * n**3)
     for j in range(n):
@@ -232,16 +406,28 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("n", type=int, nargs="?", default=17, help="molecules per edge (2^k + 1)")
     ap.add_argument("--levels", type=int, default=3)
-    ap.add_argument("--smoother", choices=("jacobi", "cell", "star"), default="jacobi")
+    ap.add_argument("--smoother", choices=("jacobi", "cell", "star", "cellsm", "bs"), default="jacobi")
+    ap.add_argument("--weight", default="pou", help="cellsm: D_c's weight, pou or a number")
+    ap.add_argument("--theta", type=float, default=0.125, help="bs: the Schur correction's weight")
+    ap.add_argument("--schur-steps", type=int, default=0, help="bs: Jacobi steps on the cells' Schur complement (0: its diagonal; -1: exact)")
+    ap.add_argument("--schur-block", type=int, default=0, help="bs: the Schur steps use block Jacobi over B^3 cells")
+    ap.add_argument("--colours", default="", help="Richardson over cell colours in this order, e.g. 0,7 or 0,1,2,3,4,5,6,7")
+    ap.add_argument("--sm-levels", choices=("all", "finest", "coarse"), default="all",
+                    help="cellsm/bs on every level, the finest only, or the coarse levels only")
+    ap.add_argument("--pre", type=int, default=None, help="Chebyshev steps before the coarse correction (default --steps)")
+    ap.add_argument("--post", type=int, default=None, help="Chebyshev steps after it (default --steps)")
+    ap.add_argument("--w-levels", type=int, default=0, help="W-cycle on the finest K levels (0: V-cycle)")
     ap.add_argument("--coarse", choices=("galerkin", "redisc"), default="galerkin")
     ap.add_argument("--steps", type=int, default=2)
     ap.add_argument("--fraction", type=float, default=0.1, help="Chebyshev's lower bound / largest eigenvalue")
     ap.add_argument("--mixed", action="store_true", help="pressures per cell, MINRES with a block preconditioner")
     ap.add_argument("--schur", type=float, default=1.5, help="--mixed: w in the Schur complement V (1/w + 1/lambda_c)")
     args = ap.parse_args()
+    args.pre = args.steps if args.pre is None else args.pre
+    args.post = args.steps if args.post is None else args.post
     counts = [krylov(args.n, nu, args) for nu in (0.25, 0.45, 0.49)]
     print(f"N={args.n} levels={args.levels} smoother={args.smoother} coarse={args.coarse} steps={args.steps} "
-          f"fraction={args.fraction}{' mixed schur=%g' % args.schur if args.mixed else ''}: Krylov iterations at nu = 0.25 / 0.45 / 0.49: {counts[0]} / {counts[1]} / {counts[2]}")
+          f"fraction={args.fraction}{' colours=' + args.colours if args.colours else ''} pre/post={args.pre}/{args.post} w_levels={args.w_levels}{' weight=%s theta=%g schur_steps=%d schur_block=%d sm_levels=%s' % (args.weight, args.theta, args.schur_steps, args.schur_block, args.sm_levels) if args.smoother in ('cellsm', 'bs') else ''}{' mixed schur=%g' % args.schur if args.mixed else ''}: Krylov iterations at nu = 0.25 / 0.45 / 0.49: {counts[0]} / {counts[1]} / {counts[2]}")
 
 
 if __name__ == "__main__":

@@ -614,15 +614,21 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationIn
 
   // The rank's LocalModel: owned molecules, then ghosts; connections in the global order.
   m.local = static_cast<int>(local_rows.size());
-  m.id.resize(m.local), m.block.resize(m.local), m.rest.resize(3 * m.local), m.mass.resize(m.local);
-  inputs.youngs_modulus.resize(m.local), inputs.degree.resize(m.local), m.body.resize(m.local);
-  m.first_connection.resize(m.local);
-  for (int i = 0; i < m.local; ++i) {
-    const Molecule& x = local_rows[i];
-    m.id[i] = x.id, m.block[i] = static_cast<PetscInt>(x.block);
-    for (int d = 0; d < 3; ++d) m.rest[3 * i + d] = x.x[d];
-    m.mass[i] = x.mass, inputs.youngs_modulus[i] = x.youngs_modulus, inputs.degree[i] = x.degree, m.body[i] = x.body;
-    m.first_connection[i] = x.first_connection;
+  {
+    std::vector<std::int64_t> id(m.local);
+    std::vector<PetscInt> block(m.local);
+    std::vector<int> body(m.local);
+    m.rest.resize(3 * m.local), m.mass.resize(m.local);
+    inputs.youngs_modulus.resize(m.local), inputs.degree.resize(m.local);
+    std::vector<std::int64_t> first(m.local);
+    for (int i = 0; i < m.local; ++i) {
+      const Molecule& x = local_rows[i];
+      id[i] = x.id, block[i] = static_cast<PetscInt>(x.block);
+      for (int d = 0; d < 3; ++d) m.rest[3 * i + d] = x.x[d];
+      m.mass[i] = x.mass, inputs.youngs_modulus[i] = x.youngs_modulus, inputs.degree[i] = x.degree, body[i] = x.body;
+      first[i] = x.first_connection;
+    }
+    m.id.assign(id), m.block.assign(block), m.body.assign(body), m.first_connection.assign(first);
   }
   local_rows = std::vector<Molecule>();
   auto local_index = [&](std::int64_t g) {

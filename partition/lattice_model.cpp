@@ -201,15 +201,18 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
 
   // Per-molecule arrays: owned, then ghosts.
   m.local = m.owned + static_cast<int>(ghosts.size());
-  m.id = owned_ids;
-  m.id.insert(m.id.end(), ghosts.begin(), ghosts.end());
-  m.block.resize(m.local), m.rest.resize(3 * m.local), m.mass.resize(m.local);
-  inputs.youngs_modulus.resize(m.local), inputs.degree.resize(m.local), m.body.resize(m.local);
-  m.first_connection.resize(m.local);
+  // The ids as a plain array while the connections are built (searched by address), stored as runs after.
+  std::vector<std::int64_t> ids = owned_ids;
+  ids.insert(ids.end(), ghosts.begin(), ghosts.end());
+  std::vector<PetscInt> block(m.local);
+  std::vector<int> body(m.local);
+  m.rest.resize(3 * m.local), m.mass.resize(m.local);
+  inputs.youngs_modulus.resize(m.local), inputs.degree.resize(m.local);
+  std::vector<std::int64_t> first(m.local);
   for (int i = 0; i < m.local; ++i) {
-    m.first_connection[i] = i < m.owned ? owned_first[i] : ghost_first[i - m.owned];
-    const std::int64_t g = m.id[i];
-    m.block[i] = i < m.owned ? m.first_block + i : ghost_block[i - m.owned];
+    first[i] = i < m.owned ? owned_first[i] : ghost_first[i - m.owned];
+    const std::int64_t g = ids[i];
+    block[i] = i < m.owned ? m.first_block + i : ghost_block[i - m.owned];
     const int b = neighbours(g);
     const BoxGeometry& box = m.shape.body(b);
     const Vec3 x = box.rest_position(g);
@@ -218,11 +221,13 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
     m.mass[i] = mat.density * box.volume(g);
     inputs.youngs_modulus[i] = mat.youngs_modulus;
     inputs.degree[i] = static_cast<int>(nb.size());
-    m.body[i] = b;
+    body[i] = b;
   }
-  owned_ids = owned_first = ghost_first = std::vector<std::int64_t>();  // m.id and m.first_connection hold them
+  m.block.assign(block), m.body.assign(body), m.first_connection.assign(first);
+  block = std::vector<PetscInt>(), body = std::vector<int>(), first = std::vector<std::int64_t>();
+  owned_ids = owned_first = ghost_first = std::vector<std::int64_t>();  // ids and m.first_connection hold them
   // Owned molecule g's local index, searched from `near` (an owned index next to g in id order).
-  auto owned_index = [&](std::int64_t g, long near) { return find_sorted_near(m.id.data(), m.owned, near, g); };
+  auto owned_index = [&](std::int64_t g, long near) { return find_sorted_near(ids.data(), m.owned, near, g); };
 
   // 5. Connections with at least one owned end: walk the local molecules in increasing id and emit each one's
   //    forward connections, which yields the global (a, b) order directly.
@@ -231,7 +236,7 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
     std::vector<int> sequence(m.local);
     for (int i = 0; i < m.local; ++i) sequence[i] = i;
     std::merge(sequence.begin(), sequence.begin() + m.owned, sequence.begin() + m.owned, sequence.end(),
-               order.begin(), [&](int x, int y) { return m.id[x] < m.id[y]; });
+               order.begin(), [&](int x, int y) { return ids[x] < ids[y]; });
   }
   bool any_tetrahedra = false;
   for (int b = 0; b < nbodies; ++b) any_tetrahedra = any_tetrahedra || style[b]->tetrahedra;
@@ -260,7 +265,7 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
   auto walk = [&](bool emit) {
     long owned_before = 0;  // owned molecules with ids below a: where a sits among them
     for (int i : order) {
-      const std::int64_t a = m.id[i];
+      const std::int64_t a = ids[i];
       const bool a_owned = i < m.owned;
       const long near = a_owned ? i : owned_before;
       owned_before += a_owned;
@@ -300,6 +305,7 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
   if (any_tetrahedra) inputs.tetra_volume.reserve(count), inputs.tetra_lloyd_sum.reserve(count);
   walk(true);
   m.table.set_rest_lengths(std::move(length_types), std::move(length_table));
+  m.id.assign(ids);
 
   m.partition.surface_to_volume = largest_ghost_ratio(m);
   return m;

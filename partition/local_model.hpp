@@ -9,6 +9,7 @@
 #include <mpi.h>
 #include <petscsys.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <vector>
 
@@ -54,6 +55,76 @@ private:
   const std::size_t& count_;
 };
 
+// A per-local-molecule integer array stored as arithmetic runs when that is at most half the bytes: value[i] =
+// the run's first value + its step * (i - the run's start). Ids and PETSc block ids are runs of step 1 (an owned
+// block is consecutive molecules in id order), body indices of step 0, a box lattice's first connection ids of
+// step the forward degree (three runs a row of the lattice). Why: at 10^6 molecules each plain array of 8 bytes a
+// molecule is 8 MB (docs/benchmarks.md, "Explicit memory per molecule"). Meshes partitioned by METIS keep the
+// plain array (runs of one molecule would cost more). Read-only by index once assigned: readers never see which
+// storage is used.
+template <class T>
+class RunArray {
+public:
+  RunArray() = default;
+  void assign(const std::vector<T>& values) {
+    size_ = static_cast<int>(values.size());
+    plain_.clear(), runs_.clear(), last_ = 0;
+    std::size_t count = 0;
+    for (int i = 0; i < size_; i = run_end(values, i)) ++count;
+    if (count * sizeof(Run) * 2 > values.size() * sizeof(T)) {
+      plain_ = values;
+      return;
+    }
+    runs_.reserve(count);
+    for (int i = 0; i < size_; i = run_end(values, i))
+      runs_.push_back({i, i + 1 < size_ ? static_cast<std::int64_t>(values[i + 1] - values[i]) : 0, values[i]});
+  }
+  T operator[](int i) const {
+    if (runs_.empty()) return plain_[i];
+    // The run holding i: the last one read if it still holds i (loops read in order), else a binary search.
+    std::size_t r = last_;
+    if (!(runs_[r].start <= i && (r + 1 == runs_.size() || i < runs_[r + 1].start))) {
+      r = static_cast<std::size_t>(std::upper_bound(runs_.begin(), runs_.end(), i,
+                                                    [](int v, const Run& x) { return v < x.start; }) -
+                                   runs_.begin()) - 1;
+      last_ = r;
+    }
+    return static_cast<T>(runs_[r].first + runs_[r].step * (i - runs_[r].start));
+  }
+  std::size_t size() const { return static_cast<std::size_t>(size_); }
+  bool empty() const { return size_ == 0; }
+  // Values [begin, end) as a plain vector (e.g. the ghosts' block ids for PETSc).
+  std::vector<T> slice(int begin, int end) const {
+    std::vector<T> out;
+    out.reserve(end > begin ? end - begin : 0);
+    for (int i = begin; i < end; ++i) out.push_back((*this)[i]);
+    return out;
+  }
+  std::vector<T> values() const { return slice(0, size_); }
+  bool operator==(const RunArray& o) const { return values() == o.values(); }
+  bool operator!=(const RunArray& o) const { return !(*this == o); }
+
+private:
+  struct Run {
+    int start;
+    std::int64_t step;
+    T first;
+  };
+  // Where the run starting at i ends: values keep the step of their first two.
+  static int run_end(const std::vector<T>& v, int i) {
+    const int n = static_cast<int>(v.size());
+    if (i + 1 >= n) return n;
+    const auto step = v[i + 1] - v[i];
+    int e = i + 2;
+    while (e < n && v[e] - v[e - 1] == step) ++e;
+    return e;
+  }
+  int size_ = 0;
+  std::vector<T> plain_;  // every value, when runs would not halve the bytes
+  std::vector<Run> runs_;  // else the runs, by start
+  mutable std::size_t last_ = 0;
+};
+
 // The partition's layout of the rank's share: which molecules it holds (owned, then ghosts), where they sit in
 // PETSc's numbering and in space, and the ends of its connections. What a connection's spring is (k, l0) is the
 // connection table's (partition/connection_table.hpp); what only calibration reads (each molecule's E, ...) is
@@ -68,14 +139,14 @@ struct MoleculeLayout {
   int owned = 0;                     // molecules this rank owns: local indices [0, owned)
   int local = 0;                     // owned + ghosts
   PetscInt first_block = 0;          // PETSc block id of local molecule 0
-  std::vector<std::int64_t> id;      // original id of each local molecule
-  std::vector<PetscInt> block;       // PETSc block id of each local molecule (ghosts too)
+  RunArray<std::int64_t> id;         // original id of each local molecule
+  RunArray<PetscInt> block;          // PETSc block id of each local molecule (ghosts too)
   std::vector<double> rest;          // 3 * local, rest positions
   std::vector<double> mass;          // local, kg
-  std::vector<int> body;             // local, which body ([[body]] index) each molecule belongs to
+  RunArray<int> body;                // local, which body ([[body]] index) each molecule belongs to
   // local: the global id of the molecule's first connection to a higher id (the global connection order is
   // (a, b), so molecule a's connections to higher ids are numbered one after another from there).
-  std::vector<std::int64_t> first_connection;
+  RunArray<std::int64_t> first_connection;
 
   // Connections, sorted by (a, b) in global ids: local end indices, class, and b's position among a's
   // connections to higher ids (with first_connection, the global id: 2 bytes a connection instead of 8). Box

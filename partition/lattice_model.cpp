@@ -64,6 +64,36 @@ long find_sorted_near(const std::int64_t* v, long n, long hint, std::int64_t id)
   return k < 0 ? -1 : lo + k;
 }
 
+bool any_viscoelastic(const Scene& s) {
+  auto body = [](const BodySpec& b) {
+    if (!b.viscoelastic.empty()) return true;
+    for (const auto& r : b.regions)
+      if (!r.viscoelastic.empty()) return true;
+    return false;
+  };
+  if (body(s.body)) return true;
+  for (const auto& b : s.bodies)
+    if (body(b)) return true;
+  return false;
+}
+
+// Whether the lattice's connection ends are kept as runs of rows (ConnectionEnd, 71 B a molecule less, the same
+// values). The dynamic solver's step reads them through the kernel's stencil segments and every other reader of
+// a dynamic run (guards, output, calibration) in connection order, where a run is found at once. Not for the
+// other solvers, whose tangent reads connections out of order (a binary search each), nor with the terms that
+// read every connection's ends each step (viscoelastic, contact), nor the calibration methods that follow
+// molecules' neighbours (angles) or run the solver (iterative): they would pay the lookups.
+bool ends_as_runs(const Scene& s) {
+  if (s.solver.kind != "dynamic" || s.physics.contact || any_viscoelastic(s)) return false;
+  auto out_of_order = [](const CalibrationSpec& c) {
+    return c.method == "angles" || c.method == "angles-update" || c.method == "iterative";
+  };
+  if (out_of_order(s.calibration)) return false;
+  for (const auto& c : s.calibrations)
+    if (out_of_order(c)) return false;
+  return true;
+}
+
 }  // namespace
 
 LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInputs& inputs) {
@@ -262,6 +292,7 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
   };
   // Two walks: the first counts, so the arrays are allocated once at their size (no doubling at the peak).
   std::size_t count = 0;
+  std::vector<int> end_a, end_b;
   auto walk = [&](bool emit) {
     long owned_before = 0;  // owned molecules with ids below a: where a sits among them
     for (int i : order) {
@@ -282,7 +313,7 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
           continue;
         }
         const int j = static_cast<int>(owned_j >= 0 ? owned_j : m.owned + find_sorted(ghosts, x.id));
-        m.end_a.push_back(i), m.end_b.push_back(j);
+        end_a.push_back(i), end_b.push_back(j);
         m.connection_class.push_back(x.cls);
         length_types.push_back(length_type(forward, box.rest_distance(a, x.id)));
         if (a_owned) ++m.written_count;
@@ -300,10 +331,13 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
     }
   };
   walk(false);
-  m.end_a.reserve(count), m.end_b.reserve(count);
+  end_a.reserve(count), end_b.reserve(count);
   m.connection_class.reserve(count), length_types.reserve(count);
   if (any_tetrahedra) inputs.tetra_volume.reserve(count), inputs.tetra_lloyd_sum.reserve(count);
   walk(true);
+  m.end_a.assign(std::move(end_a)), m.end_b.assign(std::move(end_b));
+  // Before the per-connection k (8 B a connection, set below) joins them at the set-up peak.
+  if (ends_as_runs(scene)) ConnectionEnd::to_runs(m.end_a, m.end_b);
   m.table.set_rest_lengths(std::move(length_types), std::move(length_table));
   m.id.assign(ids);
 

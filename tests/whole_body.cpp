@@ -231,11 +231,12 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
   // Tetrahedra incident on each connection (Van Gelder's Eq. 5), summed per connection.
   std::unordered_map<std::int64_t, int> local_connection;  // key a * n + b
   const std::size_t nc = mine.size();
-  m.end_a.resize(nc), m.end_b.resize(nc), m.forward_rank.resize(nc), m.connection_class.resize(nc);
+  std::vector<int> end_a(nc), end_b(nc);
+  m.forward_rank.resize(nc), m.connection_class.resize(nc);
   std::vector<double> rest_length(nc);
   for (std::size_t l = 0; l < nc; ++l) {
     const auto& con = body.connections[mine[l]];
-    m.end_a[l] = local_of[con.a], m.end_b[l] = local_of[con.b];
+    end_a[l] = local_of[con.a], end_b[l] = local_of[con.b];
     m.forward_rank[l] = static_cast<std::uint16_t>(mine[l] - first_forward[con.a]);
     m.connection_class[l] = con.cls;
     rest_length[l] = body.rest_distance(con.a, con.b);
@@ -243,6 +244,7 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
     if (!body.tetrahedra.empty()) local_connection[con.a * n + con.b] = static_cast<int>(l);
   }
   m.table.set_rest_lengths(std::move(rest_length));
+  m.end_a.assign(std::move(end_a)), m.end_b.assign(std::move(end_b));
   if (!body.tetrahedra.empty()) {
     in.tetra_volume.assign(nc, 0.0);
     in.tetra_lloyd_sum.assign(nc, 0.0);  // Lloyd, Szekely & Harders 2007 (calibration/lloyd.cpp)

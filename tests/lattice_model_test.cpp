@@ -251,6 +251,17 @@ youngs_modulus = 3.0e6
 method = "linear"
 )";
 
+// Rest positions moved by up to 0.02 in each coordinate, the same for a molecule on any partition (seeded by id).
+std::vector<double> jittered(const LocalModel& m) {
+  std::vector<double> x(m.rest);
+  for (int i = 0; i < m.local; ++i)
+    for (int d = 0; d < 3; ++d) {
+      std::mt19937 r(static_cast<unsigned>(m.id[i] * 3 + d));
+      x[3 * i + d] += std::uniform_real_distribution<double>(-0.02, 0.02)(r);
+    }
+  return x;
+}
+
 // The stencil segments (end b = end a + a fixed offset, k and l0 per direction) against the generic kernel on
 // the same connections, untyped: the same bits on every owned molecule, on every partition (1, 2 and 3 ranks).
 TEST(SpringKernel, StencilSegmentsEqualGenericKernelBitForBit) {
@@ -265,12 +276,7 @@ TEST(SpringKernel, StencilSegmentsEqualGenericKernelBitForBit) {
   // Interior rows on one rank: most connections; on any partition some.
   EXPECT_GT(stencil_kernel.structured_connections(), typed.size == 1 ? typed.connections() / 3 : 1);
 
-  std::vector<double> x(typed.rest);
-  for (int i = 0; i < typed.local; ++i)
-    for (int d = 0; d < 3; ++d) {
-      std::mt19937 r(static_cast<unsigned>(typed.id[i] * 3 + d));
-      x[3 * i + d] += std::uniform_real_distribution<double>(-0.02, 0.02)(r);
-    }
+  const std::vector<double> x = jittered(typed);
   // f starts as NaN: the kernel zeroes every row itself (the owned ones just ahead of their first write), so a
   // row it missed would stay NaN.
   const double nan = std::numeric_limits<double>::quiet_NaN();
@@ -290,27 +296,35 @@ TEST(SpringKernel, StencilSegmentsEqualGenericKernelBitForBit) {
   for (int j = 0; j < 3 * typed.owned; ++j) ASSERT_EQ(f[j], first[j]) << j;
 }
 
-// A lattice's connection ends as runs of rows (ConnectionEnd::to_runs, what the dynamic solver keeps): every end,
-// connection id and written connection as in the plain arrays, and the kernel's forces the same bits, on every
-// partition (1, 2 and 3 ranks). The lattice is long in x so that its rows are worth storing as runs on any of them.
+// A lattice's connection ends as runs of rows (what the lattice build keeps for the dynamic solver): every end,
+// connection id and written connection as in the plain arrays a static scene keeps, and the kernel's forces the
+// same bits, on every partition (1, 2 and 3 ranks). The lattice is long in x so that its rows are worth storing
+// as runs on any of them.
 TEST(SpringKernel, EndsAsRunsGiveTheSameEndsIdsAndForces) {
-  const Scene scene = parse_scene(std::string(solver) + R"(
+  const std::string body = R"(
 [body]
-molecules = [40, 9, 8]
+molecules = [90, 6, 5]
 spacing = [0.1, 0.12, 0.09]
 topology = "face-diagonals"
 youngs_modulus = 1.0e5
 [calibration]
 method = "linear"
-)", "runs.toml");
-  CalibrationInputs inputs;
-  LocalModel plain = build_local_model(scene, PETSC_COMM_WORLD, inputs);
-  ASSERT_FALSE(calibrate_scene(scene, plain, inputs));
-  ASSERT_TRUE(plain.table.compact());
-  LocalModel runs = plain;
-  ASSERT_TRUE(ConnectionEnd::to_runs(runs.end_a, runs.end_b));
+)";
+  auto built = [](const std::string& text) {
+    const Scene scene = parse_scene(text, "runs.toml");
+    CalibrationInputs inputs;
+    LocalModel m = build_local_model(scene, PETSC_COMM_WORLD, inputs);
+    EXPECT_FALSE(calibrate_scene(scene, m, inputs));
+    EXPECT_TRUE(m.table.compact());
+    return m;
+  };
+  const LocalModel plain = built(body + "[[fix]]\nface = \"x-\"\n"), runs = built(std::string(solver) + body);  // static, dynamic
+  ASSERT_TRUE(plain.end_a.plain() && plain.end_b.plain());
   ASSERT_FALSE(runs.end_a.plain() || runs.end_b.plain());
   EXPECT_LE(runs.end_a.bytes() + runs.end_b.bytes(), (plain.end_a.bytes() + plain.end_b.bytes()) / 4);
+  LocalModel again = plain;  // the same runs from the plain arrays
+  ASSERT_TRUE(ConnectionEnd::to_runs(again.end_a, again.end_b));
+  EXPECT_EQ(again.end_a.bytes(), runs.end_a.bytes());
   ASSERT_EQ(runs.connections(), plain.connections());
   for (int c = 0; c < plain.connections(); ++c) {  // in order (the remembered run) ...
     ASSERT_EQ(runs.end_a[c], plain.end_a[c]) << c;
@@ -329,12 +343,7 @@ method = "linear"
 
   const SpringKernel from_runs(runs), from_plain(plain);
   EXPECT_EQ(from_runs.structured_connections(), from_plain.structured_connections());
-  std::vector<double> x(plain.rest);
-  for (int i = 0; i < plain.local; ++i)
-    for (int d = 0; d < 3; ++d) {
-      std::mt19937 r(static_cast<unsigned>(plain.id[i] * 3 + d));
-      x[3 * i + d] += std::uniform_real_distribution<double>(-0.02, 0.02)(r);
-    }
+  const std::vector<double> x = jittered(plain);
   const double nan = std::numeric_limits<double>::quiet_NaN();
   std::vector<double> f(3 * plain.local, nan), g(3 * plain.local, nan);
   from_runs.forces(x.data(), f.data());

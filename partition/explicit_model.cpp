@@ -614,15 +614,21 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationIn
 
   // The rank's LocalModel: owned molecules, then ghosts; connections in the global order.
   m.local = static_cast<int>(local_rows.size());
-  m.id.resize(m.local), m.block.resize(m.local), m.rest.resize(3 * m.local), m.mass.resize(m.local);
-  inputs.youngs_modulus.resize(m.local), inputs.degree.resize(m.local), m.body.resize(m.local);
-  m.first_connection.resize(m.local);
-  for (int i = 0; i < m.local; ++i) {
-    const Molecule& x = local_rows[i];
-    m.id[i] = x.id, m.block[i] = static_cast<PetscInt>(x.block);
-    for (int d = 0; d < 3; ++d) m.rest[3 * i + d] = x.x[d];
-    m.mass[i] = x.mass, inputs.youngs_modulus[i] = x.youngs_modulus, inputs.degree[i] = x.degree, m.body[i] = x.body;
-    m.first_connection[i] = x.first_connection;
+  {
+    std::vector<std::int64_t> id(m.local);
+    std::vector<PetscInt> block(m.local);
+    std::vector<int> body(m.local);
+    m.rest.resize(3 * m.local), m.mass.resize(m.local);
+    inputs.youngs_modulus.resize(m.local), inputs.degree.resize(m.local);
+    std::vector<std::int64_t> first(m.local);
+    for (int i = 0; i < m.local; ++i) {
+      const Molecule& x = local_rows[i];
+      id[i] = x.id, block[i] = static_cast<PetscInt>(x.block);
+      for (int d = 0; d < 3; ++d) m.rest[3 * i + d] = x.x[d];
+      m.mass[i] = x.mass, inputs.youngs_modulus[i] = x.youngs_modulus, inputs.degree[i] = x.degree, body[i] = x.body;
+      first[i] = x.first_connection;
+    }
+    m.id.assign(id), m.block.assign(block), m.body.assign(body), m.first_connection.assign(first);
   }
   local_rows = std::vector<Molecule>();
   auto local_index = [&](std::int64_t g) {
@@ -630,13 +636,14 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationIn
     return static_cast<int>(o >= 0 ? o : m.owned + (std::lower_bound(ghosts.begin(), ghosts.end(), g) - ghosts.begin()));
   };
   const std::size_t nc = rows.size();
-  m.end_a.resize(nc), m.end_b.resize(nc), m.forward_rank.resize(nc), m.connection_class.resize(nc);
+  std::vector<int> end_a(nc), end_b(nc);
+  m.forward_rank.resize(nc), m.connection_class.resize(nc);
   std::vector<double> rest_length(nc);
   inputs.tetra_volume.resize(nc), inputs.tetra_lloyd_sum.resize(nc);
   for (std::size_t l = 0; l < nc; ++l) {
     const ConnectionRow& c = rows[l];
     const int a = local_index(c.a), b = local_index(c.b);
-    m.end_a[l] = a, m.end_b[l] = b;
+    end_a[l] = a, end_b[l] = b;
     m.forward_rank[l] = static_cast<std::uint16_t>(c.id - m.first_connection[a]);
     m.connection_class[l] = static_cast<ConnectionClass>(c.cls);
     const BoxGeometry& box = m.shape.part(c.a);
@@ -648,6 +655,7 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationIn
     if (a < m.owned) ++m.written_count;
   }
   m.table.set_rest_lengths(std::move(rest_length));
+  m.end_a.assign(std::move(end_a)), m.end_b.assign(std::move(end_b));
   //    The kept tetrahedra in local indices: every corner is an end of a connection of the owned corner (the
   //    tetrahedron's edges are connections), hence local.
   agree(comm, [&] {

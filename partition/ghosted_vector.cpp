@@ -11,7 +11,7 @@ void check(PetscErrorCode ierr, const char* what) {
 }  // namespace
 
 GhostedVector::GhostedVector(const LocalModel& model, int width) {
-  std::vector<PetscInt> ghosts(model.block.begin() + model.owned, model.block.end());
+  std::vector<PetscInt> ghosts = model.block.slice(model.owned, model.local);
   check(VecCreateGhostBlock(model.comm, width, width * model.owned, PETSC_DECIDE, static_cast<PetscInt>(ghosts.size()),
                             ghosts.data(), &vec_), "VecCreateGhostBlock");
   // The local form stays open for the vector's lifetime: the kernels read and write it directly.

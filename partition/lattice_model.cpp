@@ -64,6 +64,36 @@ long find_sorted_near(const std::int64_t* v, long n, long hint, std::int64_t id)
   return k < 0 ? -1 : lo + k;
 }
 
+bool any_viscoelastic(const Scene& s) {
+  auto body = [](const BodySpec& b) {
+    if (!b.viscoelastic.empty()) return true;
+    for (const auto& r : b.regions)
+      if (!r.viscoelastic.empty()) return true;
+    return false;
+  };
+  if (body(s.body)) return true;
+  for (const auto& b : s.bodies)
+    if (body(b)) return true;
+  return false;
+}
+
+// Whether the lattice's connection ends are kept as runs of rows (ConnectionEnd, 71 B a molecule less, the same
+// values). The dynamic solver's step reads them through the kernel's stencil segments and every other reader of
+// a dynamic run (guards, output, calibration) in connection order, where a run is found at once. Not for the
+// other solvers, whose tangent reads connections out of order (a binary search each), nor with the terms that
+// read every connection's ends each step (viscoelastic, contact), nor the calibration methods that follow
+// molecules' neighbours (angles) or run the solver (iterative): they would pay the lookups.
+bool ends_as_runs(const Scene& s) {
+  if (s.solver.kind != "dynamic" || s.physics.contact || any_viscoelastic(s)) return false;
+  auto out_of_order = [](const CalibrationSpec& c) {
+    return c.method == "angles" || c.method == "angles-update" || c.method == "iterative";
+  };
+  if (out_of_order(s.calibration)) return false;
+  for (const auto& c : s.calibrations)
+    if (out_of_order(c)) return false;
+  return true;
+}
+
 }  // namespace
 
 LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInputs& inputs) {
@@ -201,15 +231,18 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
 
   // Per-molecule arrays: owned, then ghosts.
   m.local = m.owned + static_cast<int>(ghosts.size());
-  m.id = owned_ids;
-  m.id.insert(m.id.end(), ghosts.begin(), ghosts.end());
-  m.block.resize(m.local), m.rest.resize(3 * m.local), m.mass.resize(m.local);
-  inputs.youngs_modulus.resize(m.local), inputs.degree.resize(m.local), m.body.resize(m.local);
-  m.first_connection.resize(m.local);
+  // The ids as a plain array while the connections are built (searched by address), stored as runs after.
+  std::vector<std::int64_t> ids = owned_ids;
+  ids.insert(ids.end(), ghosts.begin(), ghosts.end());
+  std::vector<PetscInt> block(m.local);
+  std::vector<int> body(m.local);
+  m.rest.resize(3 * m.local), m.mass.resize(m.local);
+  inputs.youngs_modulus.resize(m.local), inputs.degree.resize(m.local);
+  std::vector<std::int64_t> first(m.local);
   for (int i = 0; i < m.local; ++i) {
-    m.first_connection[i] = i < m.owned ? owned_first[i] : ghost_first[i - m.owned];
-    const std::int64_t g = m.id[i];
-    m.block[i] = i < m.owned ? m.first_block + i : ghost_block[i - m.owned];
+    first[i] = i < m.owned ? owned_first[i] : ghost_first[i - m.owned];
+    const std::int64_t g = ids[i];
+    block[i] = i < m.owned ? m.first_block + i : ghost_block[i - m.owned];
     const int b = neighbours(g);
     const BoxGeometry& box = m.shape.body(b);
     const Vec3 x = box.rest_position(g);
@@ -218,11 +251,13 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
     m.mass[i] = mat.density * box.volume(g);
     inputs.youngs_modulus[i] = mat.youngs_modulus;
     inputs.degree[i] = static_cast<int>(nb.size());
-    m.body[i] = b;
+    body[i] = b;
   }
-  owned_ids = owned_first = ghost_first = std::vector<std::int64_t>();  // m.id and m.first_connection hold them
+  m.block.assign(block), m.body.assign(body), m.first_connection.assign(first);
+  block = std::vector<PetscInt>(), body = std::vector<int>(), first = std::vector<std::int64_t>();
+  owned_ids = owned_first = ghost_first = std::vector<std::int64_t>();  // ids and m.first_connection hold them
   // Owned molecule g's local index, searched from `near` (an owned index next to g in id order).
-  auto owned_index = [&](std::int64_t g, long near) { return find_sorted_near(m.id.data(), m.owned, near, g); };
+  auto owned_index = [&](std::int64_t g, long near) { return find_sorted_near(ids.data(), m.owned, near, g); };
 
   // 5. Connections with at least one owned end: walk the local molecules in increasing id and emit each one's
   //    forward connections, which yields the global (a, b) order directly.
@@ -231,7 +266,7 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
     std::vector<int> sequence(m.local);
     for (int i = 0; i < m.local; ++i) sequence[i] = i;
     std::merge(sequence.begin(), sequence.begin() + m.owned, sequence.begin() + m.owned, sequence.end(),
-               order.begin(), [&](int x, int y) { return m.id[x] < m.id[y]; });
+               order.begin(), [&](int x, int y) { return ids[x] < ids[y]; });
   }
   bool any_tetrahedra = false;
   for (int b = 0; b < nbodies; ++b) any_tetrahedra = any_tetrahedra || style[b]->tetrahedra;
@@ -257,10 +292,11 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
   };
   // Two walks: the first counts, so the arrays are allocated once at their size (no doubling at the peak).
   std::size_t count = 0;
+  std::vector<int> end_a, end_b;
   auto walk = [&](bool emit) {
     long owned_before = 0;  // owned molecules with ids below a: where a sits among them
     for (int i : order) {
-      const std::int64_t a = m.id[i];
+      const std::int64_t a = ids[i];
       const bool a_owned = i < m.owned;
       const long near = a_owned ? i : owned_before;
       owned_before += a_owned;
@@ -277,7 +313,7 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
           continue;
         }
         const int j = static_cast<int>(owned_j >= 0 ? owned_j : m.owned + find_sorted(ghosts, x.id));
-        m.end_a.push_back(i), m.end_b.push_back(j);
+        end_a.push_back(i), end_b.push_back(j);
         m.connection_class.push_back(x.cls);
         length_types.push_back(length_type(forward, box.rest_distance(a, x.id)));
         if (a_owned) ++m.written_count;
@@ -295,11 +331,15 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
     }
   };
   walk(false);
-  m.end_a.reserve(count), m.end_b.reserve(count);
+  end_a.reserve(count), end_b.reserve(count);
   m.connection_class.reserve(count), length_types.reserve(count);
   if (any_tetrahedra) inputs.tetra_volume.reserve(count), inputs.tetra_lloyd_sum.reserve(count);
   walk(true);
+  m.end_a.assign(std::move(end_a)), m.end_b.assign(std::move(end_b));
+  // Before the per-connection k (8 B a connection, set below) joins them at the set-up peak.
+  if (ends_as_runs(scene)) ConnectionEnd::to_runs(m.end_a, m.end_b);
   m.table.set_rest_lengths(std::move(length_types), std::move(length_table));
+  m.id.assign(ids);
 
   m.partition.surface_to_volume = largest_ghost_ratio(m);
   return m;

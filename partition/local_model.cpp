@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <stdexcept>
 #include <unordered_map>
 
@@ -12,13 +13,52 @@
 
 namespace tissue {
 
+bool ConnectionEnd::to_runs(ConnectionEnd& a, ConnectionEnd& b) {
+  if (!a.plain() || !b.plain() || a.size_ != b.size_) return false;
+  const int n = static_cast<int>(a.size_);
+  const int* ea = a.plain_.data();
+  const int* eb = b.plain_.data();
+  const std::size_t budget = a.size_ * sizeof(int) / 4;  // bytes each end may take
+  ConnectionEnd runs;
+  std::map<std::vector<int>, int> known;  // pattern (offsets) -> index
+  std::vector<int> row;
+  int last_pattern = -1, next_molecule = 0;
+  for (int c = 0; c < n;) {
+    int e = c + 1;
+    while (e < n && ea[e] == ea[c]) ++e;
+    row.assign(eb + c, eb + e);
+    for (int& o : row) o -= ea[c];
+    const bool same = last_pattern >= 0 && ea[c] == next_molecule &&
+                      std::equal(row.begin(), row.end(), runs.offsets_.begin() + runs.pattern_start_[last_pattern],
+                                 runs.offsets_.begin() + runs.pattern_start_[last_pattern + 1]);
+    if (!same) {
+      auto [it, added] = known.try_emplace(row, static_cast<int>(known.size()));
+      if (added) {
+        if (runs.pattern_start_.empty()) runs.pattern_start_.push_back(0);
+        runs.offsets_.insert(runs.offsets_.end(), row.begin(), row.end());
+        runs.pattern_start_.push_back(static_cast<int>(runs.offsets_.size()));
+      }
+      last_pattern = it->second;
+      runs.runs_.push_back({c, ea[c], last_pattern});
+      if ((runs.runs_.size() * sizeof(Run) + (runs.offsets_.size() + runs.pattern_start_.size()) * sizeof(int)) > budget)
+        return false;  // a mesh's rows: no runs worth keeping
+    }
+    next_molecule = ea[c] + 1;
+    c = e;
+  }
+  runs.size_ = a.size_;
+  runs.runs_.shrink_to_fit(), runs.pattern_start_.shrink_to_fit(), runs.offsets_.shrink_to_fit();
+  ConnectionEnd run_b = runs;
+  run_b.is_b_ = true;
+  for (int c = 0; c < n; ++c)  // every value back, or nothing changes
+    if (runs[c] != ea[c] || run_b[c] != eb[c]) return false;
+  a = std::move(runs), b = std::move(run_b);
+  return true;
+}
+
 int MoleculeLayout::lattice_forward_rank(int c) const {
   // An owned end a has all its connections here, consecutive and in order: the position in its run.
-  if (end_a[c] < owned) {
-    int r = 0;
-    while (r < c && end_a[c - r - 1] == end_a[c]) ++r;
-    return r;
-  }
+  if (end_a[c] < owned) return end_a.row_position(c);
   // A ghost end a keeps only its connections to owned molecules: count in its stencil.
   const std::int64_t a = id[end_a[c]], b = id[end_b[c]];
   const BoxGeometry& box = shape.body(shape.body_of(a));

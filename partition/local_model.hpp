@@ -9,6 +9,7 @@
 #include <mpi.h>
 #include <petscsys.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <vector>
 
@@ -19,6 +20,81 @@
 
 namespace tissue {
 
+// One end (a or b) of every local connection, in one of two storages. Plain: one int a connection. Runs: a box
+// lattice's connections come in rows (one molecule's forward connections, the same end a, sorted by end b) and
+// consecutive molecules repeat a row's pattern (the local offsets end b - end a), so a run keeps only its first
+// connection, its first molecule and its pattern: end a = first molecule + (c - first connection) / directions,
+// end b = end a + the pattern's offset. At 10^6 molecules that is 0.7 MB instead of 71 MB for both ends
+// (docs/benchmarks.md, "Explicit memory per molecule"). Readers index it as before (values are the same ints); a
+// loop in connection order finds its run at once (the last run read is remembered), other reads by a binary
+// search. Only the plain storage has data().
+class ConnectionEnd {
+public:
+  void assign(std::vector<int> values) {
+    plain_ = std::move(values);
+    size_ = plain_.size();
+    runs_.clear(), pattern_start_.clear(), offsets_.clear(), last_ = 0;
+  }
+  int operator[](int c) const {
+    if (runs_.empty()) return plain_[c];
+    const Run& r = runs_[find(c)];
+    const int start = pattern_start_[r.pattern], directions = pattern_start_[r.pattern + 1] - start;
+    const int q = c - r.first_connection, a = r.first_molecule + q / directions;
+    return is_b_ ? a + offsets_[start + q % directions] : a;
+  }
+  std::size_t size() const { return size_; }
+  bool empty() const { return size_ == 0; }
+  bool plain() const { return runs_.empty(); }
+  // c's position among the connections of its end a here (its row), counted from the row's first.
+  int row_position(int c) const {
+    if (runs_.empty()) {
+      int r = 0;
+      while (r < c && plain_[c - r - 1] == plain_[c]) ++r;
+      return r;
+    }
+    const Run& r = runs_[find(c)];
+    return (c - r.first_connection) % (pattern_start_[r.pattern + 1] - pattern_start_[r.pattern]);
+  }
+  const int* data() const { return plain_.data(); }  // the plain storage only
+  std::vector<int> values() const {
+    std::vector<int> out(size_);
+    for (std::size_t c = 0; c < size_; ++c) out[c] = (*this)[static_cast<int>(c)];
+    return out;
+  }
+  bool operator==(const ConnectionEnd& o) const { return values() == o.values(); }
+  bool operator!=(const ConnectionEnd& o) const { return !(*this == o); }
+  std::size_t bytes() const {
+    return plain_.capacity() * sizeof(int) + runs_.capacity() * sizeof(Run) +
+           (pattern_start_.capacity() + offsets_.capacity()) * sizeof(int);
+  }
+  // Stores both ends (plain, of the same connections sorted by end a) as runs when each takes at most a quarter
+  // of its plain bytes and gives back every value; returns whether it did (else both stay as they are).
+  static bool to_runs(ConnectionEnd& a, ConnectionEnd& b);
+
+private:
+  struct Run {
+    int first_connection, first_molecule, pattern;
+  };
+  std::size_t find(int c) const {
+    auto holds = [&](std::size_t r) {
+      return runs_[r].first_connection <= c && (r + 1 == runs_.size() || c < runs_[r + 1].first_connection);
+    };
+    if (holds(last_)) return last_;
+    if (last_ + 1 < runs_.size() && holds(last_ + 1)) return ++last_;
+    last_ = static_cast<std::size_t>(std::upper_bound(runs_.begin(), runs_.end(), c, [](int v, const Run& r) {
+              return v < r.first_connection;
+            }) - runs_.begin()) - 1;
+    return last_;
+  }
+  bool is_b_ = false;
+  std::size_t size_ = 0;
+  std::vector<int> plain_;
+  std::vector<Run> runs_;
+  std::vector<int> pattern_start_;  // pattern p: offsets_[pattern_start_[p] .. pattern_start_[p + 1])
+  std::vector<int> offsets_;
+  mutable std::size_t last_ = 0;
+};
+
 // The connections this rank writes to files: those whose end a it owns (each connection is written by exactly
 // one rank). A view, not a list: connections are sorted by (a, b) and owned molecules come first, so "end a is
 // owned" is end_a[c] < owned.
@@ -26,7 +102,7 @@ class WrittenConnections {
 public:
   class iterator {
   public:
-    iterator(const int* end_a, int c, int n, int owned) : a_(end_a), c_(c), n_(n), owned_(owned) { skip(); }
+    iterator(const ConnectionEnd* end_a, int c, int n, int owned) : a_(end_a), c_(c), n_(n), owned_(owned) { skip(); }
     int operator*() const { return c_; }
     iterator& operator++() {
       ++c_;
@@ -37,21 +113,91 @@ public:
 
   private:
     void skip() {
-      while (c_ < n_ && a_[c_] >= owned_) ++c_;
+      while (c_ < n_ && (*a_)[c_] >= owned_) ++c_;
     }
-    const int* a_;
+    const ConnectionEnd* a_;
     int c_, n_, owned_;
   };
-  WrittenConnections(const std::vector<int>& end_a, const int& owned, const std::size_t& count)
+  WrittenConnections(const ConnectionEnd& end_a, const int& owned, const std::size_t& count)
       : end_a_(end_a), owned_(owned), count_(count) {}
-  iterator begin() const { return {end_a_.data(), 0, static_cast<int>(end_a_.size()), owned_}; }
-  iterator end() const { return {end_a_.data(), static_cast<int>(end_a_.size()), static_cast<int>(end_a_.size()), owned_}; }
+  iterator begin() const { return {&end_a_, 0, static_cast<int>(end_a_.size()), owned_}; }
+  iterator end() const { return {&end_a_, static_cast<int>(end_a_.size()), static_cast<int>(end_a_.size()), owned_}; }
   std::size_t size() const { return count_; }
 
 private:
-  const std::vector<int>& end_a_;
+  const ConnectionEnd& end_a_;
   const int& owned_;
   const std::size_t& count_;
+};
+
+// A per-local-molecule integer array stored as arithmetic runs when that is at most half the bytes: value[i] =
+// the run's first value + its step * (i - the run's start). Ids and PETSc block ids are runs of step 1 (an owned
+// block is consecutive molecules in id order), body indices of step 0, a box lattice's first connection ids of
+// step the forward degree (three runs a row of the lattice). Why: at 10^6 molecules each plain array of 8 bytes a
+// molecule is 8 MB (docs/benchmarks.md, "Explicit memory per molecule"). Meshes partitioned by METIS keep the
+// plain array (runs of one molecule would cost more). Read-only by index once assigned: readers never see which
+// storage is used.
+template <class T>
+class RunArray {
+public:
+  RunArray() = default;
+  void assign(const std::vector<T>& values) {
+    size_ = static_cast<int>(values.size());
+    plain_.clear(), runs_.clear(), last_ = 0;
+    std::size_t count = 0;
+    for (int i = 0; i < size_; i = run_end(values, i)) ++count;
+    if (count * sizeof(Run) * 2 > values.size() * sizeof(T)) {
+      plain_ = values;
+      return;
+    }
+    runs_.reserve(count);
+    for (int i = 0; i < size_; i = run_end(values, i))
+      runs_.push_back({i, i + 1 < size_ ? static_cast<std::int64_t>(values[i + 1] - values[i]) : 0, values[i]});
+  }
+  T operator[](int i) const {
+    if (runs_.empty()) return plain_[i];
+    // The run holding i: the last one read if it still holds i (loops read in order), else a binary search.
+    std::size_t r = last_;
+    if (!(runs_[r].start <= i && (r + 1 == runs_.size() || i < runs_[r + 1].start))) {
+      r = static_cast<std::size_t>(std::upper_bound(runs_.begin(), runs_.end(), i,
+                                                    [](int v, const Run& x) { return v < x.start; }) -
+                                   runs_.begin()) - 1;
+      last_ = r;
+    }
+    return static_cast<T>(runs_[r].first + runs_[r].step * (i - runs_[r].start));
+  }
+  std::size_t size() const { return static_cast<std::size_t>(size_); }
+  bool empty() const { return size_ == 0; }
+  // Values [begin, end) as a plain vector (e.g. the ghosts' block ids for PETSc).
+  std::vector<T> slice(int begin, int end) const {
+    std::vector<T> out;
+    out.reserve(end > begin ? end - begin : 0);
+    for (int i = begin; i < end; ++i) out.push_back((*this)[i]);
+    return out;
+  }
+  std::vector<T> values() const { return slice(0, size_); }
+  bool operator==(const RunArray& o) const { return values() == o.values(); }
+  bool operator!=(const RunArray& o) const { return !(*this == o); }
+
+private:
+  struct Run {
+    int start;
+    std::int64_t step;
+    T first;
+  };
+  // Where the run starting at i ends: values keep the step of their first two.
+  static int run_end(const std::vector<T>& v, int i) {
+    const int n = static_cast<int>(v.size());
+    if (i + 1 >= n) return n;
+    const auto step = v[i + 1] - v[i];
+    int e = i + 2;
+    while (e < n && v[e] - v[e - 1] == step) ++e;
+    return e;
+  }
+  int size_ = 0;
+  std::vector<T> plain_;  // every value, when runs would not halve the bytes
+  std::vector<Run> runs_;  // else the runs, by start
+  mutable std::size_t last_ = 0;
 };
 
 // The partition's layout of the rank's share: which molecules it holds (owned, then ghosts), where they sit in
@@ -68,20 +214,21 @@ struct MoleculeLayout {
   int owned = 0;                     // molecules this rank owns: local indices [0, owned)
   int local = 0;                     // owned + ghosts
   PetscInt first_block = 0;          // PETSc block id of local molecule 0
-  std::vector<std::int64_t> id;      // original id of each local molecule
-  std::vector<PetscInt> block;       // PETSc block id of each local molecule (ghosts too)
+  RunArray<std::int64_t> id;         // original id of each local molecule
+  RunArray<PetscInt> block;          // PETSc block id of each local molecule (ghosts too)
   std::vector<double> rest;          // 3 * local, rest positions
   std::vector<double> mass;          // local, kg
-  std::vector<int> body;             // local, which body ([[body]] index) each molecule belongs to
+  RunArray<int> body;                // local, which body ([[body]] index) each molecule belongs to
   // local: the global id of the molecule's first connection to a higher id (the global connection order is
   // (a, b), so molecule a's connections to higher ids are numbered one after another from there).
-  std::vector<std::int64_t> first_connection;
+  RunArray<std::int64_t> first_connection;
 
-  // Connections, sorted by (a, b) in global ids: local end indices, class, and b's position among a's
+  // Connections, sorted by (a, b) in global ids: local end indices (plain, or as runs of a lattice's rows once
+  // the dynamic solver's stiffness is final: ConnectionEnd), class, and b's position among a's
   // connections to higher ids (with first_connection, the global id: 2 bytes a connection instead of 8). Box
   // lattices leave forward_rank empty: the position comes from the topology's stencil when a connection's id is
   // asked for (output plans, guard messages: never per step), and the 2 bytes a connection are saved.
-  std::vector<int> end_a, end_b;
+  ConnectionEnd end_a, end_b;
   std::vector<std::uint16_t> forward_rank;
   std::vector<ConnectionClass> connection_class;
   std::size_t written_count = 0;     // connections whose end a this rank owns

@@ -251,6 +251,17 @@ youngs_modulus = 3.0e6
 method = "linear"
 )";
 
+// Rest positions moved by up to 0.02 in each coordinate, the same for a molecule on any partition (seeded by id).
+std::vector<double> jittered(const LocalModel& m) {
+  std::vector<double> x(m.rest);
+  for (int i = 0; i < m.local; ++i)
+    for (int d = 0; d < 3; ++d) {
+      std::mt19937 r(static_cast<unsigned>(m.id[i] * 3 + d));
+      x[3 * i + d] += std::uniform_real_distribution<double>(-0.02, 0.02)(r);
+    }
+  return x;
+}
+
 // The stencil segments (end b = end a + a fixed offset, k and l0 per direction) against the generic kernel on
 // the same connections, untyped: the same bits on every owned molecule, on every partition (1, 2 and 3 ranks).
 TEST(SpringKernel, StencilSegmentsEqualGenericKernelBitForBit) {
@@ -265,12 +276,7 @@ TEST(SpringKernel, StencilSegmentsEqualGenericKernelBitForBit) {
   // Interior rows on one rank: most connections; on any partition some.
   EXPECT_GT(stencil_kernel.structured_connections(), typed.size == 1 ? typed.connections() / 3 : 1);
 
-  std::vector<double> x(typed.rest);
-  for (int i = 0; i < typed.local; ++i)
-    for (int d = 0; d < 3; ++d) {
-      std::mt19937 r(static_cast<unsigned>(typed.id[i] * 3 + d));
-      x[3 * i + d] += std::uniform_real_distribution<double>(-0.02, 0.02)(r);
-    }
+  const std::vector<double> x = jittered(typed);
   // f starts as NaN: the kernel zeroes every row itself (the owned ones just ahead of their first write), so a
   // row it missed would stay NaN.
   const double nan = std::numeric_limits<double>::quiet_NaN();
@@ -288,6 +294,90 @@ TEST(SpringKernel, StencilSegmentsEqualGenericKernelBitForBit) {
   const std::vector<double> first = f;
   stencil_kernel.forces(x.data(), f.data());
   for (int j = 0; j < 3 * typed.owned; ++j) ASSERT_EQ(f[j], first[j]) << j;
+}
+
+// A lattice's connection ends as runs of rows (what the lattice build keeps for the dynamic solver): every end,
+// connection id and written connection as in the plain arrays a static scene keeps, and the kernel's forces the
+// same bits, on every partition (1, 2 and 3 ranks). The lattice is long in x so that its rows are worth storing
+// as runs on any of them.
+TEST(SpringKernel, EndsAsRunsGiveTheSameEndsIdsAndForces) {
+  const std::string body = R"(
+[body]
+molecules = [90, 6, 5]
+spacing = [0.1, 0.12, 0.09]
+topology = "face-diagonals"
+youngs_modulus = 1.0e5
+[calibration]
+method = "linear"
+)";
+  auto built = [](const std::string& text) {
+    const Scene scene = parse_scene(text, "runs.toml");
+    CalibrationInputs inputs;
+    LocalModel m = build_local_model(scene, PETSC_COMM_WORLD, inputs);
+    EXPECT_FALSE(calibrate_scene(scene, m, inputs));
+    EXPECT_TRUE(m.table.compact());
+    return m;
+  };
+  const LocalModel plain = built(body + "[[fix]]\nface = \"x-\"\n"), runs = built(std::string(solver) + body);  // static, dynamic
+  ASSERT_TRUE(plain.end_a.plain() && plain.end_b.plain());
+  ASSERT_FALSE(runs.end_a.plain() || runs.end_b.plain());
+  EXPECT_LE(runs.end_a.bytes() + runs.end_b.bytes(), (plain.end_a.bytes() + plain.end_b.bytes()) / 4);
+  LocalModel again = plain;  // the same runs from the plain arrays
+  ASSERT_TRUE(ConnectionEnd::to_runs(again.end_a, again.end_b));
+  EXPECT_EQ(again.end_a.bytes(), runs.end_a.bytes());
+  ASSERT_EQ(runs.connections(), plain.connections());
+  for (int c = 0; c < plain.connections(); ++c) {  // in order (the remembered run) ...
+    ASSERT_EQ(runs.end_a[c], plain.end_a[c]) << c;
+    ASSERT_EQ(runs.end_b[c], plain.end_b[c]) << c;
+    ASSERT_EQ(runs.connection_id(c), plain.connection_id(c)) << c;
+  }
+  for (int c = plain.connections() - 1; c >= 0; c -= 7) {  // ... and out of order (the binary search)
+    ASSERT_EQ(runs.end_a[c], plain.end_a[c]) << c;
+    ASSERT_EQ(runs.end_b[c], plain.end_b[c]) << c;
+  }
+  std::vector<int> written_plain, written_runs;
+  for (int c : plain.written_here()) written_plain.push_back(c);
+  for (int c : runs.written_here()) written_runs.push_back(c);
+  EXPECT_EQ(written_runs, written_plain);
+  EXPECT_EQ(written_runs.size(), plain.written_count);
+
+  const SpringKernel from_runs(runs), from_plain(plain);
+  EXPECT_EQ(from_runs.structured_connections(), from_plain.structured_connections());
+  const std::vector<double> x = jittered(plain);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  std::vector<double> f(3 * plain.local, nan), g(3 * plain.local, nan);
+  from_runs.forces(x.data(), f.data());
+  from_plain.forces(x.data(), g.data());
+  double largest = 0;
+  for (int j = 0; j < 3 * plain.local; ++j) {
+    ASSERT_TRUE(std::isfinite(f[j])) << j;
+    ASSERT_EQ(f[j], g[j]) << j;  // bit for bit, ghost rows too
+    largest = std::max(largest, std::fabs(g[j]));
+  }
+  EXPECT_GT(largest, 0.0);
+}
+
+// Per-molecule integer arrays as arithmetic runs (RunArray): the same values as the plain array they came from,
+// stored as runs only where that halves the bytes.
+TEST(RunArray, GivesBackEveryValue) {
+  std::vector<std::int64_t> ids;
+  for (std::int64_t g = 100; g < 400; ++g) ids.push_back(g);          // an owned block
+  for (std::int64_t g = 1000; g < 1600; g += 7) ids.push_back(g);    // a step of 7
+  for (int k = 0; k < 50; ++k) ids.push_back(5);                      // constant
+  ids.push_back(-3), ids.push_back(12), ids.push_back(11);            // runs of one
+  RunArray<std::int64_t> runs;
+  runs.assign(ids);
+  ASSERT_EQ(runs.size(), ids.size());
+  for (int i = 0; i < static_cast<int>(ids.size()); ++i) ASSERT_EQ(runs[i], ids[i]) << i;
+  for (int i = static_cast<int>(ids.size()) - 1; i >= 0; i -= 3) ASSERT_EQ(runs[i], ids[i]) << i;
+  EXPECT_EQ(runs.values(), ids);
+  EXPECT_EQ(runs.slice(300, 310), std::vector<std::int64_t>(ids.begin() + 300, ids.begin() + 310));
+  std::vector<int> scattered;  // no runs worth keeping: the plain array, the same values
+  std::mt19937 r(7);
+  for (int k = 0; k < 500; ++k) scattered.push_back(static_cast<int>(r() % 1000));
+  RunArray<int> plain;
+  plain.assign(scattered);
+  EXPECT_EQ(plain.values(), scattered);
 }
 
 // The coarse (blocked) lattice partition: every molecule of a block in the block's part, every part non-empty and

@@ -191,9 +191,10 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
 
   // Owned molecules, then ghosts in original order.
   std::unordered_map<std::int64_t, int> local_of;
+  std::vector<std::int64_t> ids;
   for (std::int64_t g = 0; g < n; ++g)
-    if (part[g] == m.rank) local_of[g] = static_cast<int>(m.id.size()), m.id.push_back(g);
-  m.owned = static_cast<int>(m.id.size());
+    if (part[g] == m.rank) local_of[g] = static_cast<int>(ids.size()), ids.push_back(g);
+  m.owned = static_cast<int>(ids.size());
   std::vector<std::int64_t> ghosts;
   std::vector<std::size_t> mine;  // global indices of local connections
   for (std::size_t c = 0; c < body.connections.size(); ++c) {
@@ -206,32 +207,36 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
   }
   std::sort(ghosts.begin(), ghosts.end());
   ghosts.erase(std::unique(ghosts.begin(), ghosts.end()), ghosts.end());
-  for (auto g : ghosts) local_of[g] = static_cast<int>(m.id.size()), m.id.push_back(g);
-  m.local = static_cast<int>(m.id.size());
+  for (auto g : ghosts) local_of[g] = static_cast<int>(ids.size()), ids.push_back(g);
+  m.local = static_cast<int>(ids.size());
 
-  m.block.resize(m.local), m.rest.resize(3 * m.local), m.mass.resize(m.local);
-  in.youngs_modulus.resize(m.local), in.degree.resize(m.local), m.body.resize(m.local);
-  m.first_connection.resize(m.local);
+  std::vector<PetscInt> blocks(m.local);
+  std::vector<int> bodies(m.local);
+  m.rest.resize(3 * m.local), m.mass.resize(m.local);
+  in.youngs_modulus.resize(m.local), in.degree.resize(m.local);
+  std::vector<std::int64_t> firsts(m.local);
   for (int i = 0; i < m.local; ++i) {
-    std::int64_t g = m.id[i];
-    m.first_connection[i] = first_forward[g];
-    m.block[i] = block_of[g];
+    std::int64_t g = ids[i];
+    firsts[i] = first_forward[g];
+    blocks[i] = block_of[g];
     Vec3 x = body.rest_position(g);
     for (int d = 0; d < 3; ++d) m.rest[3 * i + d] = x[d];
     m.mass[i] = body.mass[g];
     in.youngs_modulus[i] = body.youngs_modulus[g];
     in.degree[i] = degree[g];
-    m.body[i] = body.body_of(g);
+    bodies[i] = body.body_of(g);
   }
+  m.id.assign(ids), m.block.assign(blocks), m.body.assign(bodies), m.first_connection.assign(firsts);
 
   // Tetrahedra incident on each connection (Van Gelder's Eq. 5), summed per connection.
   std::unordered_map<std::int64_t, int> local_connection;  // key a * n + b
   const std::size_t nc = mine.size();
-  m.end_a.resize(nc), m.end_b.resize(nc), m.forward_rank.resize(nc), m.connection_class.resize(nc);
+  std::vector<int> end_a(nc), end_b(nc);
+  m.forward_rank.resize(nc), m.connection_class.resize(nc);
   std::vector<double> rest_length(nc);
   for (std::size_t l = 0; l < nc; ++l) {
     const auto& con = body.connections[mine[l]];
-    m.end_a[l] = local_of[con.a], m.end_b[l] = local_of[con.b];
+    end_a[l] = local_of[con.a], end_b[l] = local_of[con.b];
     m.forward_rank[l] = static_cast<std::uint16_t>(mine[l] - first_forward[con.a]);
     m.connection_class[l] = con.cls;
     rest_length[l] = body.rest_distance(con.a, con.b);
@@ -239,6 +244,7 @@ LocalModel distribute(const Body& body, const std::vector<int>& part, const Part
     if (!body.tetrahedra.empty()) local_connection[con.a * n + con.b] = static_cast<int>(l);
   }
   m.table.set_rest_lengths(std::move(rest_length));
+  m.end_a.assign(std::move(end_a)), m.end_b.assign(std::move(end_b));
   if (!body.tetrahedra.empty()) {
     in.tetra_volume.assign(nc, 0.0);
     in.tetra_lloyd_sum.assign(nc, 0.0);  // Lloyd, Szekely & Harders 2007 (calibration/lloyd.cpp)

@@ -59,7 +59,7 @@ public:
     for (int i = 0; i < m.local; ++i) most = std::max(most, ctx.inputs.degree[i]);
     MPI_Allreduce(&most, &slots_, 1, MPI_INT, MPI_MAX, m.comm);
     const PetscInt bs = 2 * slots_;
-    std::vector<PetscInt> ghosts(m.block.begin() + m.owned, m.block.end());
+    std::vector<PetscInt> ghosts = m.block.slice(m.owned, m.local);
     check(VecCreateGhostBlock(m.comm, bs, bs * m.owned, PETSC_DECIDE, static_cast<PetscInt>(ghosts.size()),
                               ghosts.data(), &vec_), "VecCreateGhostBlock");
   }

@@ -39,7 +39,8 @@ LocalModel body_view(const LocalModel& m, const CalibrationInputs& in, int b, st
   LocalModel v;
   static_cast<MoleculeLayout&>(v) = m;  // the connection arrays are replaced below
   static_cast<BoxGeometry&>(v.shape) = m.shape.body(b);
-  v.end_a.clear(), v.end_b.clear(), v.forward_rank.clear(), v.connection_class.clear();
+  v.forward_rank.clear(), v.connection_class.clear();
+  std::vector<int> end_a, end_b;
   vin.youngs_modulus = in.youngs_modulus, vin.degree = in.degree;
   // Only a body with tetrahedra has them: another body's view has none (the tetrahedral methods check this).
   const TopologyStyle* lattice = find_topology(v.shape.topology);  // nullptr: a mesh or random cloud
@@ -49,13 +50,14 @@ LocalModel body_view(const LocalModel& m, const CalibrationInputs& in, int b, st
   for (int c = 0; c < m.connections(); ++c) {
     if (m.body[m.end_a[c]] != b) continue;  // connections never join two bodies: end a tells
     which.push_back(c);
-    v.end_a.push_back(m.end_a[c]), v.end_b.push_back(m.end_b[c]);
+    end_a.push_back(m.end_a[c]), end_b.push_back(m.end_b[c]);
     if (!m.forward_rank.empty()) v.forward_rank.push_back(m.forward_rank[c]);
     v.connection_class.push_back(m.connection_class[c]);
     if (tetrahedra && !in.tetra_volume.empty()) vin.tetra_volume.push_back(in.tetra_volume[c]);
     if (tetrahedra && !in.tetra_lloyd_sum.empty()) vin.tetra_lloyd_sum.push_back(in.tetra_lloyd_sum[c]);
     if (m.end_a[c] < m.owned) ++v.written_count;
   }
+  v.end_a.assign(std::move(end_a)), v.end_b.assign(std::move(end_b));
   v.table = m.table.select(which);
   return v;
 }

@@ -31,6 +31,9 @@ void Simulation::calibrate() {
       if (!options_.keep_calibration_inputs && !solver_wrapping_calibration(scene_))
         std::vector<ConnectionClass>().swap(model_.connection_class);
     }
+    // Without k final there are no stencil segments, and ends stored as runs would cost a lookup a read: arrays.
+    if (!model_.table.typed() && !model_.end_a.plain())
+      model_.end_a.assign(model_.end_a.values()), model_.end_b.assign(model_.end_b.values());
     // A refresher (angles-update) took what it reads when it was made; a solver-wrapping method reads the inputs
     // at every update.
     if (!options_.keep_calibration_inputs && !solver_wrapping_calibration(scene_)) inputs_ = CalibrationInputs();

@@ -113,10 +113,20 @@ void stencil_forces(int first, int count, int directions, const int* offset, con
 }  // namespace
 
 SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
-  if (!model.typed()) return;  // k may still change (calibration): nothing cached
   const int nc = model.connections();
-  const int* a = model.end_a.data();
-  const int* b = model.end_b.data();
+  const ConnectionEnd& a = model.end_a;  // indexed as arrays; runs (ConnectionEnd) give the same values
+  const ConnectionEnd& b = model.end_b;
+  // Ends stored as runs: the generic connections [c0, c1) get arrays of their own; returns where they start.
+  auto keep_generic = [&](int c0, int c1) {
+    const int at = static_cast<int>(generic_a_.size());
+    if (a.plain()) return at;
+    for (int c = c0; c < c1; ++c) generic_a_.push_back(a[c]), generic_b_.push_back(b[c]);
+    return at;
+  };
+  if (!model.typed()) {  // k may still change (calibration): nothing cached, every connection generic
+    tail_at_ = keep_generic(0, nc);
+    return;
+  }
   const ConnectionColumn kc = model.table.stiffness_column(), lc = model.table.rest_length_column();
   const std::uint16_t* type = kc.type;  // typed: k and l0 share the connection type
   // Runs of the same end a; consecutive runs of consecutive molecules with one pattern form a segment.
@@ -184,12 +194,14 @@ SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
       std::sort(scatter_.begin() + start, scatter_.end(),
                 [&](int s, int t) { return offsets_[start + s] > offsets_[start + t]; });
     }
-    segments_.push_back({c, a[c], molecules, pattern, reach_of(generic_begin, c)});
+    segments_.push_back({c, a[c], molecules, pattern, reach_of(generic_begin, c), keep_generic(generic_begin, c)});
     structured_ += static_cast<long>(molecules) * len;
     c = next;
     generic_begin = c;
   }
   tail_reach_ = reach_of(generic_begin, nc);
+  tail_at_ = keep_generic(generic_begin, nc);
+  generic_a_.shrink_to_fit(), generic_b_.shrink_to_fit();
 }
 
 void SpringKernel::zero_ahead(double* f, int& zeroed, int reach) const {
@@ -204,17 +216,25 @@ void SpringKernel::forces(const double* x, double* f) const {
   // The ghost rows (scratch, few) now; the owned rows just ahead of their first write (zero_ahead).
   std::fill(f + 3 * static_cast<std::size_t>(m.owned), f + 3 * static_cast<std::size_t>(m.local), 0.0);
   int zeroed = 0;
-  const int* a = m.end_a.data();
-  const int* b = m.end_b.data();
   // Each of k and l0 is per connection or by type (partition/connection_table.hpp).
   const ConnectionColumn kc = m.table.stiffness_column(), lc = m.table.rest_length_column();
   const std::uint16_t *ktype = kc.type, *ltype = lc.type;
   const double *ks = kc.value, *ls = lc.value;
+  // Generic connections [c0, c1): from the model's arrays, or (ends stored as runs) from this kernel's copies of
+  // their ends starting at `at`, the same connections in the same order.
+  auto generic = [&](int c0, int c1, int at) {
+    if (m.end_a.plain()) {
+      generic_forces(c0, c1, m.end_a.data(), m.end_b.data(), ktype, ltype, ks, ls, x, f);
+      return;
+    }
+    generic_forces(0, c1 - c0, generic_a_.data() + at, generic_b_.data() + at, ktype ? ktype + c0 : nullptr,
+                   ltype ? ltype + c0 : nullptr, ktype ? ks : ks + c0, ltype ? ls : ls + c0, x, f);
+  };
   int c = 0;
   for (const Segment& seg : segments_) {
     if (c < seg.first_connection) {
       zero_ahead(f, zeroed, seg.generic_reach);
-      generic_forces(c, seg.first_connection, a, b, ktype, ltype, ks, ls, x, f);
+      generic(c, seg.first_connection, seg.generic_at);
     }
     const int p = seg.pattern, start = pattern_start_[p];
     stencil_forces(seg.first_molecule, seg.molecules, directions_[p], offsets_.data() + start,
@@ -223,7 +243,7 @@ void SpringKernel::forces(const double* x, double* f) const {
   }
   if (c < m.connections()) {
     zero_ahead(f, zeroed, tail_reach_);
-    generic_forces(c, m.connections(), a, b, ktype, ltype, ks, ls, x, f);
+    generic(c, m.connections(), tail_at_);
   }
   zero_ahead(f, zeroed, m.owned);
 }

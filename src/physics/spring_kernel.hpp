@@ -31,6 +31,7 @@ private:
     int first_connection, first_molecule, molecules;  // molecules [first_molecule, + molecules), local indices
     int pattern;                                      // index into offsets_ / types_ (directions_ entries each)
     int generic_reach;  // the generic connections before it: 1 + the highest owned molecule they write
+    int generic_at;     // ends stored as runs (ConnectionEnd): where those connections' ends start in generic_a_
   };
   // Zeroes f's owned rows [zeroed, reach) (reach clamped to the owned molecules) and advances `zeroed`.
   void zero_ahead(double* f, int& zeroed, int reach) const;
@@ -46,6 +47,10 @@ private:
   // The generic connections after the last segment, as generic_reach (untyped models: all of them, all rows).
   int tail_reach_ = std::numeric_limits<int>::max();
   long structured_ = 0;
+  // Ends stored as runs (partition/local_model.hpp's ConnectionEnd has no array to point at): the generic
+  // connections' ends, in connection order (a lattice's row ends: about 2 % of the connections).
+  std::vector<int> generic_a_, generic_b_;
+  int tail_at_ = 0;
 };
 
 }  // namespace tissue

@@ -276,12 +276,20 @@ SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
       exceptions_.push_back({a[c] + i, bits});
     }
     segments_.push_back({c, next - c, a[c], molecules, id, reach_of(generic_begin, c), first_exception,
-                         static_cast<int>(exceptions_.size()) - first_exception});
+                         static_cast<int>(exceptions_.size()) - first_exception, 0});
     structured_ += next - c;
     c = next;
     generic_begin = c;
   }
   tail_reach_ = reach_of(generic_begin, nc);
+  // Each segment's `later`: the lowest row any connection after it touches.
+  int lowest = std::numeric_limits<int>::max(), c = nc;
+  for (auto seg = segments_.rbegin(); seg != segments_.rend(); ++seg) {
+    for (const int end = seg->first_connection + seg->connections; c > end; --c)
+      lowest = std::min({lowest, a[c - 1], b[c - 1]});
+    seg->later = lowest;
+    c = seg->first_connection;
+  }
 }
 
 void SpringKernel::zero_ahead(double* f, int& zeroed, int reach) const {
@@ -291,7 +299,7 @@ void SpringKernel::zero_ahead(double* f, int& zeroed, int reach) const {
   zeroed = reach;
 }
 
-void SpringKernel::forces(const double* x, double* f) const {
+void SpringKernel::forces(const double* x, double* f, FinalRows final_rows, void* context) const {
   const LocalModel& m = model_;
   // The ghost rows (scratch, few) now; the owned rows just ahead of their first write (zero_ahead).
   std::fill(f + 3 * static_cast<std::size_t>(m.owned), f + 3 * static_cast<std::size_t>(m.local), 0.0);
@@ -302,17 +310,40 @@ void SpringKernel::forces(const double* x, double* f) const {
   const ConnectionColumn kc = m.table.stiffness_column(), lc = m.table.rest_length_column();
   const std::uint16_t *ktype = kc.type, *ltype = lc.type;
   const double *ks = kc.value, *ls = lc.value;
+  // Owned rows below `done` went to final_rows; rows below `below` are final (no connection still to come
+  // touches them).
+  int done = 0;
+  auto finish = [&](int below) {
+    below = std::min(below, m.owned);
+    if (!final_rows || below <= done) return;
+    zero_ahead(f, zeroed, below);  // rows no connection touches are final too: zero
+    final_rows(context, done, below);
+    done = below;
+  };
+  // With final_rows, a segment goes in chunks so that a chunk's rows are handed over while still in cache (a
+  // row is final once the sweep passed it as end a: it is end b only of lower ends a). The chunks keep the
+  // blocks of kStencilBlock molecules, and no block boundary changes a bit anyway.
+  constexpr int kChunk = 16 * kStencilBlock;
   int c = 0;
   for (const Segment& seg : segments_) {
     if (c < seg.first_connection) {
       zero_ahead(f, zeroed, seg.generic_reach);
       generic_forces(c, seg.first_connection, a, b, ktype, ltype, ks, ls, x, f);
+      finish(std::min(seg.first_molecule, seg.later));
     }
     const int p = seg.pattern, start = pattern_start_[p];
-    stencil_forces(seg.first_molecule, seg.molecules, directions_[p], offsets_.data() + start,
-                   scatter_.data() + start, k_.data() + start, l0_.data() + start,
-                   exceptions_.data() + seg.first_exception,
-                   seg.exceptions, x, f, m.owned, reach_[p], &zeroed);
+    const StencilException* exceptions = exceptions_.data() + seg.first_exception;
+    const int chunk = final_rows ? kChunk : seg.molecules;
+    for (int m0 = 0, e0 = 0; m0 < seg.molecules; m0 += chunk) {
+      const int count = std::min(chunk, seg.molecules - m0), end = seg.first_molecule + m0 + count;
+      int e1 = e0;
+      while (e1 < seg.exceptions && exceptions[e1].molecule < end) ++e1;
+      stencil_forces(seg.first_molecule + m0, count, directions_[p], offsets_.data() + start, scatter_.data() + start,
+                     k_.data() + start, l0_.data() + start, exceptions + e0, e1 - e0, x, f, m.owned, reach_[p],
+                     &zeroed);
+      e0 = e1;
+      finish(std::min(end, seg.later));
+    }
     c = seg.first_connection + seg.connections;
   }
   if (c < m.connections()) {
@@ -320,6 +351,7 @@ void SpringKernel::forces(const double* x, double* f) const {
     generic_forces(c, m.connections(), a, b, ktype, ltype, ks, ls, x, f);
   }
   zero_ahead(f, zeroed, m.owned);
+  finish(m.owned);
 }
 
 }  // namespace tissue

@@ -30,8 +30,13 @@ class SpringKernel {
 public:
   // Finds the stencil segments when the model's connections are typed (k, l0 final); otherwise all generic.
   explicit SpringKernel(const LocalModel& model);
+  // Called with owned rows [begin, end) whose forces are final (no connection still to come touches them), in
+  // increasing order, each row once, [0, owned) in all, during forces(): the caller may change those rows of
+  // x (and anything else) as soon as it is called.
+  using FinalRows = void (*)(void* context, int begin, int end);
   // f: 3 * local values, zeroed here; the forces on ghosts are partial (scratch).
-  void forces(const double* x, double* f) const;
+  void forces(const double* x, double* f) const { forces(x, f, nullptr, nullptr); }
+  void forces(const double* x, double* f, FinalRows final_rows, void* context) const;
   // Connections handled by stencil segments (the rest go through the generic form).
   long structured_connections() const { return structured_; }
 
@@ -42,6 +47,7 @@ private:
     int pattern;                                      // index into offsets_ / types_ (directions_ entries each)
     int generic_reach;  // the generic connections before it: 1 + the highest owned molecule they write
     int first_exception, exceptions;  // its molecules that lack directions: exceptions_[first, + exceptions)
+    int later;                        // the lowest row a connection after it touches
   };
   // Zeroes f's owned rows [zeroed, reach) (reach clamped to the owned molecules) and advances `zeroed`.
   void zero_ahead(double* f, int& zeroed, int reach) const;

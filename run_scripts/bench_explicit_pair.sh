@@ -9,7 +9,7 @@
 # faster). Speed claims go through this script, never through tests.
 #
 # How to run (from the repository root):
-#   BINS="old=../integ3/build/tissue new=build/tissue" REPEAT=3 bash run_scripts/bench_explicit_pair.sh
+#   BINS="old=<old build>/tissue new=build/tissue" REPEAT=3 bash run_scripts/bench_explicit_pair.sh
 # Knobs (environment): BINS ("label=path ..."; the first is the reference), REPEAT (default 3), N (default 100),
 # WORK (default /tmp/tissue_bench_explicit_pair), PYTHON (default /usr/bin/python3).
 set -euo pipefail

@@ -82,7 +82,9 @@ public:
   const std::vector<AppliedForce>& applied() const { return applied_; }
   double applied_norm() const { return applied_norm_; }             // global 2-norm of loads + gravity
   double largest_stiffness_rate() const;
-  const SpringKernel& kernel() const { return kernel_; }  // max over molecules of 2 sum k / m (Gershgorin bound of omega^2)
+  const SpringKernel& kernel() const { return kernel_; }
+  // Whether forces() is the connection forces alone (no load, term or held component).
+  bool springs_only() const { return applied_.empty() && terms_.empty() && held_owned_.empty(); }  // max over molecules of 2 sum k / m (Gershgorin bound of omega^2)
 
   // Time of the next force evaluation (s): time-dependent terms (cyclic loads) and the loads' histories read it.
   // The dynamic and quasi-static solvers set it.

@@ -61,21 +61,51 @@ void generic_forces(int begin_c, int end_c, const int* a, const int* b, const st
 
 constexpr int kMaxDirections = 32, kStencilBlock = 64;
 
+// One direction of a stencil block: the springs from molecules a0 .. a0 + n - 1 to a0 + offset; their forces go
+// into end b's rows at once and into g for end a's sum. Masked: a spring whose keep[i] is 0 gives +0.0 (a select,
+// not a product: the separation of two unconnected molecules may have any length), and f - 0 = f, s + 0 = s bit
+// for bit (neither sum is ever -0.0: both start at +0.0).
+template <bool kMasked>
+__attribute__((always_inline)) inline void stencil_direction(int n, const double* __restrict xa,
+                                                             const double* __restrict xb, double* __restrict fb,
+                                                             double ks, double ls, const double* __restrict keep,
+                                                             double* __restrict g0, double* __restrict g1,
+                                                             double* __restrict g2) {
+  for (int i = 0; i < n; ++i) {
+    const double d0 = xb[3 * i] - xa[3 * i], d1 = xb[3 * i + 1] - xa[3 * i + 1], d2 = xb[3 * i + 2] - xa[3 * i + 2];
+    const double len = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
+    const double sc = ks * (len - ls) / len;
+    double e0 = sc * d0, e1 = sc * d1, e2 = sc * d2;
+    if constexpr (kMasked) {
+      const bool on = keep[i] != 0.0;
+      e0 = on ? e0 : 0.0, e1 = on ? e1 : 0.0, e2 = on ? e2 : 0.0;
+    }
+    fb[3 * i] -= e0, fb[3 * i + 1] -= e1, fb[3 * i + 2] -= e2;
+    g0[i] = e0, g1[i] = e1, g2[i] = e2;
+  }
+}
+
 // A stencil segment: molecules first .. first + count - 1, each with `directions` forward connections to the
-// molecule `offset[s]` further on (every offset > 0), of constants k[s], l0[s]. `scatter` lists the directions
-// by decreasing offset: within a block of molecules, a molecule that receives forces from two directions then
-// gets them from the lower end a first, as the generic kernel (the connection order) adds them. Each molecule's
-// own sum runs over its directions in connection order, and is added after every force it receives as end b
-// from the block (all from lower ends a: offsets are positive), again as the generic kernel does.
+// molecule `offset[s]` further on (every offset > 0), of constants k[s], l0[s], except the molecules listed in
+// `exceptions` (by molecule), which have only the directions of their `present` bits. `scatter` lists the
+// directions by decreasing offset: within a block of molecules, a molecule that receives forces from two
+// directions then gets them from the lower end a first, as the generic kernel (the connection order) adds them.
+// Each molecule's own sum runs over its directions in connection order, and is added after every force it
+// receives as end b from the block (all from lower ends a: offsets are positive), again as the generic kernel
+// does. A missing direction adds +0.0 in both places, which changes no bit.
 //
 // f's owned rows are zeroed just ahead of the block that first writes them (`zeroed`: rows below it are zeroed;
 // a block writes rows up to a0 + n - 1 + max_offset): a row then comes to the kernel from the cache, written
 // back once, instead of a separate pass over memory before the kernel (docs/benchmarks.md).
 TISSUE_CLONES
 void stencil_forces(int first, int count, int directions, const int* offset, const int* scatter, const double* k,
-                    const double* l0, const double* __restrict x, double* __restrict f, int owned, int max_offset,
-                    int* zeroed) {
+                    const double* l0, const StencilException* exceptions, int n_exceptions,
+                    const double* __restrict x, double* __restrict f, int owned, int max_offset, int* zeroed) {
   alignas(64) double g[kMaxDirections][3][kStencilBlock];
+  // keep[s][i]: 1 where molecule a0 + i has direction s; 0 only for the exceptions of the current block.
+  alignas(64) double keep[kMaxDirections][kStencilBlock];
+  for (int s = 0; s < directions; ++s) std::fill(keep[s], keep[s] + kStencilBlock, 1.0);
+  int next_exception = 0;
   for (int a0 = first; a0 < first + count; a0 += kStencilBlock) {
     const int n = std::min(kStencilBlock, first + count - a0);
     const int reach = std::min(owned, a0 + n + max_offset);
@@ -83,24 +113,24 @@ void stencil_forces(int first, int count, int directions, const int* offset, con
       std::fill(f + 3 * static_cast<std::size_t>(*zeroed), f + 3 * static_cast<std::size_t>(reach), 0.0);
       *zeroed = reach;
     }
+    const int e0 = next_exception;
+    while (next_exception < n_exceptions && exceptions[next_exception].molecule < a0 + n) ++next_exception;
+    const bool masked = next_exception > e0;
+    for (int e = e0; e < next_exception; ++e)
+      for (int s = 0; s < directions; ++s)
+        if (!(exceptions[e].present >> s & 1u)) keep[s][exceptions[e].molecule - a0] = 0.0;
     const double* __restrict xa = x + 3 * a0;
     for (int q = 0; q < directions; ++q) {
       const int s = scatter[q];
-      const double* __restrict xb = x + 3 * (a0 + offset[s]);
-      double* __restrict fb = f + 3 * (a0 + offset[s]);
-      double* __restrict g0 = g[s][0];
-      double* __restrict g1 = g[s][1];
-      double* __restrict g2 = g[s][2];
-      const double ks = k[s], ls = l0[s];
-      for (int i = 0; i < n; ++i) {
-        const double d0 = xb[3 * i] - xa[3 * i], d1 = xb[3 * i + 1] - xa[3 * i + 1], d2 = xb[3 * i + 2] - xa[3 * i + 2];
-        const double len = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
-        const double sc = ks * (len - ls) / len;
-        const double e0 = sc * d0, e1 = sc * d1, e2 = sc * d2;
-        fb[3 * i] -= e0, fb[3 * i + 1] -= e1, fb[3 * i + 2] -= e2;
-        g0[i] = e0, g1[i] = e1, g2[i] = e2;
-      }
+      const double* xb = x + 3 * (a0 + offset[s]);
+      double* fb = f + 3 * (a0 + offset[s]);
+      if (masked)
+        stencil_direction<true>(n, xa, xb, fb, k[s], l0[s], keep[s], g[s][0], g[s][1], g[s][2]);
+      else
+        stencil_direction<false>(n, xa, xb, fb, k[s], l0[s], keep[s], g[s][0], g[s][1], g[s][2]);
     }
+    for (int e = e0; e < next_exception; ++e)
+      for (int s = 0; s < directions; ++s) keep[s][exceptions[e].molecule - a0] = 1.0;
     // Each molecule's sum over its directions in order, vectorized across molecules.
     alignas(64) double s0[kStencilBlock] = {}, s1[kStencilBlock] = {}, s2[kStencilBlock] = {};
     for (int s = 0; s < directions; ++s)
@@ -129,25 +159,21 @@ SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
   }
   const ConnectionColumn kc = model.table.stiffness_column(), lc = model.table.rest_length_column();
   const std::uint16_t* type = kc.type;  // typed: k and l0 share the connection type
-  // Runs of the same end a; consecutive runs of consecutive molecules with one pattern form a segment.
   auto run_end = [&](int c) {
     int e = c + 1;
     while (e < nc && a[e] == a[c]) ++e;
     return e;
   };
-  auto same_pattern = [&](int c, int d, int len) {
-    for (int s = 0; s < len; ++s)
-      if (a[d + s] != a[d] || b[c + s] - a[c] != b[d + s] - a[d] || type[c + s] != type[d + s]) return false;
-    return true;
-  };
-  auto usable = [&](int c, int len) {
-    if (len > kMaxDirections) return false;
-    for (int s = 0; s < len; ++s)
-      if (b[c + s] <= a[c]) return false;
+  // A run of one end a fits a stencil when its offsets are positive and increasing (the connection order is
+  // by end b): then a pattern is a sorted list of (offset, type), and a run's directions a sub-list of it.
+  auto usable = [&](int c, int e) {
+    if (e - c > kMaxDirections || b[c] <= a[c]) return false;
+    for (int t = c + 1; t < e; ++t)
+      if (b[t] <= b[t - 1]) return false;
     return true;
   };
   // The owned rows of f that generic connections [c0, c1) write: below the returned index.
-  const int owned = model.owned;
+  const int owned = model.owned, local = model.local;
   auto reach_of = [&](int c0, int c1) {
     int reach = 0;
     for (int c = c0; c < c1; ++c) {
@@ -156,52 +182,127 @@ SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
     }
     return reach;
   };
+  struct Direction {
+    int offset;
+    std::uint16_t type;
+  };
+  // The union of `pattern` and run [c, e) (both by increasing offset) into `merged`; false where one offset has
+  // two types (two materials meet: the segment ends there).
+  auto merge = [&](const std::vector<Direction>& pattern, int c, int e, std::vector<Direction>& merged) {
+    merged.clear();
+    std::size_t p = 0;
+    for (int t = c; t < e; ++t) {
+      const int off = b[t] - a[t];
+      for (; p < pattern.size() && pattern[p].offset < off; ++p) merged.push_back(pattern[p]);
+      if (p < pattern.size() && pattern[p].offset == off) {
+        if (pattern[p].type != type[t]) return false;
+        ++p;
+      }
+      merged.push_back({off, type[t]});
+    }
+    for (; p < pattern.size(); ++p) merged.push_back(pattern[p]);
+    return static_cast<int>(merged.size()) <= kMaxDirections;
+  };
   int generic_begin = 0;
   constexpr int kShortest = 4;  // shorter runs of molecules stay generic
+  std::vector<Direction> pattern, merged;
+  std::vector<std::pair<int, int>> members;  // per molecule of the segment: its run [first, end) (empty: none)
   for (int c = 0; c < nc;) {
-    const int e = run_end(c), len = e - c;
-    int molecules = 1, next = e;
-    if (usable(c, len))
-      while (next < nc && a[next] == a[c] + molecules && next + len <= nc && same_pattern(c, next, len) &&
-             (next + len == nc || a[next + len] != a[next])) {
-        ++molecules;
-        next += len;
+    const int e = run_end(c);
+    if (!usable(c, e)) {
+      c = e;
+      continue;
+    }
+    pattern.clear();
+    for (int t = c; t < e; ++t) pattern.push_back({b[t] - a[t], type[t]});
+    if (a[c] + pattern.back().offset >= local) {
+      c = e;
+      continue;
+    }
+    members.assign(1, {c, e});
+    // Extend over the next molecules while their runs fit the pattern (growing it by union), every stream stays
+    // inside the local arrays (the missing directions are read and written too: + 0.0), and at most a quarter
+    // of the segment's direction slots are missing ones (a row end's or a face's, not an irregular mesh's).
+    int next = e, molecules = 1;
+    long present = e - c;
+    for (;;) {
+      const int m = a[c] + molecules;
+      int run_first = next, run_last = next;
+      if (next < nc && a[next] == m) {
+        run_last = run_end(next);
+        if (!usable(next, run_last)) break;
+      } else if (next < nc && a[next] < m) {
+        break;
       }
+      if (!merge(pattern, run_first, run_last, merged) || merged.empty()) break;
+      if (m + merged.back().offset >= local) break;
+      const long slots = static_cast<long>(molecules + 1) * static_cast<long>(merged.size());
+      if (4 * (slots - present - (run_last - run_first)) > slots) break;
+      pattern.swap(merged);
+      members.push_back({run_first, run_last});
+      present += run_last - run_first;
+      next = run_last;
+      ++molecules;
+    }
+    // Trailing molecules without connections only cost time.
+    while (molecules > 1 && members.back().first == members.back().second) members.pop_back(), --molecules;
     if (molecules < kShortest) {
       c = e;
       continue;
     }
-    // A new pattern, or the last one again (a lattice's rows repeat theirs).
-    int pattern = static_cast<int>(directions_.size());
+    next = members.back().second;
+    const int len = static_cast<int>(pattern.size());
+    // A new pattern, or the last one again (a lattice's planes repeat theirs).
+    int id = static_cast<int>(directions_.size());
     if (!segments_.empty()) {
-      const Segment& last = segments_.back();
-      const int p = last.pattern;
+      const int p = segments_.back().pattern;
       bool same = directions_[p] == len;
       for (int s = 0; same && s < len; ++s)
-        same = offsets_[pattern_start_[p] + s] == b[c + s] - a[c] && types_[pattern_start_[p] + s] == type[c + s];
-      if (same) pattern = p;
+        same = offsets_[pattern_start_[p] + s] == pattern[s].offset && types_[pattern_start_[p] + s] == pattern[s].type;
+      if (same) id = p;
     }
-    if (pattern == static_cast<int>(directions_.size())) {
+    if (id == static_cast<int>(directions_.size())) {
       const int start = static_cast<int>(offsets_.size());
       pattern_start_.push_back(start);
       directions_.push_back(len);
       for (int s = 0; s < len; ++s) {
-        offsets_.push_back(b[c + s] - a[c]), types_.push_back(type[c + s]);
-        k_.push_back(kc.value[type[c + s]]), l0_.push_back(lc.value[type[c + s]]);
+        offsets_.push_back(pattern[s].offset), types_.push_back(pattern[s].type);
+        k_.push_back(kc.value[pattern[s].type]), l0_.push_back(lc.value[pattern[s].type]);
         scatter_.push_back(s);
       }
-      reach_.push_back(*std::max_element(offsets_.begin() + start, offsets_.end()));
+      reach_.push_back(pattern.back().offset);
       std::sort(scatter_.begin() + start, scatter_.end(),
                 [&](int s, int t) { return offsets_[start + s] > offsets_[start + t]; });
     }
-    segments_.push_back({c, a[c], molecules, pattern, reach_of(generic_begin, c), keep_generic(generic_begin, c)});
-    structured_ += static_cast<long>(molecules) * len;
+    const int first_exception = static_cast<int>(exceptions_.size());
+    for (int i = 0; i < molecules; ++i) {
+      const auto [r0, r1] = members[i];
+      if (r1 - r0 == len) continue;
+      std::uint32_t bits = 0;
+      for (int t = r0, s = 0; t < r1; ++t) {
+        while (pattern[s].offset != b[t] - a[t]) ++s;
+        bits |= 1u << s;
+      }
+      exceptions_.push_back({a[c] + i, bits});
+    }
+    segments_.push_back({c, next - c, a[c], molecules, id, reach_of(generic_begin, c),
+                         keep_generic(generic_begin, c), first_exception,
+                         static_cast<int>(exceptions_.size()) - first_exception, 0});
+    structured_ += next - c;
     c = next;
     generic_begin = c;
   }
   tail_reach_ = reach_of(generic_begin, nc);
   tail_at_ = keep_generic(generic_begin, nc);
   generic_a_.shrink_to_fit(), generic_b_.shrink_to_fit();
+  // Each segment's `later`: the lowest row any connection after it touches.
+  int lowest = std::numeric_limits<int>::max(), c = nc;
+  for (auto seg = segments_.rbegin(); seg != segments_.rend(); ++seg) {
+    for (const int end = seg->first_connection + seg->connections; c > end; --c)
+      lowest = std::min({lowest, a[c - 1], b[c - 1]});
+    seg->later = lowest;
+    c = seg->first_connection;
+  }
 }
 
 void SpringKernel::zero_ahead(double* f, int& zeroed, int reach) const {
@@ -211,7 +312,7 @@ void SpringKernel::zero_ahead(double* f, int& zeroed, int reach) const {
   zeroed = reach;
 }
 
-void SpringKernel::forces(const double* x, double* f) const {
+void SpringKernel::forces(const double* x, double* f, FinalRows final_rows, void* context) const {
   const LocalModel& m = model_;
   // The ghost rows (scratch, few) now; the owned rows just ahead of their first write (zero_ahead).
   std::fill(f + 3 * static_cast<std::size_t>(m.owned), f + 3 * static_cast<std::size_t>(m.local), 0.0);
@@ -230,22 +331,48 @@ void SpringKernel::forces(const double* x, double* f) const {
     generic_forces(0, c1 - c0, generic_a_.data() + at, generic_b_.data() + at, ktype ? ktype + c0 : nullptr,
                    ltype ? ltype + c0 : nullptr, ktype ? ks : ks + c0, ltype ? ls : ls + c0, x, f);
   };
+  // Owned rows below `done` went to final_rows; rows below `below` are final (no connection still to come
+  // touches them).
+  int done = 0;
+  auto finish = [&](int below) {
+    below = std::min(below, m.owned);
+    if (!final_rows || below <= done) return;
+    zero_ahead(f, zeroed, below);  // rows no connection touches are final too: zero
+    final_rows(context, done, below);
+    done = below;
+  };
+  // With final_rows, a segment goes in chunks so that a chunk's rows are handed over while still in cache (a
+  // row is final once the sweep passed it as end a: it is end b only of lower ends a). The chunks keep the
+  // blocks of kStencilBlock molecules, and no block boundary changes a bit anyway.
+  constexpr int kChunk = 16 * kStencilBlock;
   int c = 0;
   for (const Segment& seg : segments_) {
     if (c < seg.first_connection) {
       zero_ahead(f, zeroed, seg.generic_reach);
       generic(c, seg.first_connection, seg.generic_at);
+      finish(std::min(seg.first_molecule, seg.later));
     }
     const int p = seg.pattern, start = pattern_start_[p];
-    stencil_forces(seg.first_molecule, seg.molecules, directions_[p], offsets_.data() + start,
-                   scatter_.data() + start, k_.data() + start, l0_.data() + start, x, f, m.owned, reach_[p], &zeroed);
-    c = seg.first_connection + seg.molecules * directions_[p];
+    const StencilException* exceptions = exceptions_.data() + seg.first_exception;
+    const int chunk = final_rows ? kChunk : seg.molecules;
+    for (int m0 = 0, e0 = 0; m0 < seg.molecules; m0 += chunk) {
+      const int count = std::min(chunk, seg.molecules - m0), end = seg.first_molecule + m0 + count;
+      int e1 = e0;
+      while (e1 < seg.exceptions && exceptions[e1].molecule < end) ++e1;
+      stencil_forces(seg.first_molecule + m0, count, directions_[p], offsets_.data() + start, scatter_.data() + start,
+                     k_.data() + start, l0_.data() + start, exceptions + e0, e1 - e0, x, f, m.owned, reach_[p],
+                     &zeroed);
+      e0 = e1;
+      finish(std::min(end, seg.later));
+    }
+    c = seg.first_connection + seg.connections;
   }
   if (c < m.connections()) {
     zero_ahead(f, zeroed, tail_reach_);
     generic(c, m.connections(), tail_at_);
   }
   zero_ahead(f, zeroed, m.owned);
+  finish(m.owned);
 }
 
 }  // namespace tissue

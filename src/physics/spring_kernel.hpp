@@ -2,9 +2,12 @@
 // forms that give bit-identical forces:
 //   - generic: any connection list (gather, vectorized sqrt and division, scatter; blocks of 256);
 //   - stencil segments: runs of consecutive local molecules whose forward connections all follow one pattern
-//     (the same local offsets end b - end a and the same connection types), as a lattice's interior rows do on
-//     any partition. There end b is end a plus a fixed offset, so each direction is a contiguous stream with no
+//     (the same local offsets end b - end a and the same connection types), as a lattice's rows do on any
+//     partition. There end b is end a plus a fixed offset, so each direction is a contiguous stream with no
 //     index arrays and k, l0 are constants: the compiler vectorizes it (AVX2 / AVX-512 clones, picked at run time).
+//     A molecule that lacks some of the pattern's directions (a box's row ends, faces and edges) stays in the
+//     segment as an exception: its missing directions give a force of +0.0, which leaves every sum's bits as
+//     they are, so a segment spans whole planes of a box instead of a row between two row ends.
 // Both sum every molecule's force in the same order (connections on it as end b by increasing end a, then the
 // sum of its own forward connections by increasing end b: the order of the global connection list), with no
 // fused multiply-add, so forces do not depend on which form ran, nor on the partition.
@@ -17,21 +20,35 @@
 
 namespace tissue {
 
+// A stencil segment's molecule that lacks some of the pattern's directions.
+struct StencilException {
+  int molecule;
+  std::uint32_t present;  // bit s: the molecule has the pattern's direction s
+};
+
 class SpringKernel {
 public:
   // Finds the stencil segments when the model's connections are typed (k, l0 final); otherwise all generic.
   explicit SpringKernel(const LocalModel& model);
+  // Called with owned rows [begin, end) whose forces are final (no connection still to come touches them), in
+  // increasing order, each row once, [0, owned) in all, during forces(): the caller may change those rows of
+  // x (and anything else) as soon as it is called.
+  using FinalRows = void (*)(void* context, int begin, int end);
   // f: 3 * local values, zeroed here; the forces on ghosts are partial (scratch).
-  void forces(const double* x, double* f) const;
+  void forces(const double* x, double* f) const { forces(x, f, nullptr, nullptr); }
+  void forces(const double* x, double* f, FinalRows final_rows, void* context) const;
   // Connections handled by stencil segments (the rest go through the generic form).
   long structured_connections() const { return structured_; }
 
 private:
   struct Segment {
-    int first_connection, first_molecule, molecules;  // molecules [first_molecule, + molecules), local indices
+    int first_connection, connections;                // its connections [first_connection, + connections)
+    int first_molecule, molecules;                    // molecules [first_molecule, + molecules), local indices
     int pattern;                                      // index into offsets_ / types_ (directions_ entries each)
     int generic_reach;  // the generic connections before it: 1 + the highest owned molecule they write
     int generic_at;     // ends stored as runs (ConnectionEnd): where those connections' ends start in generic_a_
+    int first_exception, exceptions;  // its molecules that lack directions: exceptions_[first, + exceptions)
+    int later;                        // the lowest row a connection after it touches
   };
   // Zeroes f's owned rows [zeroed, reach) (reach clamped to the owned molecules) and advances `zeroed`.
   void zero_ahead(double* f, int& zeroed, int reach) const;
@@ -44,6 +61,7 @@ private:
   std::vector<int> directions_;           // per pattern: forward connections per molecule
   std::vector<int> pattern_start_;        // per pattern: start in offsets_ / types_
   std::vector<int> reach_;                // per pattern: its largest offset
+  std::vector<StencilException> exceptions_;     // per segment, by molecule
   // The generic connections after the last segment, as generic_reach (untyped models: all of them, all rows).
   int tail_reach_ = std::numeric_limits<int>::max();
   long structured_ = 0;

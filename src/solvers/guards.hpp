@@ -53,6 +53,7 @@ public:
   [[noreturn]] void fail(const std::string& problem, std::int64_t molecule);
 
   double kinetic_energy() const { return kinetic_; }
+  bool enabled() const { return enabled_; }  // false: -tissue_guards false
   long checks() const { return checks_; }  // full checks made so far (energy and/or lengths)
   double seconds() const { return seconds_; }  // wall time spent inside the guard's calls so far
   long last_good_step() const { return good_step_; }

@@ -341,7 +341,11 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
   PetscCall(PetscOptionsHasName(nullptr, nullptr, "-pc_type", &user_pc));
   PetscInt mg_levels = 1;
   LatticeLevels hierarchy;
-  if (!user_pc) PetscCall(setup_lattice_mg(model, forces.held(), pc, 1000, &mg_levels, &hierarchy));
+  // The matrix-free solve's coarse operators are summed from the lattice (not PCMG's products), so its finest
+  // interpolation can be a shell (lattice_interpolation.hpp: about 115 B a molecule less); made again as a matrix
+  // if the matrix-free tangent does not apply (use_matrix_free).
+  if (!user_pc)
+    PetscCall(setup_lattice_mg(model, forces.held(), pc, 1000, &mg_levels, &hierarchy, want_matrix_free));
   lattice_mg = mg_levels > 1;
   PetscBool user_lag = PETSC_FALSE;
   PetscCall(PetscOptionsHasName(nullptr, nullptr, "-snes_lag_preconditioner", &user_lag));
@@ -440,7 +444,6 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
     reuse.active = (lattice_mg || gamg_reuse) && !user_lag;
     if (reuse.active) PetscCall(SNESMonitorSet(snes, watch_reuse, &reuse, nullptr));
   }
-  PetscCall(VecDuplicate(X, &saved));
   PetscFunctionReturn(0);
 }
 
@@ -484,6 +487,11 @@ PetscErrorCode NewtonEquilibrium::Impl::use_matrix_free(bool user_pc, bool user_
     if (!user_smoother) galerkin->keep_level_one_as_stencil();
     PetscCall(PetscOptionsGetReal(nullptr, nullptr, "-static_chebyshev_fraction", &ctx.chebyshev_fraction, nullptr));
   } else {
+    if (lattice_mg) {  // PCMG's Galerkin products (or the assembled LatticeGalerkin's check) need an AIJ interpolation
+      PetscInt levels = 1;
+      PetscCall(PCSetType(pc, PCNONE));
+      PetscCall(setup_lattice_mg(model, forces.held(), pc, 1000, &levels, nullptr, false));
+    }
     report.note += "solver.operator = matrix-free not used: " + why + ". ";
     PetscCall(PetscPrintf(model.comm, "%s: solver.operator = \"matrix-free\" does not apply (%s): using the "
                                       "assembled tangent\n", kind.c_str(), why.c_str()));
@@ -498,10 +506,24 @@ PetscErrorCode NewtonEquilibrium::Impl::solve(long steps) {
   double done = 0.0, increment = 1.0 / steps;
   int cutbacks = 0;
   bool retried = false;
+  // The state an increment that fails goes back to. A solve that starts from the rest positions (a static
+  // solve's first load step) goes back to model.rest and keeps no copy until an increment has converged: 24 B a
+  // molecule less at the solve's peak when the load is applied in one step. Decided on each rank alone (its
+  // own memory).
+  bool from_rest = false;
+  {
+    const PetscScalar* xs;
+    PetscCall(VecGetArrayRead(X, &xs));
+    from_rest = std::equal(xs, xs + 3 * model.owned, model.rest.begin());
+    PetscCall(VecRestoreArrayRead(X, &xs));
+  }
   while (done < 1.0 - 1e-12) {
     double target = std::min(1.0, done + increment);
     ctx.load_factor = target;
-    PetscCall(VecCopy(X, saved));
+    if (!from_rest) {
+      if (!saved) PetscCall(VecDuplicate(X, &saved));
+      PetscCall(VecCopy(X, saved));
+    }
     // Agreed (partition/agreement.hpp): a callback's failure on one rank, or SNESSolve's own error return on one
     // rank, is the same one-line error on every rank here, before the fall-backs below decide anything.
     const PetscErrorCode solved = SNESSolve(snes, nullptr, X);
@@ -519,6 +541,7 @@ PetscErrorCode NewtonEquilibrium::Impl::solve(long steps) {
     if (reason > 0) {
       done = target;
       retried = false;
+      from_rest = false;
       PetscReal norm;
       PetscCall(SNESGetFunctionNorm(snes, &norm));
       report.residual_history.push_back(norm / reference);
@@ -529,7 +552,14 @@ PetscErrorCode NewtonEquilibrium::Impl::solve(long steps) {
       }
       continue;
     }
-    PetscCall(VecCopy(saved, X));
+    if (from_rest) {
+      PetscScalar* xs;
+      PetscCall(VecGetArray(X, &xs));
+      std::copy(model.rest.begin(), model.rest.begin() + 3 * model.owned, xs);
+      PetscCall(VecRestoreArray(X, &xs));
+    } else {
+      PetscCall(VecCopy(saved, X));
+    }
     KSPConvergedReason kreason;
     PetscCall(KSPGetConvergedReason(ksp, &kreason));
     if (!switched && (kreason == KSP_DIVERGED_INDEFINITE_MAT || kreason == KSP_DIVERGED_INDEFINITE_PC)) {

@@ -277,6 +277,7 @@ struct NewtonEquilibrium::Impl {
         own_reference(own_reference),
         ctx{&model, &forces, &state, 1.0, &hooks} {}
   ~Impl() {
+    restore_velocities();
     // Nothing can be reported from here: the objects are released whatever the errors.
     if (set_ptap) PetscOptionsClearValue(nullptr, "-matptap_via");
     VecDestroy(&saved);
@@ -314,6 +315,20 @@ struct NewtonEquilibrium::Impl {
   double reference = 1.0, tolerance = 0.0;
   Reuse reuse;
   bool record = false;  // record_load_steps()
+  bool record_pending = false;  // the last load step's row, written by finish() once the solve's memory is gone
+  // release_velocities(): the state's velocities (all zero, read by no term) are freed while the solve's memory is
+  // alive and given back, zero, before anything reads them (the history's rows, the final check, a failure).
+  bool release_v = false, v_released = false;
+  void drop_velocities() {
+    if (!release_v || v_released || forces.reads_velocity()) return;
+    if (std::any_of(state.v.begin(), state.v.end(), [](double v) { return v != 0.0; })) return;
+    std::vector<double>().swap(state.v);
+    v_released = true;
+  }
+  void restore_velocities() {
+    if (v_released) state.v.assign(3 * static_cast<std::size_t>(model.owned), 0.0);
+    v_released = false;
+  }
 };
 
 PetscErrorCode NewtonEquilibrium::Impl::setup() {
@@ -467,7 +482,9 @@ PetscErrorCode NewtonEquilibrium::Impl::use_matrix_free(bool user_pc, bool user_
     if (!stencil) why = "a term couples molecules beyond the lattice stencil (contact)";
   }
   if (why.empty()) {
-    shell = std::make_unique<MatrixFreeTangent>(model, forces);
+    // The products' input lives in state.f: every residual evaluation writes the forces whole before reading
+    // them, and SNES ends on one (docs/benchmarks.md).
+    shell = std::make_unique<MatrixFreeTangent>(model, forces, state.f.data());
     PetscCall(shell->create(&J));
     ctx.shell = shell.get();
     ctx.galerkin = galerkin.get();
@@ -511,6 +528,7 @@ PetscErrorCode NewtonEquilibrium::Impl::solve(long steps) {
   // molecule less at the solve's peak when the load is applied in one step. Decided on each rank alone (its
   // own memory).
   bool from_rest = false;
+  drop_velocities();
   {
     const PetscScalar* xs;
     PetscCall(VecGetArrayRead(X, &xs));
@@ -547,8 +565,16 @@ PetscErrorCode NewtonEquilibrium::Impl::solve(long steps) {
       report.residual_history.push_back(norm / reference);
       state.load_factor = done;
       if (record && ctx.hooks->record) {  // history.csv: the load step's equilibrium
+        if (done >= 1.0 - 1e-12) {
+          // The last one after the solve's memory is released (finish()): its measurement allocates (the
+          // velocities given back, the reactions' scratch, 48 B a molecule), and here that was the run's peak.
+          record_pending = true;
+          continue;
+        }
         PetscCall(load_positions(&ctx, X));
+        restore_velocities();
         ctx.hooks->record(state);
+        drop_velocities();
       }
       continue;
     }
@@ -613,6 +639,7 @@ PetscErrorCode NewtonEquilibrium::Impl::solve(long steps) {
       // The last converged load step is the last good state (main() writes it as last_good.h5); the molecule
       // named is the one with the largest unbalanced force there under the load Newton could not reach.
       PetscCall(load_positions(&ctx, X));
+      restore_velocities();  // the last good state goes out whole
       forces.forces(state.x.array(), state.v.data(), state.f.data(), target);
       const std::int64_t worst = largest_force_molecule(model, state.f.data());
       const std::string where = describe_molecule(model, state.x.array(), worst);
@@ -642,6 +669,11 @@ PetscErrorCode NewtonEquilibrium::Impl::finish() {
   PetscCall(VecDestroy(&saved));
   ctx.galerkin = nullptr;
   galerkin.reset();
+  restore_velocities();
+  if (std::exchange(record_pending, false)) {
+    PetscCall(load_positions(&ctx, X));
+    ctx.hooks->record(state);
+  }
   // The final state and its residual, in the common definition.
   ctx.load_factor = 1.0;
   Vec R;
@@ -671,8 +703,20 @@ NewtonEquilibrium::NewtonEquilibrium(const Scene& scene, const LocalModel& model
 NewtonEquilibrium::~NewtonEquilibrium() = default;
 
 void NewtonEquilibrium::solve(long load_steps) {
-  if (impl_->solve(std::max(1L, load_steps))) throw SolverFailure(impl_->kind + ": a PETSc call failed");
+  PetscErrorCode failed = 0;
+  try {
+    failed = impl_->solve(std::max(1L, load_steps));
+  } catch (...) {
+    impl_->restore_velocities();
+    throw;
+  }
+  if (failed) {
+    impl_->restore_velocities();
+    throw SolverFailure(impl_->kind + ": a PETSc call failed");
+  }
 }
+
+void NewtonEquilibrium::release_velocities() { impl_->release_v = true; }
 
 void NewtonEquilibrium::finish() {
   if (impl_->finish() || impl_->clear_ptap()) throw SolverFailure(impl_->kind + ": a PETSc call failed");

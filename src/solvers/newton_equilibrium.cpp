@@ -7,6 +7,7 @@
 // -ksp_type gmres -pc_type hypre -snes_monitor -log_view). Large loads are applied in load increments, and an
 // increment that fails is cut in half (up to 8 times). A tangent found indefinite (compressed springs) switches
 // the Krylov method to GMRES, with a message.
+#include <petsc/private/kspimpl.h>  // the finest smoother's work vectors, lent to the line search
 #include <petscsnes.h>
 
 #include <algorithm>
@@ -156,6 +157,41 @@ PetscErrorCode before_newton_step(SNES snes, PetscInt step) {
     PetscCall(SNESGetKSP(snes, &ksp));
     PetscCall(KSPSetTolerances(ksp, rtol, PETSC_DEFAULT, PETSC_DEFAULT, 10000));
   }
+  PetscFunctionReturn(0);
+}
+
+// The matrix-free solve's line search works in two of the finest Chebyshev smoother's work vectors instead of two
+// of its own (48 B a molecule): the smoother uses them only inside the linear solve, the line search only after
+// it (its trial positions and their residual; its slope's product J Y also goes to the first). Lent once, after
+// the first linear solve (KSP post-solve: the smoother exists then, the line search has not yet made its own);
+// the line search holds a reference, so they outlive a smoother rebuilt or replaced (the GAMG fall-back).
+PetscErrorCode lend_smoother_vectors(KSP ksp, Vec, Vec, void* p) {
+  PetscFunctionBeginUser;
+  auto* snes = static_cast<SNES*>(p);
+  if (!*snes) PetscFunctionReturn(0);
+  SNESLineSearch line_search;
+  Vec W = nullptr, G = nullptr;
+  PetscCall(SNESGetLineSearch(*snes, &line_search));
+  PetscCall(SNESLineSearchGetVecs(line_search, nullptr, nullptr, nullptr, &W, &G));
+  PC pc;
+  PetscBool mg = PETSC_FALSE, chebyshev = PETSC_FALSE;
+  PetscCall(KSPGetPC(ksp, &pc));
+  PetscCall(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(pc), PCMG, &mg));
+  if (W || G || !mg) {
+    *snes = nullptr;  // once
+    PetscFunctionReturn(0);
+  }
+  PetscInt levels;
+  KSP smoother;
+  PetscCall(PCMGGetLevels(pc, &levels));
+  PetscCall(PCMGGetSmoother(pc, levels - 1, &smoother));
+  PetscCall(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(smoother), KSPCHEBYSHEV, &chebyshev));
+  if (chebyshev && smoother->nwork >= 2) {
+    PetscCall(PetscObjectReference(reinterpret_cast<PetscObject>(smoother->work[0])));
+    PetscCall(PetscObjectReference(reinterpret_cast<PetscObject>(smoother->work[1])));
+    PetscCall(SNESLineSearchSetVecs(line_search, nullptr, nullptr, nullptr, smoother->work[0], smoother->work[1]));
+  }
+  *snes = nullptr;
   PetscFunctionReturn(0);
 }
 
@@ -315,7 +351,8 @@ struct NewtonEquilibrium::Impl {
   double reference = 1.0, tolerance = 0.0;
   Reuse reuse;
   bool record = false;  // record_load_steps()
-  bool record_pending = false;  // the last load step's row, written by finish() once the solve's memory is gone
+  bool record_pending = false;
+  SNES lend_to = nullptr;  // lend_smoother_vectors: the SNES whose line search borrows, until it has  // the last load step's row, written by finish() once the solve's memory is gone
   // release_velocities(): the state's velocities (all zero, read by no term) are freed while the solve's memory is
   // alive and given back, zero, before anything reads them (the history's rows, the final check, a failure).
   bool release_v = false, v_released = false;
@@ -499,6 +536,8 @@ PetscErrorCode NewtonEquilibrium::Impl::use_matrix_free(bool user_pc, bool user_
       user_smoother = user_smoother || has ? PETSC_TRUE : PETSC_FALSE;
     }
     ctx.gershgorin = !user_smoother;
+    lend_to = snes;
+    PetscCall(KSPSetPostSolve(ksp, lend_smoother_vectors, &lend_to));
     // Level 1 as a shell over its stencil rows (no CSR copy: docs/benchmarks.md), unless the user's smoother
     // options may need its entries (SOR, ILU, ...).
     if (!user_smoother) galerkin->keep_level_one_as_stencil();

@@ -6,7 +6,11 @@
 #include <algorithm>
 #include <array>
 #include <cstdlib>
+#include <cstring>
 #include <unordered_map>
+
+#include <sys/mman.h>  // madvise: the halved level-1 rows' pages
+#include <unistd.h>    // sysconf
 
 #include "partition/exchange.hpp"
 
@@ -113,8 +117,8 @@ struct LatticeGalerkin::Numbers {
 // symmetric, A_ji = A_ij^T), and per owned coarse node where its unknowns and each present slot's neighbour's
 // are in the input: 8 * offset + free mask, offsets into [owned unknowns | the ghost values the scatter brings].
 struct LatticeGalerkin::StencilOperator {
-  Rows rows;                    // the whole rows, until halve_level_one
-  std::vector<double> upper;    // per owned coarse node: the blocks of slots kHalf0 .. kSlots - 1 (diagonal first)
+  Rows rows;                    // the whole rows; once halved (halve_level_one) row r's blocks of slots kHalf0 ..
+                                // kSlots - 1 (the diagonal's first) are rows.a's blocks r * kHalf ...
   std::vector<PetscInt> first;  // per owned coarse node: 8 * its first unknown (local) + its free mask
   std::vector<PetscInt> col;    // per owned coarse node and slot (upper slots once halved): 8 * offset + mask of
                                 // the neighbour; -1: no block
@@ -716,7 +720,7 @@ PetscErrorCode LatticeGalerkin::update(Mat fine, const Stream* stream, PC pc) {
   // Level 1 as a shell over its rows only without a fine matrix (the assembled path keeps its CSR, unchanged) and
   // where it is not the coarsest level (PCMG factors that one).
   if (stencil_level_one_ && stream && L >= 3 && !level_one_) level_one_ = std::make_unique<StencilOperator>();
-  if (level_one_) level_one_->rows = Rows(), level_one_->upper = {};  // the last rows go before the new ones
+  if (level_one_) level_one_->rows = Rows();  // the last rows go before the new ones are summed
   Rows stencil, next;
   const Rows* prev = nullptr;
   for (int l = 0; l + 1 < L; ++l) {
@@ -812,22 +816,29 @@ PetscErrorCode LatticeGalerkin::stencil_operator(const Numbers& num, const Rows&
   PetscFunctionReturn(0);
 }
 
-// Level 1's rows halved: the upper slots' blocks (the diagonal's first) of every owned coarse node kept, the whole
-// rows freed (243 -> 126 B a fine molecule). Each coupling between two nodes is then kept once, by the owner of
-// the node it is an upper slot of; stencil_mult applies it and its transpose.
+// Level 1's rows halved: the upper slots' blocks (the diagonal's first) of every row kept (243 -> 126 B a fine
+// molecule). Each coupling between two nodes is then kept once, by the owner of the node it is an upper slot of;
+// stencil_mult applies it and its transpose.
 void LatticeGalerkin::halve_level_one() {
   StencilOperator& op = *level_one_;
   const std::size_t nodes = op.first.size();
   std::vector<PetscInt> col(kHalf * nodes, -1);
-  op.upper.assign(kHalf * kBlock * nodes, 0.0);
-  for (std::size_t c = 0; c < nodes; ++c) {
-    if (!(op.first[c] % 8)) continue;
-    const double* blk = op.rows.block(op.rows.row[c], kHalf0);
-    std::copy(blk, blk + kHalf * kBlock, op.upper.begin() + kHalf * kBlock * c);
-    std::copy_n(op.col.begin() + kSlots * c + kHalf0, kHalf, col.begin() + kHalf * c);
-  }
+  for (std::size_t c = 0; c < nodes; ++c)
+    if (op.first[c] % 8) std::copy_n(op.col.begin() + kSlots * c + kHalf0, kHalf, col.begin() + kHalf * c);
   op.col = std::move(col);
-  op.rows = Rows();
+  // In place, row by row in order (row r's upper half moves to r * kHalf blocks, never past a row not yet moved),
+  // so that no second copy of the rows exists even for a moment (with one, this was the solve's peak), and the
+  // pages behind the halved rows go back to the system (the vector keeps its size and never reads them again).
+  double* a = op.rows.a.data();
+  const std::size_t rows = op.rows.id.size();
+  for (std::size_t r = 0; r < rows; ++r)
+    std::memmove(a + r * kHalf * kBlock, a + (r * kSlots + kHalf0) * kBlock, sizeof(double) * kHalf * kBlock);
+  const std::uintptr_t page = static_cast<std::uintptr_t>(sysconf(_SC_PAGESIZE));
+  const auto from = (reinterpret_cast<std::uintptr_t>(a + rows * kHalf * kBlock) + page - 1) / page * page;
+  const auto to = reinterpret_cast<std::uintptr_t>(a + op.rows.a.size()) / page * page;
+  if (to > from + (1u << 20)) (void)madvise(reinterpret_cast<void*>(from), to - from, MADV_DONTNEED);
+  op.rows.index = {};
+  op.rows.present = {};
 }
 
 // y = A u over the halved rows: each kept block A_ij adds A_ij u_j to row i and A_ij^T u_i to row j, whose
@@ -850,7 +861,7 @@ PetscErrorCode LatticeGalerkin::stencil_mult(Mat A, Vec in, Vec out) {
   for (std::size_t c = 0; c < op->first.size(); ++c) {
     const int mask = static_cast<int>(op->first[c] % 8);
     if (!mask) continue;
-    const double* blk = op->upper.data() + kHalf * kBlock * c;
+    const double* blk = op->rows.a.data() + kHalf * kBlock * op->rows.row[c];
     const PetscInt* col = op->col.data() + kHalf * c;
     PetscScalar* to = y + op->first[c] / 8;
     double ui[3];
@@ -890,7 +901,7 @@ PetscErrorCode LatticeGalerkin::stencil_diagonal(Mat A, Vec d) {
   for (std::size_t c = 0; c < op->first.size(); ++c) {
     const int mask = static_cast<int>(op->first[c] % 8);
     if (!mask) continue;
-    const double* blk = op->upper.data() + kHalf * kBlock * c;  // the diagonal block leads
+    const double* blk = op->rows.a.data() + kHalf * kBlock * op->rows.row[c];  // the diagonal block leads
     PetscScalar* to = y + op->first[c] / 8;
     for (int k = 0, q = 0; k < 3; ++k)
       if (mask >> k & 1) to[q++] = blk[4 * k];

@@ -6,6 +6,8 @@
 //    assembled matrix (LatticeGalerkin::update both ways), to round-off;
 //  - the finest level's Gershgorin bound from the block stream (ForceModel::jacobi_gershgorin) equals the
 //    assembled matrix's row sums, and is refused (not exact) when a term adds blocks;
+//  - the finest interpolation as a shell (lattice_interpolation.hpp) applies the AIJ one's products, transposed
+//    products and products added in place or not, to round-off;
 //  - a static tension test gives the same displacements and elongation as the assembled solve, to the
 //    solve's tolerance, with the Newton and Krylov counts printed.
 // Run at 1, 2 and 3 ranks: ghosts of the shell's input and coarse rows owned elsewhere travel.
@@ -18,6 +20,7 @@
 
 #include "src/physics/force_model.hpp"
 #include "src/solvers/lattice_galerkin.hpp"
+#include "src/solvers/lattice_interpolation.hpp"
 #include "src/solvers/lattice_mg.hpp"
 #include "src/solvers/matrix_free.hpp"
 #include "tests/pipeline.hpp"
@@ -286,7 +289,67 @@ void compare_gershgorin(const std::string& text, bool expect_exact) {
   MatDestroy(&A);
 }
 
+// A vector of P's column (coarse) or row (fine) layout with smooth values from the global index.
+Vec smooth_vector(Mat P, bool columns, double phase) {
+  Vec v;
+  if (columns) PetscCallAbort(PETSC_COMM_WORLD, MatCreateVecs(P, &v, nullptr));
+  else PetscCallAbort(PETSC_COMM_WORLD, MatCreateVecs(P, nullptr, &v));
+  PetscInt lo, hi;
+  PetscScalar* p;
+  VecGetOwnershipRange(v, &lo, &hi);
+  VecGetArray(v, &p);
+  for (PetscInt i = lo; i < hi; ++i) p[i - lo] = std::sin(0.37 * static_cast<double>(i) + phase);
+  VecRestoreArray(v, &p);
+  return v;
+}
+
+// The finest interpolation as a shell against setup_lattice_mg's AIJ matrix: P c, f + P c (in place and into
+// another vector: PCMG's MatInterpolateAdd) and P^T f (its restriction).
+void compare_interpolation(const std::string& text) {
+  auto r = run(text, PETSC_COMM_WORLD, {}, false);
+  PC by_matrix, by_shell;
+  PetscInt levels = 0, levels2 = 0;
+  ASSERT_EQ(PCCreate(PETSC_COMM_WORLD, &by_matrix), 0);
+  ASSERT_EQ(PCCreate(PETSC_COMM_WORLD, &by_shell), 0);
+  ASSERT_EQ(setup_lattice_mg(r->model, r->forces->held(), by_matrix, 40, &levels, nullptr, false), 0);
+  ASSERT_EQ(setup_lattice_mg(r->model, r->forces->held(), by_shell, 40, &levels2, nullptr, true), 0);
+  ASSERT_GE(levels, 3);
+  ASSERT_EQ(levels, levels2);
+  for (PetscInt l = 1; l < levels; ++l) {
+    Mat A, S;
+    ASSERT_EQ(PCMGGetInterpolation(by_matrix, l, &A), 0);
+    ASSERT_EQ(PCMGGetInterpolation(by_shell, l, &S), 0);
+    PetscBool shell = PETSC_FALSE;
+    PetscObjectTypeCompare(reinterpret_cast<PetscObject>(S), MATSHELL, &shell);
+    EXPECT_EQ(shell == PETSC_TRUE, l == levels - 1) << "only the finest interpolation is a shell";
+    if (!shell) continue;
+    Vec c = smooth_vector(A, true, 0.2), f = smooth_vector(A, false, 1.1), ya, ys, ys2, za, zs;
+    MatCreateVecs(A, nullptr, &ya), VecDuplicate(ya, &ys), VecDuplicate(ya, &ys2);
+    MatCreateVecs(A, &za, nullptr), VecDuplicate(za, &zs);
+    ASSERT_EQ(MatMult(A, c, ya), 0);
+    ASSERT_EQ(MatMult(S, c, ys), 0);
+    EXPECT_LT(norm_difference(ys, ya), 1e-14) << text << ": P c";
+    ASSERT_EQ(MatMultAdd(A, c, f, ya), 0);
+    ASSERT_EQ(MatMultAdd(S, c, f, ys), 0);
+    EXPECT_LT(norm_difference(ys, ya), 1e-14) << text << ": f + P c";
+    VecCopy(f, ys2);
+    ASSERT_EQ(MatMultAdd(S, c, ys2, ys2), 0);
+    EXPECT_LT(norm_difference(ys2, ya), 1e-14) << text << ": f + P c in place";
+    ASSERT_EQ(MatMultTranspose(A, f, za), 0);
+    ASSERT_EQ(MatMultTranspose(S, f, zs), 0);
+    EXPECT_LT(norm_difference(zs, za), 1e-14) << text << ": P^T f";
+    PetscReal size = 0;
+    VecNorm(za, NORM_2, &size);
+    EXPECT_GT(size, 0.0);
+    for (Vec* v : {&c, &f, &ya, &ys, &ys2, &za, &zs}) VecDestroy(v);
+  }
+  PCDestroy(&by_matrix), PCDestroy(&by_shell);
+}
+
 }  // namespace
+
+TEST(MatrixFree, InterpolationShellSprings) { compare_interpolation(springs); }
+TEST(MatrixFree, InterpolationShellCellTerm) { compare_interpolation(cells); }
 
 TEST(MatrixFree, GershgorinBoundSprings) { compare_gershgorin(springs, true); }
 TEST(MatrixFree, GershgorinBoundRefusedWithCellTerm) { compare_gershgorin(cells, false); }
@@ -339,4 +402,20 @@ TEST(MatrixFree, NotApplicableFallsBackWithANote) {
   EXPECT_NE(m->report.note.find("matrix-free not used"), std::string::npos) << m->report.note;
   ASSERT_TRUE(a->measured.elongation && m->measured.elongation);
   EXPECT_EQ(*m->measured.elongation, *a->measured.elongation);
+}
+
+// Where the lattice multigrid applies but the matrix-free tangent does not (-snes_lag_preconditioner: our reuse is
+// off), the finest interpolation is made again as a matrix for PCMG's products: the assembled solve's answer, bit
+// for bit.
+TEST(MatrixFree, LagGivenFallsBackToTheAssembledSolve) {
+  const std::string scene = springs + "[[load]]\nface = \"z+\"\nforce = [0.0, 0.0, 1.5]\n";
+  ASSERT_EQ(PetscOptionsSetValue(nullptr, "-snes_lag_preconditioner", "1"), 0);
+  auto a = run(scene, PETSC_COMM_WORLD, {"body.molecules=[14, 12, 16]"});
+  auto m = run(scene, PETSC_COMM_WORLD, {"body.molecules=[14, 12, 16]", "solver.operator=matrix-free"});
+  ASSERT_EQ(PetscOptionsClearValue(nullptr, "-snes_lag_preconditioner"), 0);
+  EXPECT_NE(m->report.note.find("matrix-free not used"), std::string::npos) << m->report.note;
+  ASSERT_TRUE(a->report.converged && m->report.converged);
+  ASSERT_TRUE(a->measured.elongation && m->measured.elongation);
+  EXPECT_EQ(*m->measured.elongation, *a->measured.elongation);
+  EXPECT_EQ(m->report.linear_iterations, a->report.linear_iterations);
 }

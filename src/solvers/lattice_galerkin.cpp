@@ -6,7 +6,11 @@
 #include <algorithm>
 #include <array>
 #include <cstdlib>
+#include <cstring>
 #include <unordered_map>
+
+#include <sys/mman.h>  // madvise: the halved level-1 rows' pages
+#include <unistd.h>    // sysconf
 
 #include "partition/exchange.hpp"
 
@@ -18,6 +22,8 @@ constexpr int kSlots = 27;  // a 27-point stencil: offsets -1, 0, 1 along each a
 constexpr int kBlock = 9;   // a 3x3 block, row-major
 
 constexpr int slot_of(int dx, int dy, int dz) { return (dx + 1) + 3 * (dy + 1) + 9 * (dz + 1); }
+// The diagonal slot, and the upper half of the stencil from it (slot 26 - s is the opposite neighbour of slot s).
+constexpr int kHalf0 = slot_of(0, 0, 0), kHalf = kSlots - kHalf0;
 
 // Box index t = x + 4 y + 16 z (0..3 each) as a slot offset: x + 3 y + 9 z, so that slot = shift + kBoxToSlot[t].
 constexpr std::array<int, 64> box_to_slot() {
@@ -107,17 +113,22 @@ struct LatticeGalerkin::Numbers {
 };
 
 // Level 1 behind a shell (keep_level_one_as_stencil): its masked rows as coarsen leaves them (27 blocks a node by
-// stencil slot), and per owned coarse node where its unknowns and each present slot's neighbour's are in the
-// input: 8 * offset + free mask, offsets into [owned unknowns | the ghost values the scatter brings].
+// stencil slot, while level 2 is summed from them), then only their upper half (halve_level_one: the operator is
+// symmetric, A_ji = A_ij^T), and per owned coarse node where its unknowns and each present slot's neighbour's
+// are in the input: 8 * offset + free mask, offsets into [owned unknowns | the ghost values the scatter brings].
 struct LatticeGalerkin::StencilOperator {
-  Rows rows;
+  Rows rows;                    // the whole rows; once halved (halve_level_one) row r's blocks of slots kHalf0 ..
+                                // kSlots - 1 (the diagonal's first) are rows.a's blocks r * kHalf ...
   std::vector<PetscInt> first;  // per owned coarse node: 8 * its first unknown (local) + its free mask
-  std::vector<PetscInt> col;    // per owned coarse node and slot: 8 * offset + mask of the neighbour; -1: no block
+  std::vector<PetscInt> col;    // per owned coarse node and slot (upper slots once halved): 8 * offset + mask of
+                                // the neighbour; -1: no block
   PetscInt n = 0;               // owned unknowns
-  Vec ghosts = nullptr;
+  Vec ghosts = nullptr;         // the neighbours' values owned elsewhere
+  Vec shares = nullptr;         // what the transposed blocks add to them (a product's reverse scatter)
   VecScatter scatter = nullptr;
   void release() {
     (void)VecDestroy(&ghosts);
+    (void)VecDestroy(&shares);
     (void)VecScatterDestroy(&scatter);
   }
   ~StencilOperator() { release(); }
@@ -725,6 +736,7 @@ PetscErrorCode LatticeGalerkin::update(Mat fine, const Stream* stream, PC pc) {
     PetscCall(PCMGGetSmoother(pc, L - 2 - l, &level));  // PCMG counts levels from the coarsest
     PetscCall(KSPSetOperators(level, coarse_[l + 1], coarse_[l + 1]));
   }
+  if (level_one_) halve_level_one();  // level 2 has been summed from the whole rows
   ijk_ = {};
   PetscCall(PetscLogEventEnd(galerkin_event(), pc, fine, 0, 0));
   PetscFunctionReturn(0);
@@ -786,6 +798,7 @@ PetscErrorCode LatticeGalerkin::stencil_operator(const Numbers& num, const Rows&
   PetscCall(VecCreateMPIWithArray(model_.comm, 1, n, PETSC_DETERMINE, nullptr, &layout));
   PetscCall(ISCreateGeneral(PETSC_COMM_SELF, static_cast<PetscInt>(gidx.size()), gidx.data(), PETSC_COPY_VALUES, &is));
   PetscCall(VecCreateSeq(PETSC_COMM_SELF, static_cast<PetscInt>(gidx.size()), &op.ghosts));
+  PetscCall(VecDuplicate(op.ghosts, &op.shares));
   PetscCall(VecScatterCreate(layout, is, op.ghosts, nullptr, &op.scatter));
   PetscCall(ISDestroy(&is));
   PetscCall(VecDestroy(&layout));
@@ -803,26 +816,58 @@ PetscErrorCode LatticeGalerkin::stencil_operator(const Numbers& num, const Rows&
   PetscFunctionReturn(0);
 }
 
+// Level 1's rows halved: the upper slots' blocks (the diagonal's first) of every row kept (243 -> 126 B a fine
+// molecule). Each coupling between two nodes is then kept once, by the owner of the node it is an upper slot of;
+// stencil_mult applies it and its transpose.
+void LatticeGalerkin::halve_level_one() {
+  StencilOperator& op = *level_one_;
+  const std::size_t nodes = op.first.size();
+  std::vector<PetscInt> col(kHalf * nodes, -1);
+  for (std::size_t c = 0; c < nodes; ++c)
+    if (op.first[c] % 8) std::copy_n(op.col.begin() + kSlots * c + kHalf0, kHalf, col.begin() + kHalf * c);
+  op.col = std::move(col);
+  // In place, row by row in order (row r's upper half moves to r * kHalf blocks, never past a row not yet moved),
+  // so that no second copy of the rows exists even for a moment (with one, this was the solve's peak), and the
+  // pages behind the halved rows go back to the system (the vector keeps its size and never reads them again).
+  double* a = op.rows.a.data();
+  const std::size_t rows = op.rows.id.size();
+  for (std::size_t r = 0; r < rows; ++r)
+    std::memmove(a + r * kHalf * kBlock, a + (r * kSlots + kHalf0) * kBlock, sizeof(double) * kHalf * kBlock);
+  const std::uintptr_t page = static_cast<std::uintptr_t>(sysconf(_SC_PAGESIZE));
+  const auto from = (reinterpret_cast<std::uintptr_t>(a + rows * kHalf * kBlock) + page - 1) / page * page;
+  const auto to = reinterpret_cast<std::uintptr_t>(a + op.rows.a.size()) / page * page;
+  if (to > from + (1u << 20)) (void)madvise(reinterpret_cast<void*>(from), to - from, MADV_DONTNEED);
+  op.rows.index = {};
+  op.rows.present = {};
+}
+
+// y = A u over the halved rows: each kept block A_ij adds A_ij u_j to row i and A_ij^T u_i to row j, whose
+// shares for nodes owned elsewhere go back to their owners through the reverse scatter.
 PetscErrorCode LatticeGalerkin::stencil_mult(Mat A, Vec in, Vec out) {
   PetscFunctionBeginUser;
   StencilOperator* op;
   PetscCall(MatShellGetContext(A, &op));
   PetscCall(VecScatterBegin(op->scatter, in, op->ghosts, INSERT_VALUES, SCATTER_FORWARD));
   PetscCall(VecScatterEnd(op->scatter, in, op->ghosts, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecZeroEntries(out));
+  PetscCall(VecZeroEntries(op->shares));
   const PetscScalar *u, *g;
-  PetscScalar* y;
+  PetscScalar *y, *h;
   PetscCall(VecGetArrayRead(in, &u));
   PetscCall(VecGetArrayRead(op->ghosts, &g));
   PetscCall(VecGetArray(out, &y));
-  const Rows& rows = op->rows;
+  PetscCall(VecGetArray(op->shares, &h));
   const PetscInt n = op->n;
   for (std::size_t c = 0; c < op->first.size(); ++c) {
     const int mask = static_cast<int>(op->first[c] % 8);
     if (!mask) continue;
-    const double* blk = rows.block(rows.row[c], 0);
-    const PetscInt* col = op->col.data() + kSlots * c;
+    const double* blk = op->rows.a.data() + kHalf * kBlock * op->rows.row[c];
+    const PetscInt* col = op->col.data() + kHalf * c;
+    PetscScalar* to = y + op->first[c] / 8;
+    double ui[3];
+    for (int m = 0, q = 0; m < 3; ++m) ui[m] = mask >> m & 1 ? u[op->first[c] / 8 + q++] : 0.0;
     double acc[3] = {0.0, 0.0, 0.0};
-    for (int s = 0; s < kSlots; ++s, blk += kBlock) {
+    for (int s = 0; s < kHalf; ++s, blk += kBlock) {
       if (col[s] < 0) continue;
       const int jm = static_cast<int>(col[s] % 8);
       const PetscInt at = col[s] / 8;
@@ -830,14 +875,20 @@ PetscErrorCode LatticeGalerkin::stencil_mult(Mat A, Vec in, Vec out) {
       double v[3];
       for (int m = 0, q = 0; m < 3; ++m) v[m] = jm >> m & 1 ? src[q++] : 0.0;
       for (int k = 0; k < 3; ++k) acc[k] += blk[3 * k] * v[0] + blk[3 * k + 1] * v[1] + blk[3 * k + 2] * v[2];
+      if (s == 0) continue;  // the diagonal block: once
+      PetscScalar* back = at < n ? y + at : h + (at - n);
+      for (int k = 0, q = 0; k < 3; ++k)
+        if (jm >> k & 1) back[q++] += blk[k] * ui[0] + blk[3 + k] * ui[1] + blk[6 + k] * ui[2];
     }
-    PetscScalar* to = y + op->first[c] / 8;
     for (int k = 0, q = 0; k < 3; ++k)
-      if (mask >> k & 1) to[q++] = acc[k];
+      if (mask >> k & 1) to[q++] += acc[k];
   }
+  PetscCall(VecRestoreArray(op->shares, &h));
   PetscCall(VecRestoreArray(out, &y));
   PetscCall(VecRestoreArrayRead(op->ghosts, &g));
   PetscCall(VecRestoreArrayRead(in, &u));
+  PetscCall(VecScatterBegin(op->scatter, op->shares, out, ADD_VALUES, SCATTER_REVERSE));
+  PetscCall(VecScatterEnd(op->scatter, op->shares, out, ADD_VALUES, SCATTER_REVERSE));
   PetscFunctionReturn(0);
 }
 
@@ -850,7 +901,7 @@ PetscErrorCode LatticeGalerkin::stencil_diagonal(Mat A, Vec d) {
   for (std::size_t c = 0; c < op->first.size(); ++c) {
     const int mask = static_cast<int>(op->first[c] % 8);
     if (!mask) continue;
-    const double* blk = op->rows.block(op->rows.row[c], slot_of(0, 0, 0));
+    const double* blk = op->rows.a.data() + kHalf * kBlock * op->rows.row[c];  // the diagonal block leads
     PetscScalar* to = y + op->first[c] / 8;
     for (int k = 0, q = 0; k < 3; ++k)
       if (mask >> k & 1) to[q++] = blk[4 * k];

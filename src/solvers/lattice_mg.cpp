@@ -7,6 +7,7 @@
 #include <numeric>
 
 #include "partition/exchange.hpp"
+#include "src/solvers/lattice_interpolation.hpp"
 
 namespace tissue {
 
@@ -104,7 +105,7 @@ PlaneWeights plane_weights(const std::vector<long>& coarse, long x) {
 }
 
 PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::uint8_t>& held, PC pc,
-                                long coarse_nodes, PetscInt* levels, LatticeLevels* hierarchy) {
+                                long coarse_nodes, PetscInt* levels, LatticeLevels* hierarchy, bool finest_as_shell) {
   PetscFunctionBeginUser;
   const Body& shape = model.shape;
   const int nb = shape.bodies();
@@ -216,46 +217,55 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
     };
 
     const PetscInt cfirst = first[l + 1], clast = first[l + 1] + count[l + 1];
-    std::vector<PetscInt> dnnz(count[l], 0), onnz(count[l], 0);
-    auto row_of = [&](std::size_t r, int k) -> PetscInt {
-      const int i = rows[r];
-      if (held[3 * i + k]) return -1;  // a held component takes no coarse correction
-      if (l == 0) return base[l][r] + k;
-      const int mask = free_mask(i);
-      return base[l][r] + __builtin_popcount(mask & ((1 << k) - 1));
-    };
-    for (std::size_t r = 0; r < rows.size(); ++r)
-      for (int k = 0; k < 3; ++k) {
-        const PetscInt row = row_of(r, k);
-        if (row < 0) continue;
-        for (int e = start[r]; e < start[r + 1]; ++e) {
-          const PetscInt c = column(answers[e], k);
-          if (c >= 0) (c >= cfirst && c < clast ? dnnz : onnz)[row - first[l]]++;
-        }
-      }
     Mat P;
-    PetscCall(MatCreate(model.comm, &P));
-    PetscCall(MatSetSizes(P, count[l], count[l + 1], PETSC_DETERMINE, PETSC_DETERMINE));
-    PetscCall(MatSetType(P, MATAIJ));
-    PetscCall(MatSeqAIJSetPreallocation(P, 0, dnnz.data()));
-    PetscCall(MatMPIAIJSetPreallocation(P, 0, dnnz.data(), 0, onnz.data()));
-    PetscCall(MatSetOption(P, MAT_NO_OFF_PROC_ENTRIES, PETSC_TRUE));
-    std::vector<PetscInt> cs;
-    std::vector<double> v;
-    for (std::size_t r = 0; r < rows.size(); ++r)
-      for (int k = 0; k < 3; ++k) {
-        const PetscInt row = row_of(r, k);
-        if (row < 0) continue;
-        cs.clear(), v.clear();
-        for (int e = start[r]; e < start[r + 1]; ++e) {
-          const PetscInt c = column(answers[e], k);
-          if (c >= 0) cs.push_back(c), v.push_back(entries[e].w);
+    if (l == 0 && finest_as_shell) {
+      std::vector<double> w(entries.size());
+      for (std::size_t e = 0; e < entries.size(); ++e) w[e] = entries[e].w;
+      std::vector<std::int64_t>().swap(asked);
+      std::vector<Entry>().swap(entries);
+      PetscCall(interpolation_shell(model.comm, held, static_cast<int>(rows.size()), start, w, answers, cfirst,
+                                    count[l + 1], &P));
+    } else {
+      std::vector<PetscInt> dnnz(count[l], 0), onnz(count[l], 0);
+      auto row_of = [&](std::size_t r, int k) -> PetscInt {
+        const int i = rows[r];
+        if (held[3 * i + k]) return -1;  // a held component takes no coarse correction
+        if (l == 0) return base[l][r] + k;
+        const int mask = free_mask(i);
+        return base[l][r] + __builtin_popcount(mask & ((1 << k) - 1));
+      };
+      for (std::size_t r = 0; r < rows.size(); ++r)
+        for (int k = 0; k < 3; ++k) {
+          const PetscInt row = row_of(r, k);
+          if (row < 0) continue;
+          for (int e = start[r]; e < start[r + 1]; ++e) {
+            const PetscInt c = column(answers[e], k);
+            if (c >= 0) (c >= cfirst && c < clast ? dnnz : onnz)[row - first[l]]++;
+          }
         }
-        if (!cs.empty())
-          PetscCall(MatSetValues(P, 1, &row, static_cast<PetscInt>(cs.size()), cs.data(), v.data(), INSERT_VALUES));
-      }
-    PetscCall(MatAssemblyBegin(P, MAT_FINAL_ASSEMBLY));
-    PetscCall(MatAssemblyEnd(P, MAT_FINAL_ASSEMBLY));
+      PetscCall(MatCreate(model.comm, &P));
+      PetscCall(MatSetSizes(P, count[l], count[l + 1], PETSC_DETERMINE, PETSC_DETERMINE));
+      PetscCall(MatSetType(P, MATAIJ));
+      PetscCall(MatSeqAIJSetPreallocation(P, 0, dnnz.data()));
+      PetscCall(MatMPIAIJSetPreallocation(P, 0, dnnz.data(), 0, onnz.data()));
+      PetscCall(MatSetOption(P, MAT_NO_OFF_PROC_ENTRIES, PETSC_TRUE));
+      std::vector<PetscInt> cs;
+      std::vector<double> v;
+      for (std::size_t r = 0; r < rows.size(); ++r)
+        for (int k = 0; k < 3; ++k) {
+          const PetscInt row = row_of(r, k);
+          if (row < 0) continue;
+          cs.clear(), v.clear();
+          for (int e = start[r]; e < start[r + 1]; ++e) {
+            const PetscInt c = column(answers[e], k);
+            if (c >= 0) cs.push_back(c), v.push_back(entries[e].w);
+          }
+          if (!cs.empty())
+            PetscCall(MatSetValues(P, 1, &row, static_cast<PetscInt>(cs.size()), cs.data(), v.data(), INSERT_VALUES));
+        }
+      PetscCall(MatAssemblyBegin(P, MAT_FINAL_ASSEMBLY));
+      PetscCall(MatAssemblyEnd(P, MAT_FINAL_ASSEMBLY));
+    }
     interp[l] = P;
     // A coarse unknown that no fine one interpolates from would make the coarse operator singular.
     Vec ones, sums;

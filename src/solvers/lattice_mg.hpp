@@ -39,9 +39,12 @@ PlaneWeights plane_weights(const std::vector<long>& coarse, long x);
 // Collective. Makes pc a PCMG with the lattice hierarchy (coarsest level at most about coarse_nodes molecules,
 // solved by PCMG's default redundant LU), Galerkin coarse operators. levels = number of levels built (1: the
 // lattice is already that small, or a body is a mesh or random cloud, and pc is left untouched). hierarchy, when
-// given and levels > 1, receives the levels' planes and numbering.
+// given and levels > 1, receives the levels' planes and numbering. finest_as_shell: the finest interpolation is a
+// shell (lattice_interpolation.hpp: no AIJ matrix), for coarse operators that are not PCMG's Galerkin products
+// (the matrix-free solve's; the caller sets PC_MG_GALERKIN_NONE and the operators).
 PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::uint8_t>& held, PC pc,
-                                long coarse_nodes, PetscInt* levels, LatticeLevels* hierarchy = nullptr);
+                                long coarse_nodes, PetscInt* levels, LatticeLevels* hierarchy = nullptr,
+                                bool finest_as_shell = false);
 
 // A level's Chebyshev smoother estimates its eigenvalue interval as [0.1, 1.1] x the largest eigenvalue a short CG
 // run finds (what setup_lattice_mg sets on every level; the matrix-free finest level may set bounds instead).

@@ -6,14 +6,22 @@
 
 namespace tissue {
 
-MatrixFreeTangent::MatrixFreeTangent(const LocalModel& model, const ForceModel& forces)
-    : model_(model), forces_(forces), x_(model.rest.data()), in_(model), cached_(forces.has_cached_tangent()) {}
+MatrixFreeTangent::MatrixFreeTangent(const LocalModel& model, const ForceModel& forces, double* scratch)
+    : model_(model), forces_(forces), x_(model.rest.data()), cached_(forces.has_cached_tangent()) {
+  if (!scratch) own_.assign(3 * static_cast<std::size_t>(model.local), 0.0);
+  w_ = scratch ? scratch : own_.data();
+}
 
-MatrixFreeTangent::~MatrixFreeTangent() = default;
+MatrixFreeTangent::~MatrixFreeTangent() { (void)VecDestroy(&in_); }
 
 PetscErrorCode MatrixFreeTangent::create(Mat* J) {
   PetscFunctionBeginUser;
   const PetscInt n = 3 * model_.owned;
+  if (!in_) {
+    const std::vector<PetscInt> ghosts(model_.block.begin() + model_.owned, model_.block.end());
+    PetscCall(VecCreateGhostBlockWithArray(model_.comm, 3, n, PETSC_DECIDE, static_cast<PetscInt>(ghosts.size()),
+                                           ghosts.data(), w_, &in_));
+  }
   PetscCall(MatCreateShell(model_.comm, n, n, PETSC_DETERMINE, PETSC_DETERMINE, this, J));
   PetscCall(MatShellSetOperation(*J, MATOP_MULT, reinterpret_cast<void (*)(void)>(mult)));
   PetscCall(MatShellSetOperation(*J, MATOP_MULT_TRANSPOSE, reinterpret_cast<void (*)(void)>(mult)));
@@ -63,16 +71,13 @@ PetscErrorCode MatrixFreeTangent::mult(Mat J, Vec in, Vec out) {
   PetscCall(MatShellGetContext(J, &self));
   const PetscScalar* u;
   PetscCall(VecGetArrayRead(in, &u));
-  std::memcpy(self->in_.array(), u, sizeof(double) * 3 * self->model_.owned);
+  std::memcpy(self->w_, u, sizeof(double) * 3 * self->model_.owned);
   PetscCall(VecRestoreArrayRead(in, &u));
-  try {
-    self->in_.update_ghosts();
-  } catch (const std::exception& e) {
-    SETERRQ(PETSC_COMM_SELF, PETSC_ERR_LIB, "%s", e.what());
-  }
+  PetscCall(VecGhostUpdateBegin(self->in_, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecGhostUpdateEnd(self->in_, INSERT_VALUES, SCATTER_FORWARD));
   PetscScalar* y;
   PetscCall(VecGetArray(out, &y));
-  double* w = self->in_.array();
+  double* w = self->w_;
   PetscCall(self->forces_.apply_tangent(self->x_, w, y, self->cached_));
   if (self->cached_) {
     // Held rows and columns of the cached blocks are zero: the identity rows apply_tangent wrote stay.

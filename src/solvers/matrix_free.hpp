@@ -11,7 +11,6 @@
 
 #include <vector>
 
-#include "partition/ghosted_vector.hpp"
 #include "partition/local_model.hpp"
 #include "src/physics/force_model.hpp"
 
@@ -19,7 +18,10 @@ namespace tissue {
 
 class MatrixFreeTangent {
 public:
-  MatrixFreeTangent(const LocalModel& model, const ForceModel& forces);
+  // scratch (optional): 3 * model.local doubles that nothing reads across a product (the Newton solve's force
+  // array: each residual evaluation writes it whole before reading it), used as the products' ghosted input
+  // instead of an array of the shell's own (24 B a molecule).
+  MatrixFreeTangent(const LocalModel& model, const ForceModel& forces, double* scratch = nullptr);
   ~MatrixFreeTangent();
   MatrixFreeTangent(const MatrixFreeTangent&) = delete;
   MatrixFreeTangent& operator=(const MatrixFreeTangent&) = delete;
@@ -41,7 +43,9 @@ private:
   const LocalModel& model_;
   const ForceModel& forces_;
   const double* x_;
-  GhostedVector in_;  // the input with its ghosts
+  std::vector<double> own_;  // the input's storage when no scratch is given
+  Vec in_ = nullptr;         // the input with its ghosts (a ghosted vector over scratch or own_)
+  double* w_ = nullptr;      // its array
   // The terms' blocks at x_ (empty without a term worth caching): per owned molecule up to kSlots columns (local
   // molecule; -1 ends the row) and their 3x3 blocks, duplicates summed, held rows and columns zero.
   static constexpr int kSlots = 27;

@@ -7,6 +7,7 @@
 // -ksp_type gmres -pc_type hypre -snes_monitor -log_view). Large loads are applied in load increments, and an
 // increment that fails is cut in half (up to 8 times). A tangent found indefinite (compressed springs) switches
 // the Krylov method to GMRES, with a message.
+#include <petsc/private/kspimpl.h>  // the finest smoother's work vectors, lent to the line search
 #include <petscsnes.h>
 
 #include <algorithm>
@@ -159,6 +160,41 @@ PetscErrorCode before_newton_step(SNES snes, PetscInt step) {
   PetscFunctionReturn(0);
 }
 
+// The matrix-free solve's line search works in two of the finest Chebyshev smoother's work vectors instead of two
+// of its own (48 B a molecule): the smoother uses them only inside the linear solve, the line search only after
+// it (its trial positions and their residual; its slope's product J Y also goes to the first). Lent once, after
+// the first linear solve (KSP post-solve: the smoother exists then, the line search has not yet made its own);
+// the line search holds a reference, so they outlive a smoother rebuilt or replaced (the GAMG fall-back).
+PetscErrorCode lend_smoother_vectors(KSP ksp, Vec, Vec, void* p) {
+  PetscFunctionBeginUser;
+  auto* snes = static_cast<SNES*>(p);
+  if (!*snes) PetscFunctionReturn(0);
+  SNESLineSearch line_search;
+  Vec W = nullptr, G = nullptr;
+  PetscCall(SNESGetLineSearch(*snes, &line_search));
+  PetscCall(SNESLineSearchGetVecs(line_search, nullptr, nullptr, nullptr, &W, &G));
+  PC pc;
+  PetscBool mg = PETSC_FALSE, chebyshev = PETSC_FALSE;
+  PetscCall(KSPGetPC(ksp, &pc));
+  PetscCall(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(pc), PCMG, &mg));
+  if (W || G || !mg) {
+    *snes = nullptr;  // once
+    PetscFunctionReturn(0);
+  }
+  PetscInt levels;
+  KSP smoother;
+  PetscCall(PCMGGetLevels(pc, &levels));
+  PetscCall(PCMGGetSmoother(pc, levels - 1, &smoother));
+  PetscCall(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(smoother), KSPCHEBYSHEV, &chebyshev));
+  if (chebyshev && smoother->nwork >= 2) {
+    PetscCall(PetscObjectReference(reinterpret_cast<PetscObject>(smoother->work[0])));
+    PetscCall(PetscObjectReference(reinterpret_cast<PetscObject>(smoother->work[1])));
+    PetscCall(SNESLineSearchSetVecs(line_search, nullptr, nullptr, nullptr, smoother->work[0], smoother->work[1]));
+  }
+  *snes = nullptr;
+  PetscFunctionReturn(0);
+}
+
 // The preconditioner is rebuilt after this tangent exactly when the lag is -2 (see Reuse); pc: SNES's.
 PetscErrorCode rebuild_pending(SNES snes, PC* pc, bool* rebuild) {
   PetscFunctionBeginUser;
@@ -277,6 +313,7 @@ struct NewtonEquilibrium::Impl {
         own_reference(own_reference),
         ctx{&model, &forces, &state, 1.0, &hooks} {}
   ~Impl() {
+    restore_velocities();
     // Nothing can be reported from here: the objects are released whatever the errors.
     if (set_ptap) PetscOptionsClearValue(nullptr, "-matptap_via");
     VecDestroy(&saved);
@@ -314,6 +351,21 @@ struct NewtonEquilibrium::Impl {
   double reference = 1.0, tolerance = 0.0;
   Reuse reuse;
   bool record = false;  // record_load_steps()
+  bool record_pending = false;
+  SNES lend_to = nullptr;  // lend_smoother_vectors: the SNES whose line search borrows, until it has  // the last load step's row, written by finish() once the solve's memory is gone
+  // release_velocities(): the state's velocities (all zero, read by no term) are freed while the solve's memory is
+  // alive and given back, zero, before anything reads them (the history's rows, the final check, a failure).
+  bool release_v = false, v_released = false;
+  void drop_velocities() {
+    if (!release_v || v_released || forces.reads_velocity()) return;
+    if (std::any_of(state.v.begin(), state.v.end(), [](double v) { return v != 0.0; })) return;
+    std::vector<double>().swap(state.v);
+    v_released = true;
+  }
+  void restore_velocities() {
+    if (v_released) state.v.assign(3 * static_cast<std::size_t>(model.owned), 0.0);
+    v_released = false;
+  }
 };
 
 PetscErrorCode NewtonEquilibrium::Impl::setup() {
@@ -341,7 +393,11 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
   PetscCall(PetscOptionsHasName(nullptr, nullptr, "-pc_type", &user_pc));
   PetscInt mg_levels = 1;
   LatticeLevels hierarchy;
-  if (!user_pc) PetscCall(setup_lattice_mg(model, forces.held(), pc, 1000, &mg_levels, &hierarchy));
+  // The matrix-free solve's coarse operators are summed from the lattice (not PCMG's products), so its finest
+  // interpolation can be a shell (lattice_interpolation.hpp: about 115 B a molecule less); made again as a matrix
+  // if the matrix-free tangent does not apply (use_matrix_free).
+  if (!user_pc)
+    PetscCall(setup_lattice_mg(model, forces.held(), pc, 1000, &mg_levels, &hierarchy, want_matrix_free));
   lattice_mg = mg_levels > 1;
   PetscBool user_lag = PETSC_FALSE;
   PetscCall(PetscOptionsHasName(nullptr, nullptr, "-snes_lag_preconditioner", &user_lag));
@@ -440,7 +496,6 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
     reuse.active = (lattice_mg || gamg_reuse) && !user_lag;
     if (reuse.active) PetscCall(SNESMonitorSet(snes, watch_reuse, &reuse, nullptr));
   }
-  PetscCall(VecDuplicate(X, &saved));
   PetscFunctionReturn(0);
 }
 
@@ -464,7 +519,9 @@ PetscErrorCode NewtonEquilibrium::Impl::use_matrix_free(bool user_pc, bool user_
     if (!stencil) why = "a term couples molecules beyond the lattice stencil (contact)";
   }
   if (why.empty()) {
-    shell = std::make_unique<MatrixFreeTangent>(model, forces);
+    // The products' input lives in state.f: every residual evaluation writes the forces whole before reading
+    // them, and SNES ends on one (docs/benchmarks.md).
+    shell = std::make_unique<MatrixFreeTangent>(model, forces, state.f.data());
     PetscCall(shell->create(&J));
     ctx.shell = shell.get();
     ctx.galerkin = galerkin.get();
@@ -479,11 +536,18 @@ PetscErrorCode NewtonEquilibrium::Impl::use_matrix_free(bool user_pc, bool user_
       user_smoother = user_smoother || has ? PETSC_TRUE : PETSC_FALSE;
     }
     ctx.gershgorin = !user_smoother;
+    lend_to = snes;
+    PetscCall(KSPSetPostSolve(ksp, lend_smoother_vectors, &lend_to));
     // Level 1 as a shell over its stencil rows (no CSR copy: docs/benchmarks.md), unless the user's smoother
     // options may need its entries (SOR, ILU, ...).
     if (!user_smoother) galerkin->keep_level_one_as_stencil();
     PetscCall(PetscOptionsGetReal(nullptr, nullptr, "-static_chebyshev_fraction", &ctx.chebyshev_fraction, nullptr));
   } else {
+    if (lattice_mg) {  // PCMG's Galerkin products (or the assembled LatticeGalerkin's check) need an AIJ interpolation
+      PetscInt levels = 1;
+      PetscCall(PCSetType(pc, PCNONE));
+      PetscCall(setup_lattice_mg(model, forces.held(), pc, 1000, &levels, nullptr, false));
+    }
     report.note += "solver.operator = matrix-free not used: " + why + ". ";
     PetscCall(PetscPrintf(model.comm, "%s: solver.operator = \"matrix-free\" does not apply (%s): using the "
                                       "assembled tangent\n", kind.c_str(), why.c_str()));
@@ -498,10 +562,25 @@ PetscErrorCode NewtonEquilibrium::Impl::solve(long steps) {
   double done = 0.0, increment = 1.0 / steps;
   int cutbacks = 0;
   bool retried = false;
+  // The state an increment that fails goes back to. A solve that starts from the rest positions (a static
+  // solve's first load step) goes back to model.rest and keeps no copy until an increment has converged: 24 B a
+  // molecule less at the solve's peak when the load is applied in one step. Decided on each rank alone (its
+  // own memory).
+  bool from_rest = false;
+  drop_velocities();
+  {
+    const PetscScalar* xs;
+    PetscCall(VecGetArrayRead(X, &xs));
+    from_rest = std::equal(xs, xs + 3 * model.owned, model.rest.begin());
+    PetscCall(VecRestoreArrayRead(X, &xs));
+  }
   while (done < 1.0 - 1e-12) {
     double target = std::min(1.0, done + increment);
     ctx.load_factor = target;
-    PetscCall(VecCopy(X, saved));
+    if (!from_rest) {
+      if (!saved) PetscCall(VecDuplicate(X, &saved));
+      PetscCall(VecCopy(X, saved));
+    }
     // Agreed (partition/agreement.hpp): a callback's failure on one rank, or SNESSolve's own error return on one
     // rank, is the same one-line error on every rank here, before the fall-backs below decide anything.
     const PetscErrorCode solved = SNESSolve(snes, nullptr, X);
@@ -519,17 +598,33 @@ PetscErrorCode NewtonEquilibrium::Impl::solve(long steps) {
     if (reason > 0) {
       done = target;
       retried = false;
+      from_rest = false;
       PetscReal norm;
       PetscCall(SNESGetFunctionNorm(snes, &norm));
       report.residual_history.push_back(norm / reference);
       state.load_factor = done;
       if (record && ctx.hooks->record) {  // history.csv: the load step's equilibrium
+        if (done >= 1.0 - 1e-12) {
+          // The last one after the solve's memory is released (finish()): its measurement allocates (the
+          // velocities given back, the reactions' scratch, 48 B a molecule), and here that was the run's peak.
+          record_pending = true;
+          continue;
+        }
         PetscCall(load_positions(&ctx, X));
+        restore_velocities();
         ctx.hooks->record(state);
+        drop_velocities();
       }
       continue;
     }
-    PetscCall(VecCopy(saved, X));
+    if (from_rest) {
+      PetscScalar* xs;
+      PetscCall(VecGetArray(X, &xs));
+      std::copy(model.rest.begin(), model.rest.begin() + 3 * model.owned, xs);
+      PetscCall(VecRestoreArray(X, &xs));
+    } else {
+      PetscCall(VecCopy(saved, X));
+    }
     KSPConvergedReason kreason;
     PetscCall(KSPGetConvergedReason(ksp, &kreason));
     if (!switched && (kreason == KSP_DIVERGED_INDEFINITE_MAT || kreason == KSP_DIVERGED_INDEFINITE_PC)) {
@@ -583,6 +678,7 @@ PetscErrorCode NewtonEquilibrium::Impl::solve(long steps) {
       // The last converged load step is the last good state (main() writes it as last_good.h5); the molecule
       // named is the one with the largest unbalanced force there under the load Newton could not reach.
       PetscCall(load_positions(&ctx, X));
+      restore_velocities();  // the last good state goes out whole
       forces.forces(state.x.array(), state.v.data(), state.f.data(), target);
       const std::int64_t worst = largest_force_molecule(model, state.f.data());
       const std::string where = describe_molecule(model, state.x.array(), worst);
@@ -612,6 +708,11 @@ PetscErrorCode NewtonEquilibrium::Impl::finish() {
   PetscCall(VecDestroy(&saved));
   ctx.galerkin = nullptr;
   galerkin.reset();
+  restore_velocities();
+  if (std::exchange(record_pending, false)) {
+    PetscCall(load_positions(&ctx, X));
+    ctx.hooks->record(state);
+  }
   // The final state and its residual, in the common definition.
   ctx.load_factor = 1.0;
   Vec R;
@@ -641,8 +742,20 @@ NewtonEquilibrium::NewtonEquilibrium(const Scene& scene, const LocalModel& model
 NewtonEquilibrium::~NewtonEquilibrium() = default;
 
 void NewtonEquilibrium::solve(long load_steps) {
-  if (impl_->solve(std::max(1L, load_steps))) throw SolverFailure(impl_->kind + ": a PETSc call failed");
+  PetscErrorCode failed = 0;
+  try {
+    failed = impl_->solve(std::max(1L, load_steps));
+  } catch (...) {
+    impl_->restore_velocities();
+    throw;
+  }
+  if (failed) {
+    impl_->restore_velocities();
+    throw SolverFailure(impl_->kind + ": a PETSc call failed");
+  }
 }
+
+void NewtonEquilibrium::release_velocities() { impl_->release_v = true; }
 
 void NewtonEquilibrium::finish() {
   if (impl_->finish() || impl_->clear_ptap()) throw SolverFailure(impl_->kind + ": a PETSc call failed");

@@ -35,6 +35,10 @@ public:
   void rebuild_preconditioner();
   // Calls hooks.record after every converged load step, with the state's load_factor set (the static solver).
   void record_load_steps();
+  // The static solver: its velocities are zero and read by no term, so they are freed during solve() (24 B a
+  // molecule at the solve's peak) and given back, zero, before anything reads them (hooks.record, finish(), an
+  // error). Not when they are not all zero or a term reads them.
+  void release_velocities();
   // The first Newton step of each solve stops its Krylov solve at `fraction` of the reduction that takes the
   // starting residual to the Newton tolerance (between the tight 1e-10 and 1e-4): a solve that starts close to
   // its answer (the quasi-static solver's extrapolated start) then ends in one Newton step without 10 decades of

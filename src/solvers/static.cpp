@@ -9,6 +9,7 @@ SolveReport solve_static(const Scene& scene, const LocalModel& model, const Forc
   SolveReport report;
   NewtonEquilibrium newton(scene, model, forces, state, hooks, report, "static");
   newton.record_load_steps();
+  newton.release_velocities();
   newton.solve(scene.solver.load_steps);
   newton.finish();
   return report;

@@ -67,17 +67,39 @@ constexpr int kCellBlock = 64;
 // once (not twice, as corners 2r and 2r + 1 of neighbouring cells), and each row's forces are added in two
 // passes, first the cells' corner 2r + 1 (the cell before a molecule), then corner 2r (the cell after it): each
 // molecule still sums its cells in increasing order.
+//
+// rest (rows only, may be null): the rows' rest positions from the lattice, rest->at(r, j) the position of row r's
+// molecule j, the doubles the model's rest positions hold (checked when the term is built), so X is not read:
+// a quarter of the bytes the row blocks stream at 10^6 molecules (docs/benchmarks.md).
+struct RowRest {
+  double offset[3], h[3];
+  long ijk[3];  // the lattice index of the block's corner 0
+};
 TISSUE_CELL_CLONES
 void cell_block_forces(int n, const int* __restrict base, const int* __restrict offset, bool rows,
-                       const double* __restrict x, const double* __restrict X, const Moduli& m, double volume,
-                       const double g[3], int owned, double* __restrict f) {
+                       const RowRest* rest, const double* __restrict x, const double* __restrict X,
+                       const Moduli& m, double volume, const double g[3], int owned, double* __restrict f) {
   alignas(64) double F[9][kCellBlock], P[9][kCellBlock], J[kCellBlock];
   const double gx = g[0], gy = g[1], gz = g[2];
   if (rows) {
     alignas(64) double ur[4][3 * (kCellBlock + 1)];  // the rows' displacements, interleaved as x
-    for (int r = 0; r < 4; ++r) {
-      const int s = 3 * (base[0] + offset[2 * r]);
-      for (int j = 0; j < 3 * (n + 1); ++j) ur[r][j] = x[s + j] - X[s + j];
+    if (rest) {
+      // BoxGeometry::rest_position's arithmetic: offset + (double) index * h, per axis.
+      alignas(64) double Xx[kCellBlock + 1];
+      for (int j = 0; j < n + 1; ++j) Xx[j] = rest->offset[0] + static_cast<double>(rest->ijk[0] + j) * rest->h[0];
+      for (int r = 0; r < 4; ++r) {
+        const double Xy = rest->offset[1] + static_cast<double>(rest->ijk[1] + (r & 1)) * rest->h[1];
+        const double Xz = rest->offset[2] + static_cast<double>(rest->ijk[2] + (r >> 1)) * rest->h[2];
+        const double* __restrict xr = x + 3 * (base[0] + offset[2 * r]);
+        double* __restrict u = ur[r];
+        for (int j = 0; j < n + 1; ++j)
+          u[3 * j] = xr[3 * j] - Xx[j], u[3 * j + 1] = xr[3 * j + 1] - Xy, u[3 * j + 2] = xr[3 * j + 2] - Xz;
+      }
+    } else {
+      for (int r = 0; r < 4; ++r) {
+        const int s = 3 * (base[0] + offset[2 * r]);
+        for (int j = 0; j < 3 * (n + 1); ++j) ur[r][j] = x[s + j] - X[s + j];
+      }
     }
     for (int d = 0; d < 3; ++d)
       for (int i = 0; i < n; ++i) {
@@ -331,6 +353,10 @@ public:
       if (pattern.second) patterns_.push_back(offsets);
       base_[k] = corner[0];
       pattern_[k] = pattern.first->second;
+      for (int c = 0; c < 8; ++c) {
+        const Vec3 X = box.rest_position(model.id[corner[c]]);
+        for (int d = 0; d < 3; ++d) lattice_rest_ = lattice_rest_ && model.rest[3 * corner[c] + d] == X[d];
+      }
       owns_energy_.push_back(corner[0] < model.owned);
       cell_id_.push_back(cell_offset[b] + ijk[0] + (box.n[0] - 1) * (ijk[1] + (box.n[1] - 1) * ijk[2]));
       const double h = std::min({box.h[0], box.h[1], box.h[2]});
@@ -387,8 +413,14 @@ public:
         const Kind& kind = kinds_[kind_[k]];
         const Geometry& geo = geometry_[kind.body];
         const double g[3] = {geo.g[1][0], geo.g[2][1], geo.g[4][2]};
-        cell_block_forces(n, base_.data() + k, p.data(), rows, x, m_.rest.data(), kind.moduli, geo.volume, g,
-                          m_.owned, f);
+        RowRest rest;
+        if (rows && lattice_rest_) {
+          const BoxGeometry& box = m_.shape.body(kind.body);
+          const auto ijk = box.index(m_.id[base_[k]]);
+          for (int d = 0; d < 3; ++d) rest.offset[d] = box.offset[d], rest.h[d] = box.h[d], rest.ijk[d] = ijk[d];
+        }
+        cell_block_forces(n, base_.data() + k, p.data(), rows, rows && lattice_rest_ ? &rest : nullptr, x,
+                          m_.rest.data(), kind.moduli, geo.volume, g, m_.owned, f);
       } else {
         cell_forces(k, x, f);
       }
@@ -716,6 +748,8 @@ private:
   bool active_ = false, stepping_ = false;
   // A cell's 8 local corner indices (corner c = (c & 1, c >> 1 & 1, c >> 2 & 1)): base_ + patterns_[pattern_].
   std::vector<int> base_, pattern_;
+  // Every corner's rest position is BoxGeometry::rest_position's double: the row blocks compute X, not read it.
+  bool lattice_rest_ = true;
   std::vector<std::array<int, 8>> patterns_;
   void corners(int k, int corner[8]) const {
     const std::array<int, 8>& p = patterns_[pattern_[k]];

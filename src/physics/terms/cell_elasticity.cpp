@@ -83,6 +83,16 @@ void cell_block_forces(int n, const int* __restrict base, const int* __restrict 
   const double gx = g[0], gy = g[1], gz = g[2];
   if (rows) {
     alignas(64) double ur[4][3 * (kCellBlock + 1)];  // the rows' displacements, interleaved as x
+    // The next block's leading rows (1 and 3; rows 0 and 2 are the cell row before's 1 and 3, in cache) in x and
+    // f, requested now so that they arrive while this block computes: 10 % off the kernel at 10^6 molecules
+    // (docs/benchmarks.md).
+    for (int r = 1; r < 4; r += 2) {
+      const std::size_t s = 3 * static_cast<std::size_t>(base[0] + offset[2 * r] + n + 1);
+      const char* xp = reinterpret_cast<const char*>(x + s);
+      const char* fp = reinterpret_cast<const char*>(f + s);
+      for (int o = 0; o < 3 * static_cast<int>(sizeof(double)) * kCellBlock; o += 64)
+        __builtin_prefetch(xp + o, 0), __builtin_prefetch(fp + o, 1);
+    }
     if (rest) {
       // BoxGeometry::rest_position's arithmetic: offset + (double) index * h, per axis.
       alignas(64) double Xx[kCellBlock + 1];
@@ -167,8 +177,8 @@ void cell_block_forces(int n, const int* __restrict base, const int* __restrict 
         }
       }
   }
-  // Q = V0 P g per column, then the signed sums per corner, added cell by cell.
-  alignas(64) double q[9][kCellBlock];
+  // Q = V0 P g per column (in P's place), then the signed sums per corner, added cell by cell.
+  double(&q)[9][kCellBlock] = P;
   for (int r = 0; r < 3; ++r)
     for (int i = 0; i < n; ++i) {
       q[3 * r][i] = volume * P[3 * r][i] * gx;
@@ -178,23 +188,24 @@ void cell_block_forces(int n, const int* __restrict base, const int* __restrict 
   bool inverted = false;
   for (int i = 0; i < n; ++i) inverted |= !(J[i] > 0);
   if (rows && !inverted) {
-    // add[c][d][i]: cell i's force on its corner c, component d.
-    alignas(64) double add[8][3][kCellBlock];
-    for (int d = 0; d < 3; ++d)
-      for (int i = 0; i < n; ++i) {
-        const double q0 = q[3 * d][i], q1 = q[3 * d + 1][i], q2 = q[3 * d + 2][i];
-        const double lo = q0 + q1, hi = q1 - q0;
-        add[0][d][i] = lo + q2, add[1][d][i] = hi + q2, add[2][d][i] = -hi + q2, add[3][d][i] = -lo + q2;
-        add[4][d][i] = lo - q2, add[5][d][i] = hi - q2, add[6][d][i] = -hi - q2, add[7][d][i] = -lo - q2;
-      }
+    // Row r holds the cells' corners 2r (cell i's at molecule i) and 2r + 1 (at molecule i + 1): their forces,
+    // interleaved as f, one row at a time (the same sums as the general loop's add[8]; a - b is a + (-b)).
+    alignas(64) double at[3 * kCellBlock], next[3 * kCellBlock];
     for (int r = 0; r < 4; ++r) {
+      const bool odd = r & 1;
+      const double z = (r >> 1) ? -1.0 : 1.0;
+      for (int i = 0; i < n; ++i)
+        for (int d = 0; d < 3; ++d) {
+          const double q0 = q[3 * d][i], q1 = q[3 * d + 1][i], q2 = z * q[3 * d + 2][i];
+          const double lo = q0 + q1, hi = q1 - q0;
+          at[3 * i + d] = (odd ? -hi : lo) + q2;
+          next[3 * i + d] = (odd ? -lo : hi) + q2;
+        }
       const int s = base[0] + offset[2 * r];
       const int touched = std::min(n + 1, owned - s);  // the row's owned molecules: s .. s + touched - 1
       double* __restrict fr = f + 3 * s;
-      for (int i = 1; i < std::min(n + 1, touched); ++i)
-        for (int d = 0; d < 3; ++d) fr[3 * i + d] += add[2 * r + 1][d][i - 1];
-      for (int i = 0; i < std::min(n, touched); ++i)
-        for (int d = 0; d < 3; ++d) fr[3 * i + d] += add[2 * r][d][i];
+      for (int j = 3; j < 3 * touched; ++j) fr[j] += next[j - 3];
+      for (int j = 0; j < 3 * std::min(n, touched); ++j) fr[j] += at[j];
     }
     return;
   }

@@ -68,9 +68,9 @@ constexpr int kCellBlock = 64;
 // passes, first the cells' corner 2r + 1 (the cell before a molecule), then corner 2r (the cell after it): each
 // molecule still sums its cells in increasing order.
 //
-// rest (rows only, may be null): the rows' rest positions from the lattice, rest->at(r, j) the position of row r's
-// molecule j, the doubles the model's rest positions hold (checked when the term is built), so X is not read:
-// a quarter of the bytes the row blocks stream at 10^6 molecules (docs/benchmarks.md).
+// rest (rows only, may be null): the lattice that gives the rows' rest positions (offset + index * h, the doubles
+// the model's rest positions hold: checked when the term is built), so that X is not read: a quarter of the
+// bytes the row blocks stream at 10^6 molecules (docs/benchmarks.md).
 struct RowRest {
   double offset[3], h[3];
   long ijk[3];  // the lattice index of the block's corner 0

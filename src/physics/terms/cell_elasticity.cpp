@@ -67,17 +67,49 @@ constexpr int kCellBlock = 64;
 // once (not twice, as corners 2r and 2r + 1 of neighbouring cells), and each row's forces are added in two
 // passes, first the cells' corner 2r + 1 (the cell before a molecule), then corner 2r (the cell after it): each
 // molecule still sums its cells in increasing order.
+//
+// rest (rows only, may be null): the lattice that gives the rows' rest positions (offset + index * h, the doubles
+// the model's rest positions hold: checked when the term is built), so that X is not read: a quarter of the
+// bytes the row blocks stream at 10^6 molecules (docs/benchmarks.md).
+struct RowRest {
+  double offset[3], h[3];
+  long ijk[3];  // the lattice index of the block's corner 0
+};
 TISSUE_CELL_CLONES
 void cell_block_forces(int n, const int* __restrict base, const int* __restrict offset, bool rows,
-                       const double* __restrict x, const double* __restrict X, const Moduli& m, double volume,
-                       const double g[3], int owned, double* __restrict f) {
+                       const RowRest* rest, const double* __restrict x, const double* __restrict X,
+                       const Moduli& m, double volume, const double g[3], int owned, double* __restrict f) {
   alignas(64) double F[9][kCellBlock], P[9][kCellBlock], J[kCellBlock];
   const double gx = g[0], gy = g[1], gz = g[2];
   if (rows) {
     alignas(64) double ur[4][3 * (kCellBlock + 1)];  // the rows' displacements, interleaved as x
-    for (int r = 0; r < 4; ++r) {
-      const int s = 3 * (base[0] + offset[2 * r]);
-      for (int j = 0; j < 3 * (n + 1); ++j) ur[r][j] = x[s + j] - X[s + j];
+    // The next block's leading rows (1 and 3; rows 0 and 2 are the cell row before's 1 and 3, in cache) in x and
+    // f, requested now so that they arrive while this block computes: 10 % off the kernel at 10^6 molecules
+    // (docs/benchmarks.md).
+    for (int r = 1; r < 4; r += 2) {
+      const std::size_t s = 3 * static_cast<std::size_t>(base[0] + offset[2 * r] + n + 1);
+      const char* xp = reinterpret_cast<const char*>(x + s);
+      const char* fp = reinterpret_cast<const char*>(f + s);
+      for (int o = 0; o < 3 * static_cast<int>(sizeof(double)) * kCellBlock; o += 64)
+        __builtin_prefetch(xp + o, 0), __builtin_prefetch(fp + o, 1);
+    }
+    if (rest) {
+      // BoxGeometry::rest_position's arithmetic: offset + (double) index * h, per axis.
+      alignas(64) double Xx[kCellBlock + 1];
+      for (int j = 0; j < n + 1; ++j) Xx[j] = rest->offset[0] + static_cast<double>(rest->ijk[0] + j) * rest->h[0];
+      for (int r = 0; r < 4; ++r) {
+        const double Xy = rest->offset[1] + static_cast<double>(rest->ijk[1] + (r & 1)) * rest->h[1];
+        const double Xz = rest->offset[2] + static_cast<double>(rest->ijk[2] + (r >> 1)) * rest->h[2];
+        const double* __restrict xr = x + 3 * (base[0] + offset[2 * r]);
+        double* __restrict u = ur[r];
+        for (int j = 0; j < n + 1; ++j)
+          u[3 * j] = xr[3 * j] - Xx[j], u[3 * j + 1] = xr[3 * j + 1] - Xy, u[3 * j + 2] = xr[3 * j + 2] - Xz;
+      }
+    } else {
+      for (int r = 0; r < 4; ++r) {
+        const int s = 3 * (base[0] + offset[2 * r]);
+        for (int j = 0; j < 3 * (n + 1); ++j) ur[r][j] = x[s + j] - X[s + j];
+      }
     }
     for (int d = 0; d < 3; ++d)
       for (int i = 0; i < n; ++i) {
@@ -145,8 +177,8 @@ void cell_block_forces(int n, const int* __restrict base, const int* __restrict 
         }
       }
   }
-  // Q = V0 P g per column, then the signed sums per corner, added cell by cell.
-  alignas(64) double q[9][kCellBlock];
+  // Q = V0 P g per column (in P's place), then the signed sums per corner, added cell by cell.
+  double(&q)[9][kCellBlock] = P;
   for (int r = 0; r < 3; ++r)
     for (int i = 0; i < n; ++i) {
       q[3 * r][i] = volume * P[3 * r][i] * gx;
@@ -156,23 +188,24 @@ void cell_block_forces(int n, const int* __restrict base, const int* __restrict 
   bool inverted = false;
   for (int i = 0; i < n; ++i) inverted |= !(J[i] > 0);
   if (rows && !inverted) {
-    // add[c][d][i]: cell i's force on its corner c, component d.
-    alignas(64) double add[8][3][kCellBlock];
-    for (int d = 0; d < 3; ++d)
-      for (int i = 0; i < n; ++i) {
-        const double q0 = q[3 * d][i], q1 = q[3 * d + 1][i], q2 = q[3 * d + 2][i];
-        const double lo = q0 + q1, hi = q1 - q0;
-        add[0][d][i] = lo + q2, add[1][d][i] = hi + q2, add[2][d][i] = -hi + q2, add[3][d][i] = -lo + q2;
-        add[4][d][i] = lo - q2, add[5][d][i] = hi - q2, add[6][d][i] = -hi - q2, add[7][d][i] = -lo - q2;
-      }
+    // Row r holds the cells' corners 2r (cell i's at molecule i) and 2r + 1 (at molecule i + 1): their forces,
+    // interleaved as f, one row at a time (the same sums as the general loop's add[8]; a - b is a + (-b)).
+    alignas(64) double at[3 * kCellBlock], next[3 * kCellBlock];
     for (int r = 0; r < 4; ++r) {
+      const bool odd = r & 1;
+      const double z = (r >> 1) ? -1.0 : 1.0;
+      for (int i = 0; i < n; ++i)
+        for (int d = 0; d < 3; ++d) {
+          const double q0 = q[3 * d][i], q1 = q[3 * d + 1][i], q2 = z * q[3 * d + 2][i];
+          const double lo = q0 + q1, hi = q1 - q0;
+          at[3 * i + d] = (odd ? -hi : lo) + q2;
+          next[3 * i + d] = (odd ? -lo : hi) + q2;
+        }
       const int s = base[0] + offset[2 * r];
       const int touched = std::min(n + 1, owned - s);  // the row's owned molecules: s .. s + touched - 1
       double* __restrict fr = f + 3 * s;
-      for (int i = 1; i < std::min(n + 1, touched); ++i)
-        for (int d = 0; d < 3; ++d) fr[3 * i + d] += add[2 * r + 1][d][i - 1];
-      for (int i = 0; i < std::min(n, touched); ++i)
-        for (int d = 0; d < 3; ++d) fr[3 * i + d] += add[2 * r][d][i];
+      for (int j = 3; j < 3 * touched; ++j) fr[j] += next[j - 3];
+      for (int j = 0; j < 3 * std::min(n, touched); ++j) fr[j] += at[j];
     }
     return;
   }
@@ -331,6 +364,10 @@ public:
       if (pattern.second) patterns_.push_back(offsets);
       base_[k] = corner[0];
       pattern_[k] = pattern.first->second;
+      for (int c = 0; c < 8; ++c) {
+        const Vec3 X = box.rest_position(model.id[corner[c]]);
+        for (int d = 0; d < 3; ++d) lattice_rest_ = lattice_rest_ && model.rest[3 * corner[c] + d] == X[d];
+      }
       owns_energy_.push_back(corner[0] < model.owned);
       cell_id_.push_back(cell_offset[b] + ijk[0] + (box.n[0] - 1) * (ijk[1] + (box.n[1] - 1) * ijk[2]));
       const double h = std::min({box.h[0], box.h[1], box.h[2]});
@@ -387,8 +424,14 @@ public:
         const Kind& kind = kinds_[kind_[k]];
         const Geometry& geo = geometry_[kind.body];
         const double g[3] = {geo.g[1][0], geo.g[2][1], geo.g[4][2]};
-        cell_block_forces(n, base_.data() + k, p.data(), rows, x, m_.rest.data(), kind.moduli, geo.volume, g,
-                          m_.owned, f);
+        RowRest rest;
+        if (rows && lattice_rest_) {
+          const BoxGeometry& box = m_.shape.body(kind.body);
+          const auto ijk = box.index(m_.id[base_[k]]);
+          for (int d = 0; d < 3; ++d) rest.offset[d] = box.offset[d], rest.h[d] = box.h[d], rest.ijk[d] = ijk[d];
+        }
+        cell_block_forces(n, base_.data() + k, p.data(), rows, rows && lattice_rest_ ? &rest : nullptr, x,
+                          m_.rest.data(), kind.moduli, geo.volume, g, m_.owned, f);
       } else {
         cell_forces(k, x, f);
       }
@@ -716,6 +759,8 @@ private:
   bool active_ = false, stepping_ = false;
   // A cell's 8 local corner indices (corner c = (c & 1, c >> 1 & 1, c >> 2 & 1)): base_ + patterns_[pattern_].
   std::vector<int> base_, pattern_;
+  // Every corner's rest position is BoxGeometry::rest_position's double: the row blocks compute X, not read it.
+  bool lattice_rest_ = true;
   std::vector<std::array<int, 8>> patterns_;
   void corners(int k, int corner[8]) const {
     const std::array<int, 8>& p = patterns_[pattern_[k]];

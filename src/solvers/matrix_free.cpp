@@ -18,7 +18,7 @@ PetscErrorCode MatrixFreeTangent::create(Mat* J) {
   PetscFunctionBeginUser;
   const PetscInt n = 3 * model_.owned;
   if (!in_) {
-    const std::vector<PetscInt> ghosts(model_.block.begin() + model_.owned, model_.block.end());
+    const std::vector<PetscInt> ghosts = model_.block.slice(model_.owned, model_.local);
     PetscCall(VecCreateGhostBlockWithArray(model_.comm, 3, n, PETSC_DECIDE, static_cast<PetscInt>(ghosts.size()),
                                            ghosts.data(), w_, &in_));
   }

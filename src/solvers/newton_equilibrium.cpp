@@ -564,15 +564,17 @@ PetscErrorCode NewtonEquilibrium::Impl::solve(long steps) {
   bool retried = false;
   // The state an increment that fails goes back to. A solve that starts from the rest positions (a static
   // solve's first load step) goes back to model.rest and keeps no copy until an increment has converged: 24 B a
-  // molecule less at the solve's peak when the load is applied in one step. Decided on each rank alone (its
-  // own memory).
+  // molecule less at the solve's peak when the load is applied in one step. Agreed by every rank: the copy's
+  // VecDuplicate is collective (a rank whose molecules all sit at rest while another's moved hung the job).
   bool from_rest = false;
   drop_velocities();
   {
     const PetscScalar* xs;
     PetscCall(VecGetArrayRead(X, &xs));
-    from_rest = std::equal(xs, xs + 3 * model.owned, model.rest.begin());
+    int here = std::equal(xs, xs + 3 * model.owned, model.rest.begin()), everywhere = 0;
     PetscCall(VecRestoreArrayRead(X, &xs));
+    PetscCallMPI(MPI_Allreduce(&here, &everywhere, 1, MPI_INT, MPI_MIN, model.comm));
+    from_rest = everywhere != 0;
   }
   while (done < 1.0 - 1e-12) {
     double target = std::min(1.0, done + increment);

@@ -87,7 +87,7 @@ LocalModel build_local_model(const Scene& scene, MPI_Comm comm, CalibrationInput
     // PT-Scotch's blocks cannot see their neighbours' parts: count the cut connections here, each once (by the
     // rank writing it, which owns end a; it is cut when end b is a ghost).
     long cut = 0;
-    for (int c : m.written_here()) cut += m.end_b[c] >= m.owned;
+    m.for_each_written([&](int, int, int b) { cut += b >= m.owned; });
     MPI_Allreduce(&cut, &m.partition.edge_cut, 1, MPI_LONG, MPI_SUM, comm);
   }
   return m;

@@ -56,6 +56,26 @@ public:
     return (c - r.first_connection) % (pattern_start_[r.pattern + 1] - pattern_start_[r.pattern]);
   }
   const int* data() const { return plain_.data(); }  // the plain storage only
+  // f(c, a, b) for every connection c in increasing order, a = (*this)[c] and b = end_b[c]: from the runs, with
+  // no search and no division, when both ends are runs of the same rows (to_runs), else value by value. For the
+  // passes over every connection outside the force kernel (energy, guards, time step bound).
+  template <class F>
+  void for_each_pair(const ConnectionEnd& end_b, F&& f) const {
+    const int n = static_cast<int>(size_);
+    if (runs_.empty() || end_b.runs_.size() != runs_.size()) {
+      for (int c = 0; c < n; ++c) f(c, (*this)[c], end_b[c]);
+      return;
+    }
+    for (std::size_t r = 0; r < runs_.size(); ++r) {
+      const int last = r + 1 < runs_.size() ? runs_[r + 1].first_connection : n;
+      const int start = end_b.pattern_start_[runs_[r].pattern];
+      const int directions = end_b.pattern_start_[runs_[r].pattern + 1] - start;
+      const int* offset = end_b.offsets_.data() + start;
+      int c = runs_[r].first_connection;
+      for (int a = runs_[r].first_molecule; c < last; ++a)
+        for (int j = 0; j < directions && c < last; ++j, ++c) f(c, a, a + offset[j]);
+    }
+  }
   std::vector<int> values() const {
     std::vector<int> out(size_);
     for (std::size_t c = 0; c < size_; ++c) out[c] = (*this)[static_cast<int>(c)];
@@ -246,6 +266,13 @@ struct MoleculeLayout {
   int lattice_forward_rank(int c) const;  // b's position among a's forward neighbours (box lattices)
   // The rank that owns end a writes the connection to files (each connection written exactly once).
   WrittenConnections written_here() const { return {end_a, owned, written_count}; }
+  // f(c, a, b) for the same connections in the same order, with their ends (ConnectionEnd::for_each_pair).
+  template <class F>
+  void for_each_written(F&& f) const {
+    end_a.for_each_pair(end_b, [&](int c, int a, int b) {
+      if (a < owned) f(c, a, b);
+    });
+  }
 };
 
 // The rank's share of the body: the layout, and the connection table of its springs.

@@ -382,6 +382,24 @@ method = "linear"
   for (int c : runs.written_here()) written_runs.push_back(c);
   EXPECT_EQ(written_runs, written_plain);
   EXPECT_EQ(written_runs.size(), plain.written_count);
+  // The passes outside the kernel walk the runs (for_each_pair, for_each_written): every connection once, in
+  // order, with the ends the indexed reads give.
+  for (const LocalModel* m : {&plain, &runs}) {
+    int next = 0;
+    m->end_a.for_each_pair(m->end_b, [&](int c, int a, int b) {
+      ASSERT_EQ(c, next++);
+      ASSERT_EQ(a, plain.end_a[c]) << c;
+      ASSERT_EQ(b, plain.end_b[c]) << c;
+    });
+    EXPECT_EQ(next, plain.connections());
+    std::vector<int> visited;
+    m->for_each_written([&](int c, int a, int b) {
+      ASSERT_EQ(a, plain.end_a[c]) << c;
+      ASSERT_EQ(b, plain.end_b[c]) << c;
+      visited.push_back(c);
+    });
+    EXPECT_EQ(visited, written_plain);
+  }
 
   const SpringKernel from_runs(runs), from_plain(plain);
   EXPECT_EQ(from_runs.structured_connections(), from_plain.structured_connections());

@@ -134,13 +134,13 @@ void ForceModel::forces(const double* x, const double* v, double* f, double load
 
 double ForceModel::potential_energy(const double* x, double load_factor) const {
   double e = 0;
-  for (int c : model_.written_here()) {  // each connection counted once over all ranks
-    const double* xa = x + 3 * model_.end_a[c];
-    const double* xb = x + 3 * model_.end_b[c];
+  model_.for_each_written([&](int c, int a, int b) {  // each connection counted once over all ranks
+    const double* xa = x + 3 * a;
+    const double* xb = x + 3 * b;
     double d0 = xb[0] - xa[0], d1 = xb[1] - xa[1], d2 = xb[2] - xa[2];
     double stretch = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2) - model_.l0(c);
     e += 0.5 * model_.k(c) * stretch * stretch;
-  }
+  });
   for (const auto& a : applied_)
     e -= load_factor * load_scale_[a.load] * a.value * (x[a.component] - model_.rest[a.component]);
   for (const auto& t : terms_) e += t->potential_energy(x);
@@ -253,10 +253,10 @@ Term* ForceModel::cell_history() const {
 
 double ForceModel::largest_stiffness_rate() const {
   std::vector<double> ksum(model_.local, 0.0);
-  for (int c = 0; c < model_.connections(); ++c) {
-    ksum[model_.end_a[c]] += model_.k(c);
-    ksum[model_.end_b[c]] += model_.k(c);
-  }
+  model_.end_a.for_each_pair(model_.end_b, [&](int c, int a, int b) {
+    ksum[a] += model_.k(c);
+    ksum[b] += model_.k(c);
+  });
   for (const auto& t : terms_) t->add_stiffness_bound(ksum);
   double rate = 0;
   for (int i = 0; i < model_.owned; ++i) rate = std::max(rate, 2.0 * ksum[i] / model_.mass[i]);

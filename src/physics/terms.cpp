@@ -30,7 +30,7 @@ const std::vector<TermStyle>& term_styles() {
 std::vector<double> body_support_stiffness(const LocalModel& m) {
   const int nb = m.shape.bodies();
   std::vector<double> local(2 * nb, 0.0), global(2 * nb, 0.0);
-  for (int c : m.written_here()) local[m.body[m.end_a[c]]] += 2.0 * m.k(c);
+  m.for_each_written([&](int c, int a, int) { local[m.body[a]] += 2.0 * m.k(c); });
   for (int i = 0; i < m.owned; ++i) local[nb + m.body[i]] += 1.0;
   MPI_Allreduce(local.data(), global.data(), 2 * nb, MPI_DOUBLE, MPI_SUM, m.comm);
   std::vector<double> k(nb);

@@ -74,12 +74,12 @@ double StepGuard::energy(double* spring, double* work) {
   double sums[3] = {0, 0, 0};
   const std::exception_ptr error = attempt([&] {
     worst_ratio_ = std::numeric_limits<double>::infinity(), worst_id_ = -1, worst_c_ = -1;
-    for (int c : model_.written_here()) {
-      const double length = length_of(x, model_.end_a[c], model_.end_b[c]);
+    model_.for_each_written([&](int c, int a, int b) {
+      const double length = length_of(x, a, b);
       const double stretch = length - model_.l0(c), ratio = length / model_.l0(c);
       sums[0] += 0.5 * model_.k(c) * stretch * stretch;
       if (ratio < worst_ratio_) worst_ratio_ = ratio, worst_id_ = model_.connection_id(c), worst_c_ = c;
-    }
+    });
     for (const auto& a : forces_.applied()) sums[1] += a.value * (x[a.component] - model_.rest[a.component]);
     if (const auto& g = scene_.physics.gravity)
       for (int i = 0; i < model_.owned; ++i)
@@ -123,10 +123,10 @@ void StepGuard::check_lengths(bool from_energy) {
     worst = worst_ratio_, worst_id = worst_id_, worst_c = worst_c_;
   } else {
     error = attempt([&] {
-      for (int c : model_.written_here()) {
-        const double ratio = length_of(x, model_.end_a[c], model_.end_b[c]) / model_.l0(c);
+      model_.for_each_written([&](int c, int a, int b) {
+        const double ratio = length_of(x, a, b) / model_.l0(c);
         if (ratio < worst) worst = ratio, worst_id = model_.connection_id(c), worst_c = c;
-      }
+      });
     });
   }
   double mins[2] = {worst, error ? -1.0 : 0.0}, reduced[2];  // MIN: the flag is -1 when a rank failed

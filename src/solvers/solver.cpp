@@ -33,12 +33,11 @@ double force_round_off(const LocalModel& model, const ForceModel& forces) {
   auto magnitude = [&](int i) {
     return std::max({std::fabs(x[3 * i]), std::fabs(x[3 * i + 1]), std::fabs(x[3 * i + 2])});
   };
-  for (int c = 0; c < model.connections(); ++c) {
-    const int a = model.end_a[c], b = model.end_b[c];
+  model.end_a.for_each_pair(model.end_b, [&](int c, int a, int b) {
     const double k = std::fabs(model.k(c)), kl = k * model.l0(c), kr = k * std::max(magnitude(a), magnitude(b)) / 2;
     scale[a] += kl, scale[b] += kl;
     squares[a] += kr * kr, squares[b] += kr * kr;
-  }
+  });
   forces.add_force_scale(x, scale, squares);  // the terms' own (cells): Newton stalls at nu -> 1/2 without them
   double sum = 0, total = 0;
   for (int i = 0; i < model.owned; ++i) sum += scale[i] * scale[i] + squares[i];

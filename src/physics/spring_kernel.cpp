@@ -85,6 +85,26 @@ __attribute__((always_inline)) inline void stencil_direction(int n, const double
   }
 }
 
+// A stencil block's start, in both kernels: f's owned rows zeroed up to what the block writes (a0 + n - 1 +
+// max_offset; `zeroed`: rows below it are zeroed), and the missing directions of the block's exceptions marked in
+// keep (next_exception moves past them); returns whether there are any.
+__attribute__((always_inline)) inline bool begin_block(int a0, int n, int directions,
+                                                       const StencilException* exceptions, int n_exceptions,
+                                                       int& next_exception, double (*keep)[kStencilBlock], double* f,
+                                                       int owned, int max_offset, int* zeroed) {
+  const int reach = std::min(owned, a0 + n + max_offset);
+  if (reach > *zeroed) {
+    std::fill(f + 3 * static_cast<std::size_t>(*zeroed), f + 3 * static_cast<std::size_t>(reach), 0.0);
+    *zeroed = reach;
+  }
+  const int e0 = next_exception;
+  while (next_exception < n_exceptions && exceptions[next_exception].molecule < a0 + n) ++next_exception;
+  for (int e = e0; e < next_exception; ++e)
+    for (int s = 0; s < directions; ++s)
+      if (!(exceptions[e].present >> s & 1u)) keep[s][exceptions[e].molecule - a0] = 0.0;
+  return next_exception > e0;
+}
+
 // A stencil segment: molecules first .. first + count - 1, each with `directions` forward connections to the
 // molecule `offset[s]` further on (every offset > 0), of constants k[s], l0[s], except the molecules listed in
 // `exceptions` (by molecule), which have only the directions of their `present` bits. `scatter` lists the
@@ -108,17 +128,9 @@ void stencil_forces(int first, int count, int directions, const int* offset, con
   int next_exception = 0;
   for (int a0 = first; a0 < first + count; a0 += kStencilBlock) {
     const int n = std::min(kStencilBlock, first + count - a0);
-    const int reach = std::min(owned, a0 + n + max_offset);
-    if (reach > *zeroed) {
-      std::fill(f + 3 * static_cast<std::size_t>(*zeroed), f + 3 * static_cast<std::size_t>(reach), 0.0);
-      *zeroed = reach;
-    }
     const int e0 = next_exception;
-    while (next_exception < n_exceptions && exceptions[next_exception].molecule < a0 + n) ++next_exception;
-    const bool masked = next_exception > e0;
-    for (int e = e0; e < next_exception; ++e)
-      for (int s = 0; s < directions; ++s)
-        if (!(exceptions[e].present >> s & 1u)) keep[s][exceptions[e].molecule - a0] = 0.0;
+    const bool masked = begin_block(a0, n, directions, exceptions, n_exceptions, next_exception, keep, f, owned,
+                                    max_offset, zeroed);
     const double* __restrict xa = x + 3 * a0;
     for (int q = 0; q < directions; ++q) {
       const int s = scatter[q];
@@ -210,17 +222,9 @@ void stencil_tangent(int first, int count, int directions, const int* offset, co
   int next_exception = 0;
   for (int a0 = first; a0 < first + count; a0 += kStencilBlock) {
     const int n = std::min(kStencilBlock, first + count - a0);
-    const int reach = std::min(owned, a0 + n + max_offset);
-    if (reach > *zeroed) {
-      std::fill(out + 3 * static_cast<std::size_t>(*zeroed), out + 3 * static_cast<std::size_t>(reach), 0.0);
-      *zeroed = reach;
-    }
     const int e0 = next_exception;
-    while (next_exception < n_exceptions && exceptions[next_exception].molecule < a0 + n) ++next_exception;
-    const bool masked = next_exception > e0;
-    for (int e = e0; e < next_exception; ++e)
-      for (int s = 0; s < directions; ++s)
-        if (!(exceptions[e].present >> s & 1u)) keep[s][exceptions[e].molecule - a0] = 0.0;
+    const bool masked = begin_block(a0, n, directions, exceptions, n_exceptions, next_exception, keep, out, owned,
+                                    max_offset, zeroed);
     const double* __restrict xa = x + 3 * a0;
     const double* __restrict ua = u + 3 * a0;
     for (int q = 0; q < directions; ++q) {

@@ -491,20 +491,11 @@ PetscErrorCode ForceModel::apply_tangent(const double* x, double* in, double* ou
   for (std::size_t h = 0; h < held_owned_.size(); ++h) held_in[h] = in[held_owned_[h]];
   for (int q = 0; q < 3 * local; ++q)
     if (held_[q]) in[q] = 0.0;
-  std::fill(out, out + 3 * n, 0.0);
-  // Each connection once (one square root), both owned ends.
-  const int nc = model_.connections();
-  for (int c = 0; c < nc; ++c) {
-    const int a = model_.end_a[c], b = model_.end_b[c];
-    const Stretch st(model_, x, a, b, c);
-    const double* d = st.d;
-    const double len2 = st.len2, k = st.k, geo = st.geo;
-    const double u[3] = {in[3 * a] - in[3 * b], in[3 * a + 1] - in[3 * b + 1], in[3 * a + 2] - in[3 * b + 2]};
-    const double along = (1.0 - geo) * (d[0] * u[0] + d[1] * u[1] + d[2] * u[2]) / len2;
-    const double f[3] = {k * (geo * u[0] + along * d[0]), k * (geo * u[1] + along * d[1]), k * (geo * u[2] + along * d[2])};
-    if (a < n) out[3 * a] += f[0], out[3 * a + 1] += f[1], out[3 * a + 2] += f[2];
-    if (b < n) out[3 * b] -= f[0], out[3 * b + 1] -= f[1], out[3 * b + 2] -= f[2];
-  }
+  // Each connection once (one square root), both ends; the ghosts' rows are dropped (their owners compute them).
+  // The ghosts' rows go to scratch kept between products (24 B a ghost; a box's ghosts are a few planes).
+  static thread_local std::vector<double> ghost_scratch;
+  ghost_scratch.resize(3 * static_cast<std::size_t>(local - n));
+  kernel_.tangent(x, in, out, ghost_scratch.data());
   if (!terms_.empty()) {
     struct Apply {
       const double* in;

@@ -85,6 +85,26 @@ __attribute__((always_inline)) inline void stencil_direction(int n, const double
   }
 }
 
+// A stencil block's start, in both kernels: f's owned rows zeroed up to what the block writes (a0 + n - 1 +
+// max_offset; `zeroed`: rows below it are zeroed), and the missing directions of the block's exceptions marked in
+// keep (next_exception moves past them); returns whether there are any.
+__attribute__((always_inline)) inline bool begin_block(int a0, int n, int directions,
+                                                       const StencilException* exceptions, int n_exceptions,
+                                                       int& next_exception, double (*keep)[kStencilBlock], double* f,
+                                                       int owned, int max_offset, int* zeroed) {
+  const int reach = std::min(owned, a0 + n + max_offset);
+  if (reach > *zeroed) {
+    std::fill(f + 3 * static_cast<std::size_t>(*zeroed), f + 3 * static_cast<std::size_t>(reach), 0.0);
+    *zeroed = reach;
+  }
+  const int e0 = next_exception;
+  while (next_exception < n_exceptions && exceptions[next_exception].molecule < a0 + n) ++next_exception;
+  for (int e = e0; e < next_exception; ++e)
+    for (int s = 0; s < directions; ++s)
+      if (!(exceptions[e].present >> s & 1u)) keep[s][exceptions[e].molecule - a0] = 0.0;
+  return next_exception > e0;
+}
+
 // A stencil segment: molecules first .. first + count - 1, each with `directions` forward connections to the
 // molecule `offset[s]` further on (every offset > 0), of constants k[s], l0[s], except the molecules listed in
 // `exceptions` (by molecule), which have only the directions of their `present` bits. `scatter` lists the
@@ -108,17 +128,9 @@ void stencil_forces(int first, int count, int directions, const int* offset, con
   int next_exception = 0;
   for (int a0 = first; a0 < first + count; a0 += kStencilBlock) {
     const int n = std::min(kStencilBlock, first + count - a0);
-    const int reach = std::min(owned, a0 + n + max_offset);
-    if (reach > *zeroed) {
-      std::fill(f + 3 * static_cast<std::size_t>(*zeroed), f + 3 * static_cast<std::size_t>(reach), 0.0);
-      *zeroed = reach;
-    }
     const int e0 = next_exception;
-    while (next_exception < n_exceptions && exceptions[next_exception].molecule < a0 + n) ++next_exception;
-    const bool masked = next_exception > e0;
-    for (int e = e0; e < next_exception; ++e)
-      for (int s = 0; s < directions; ++s)
-        if (!(exceptions[e].present >> s & 1u)) keep[s][exceptions[e].molecule - a0] = 0.0;
+    const bool masked = begin_block(a0, n, directions, exceptions, n_exceptions, next_exception, keep, f, owned,
+                                    max_offset, zeroed);
     const double* __restrict xa = x + 3 * a0;
     for (int q = 0; q < directions; ++q) {
       const int s = scatter[q];
@@ -137,6 +149,98 @@ void stencil_forces(int first, int count, int directions, const int* offset, con
       for (int i = 0; i < n; ++i) s0[i] += g[s][0][i], s1[i] += g[s][1][i], s2[i] += g[s][2][i];
     double* __restrict fa = f + 3 * a0;
     for (int i = 0; i < n; ++i) fa[3 * i] += s0[i], fa[3 * i + 1] += s1[i], fa[3 * i + 2] += s2[i];
+  }
+}
+
+// The tangent (SpringKernel::tangent), generic form: connections [begin_c, end_c) of any list, one at a time
+// (a lattice's row ends, about 2 % of its connections). A row below `owned` is out's, the others ghost's.
+void generic_tangent(int begin_c, int end_c, const int* a, const int* b, const std::uint16_t* ktype,
+                     const std::uint16_t* ltype, const double* ks, const double* ls, const double* x, const double* u,
+                     double* out, double* ghost, int owned) {
+  auto row = [&](int m) { return m < owned ? out + 3 * m : ghost + 3 * (m - owned); };
+  for (int c = begin_c; c < end_c; ++c) {
+    const double *xa = x + 3 * a[c], *xb = x + 3 * b[c], *ua = u + 3 * a[c], *ub = u + 3 * b[c];
+    const double d0 = xb[0] - xa[0], d1 = xb[1] - xa[1], d2 = xb[2] - xa[2];
+    const double w0 = ua[0] - ub[0], w1 = ua[1] - ub[1], w2 = ua[2] - ub[2];
+    const double k = ks[ktype ? ktype[c] : c], l0 = ls[ltype ? ltype[c] : c];
+    const double len2 = d0 * d0 + d1 * d1 + d2 * d2, geo = 1.0 - l0 / std::sqrt(len2);
+    const double along = (1.0 - geo) * (d0 * w0 + d1 * w1 + d2 * w2) / len2;
+    const double e0 = k * (geo * w0 + along * d0), e1 = k * (geo * w1 + along * d1), e2 = k * (geo * w2 + along * d2);
+    double *fa = row(a[c]), *fb = row(b[c]);
+    fa[0] += e0, fa[1] += e1, fa[2] += e2;
+    fb[0] -= e0, fb[1] -= e1, fb[2] -= e2;
+  }
+}
+
+// One direction of a stencil block of the tangent: e_i = K_i (u_a - u_b) for the springs from molecules a0 .. a0 +
+// n - 1 to a0 + offset, into g (subtracted from end b's rows and summed into end a's by the caller). Masked as
+// stencil_direction: a missing spring gives +0.0.
+template <bool kMasked>
+__attribute__((always_inline)) inline void tangent_direction(int n, const double* __restrict xa,
+                                                             const double* __restrict xb,
+                                                             const double* __restrict ua,
+                                                             const double* __restrict ub, double ks, double ls,
+                                                             const double* __restrict keep, double* __restrict g0,
+                                                             double* __restrict g1, double* __restrict g2) {
+  for (int i = 0; i < n; ++i) {
+    const double d0 = xb[3 * i] - xa[3 * i], d1 = xb[3 * i + 1] - xa[3 * i + 1], d2 = xb[3 * i + 2] - xa[3 * i + 2];
+    const double w0 = ua[3 * i] - ub[3 * i], w1 = ua[3 * i + 1] - ub[3 * i + 1], w2 = ua[3 * i + 2] - ub[3 * i + 2];
+    const double len2 = d0 * d0 + d1 * d1 + d2 * d2, geo = 1.0 - ls / std::sqrt(len2);
+    const double along = (1.0 - geo) * (d0 * w0 + d1 * w1 + d2 * w2) / len2;
+    double e0 = ks * (geo * w0 + along * d0), e1 = ks * (geo * w1 + along * d1), e2 = ks * (geo * w2 + along * d2);
+    if constexpr (kMasked) {
+      const bool on = keep[i] != 0.0;
+      e0 = on ? e0 : 0.0, e1 = on ? e1 : 0.0, e2 = on ? e2 : 0.0;
+    }
+    g0[i] = e0, g1[i] = e1, g2[i] = e2;
+  }
+}
+
+// Rows m .. m + n - 1 (+= sign * g): those below `owned` in out, the rest in ghost.
+template <int kSign>
+__attribute__((always_inline)) inline void add_to_rows(int m, int n, const double* __restrict g0,
+                                                       const double* __restrict g1, const double* __restrict g2,
+                                                       double* __restrict out, double* __restrict ghost, int owned) {
+  const int split = std::clamp(owned - m, 0, n);
+  double* __restrict o = out + 3 * static_cast<std::ptrdiff_t>(m);
+  for (int i = 0; i < split; ++i) o[3 * i] += kSign * g0[i], o[3 * i + 1] += kSign * g1[i], o[3 * i + 2] += kSign * g2[i];
+  if (split == n) return;
+  double* __restrict h = ghost + 3 * static_cast<std::ptrdiff_t>(m + split - owned);
+  for (int i = split; i < n; ++i)
+    h[3 * (i - split)] += kSign * g0[i], h[3 * (i - split) + 1] += kSign * g1[i], h[3 * (i - split) + 2] += kSign * g2[i];
+}
+
+// A stencil segment's tangent, block by block as stencil_forces (the same segments, exceptions and zeroing ahead).
+TISSUE_CLONES
+void stencil_tangent(int first, int count, int directions, const int* offset, const int* scatter, const double* k,
+                     const double* l0, const StencilException* exceptions, int n_exceptions,
+                     const double* __restrict x, const double* __restrict u, double* __restrict out,
+                     double* __restrict ghost, int owned, int max_offset, int* zeroed) {
+  alignas(64) double g[kMaxDirections][3][kStencilBlock];
+  alignas(64) double keep[kMaxDirections][kStencilBlock];
+  for (int s = 0; s < directions; ++s) std::fill(keep[s], keep[s] + kStencilBlock, 1.0);
+  int next_exception = 0;
+  for (int a0 = first; a0 < first + count; a0 += kStencilBlock) {
+    const int n = std::min(kStencilBlock, first + count - a0);
+    const int e0 = next_exception;
+    const bool masked = begin_block(a0, n, directions, exceptions, n_exceptions, next_exception, keep, out, owned,
+                                    max_offset, zeroed);
+    const double* __restrict xa = x + 3 * a0;
+    const double* __restrict ua = u + 3 * a0;
+    for (int q = 0; q < directions; ++q) {
+      const int s = scatter[q], b0 = a0 + offset[s];
+      if (masked)
+        tangent_direction<true>(n, xa, x + 3 * b0, ua, u + 3 * b0, k[s], l0[s], keep[s], g[s][0], g[s][1], g[s][2]);
+      else
+        tangent_direction<false>(n, xa, x + 3 * b0, ua, u + 3 * b0, k[s], l0[s], keep[s], g[s][0], g[s][1], g[s][2]);
+      add_to_rows<-1>(b0, n, g[s][0], g[s][1], g[s][2], out, ghost, owned);
+    }
+    for (int e = e0; e < next_exception; ++e)
+      for (int s = 0; s < directions; ++s) keep[s][exceptions[e].molecule - a0] = 1.0;
+    alignas(64) double s0[kStencilBlock] = {}, s1[kStencilBlock] = {}, s2[kStencilBlock] = {};
+    for (int s = 0; s < directions; ++s)
+      for (int i = 0; i < n; ++i) s0[i] += g[s][0][i], s1[i] += g[s][1][i], s2[i] += g[s][2][i];
+    add_to_rows<1>(a0, n, s0, s1, s2, out, ghost, owned);
   }
 }
 
@@ -373,6 +477,40 @@ void SpringKernel::forces(const double* x, double* f, FinalRows final_rows, void
   }
   zero_ahead(f, zeroed, m.owned);
   finish(m.owned);
+}
+
+void SpringKernel::tangent(const double* x, const double* u, double* out, double* ghost) const {
+  const LocalModel& m = model_;
+  std::fill(ghost, ghost + 3 * static_cast<std::size_t>(m.local - m.owned), 0.0);
+  int zeroed = 0;  // out's rows below it are zeroed (just ahead of their first write, as in forces())
+  const ConnectionColumn kc = m.table.stiffness_column(), lc = m.table.rest_length_column();
+  auto generic = [&](int c0, int c1, int at) {
+    if (m.end_a.plain()) {
+      generic_tangent(c0, c1, m.end_a.data(), m.end_b.data(), kc.type, lc.type, kc.value, lc.value, x, u, out, ghost,
+                      m.owned);
+      return;
+    }
+    generic_tangent(0, c1 - c0, generic_a_.data() + at, generic_b_.data() + at, kc.type ? kc.type + c0 : nullptr,
+                    lc.type ? lc.type + c0 : nullptr, kc.type ? kc.value : kc.value + c0,
+                    lc.type ? lc.value : lc.value + c0, x, u, out, ghost, m.owned);
+  };
+  int c = 0;
+  for (const Segment& seg : segments_) {
+    if (c < seg.first_connection) {
+      zero_ahead(out, zeroed, seg.generic_reach);
+      generic(c, seg.first_connection, seg.generic_at);
+    }
+    const int p = seg.pattern, start = pattern_start_[p];
+    stencil_tangent(seg.first_molecule, seg.molecules, directions_[p], offsets_.data() + start, scatter_.data() + start,
+                    k_.data() + start, l0_.data() + start, exceptions_.data() + seg.first_exception, seg.exceptions, x,
+                    u, out, ghost, m.owned, reach_[p], &zeroed);
+    c = seg.first_connection + seg.connections;
+  }
+  if (c < m.connections()) {
+    zero_ahead(out, zeroed, tail_reach_);
+    generic(c, m.connections(), tail_at_);
+  }
+  zero_ahead(out, zeroed, m.owned);
 }
 
 }  // namespace tissue

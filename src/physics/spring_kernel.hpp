@@ -39,6 +39,12 @@ public:
   void forces(const double* x, double* f, FinalRows final_rows, void* context) const;
   // Connections handled by stencil segments (the rest go through the generic form).
   long structured_connections() const { return structured_; }
+  // The connections' tangent applied to u (the matrix-free Newton tangent's springs, ForceModel::apply_tangent):
+  // each connection's K (u_a - u_b) added to end a's row and subtracted from end b's, K = k [n n^T + (1 - l0/l)
+  // (I - n n^T)] at x (local, ghosts up to date), on the same segments as forces(): per direction a constant k
+  // and l0 and contiguous streams, the square root and division vectorized. out: 3 * owned values (zeroed here);
+  // ghost: 3 * (local - owned) values of scratch for the ghosts' rows (their owners compute those).
+  void tangent(const double* x, const double* u, double* out, double* ghost) const;
 
 private:
   struct Segment {

@@ -493,9 +493,8 @@ PetscErrorCode ForceModel::apply_tangent(const double* x, double* in, double* ou
     if (held_[q]) in[q] = 0.0;
   // Each connection once (one square root), both ends; the ghosts' rows are dropped (their owners compute them).
   // The ghosts' rows go to scratch kept between products (24 B a ghost; a box's ghosts are a few planes).
-  static thread_local std::vector<double> ghost_scratch;
-  ghost_scratch.resize(3 * static_cast<std::size_t>(local - n));
-  kernel_.tangent(x, in, out, ghost_scratch.data());
+  tangent_ghost_rows_.resize(3 * static_cast<std::size_t>(local - n));
+  kernel_.tangent(x, in, out, tangent_ghost_rows_.data());
   if (!terms_.empty()) {
     struct Apply {
       const double* in;

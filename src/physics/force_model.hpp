@@ -143,6 +143,7 @@ private:
   mutable double time_ = 0.0;
   const Scene& scene_;
   std::vector<int> held_fix_;            // parallel to held_owned_: the fix that holds the component
+  mutable std::vector<double> tangent_ghost_rows_;  // apply_tangent's scratch for the ghosts' rows (24 B a ghost)
   mutable std::vector<double> held_force_;  // parallel to held_owned_: the last forces() call's force there
   bool moves_held_ = false;              // some fix has a displacement
   mutable std::vector<double> load_scale_;  // per [[load]]: its history factor at time_ (1 without history)

@@ -266,4 +266,4 @@ done
 
 # 4. Plots and the peer table.
 [[ "${PLOT:-1}" == 1 ]] || exit 0
-"$PYTHON" run_scripts/plot_speed_accuracy.py "$CSV" docs
+"$PYTHON" run_scripts/plot_speed_accuracy.py "$CSV" docs "$DYN_CSV"

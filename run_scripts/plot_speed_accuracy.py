@@ -28,7 +28,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-from matplotlib.ticker import NullFormatter  # noqa: E402
+from matplotlib.ticker import FuncFormatter, LogLocator  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from speed_accuracy_fit import power_law_fit  # noqa: E402
@@ -83,6 +83,14 @@ def front(points):
     return line
 
 
+def tick_125(v, _):
+    """A log axis label at 1, 2 and 5 times a power of ten only (readable on panels spanning under a decade)."""
+    if v <= 0:
+        return ""
+    m = v / 10 ** math.floor(math.log10(v) + 1e-9)
+    return f"{v:g}" if min(abs(m - k) for k in (1, 2, 5)) < 1e-6 else ""
+
+
 def legend_below(fig, axes):
     seen = {}
     for ax in axes:
@@ -93,7 +101,7 @@ def legend_below(fig, axes):
 
 
 # 1. Pareto: error and residual vs CPU time, one column per N; error vs memory.
-ns = sorted({r["N"] for r in sweep})
+ns = sorted({r["N"] for r in sweep if r["config"] != "ref"})
 if ns:
     fig, axes = plt.subplots(2, len(ns), figsize=(max(3.9 * len(ns), 11), 8.8), squeeze=False)
     figm, axm = plt.subplots(1, len(ns), figsize=(max(3.9 * len(ns), 11), 5.0), squeeze=False)
@@ -121,7 +129,10 @@ if ns:
             if line:
                 ax.loglog(*zip(*line), "k--", lw=1, alpha=0.6, label="Pareto front")
             ax.grid(True, which="both", alpha=0.3)
-            ax.xaxis.set_minor_formatter(NullFormatter())
+            # 1, 2, 5, 10, ... labelled: a panel may span less than a decade
+            ax.xaxis.set_minor_locator(LogLocator(subs=(2.0, 5.0)))
+            for fmt in (ax.xaxis.set_major_formatter, ax.xaxis.set_minor_formatter):
+                fmt(FuncFormatter(tick_125))
         ax_e.axhline(1e-6, color="r", lw=0.8, ls=":")
         ax_m.axhline(1e-6, color="r", lw=0.8, ls=":")
         ax_e.set_ylim(bottom=FLOOR / 3)

@@ -163,7 +163,7 @@ for r in sweep + big:
     if r["config"] != "ref":
         series[r["label"]].append(r)
 QUANT = [("cpu_s", "CPU time, all ranks [s]"), ("wall_s", "wall time [s]"), ("peak_bytes_total", "peak memory [B]")]
-fig, axes = plt.subplots(1, 3, figsize=(17, 6.2))
+fig, axes = plt.subplots(1, 3, figsize=(17, 9.0))
 for i, (lab, rs) in enumerate(sorted(series.items())):
     rs.sort(key=lambda r: r["molecules"])
     for ax, (q, _) in zip(axes, QUANT):
@@ -198,7 +198,7 @@ if huge:
             mol = [x for x, _ in pts if x >= FIT_MIN]
             fits.append(("static mg (matrix-free) + bench_static_huge", "peak_bytes_total", f[0], f[2], min(mol),
                          max(mol), "speed_accuracy.csv + bench_static_huge.csv"))
-            pts.sort()
+            pts = sorted(p for p in pts if p[0] >= FIT_MIN)
             c = f[1]
             axes[2].loglog([pts[0][0], pts[-1][0]], [c * pts[0][0] ** f[0], c * pts[-1][0] ** f[0]], "k:", lw=1,
                            label=f"fit: matrix-free + bench_static_huge (^{f[0]:.2f})")
@@ -206,7 +206,8 @@ for ax, (q, what) in zip(axes, QUANT):
     ax.set_xlabel("molecules")
     ax.set_ylabel(what)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, loc="upper left")
+    # below the panel: the curves fill the whole panel
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=1)
 axes[0].set_title("CPU time (the load-robust one)")
 axes[1].set_title("wall time (shared machine: see the load column)")
 axes[2].set_title("peak memory (largest rank x ranks)")

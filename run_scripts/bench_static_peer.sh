@@ -19,7 +19,8 @@
 #   run_scripts/bench_static_peer.sh
 # Knobs (environment): TISSUE (default build-bench/tissue), LMP (default lmp), RANKS (ours and the Verlet peer,
 # default 2), FIRE_N, FIRE_RANKS, VV_N ("" skips that comparison), REPEAT (pairs per comparison, default 2), WORK,
-# CSV, TOL (default 1e-8), OPERATOR (solver.operator of ours: "" = the scene's default, assembled; matrix-free).
+# CSV, TOL (default 1e-8), OPERATOR (solver.operator of ours: "" = not given, the default: matrix-free on this
+# springs-only lattice since branch setup18, assembled before; or assembled, matrix-free).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 

@@ -365,7 +365,8 @@ TEST(MatrixFree, StencilLevelOneCellTerm) { compare_stencil_level(cells); }
 // Above 1,000 molecules: smaller lattices get GAMG, and the assembled tangent with a note.
 void compare_static(const std::string& text, const std::string& molecules, const std::string& load) {
   const std::string scene = text + load;
-  auto a = run(scene, PETSC_COMM_WORLD, {"solver.tolerance=1e-10", "body.molecules=" + molecules});
+  auto a = run(scene, PETSC_COMM_WORLD,
+               {"solver.tolerance=1e-10", "body.molecules=" + molecules, "solver.operator=assembled"});
   auto m = run(scene, PETSC_COMM_WORLD,
                {"solver.tolerance=1e-10", "body.molecules=" + molecules, "solver.operator=matrix-free"});
   ASSERT_TRUE(a->report.converged && m->report.converged);
@@ -393,11 +394,40 @@ TEST(MatrixFree, StaticTensionCellTerm) {
   compare_static(cells, "[12, 11, 14]", "[[load]]\nface = \"z+\"\nforce = [0.0, 0.0, 1e-4]\n");
 }
 
+// solver.operator not given: matrix-free on a springs-only lattice with the lattice multigrid, assembled with a
+// term (the cell term) or where the multigrid does not apply (840 molecules), and no note either way: each the
+// named operator's answer bit for bit.
+void expect_default_is(const std::string& scene, const std::vector<std::string>& set, const std::string& named) {
+  auto d = run(scene, PETSC_COMM_WORLD, set);
+  std::vector<std::string> with = set;
+  with.push_back("solver.operator=" + named);
+  auto n = run(scene, PETSC_COMM_WORLD, with);
+  ASSERT_TRUE(d->report.converged && n->report.converged);
+  EXPECT_EQ(d->report.note.find("matrix-free not used"), std::string::npos) << d->report.note;
+  ASSERT_TRUE(d->measured.elongation && n->measured.elongation);
+  EXPECT_EQ(*d->measured.elongation, *n->measured.elongation) << named;
+  EXPECT_EQ(d->report.linear_iterations, n->report.linear_iterations) << named;
+  EXPECT_EQ(d->report.residual, n->report.residual) << named;
+}
+
+TEST(MatrixFree, DefaultOperator) {
+  const std::string pull = "[[load]]\nface = \"z+\"\nforce = [0.0, 0.0, 1.5]\n";
+  expect_default_is(springs + pull, {"body.molecules=[14, 12, 16]"}, "matrix-free");
+  expect_default_is(springs + pull, {}, "assembled");
+  expect_default_is(cells + "[[load]]\nface = \"z+\"\nforce = [0.0, 0.0, 1e-4]\n", {"body.molecules=[12, 11, 14]"},
+                    "assembled");
+  // The two operators differ at round-off (other summation order): the default is not the assembled one here.
+  auto a = run(springs + pull, PETSC_COMM_WORLD, {"body.molecules=[14, 12, 16]", "solver.operator=assembled"});
+  auto d = run(springs + pull, PETSC_COMM_WORLD, {"body.molecules=[14, 12, 16]"});
+  ASSERT_TRUE(a->measured.elongation && d->measured.elongation);
+  EXPECT_TRUE(*a->measured.elongation != *d->measured.elongation || a->report.residual != d->report.residual);
+}
+
 // Where the lattice multigrid does not apply (840 molecules: GAMG), matrix-free says so and the assembled
 // tangent solves: the same answer as asking for it.
 TEST(MatrixFree, NotApplicableFallsBackWithANote) {
   const std::string scene = springs + "[[load]]\nface = \"z+\"\nforce = [0.0, 0.0, 1.5]\n";
-  auto a = run(scene, PETSC_COMM_WORLD, {});
+  auto a = run(scene, PETSC_COMM_WORLD, {"solver.operator=assembled"});
   auto m = run(scene, PETSC_COMM_WORLD, {"solver.operator=matrix-free"});
   EXPECT_NE(m->report.note.find("matrix-free not used"), std::string::npos) << m->report.note;
   ASSERT_TRUE(a->measured.elongation && m->measured.elongation);
@@ -410,7 +440,7 @@ TEST(MatrixFree, NotApplicableFallsBackWithANote) {
 TEST(MatrixFree, LagGivenFallsBackToTheAssembledSolve) {
   const std::string scene = springs + "[[load]]\nface = \"z+\"\nforce = [0.0, 0.0, 1.5]\n";
   ASSERT_EQ(PetscOptionsSetValue(nullptr, "-snes_lag_preconditioner", "1"), 0);
-  auto a = run(scene, PETSC_COMM_WORLD, {"body.molecules=[14, 12, 16]"});
+  auto a = run(scene, PETSC_COMM_WORLD, {"body.molecules=[14, 12, 16]", "solver.operator=assembled"});
   auto m = run(scene, PETSC_COMM_WORLD, {"body.molecules=[14, 12, 16]", "solver.operator=matrix-free"});
   ASSERT_EQ(PetscOptionsClearValue(nullptr, "-snes_lag_preconditioner"), 0);
   EXPECT_NE(m->report.note.find("matrix-free not used"), std::string::npos) << m->report.note;

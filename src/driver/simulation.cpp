@@ -1,5 +1,6 @@
 #include "src/driver/simulation.hpp"
 
+#include <chrono>
 #include <utility>
 
 #include "partition/agreement.hpp"
@@ -79,12 +80,16 @@ void Simulation::measure() {
 }
 
 void Simulation::write(Output& out, double wall_seconds) {
+  // wall_seconds runs to the end of the last write (../shared/interface.md): the final snapshot's time is added
+  // to what the caller measured before it; only the summary's own few bytes are after the number it holds.
+  const auto before = std::chrono::steady_clock::now();
   // A solver failure caught by the guards (src/solvers/guards.hpp) has put the last good state back into the
   // state: it is written as DIR/last_good.h5, never as final.h5. A non-finite state is not written at all.
   if (failed() && failed_state_ == SolverFailure::State::last_good)
     out.snapshot(*state_, *forces_, /*final=*/false, "last_good.h5");
   else if (outcome_ != Outcome::interrupted && failed_state_ == SolverFailure::State::finished)
     out.snapshot(*state_, *forces_, /*final=*/true);
+  wall_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - before).count();
   out.summary(test_, measured_, initial_, report_, *state_, wall_seconds, failure_);
 }
 

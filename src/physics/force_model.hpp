@@ -51,6 +51,7 @@ public:
   // Whether some term's tangent is worth caching (Term::tangent_worth_caching), and then every term's blocks (the
   // cache holds a molecule's 27 blocks anyway), held components not masked; nothing when none is.
   bool has_cached_tangent() const;
+  bool has_terms() const { return !terms_.empty(); }  // any term beyond the connections' springs
   PetscErrorCode cached_tangent_blocks(const double* x, Term::BlockAdd add, void* ctx) const;
   // Collective. Gershgorin's bound on the largest eigenvalue of D^-1 J (D: J's diagonal; held rows the identity's):
   // max over rows of 1 + sum_j!=i |J_ij| / J_ii. exact = false (and the bound not computed) when a term adds

@@ -345,6 +345,7 @@ struct NewtonEquilibrium::Impl {
   KSP ksp = nullptr;
   PC pc = nullptr;
   bool lattice_mg = false, set_ptap = false, switched = false;
+  bool by_default = false;  // matrix-free because solver.operator was not given: no note when it does not apply
   std::unique_ptr<LatticeGalerkin> galerkin;
   std::unique_ptr<MatrixFreeTangent> shell;  // kept to the end once made (PETSc objects may still refer to it)
   PetscErrorCode use_matrix_free(bool user_pc, bool user_lag, LatticeLevels& hierarchy);
@@ -372,9 +373,16 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
   PetscFunctionBeginUser;
   PetscCall(VecDuplicate(state.x.global(), &X));
   PetscCall(VecCopy(state.x.global(), X));
+  PetscBool user_pc = PETSC_FALSE, user_lag = PETSC_FALSE;
+  PetscCall(PetscOptionsHasName(nullptr, nullptr, "-pc_type", &user_pc));
+  PetscCall(PetscOptionsHasName(nullptr, nullptr, "-snes_lag_preconditioner", &user_lag));
   // The matrix-free tangent is decided once the lattice multigrid is known (use_matrix_free); the assembled one
-  // is made here.
-  const bool want_matrix_free = scene.solver.tangent_operator == "matrix-free";
+  // is made here. Not given, it is matrix-free where that was measured never slower and 3.8x smaller (box lattices,
+  // springs only: docs/benchmarks.md, "The static solve at 1 kB a molecule"), and falls back without a note.
+  const std::string& op = scene.solver.tangent_operator;
+  by_default = op.empty() && !user_pc && !user_lag && !forces.has_terms() &&
+               std::none_of(scene.bodies.begin(), scene.bodies.end(), [](const BodySpec& b) { return b.unstructured(); });
+  const bool want_matrix_free = op == "matrix-free" || by_default;
   if (!want_matrix_free) PetscCall(forces.create_tangent(&J));
 
   PetscCall(SNESCreate(model.comm, &snes));
@@ -389,8 +397,6 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
   // The preconditioner: geometric multigrid on the lattice (lattice_mg.hpp) unless the user names one
   // (-pc_type gamg: smoothed aggregation with the rigid-body near-null space). GAMG also stands in
   // when the lattice is too small to coarsen, and takes over if a solve with the lattice multigrid fails.
-  PetscBool user_pc = PETSC_FALSE;
-  PetscCall(PetscOptionsHasName(nullptr, nullptr, "-pc_type", &user_pc));
   PetscInt mg_levels = 1;
   LatticeLevels hierarchy;
   // The matrix-free solve's coarse operators are summed from the lattice (not PCMG's products), so its finest
@@ -399,8 +405,6 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
   if (!user_pc)
     PetscCall(setup_lattice_mg(model, forces.held(), pc, 1000, &mg_levels, &hierarchy, want_matrix_free));
   lattice_mg = mg_levels > 1;
-  PetscBool user_lag = PETSC_FALSE;
-  PetscCall(PetscOptionsHasName(nullptr, nullptr, "-snes_lag_preconditioner", &user_lag));
   if (want_matrix_free) PetscCall(use_matrix_free(user_pc, user_lag, hierarchy));
   // The coarse operators from the lattice structure (lattice_galerkin.hpp) when the tangent is a lattice stencil
   // and the preconditioner's rebuilds are ours (Reuse): cheaper than hypre's triple product (docs/benchmarks.md).
@@ -548,9 +552,11 @@ PetscErrorCode NewtonEquilibrium::Impl::use_matrix_free(bool user_pc, bool user_
       PetscCall(PCSetType(pc, PCNONE));
       PetscCall(setup_lattice_mg(model, forces.held(), pc, 1000, &levels, nullptr, false));
     }
-    report.note += "solver.operator = matrix-free not used: " + why + ". ";
-    PetscCall(PetscPrintf(model.comm, "%s: solver.operator = \"matrix-free\" does not apply (%s): using the "
-                                      "assembled tangent\n", kind.c_str(), why.c_str()));
+    if (!by_default) {
+      report.note += "solver.operator = matrix-free not used: " + why + ". ";
+      PetscCall(PetscPrintf(model.comm, "%s: solver.operator = \"matrix-free\" does not apply (%s): using the "
+                                        "assembled tangent\n", kind.c_str(), why.c_str()));
+    }
     PetscCall(forces.create_tangent(&J));
   }
   PetscCall(SNESSetJacobian(snes, J, J, tangent, &ctx));

@@ -45,6 +45,14 @@ public:
   // Keeps O(pieces x ranks) numbers, nothing per item.
   using Id = std::function<std::int64_t(std::int64_t slot)>;
   RowStream(MPI_Comm comm, std::int64_t global_rows, std::int64_t slots, Id id, std::int64_t piece_rows = kPieceRows);
+  // The same, with the ids given a batch at a time: ids(first, end, out) writes the ids of slots [first, end), at
+  // most kBatch of them, in order (-1: not written here). Writers whose items are costly to decode one by one (a
+  // lattice's connections stored as runs) decode each batch once instead of once a slot.
+  static constexpr std::int64_t kBatch = 4096;
+  using Ids = std::function<void(std::int64_t first_slot, std::int64_t end_slot, std::int64_t* ids)>;
+  struct Batched {};
+  RowStream(MPI_Comm comm, std::int64_t global_rows, std::int64_t slots, Ids ids, Batched,
+            std::int64_t piece_rows = kPieceRows);
   // Collective; for reading only: as above, but any rank may want any id (increasing in its slots), once, several
   // times across the ranks, or not at all. Ids outside [0, global_rows) throw std::invalid_argument on every rank.
   struct Shared {};
@@ -64,6 +72,18 @@ public:
                              Checksum checksum = Checksum::compute) const;
   std::uint64_t write_int64(Hdf5File& file, const std::string& dataset, int width, const FillInt& fill,
                             Checksum checksum = Checksum::compute) const;
+  // The same a batch of slots at a time: fill(first, end, ids, rows) writes the rows of slots [first, end) (at most
+  // kBatch) one after another into rows, `width` values each; ids are the slots' ids, and a slot whose id is -1 may
+  // be left unwritten (its row is dropped). Rows arrive in the piece's buffer directly when a batch's ids are
+  // consecutive (every slot at 1 rank): no copy, no call a row.
+  using FillDoubles = std::function<void(std::int64_t first_slot, std::int64_t end_slot, const std::int64_t* ids,
+                                         double* rows)>;
+  using FillInts = std::function<void(std::int64_t first_slot, std::int64_t end_slot, const std::int64_t* ids,
+                                      std::int64_t* rows)>;
+  std::uint64_t write_double_rows(Hdf5File& file, const std::string& dataset, int width, const FillDoubles& fill,
+                                  Checksum checksum = Checksum::compute) const;
+  std::uint64_t write_int64_rows(Hdf5File& file, const std::string& dataset, int width, const FillInts& fill,
+                                 Checksum checksum = Checksum::compute) const;
   static void release();
 
   // Collective: reads the dataset [global_rows x width] of `file` (its shape checked by the caller) and calls
@@ -86,7 +106,8 @@ public:
 private:
   template <typename T>
   std::uint64_t write(Hdf5File& file, const std::string& dataset, int width,
-                      const std::function<void(std::int64_t, T*)>& fill, Checksum checksum) const;
+                      const std::function<void(std::int64_t, std::int64_t, const std::int64_t*, T*)>& fill,
+                      Checksum checksum) const;
   template <typename T>
   ReadCheck read(const Hdf5File& file, const std::string& dataset, int width,
                  const std::function<void(std::int64_t, const T*)>& take, const char* fault_stage) const;
@@ -98,7 +119,7 @@ private:
   int rank_ = 0, size_ = 1;
   std::int64_t global_rows_ = 0, slots_ = 0, piece_rows_ = 0, pieces_ = 1;
   bool shared_ = false;  // for reading only
-  Id id_;
+  Ids ids_;
   // Indexed by piece * size + rank: the first slot whose item goes to that (piece, rank) part (one more entry at
   // the end: slots), how many items this rank sends there, and how many it receives from that rank for the piece.
   std::vector<std::int64_t> start_;

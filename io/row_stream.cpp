@@ -63,8 +63,9 @@ template std::uint64_t row_hash_sum<double>(const double*, int, std::int64_t, st
 template std::uint64_t row_hash_sum<std::int64_t>(const std::int64_t*, int, std::int64_t, std::int64_t);
 
 std::int64_t RowStream::part_begin(std::int64_t p, int r) const {
-  const std::int64_t first = p * piece_rows_, length = std::min(global_rows_, first + piece_rows_) - first;
-  return first + NaturalOrder::block_begin(length, size_, r);
+  const std::int64_t first = p * piece_rows_, end = std::min(global_rows_, first + piece_rows_);
+  if (!own_begin_.empty()) return std::clamp(own_begin_[r], first, end);
+  return first + NaturalOrder::block_begin(end - first, size_, r);
 }
 
 namespace {
@@ -108,7 +109,7 @@ void RowStream::plan(bool shared) {
   // increase (the part holding an id is found by moving past the parts that end before it: no division an item).
   int bad = global_rows_ < 0;
   std::int64_t next_part = 0, last = -1, part = 0, part_end = parts > 0 ? part_begin(0, 1) : 0;
-  std::int64_t ids[kBatch];
+  std::int64_t ids[kBatch], count = 0, first_id = -1;
   for (std::int64_t k0 = 0; k0 < slots_ && !bad; k0 += kBatch) {
     const std::int64_t k1 = std::min(slots_, k0 + kBatch);
     ids_(k0, k1, ids);
@@ -119,6 +120,7 @@ void RowStream::plan(bool shared) {
         bad = 1;
         break;
       }
+      if (count++ == 0) first_id = i;
       last = i;
       while (i >= part_end) {
         ++part;
@@ -126,6 +128,35 @@ void RowStream::plan(bool shared) {
       }
       while (next_part <= part) start_[next_part++] = k;
       ++send_[part];
+    }
+  }
+  // When each rank's ids are one run and the runs follow each other in rank order (a lattice's molecules, and the
+  // connections each rank writes, in every partition by slabs of ids), each rank's part of a piece is its own rows
+  // there: nothing travels, and each rank writes its rows where they lie (a part then holds up to a piece's rows, at
+  // most kPieceRows). The even split above becomes that by moving every item to its own rank's part of its piece.
+  if (!shared && size_ > 1) {
+    long long mine[3] = {bad, count, count > 0 && last - first_id + 1 == count ? first_id : -1};
+    std::vector<long long> all(3 * static_cast<std::size_t>(size_));
+    check_mpi(MPI_Allgather(mine, 3, MPI_LONG_LONG, all.data(), 3, MPI_LONG_LONG, comm_), "MPI_Allgather");
+    bool runs = true;
+    long long at = 0;
+    for (int r = 0; r < size_ && runs; ++r) {
+      runs = all[3 * r] == 0 && (all[3 * r + 1] == 0 || all[3 * r + 2] == at);
+      at += all[3 * r + 1];
+    }
+    if (runs && at == global_rows_) {
+      own_begin_.assign(size_ + 1, 0);
+      for (int r = 0; r < size_; ++r) own_begin_[r + 1] = own_begin_[r] + all[3 * r + 1];
+      std::vector<std::int64_t> start(parts + 1, slots_);
+      for (std::int64_t p = 0; p < pieces_; ++p) {
+        std::int64_t mine_here = 0;
+        for (int r = 0; r < size_; ++r) mine_here += send_[p * size_ + r];
+        for (int r = 0; r < size_; ++r) {
+          start[p * size_ + r] = r <= rank_ ? start_[p * size_] : start_[(p + 1) * size_];
+          send_[p * size_ + r] = r == rank_ ? mine_here : 0;
+        }
+      }
+      start_ = std::move(start);
     }
   }
   // What each rank receives in each piece: one all-to-all of every piece's counts.

@@ -124,6 +124,9 @@ private:
   // the end: slots), how many items this rank sends there, and how many it receives from that rank for the piece.
   std::vector<std::int64_t> start_;
   std::vector<int> send_, recv_;
+  // Parts aligned with the ranks' own rows (plan()): rank r's rows are [own_begin_[r], own_begin_[r + 1]); empty
+  // for the even split.
+  std::vector<std::int64_t> own_begin_;
 
 };
 

@@ -8,7 +8,9 @@
 // under load, but cost 1.116x instead of 1.080x the memory without output); each piece is split evenly among
 // the ranks; every rank sends each
 // item of the piece, with its id, to the rank whose part holds it (one MPI_Alltoallv), and each rank writes its
-// part in one collective hyperslab write. Per rank and piece that is at most kPieceRows rows in and out, whatever
+// part (independently, in writes of at most 1 MiB: Hdf5File::write_pieces). When each rank's ids are one run and
+// the runs follow each other in rank order (a lattice's molecules and written connections), each rank's part of a
+// piece is its own rows instead, and nothing is exchanged. Per rank and piece that is at most kPieceRows rows in and out, whatever
 // the sample's size or the rank count: a 10^6-molecule snapshot costs a few MB on top of the run, not a copy of
 // every field (docs/benchmarks.md, "Snapshots without the memory spike").
 //
@@ -102,6 +104,7 @@ public:
                        const char* fault_stage = nullptr) const;
 
   std::int64_t pieces() const { return pieces_; }  // ceil(global_rows / piece_rows), at least 1
+  bool own_parts() const { return !own_begin_.empty(); }  // each rank's part its own rows: no rows exchanged
 
 private:
   template <typename T>

@@ -22,27 +22,9 @@ REPEAT=${5:-3}
 OUT=${OUT:-out/bench_io_cpu}
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 mkdir -p "$OUT"
-scene() {  # $1 name, $2 fields
-  cat > "$OUT/$1.toml" <<EOT
-title = "bench_io_cpu $SIDE^3"
-[body]
-molecules = [$SIDE, $SIDE, $SIDE]
-spacing = [0.001, 0.001, 0.001]
-topology = "face-diagonals"
-material = "ligament"
-[[fix]]
-face = "z+"
-[solver]
-kind = "dynamic"
-steps = 0
-[output]
-directory = "$OUT/$1"
-fields = $2
-progress = false
-EOT
-}
-scene all '["positions", "displacements", "velocities", "forces", "connection_strain", "connection_force"]'
-scene none '[]'
+source run_scripts/io_scene.sh
+io_scene "$OUT/all.toml" "bench_io_cpu $SIDE^3" "$SIDE" "$OUT/all" "$ALL_FIELDS"
+io_scene "$OUT/none.toml" "bench_io_cpu $SIDE^3" "$SIDE" "$OUT/none" "[]"
 cpu() {  # $1 binary, $2 scene: user + system seconds of the whole run
   rm -rf "${OUT:?}/$2"
   /usr/bin/time -f "%U %S" -o "$OUT/time" mpirun --oversubscribe -np "$RANKS" "$1" run "$OUT/$2.toml" > "$OUT/$2.log" 2>&1

@@ -103,6 +103,37 @@ constexpr std::size_t kUserBlock = 512;
 bool abandoned_files = false;
 const char kSealTag[] = "TISSUE-HDF5-SEAL 1 ";
 
+// FNV-1a of 16 byte streams side by side: h[l] takes the n bytes at bytes + l * stride (n a multiple of 8). FNV-1a is
+// one chain of multiplications a byte; with AVX-512 (vpmullq) two vectors of 8 lanes each keep the multiplier busy
+// (1.5-2.5x the bytes a second of 8 scalar lanes on a loaded machine: docs/benchmarks.md, "Snapshot writes at half
+// of dd").
+using Lanes8 = std::uint64_t __attribute__((vector_size(64)));
+__attribute__((target_clones("arch=x86-64-v4", "default"))) void fnv_16_lanes(std::uint64_t* h,
+                                                                              const unsigned char* bytes,
+                                                                              std::size_t stride, std::size_t n) {
+  constexpr std::uint64_t kPrime = 1099511628211ULL;
+  Lanes8 lo, hi;
+  std::memcpy(&lo, h, sizeof lo);
+  std::memcpy(&hi, h + 8, sizeof hi);
+  for (std::size_t i = 0; i < n; i += 8) {
+    Lanes8 wl, wh;
+    for (int l = 0; l < 8; ++l) {
+      std::uint64_t w;
+      std::memcpy(&w, bytes + l * stride + i, 8);
+      wl[l] = w;
+      std::memcpy(&w, bytes + (l + 8) * stride + i, 8);
+      wh[l] = w;
+    }
+    for (int b = 0; b < 8; ++b) {  // little-endian: the lowest byte is the first
+      lo = (lo ^ (wl & 0xff)) * kPrime;
+      hi = (hi ^ (wh & 0xff)) * kPrime;
+      wl >>= 8, wh >>= 8;
+    }
+  }
+  std::memcpy(h, &lo, sizeof lo);
+  std::memcpy(h + 8, &hi, sizeof hi);
+}
+
 // Sum (mod 2^64) over 1 MiB blocks of FNV-1a(block offset, block bytes): order-independent, so every rank hashes
 // its own contiguous share of the file in parallel and one reduction gives the total.
 std::uint64_t seal_hash(const std::string& path, std::uint64_t size, MPI_Comm comm) {
@@ -116,10 +147,10 @@ std::uint64_t seal_hash(const std::string& path, std::uint64_t size, MPI_Comm co
   int failed = 0;
   if (first < last) {
     int fd = ::open(path.c_str(), O_RDONLY);
-    // Eight blocks hashed side by side, an eighth of each at a time (1 MiB of buffer): FNV-1a is one chain of
+    // Sixteen blocks hashed side by side, a sixteenth of each at a time (1 MiB of buffer): FNV-1a is one chain of
     // multiplications a byte, so independent blocks keep the multiplier busy (the same hashes as one block at a
     // time, as the share's last blocks are hashed).
-    constexpr std::uint64_t kLanes = 8, kBasis = 1469598103934665603ULL, kPrime = 1099511628211ULL;
+    constexpr std::uint64_t kLanes = 16, kBasis = 1469598103934665603ULL, kPrime = 1099511628211ULL;
     const std::size_t chunk = block / kLanes;
     std::vector<unsigned char> buffer(block);
     auto read = [&](std::uint64_t offset, std::size_t n, unsigned char* to) {
@@ -135,8 +166,7 @@ std::uint64_t seal_hash(const std::string& path, std::uint64_t size, MPI_Comm co
       if (lanes == kLanes && offset + kLanes * block <= size) {
         for (std::size_t c = 0; c < kLanes && !failed; ++c) {
           for (std::uint64_t l = 0; l < kLanes; ++l) read(offset + l * block + c * chunk, chunk, &buffer[l * chunk]);
-          for (std::size_t i = 0; i < chunk; ++i)
-            for (std::uint64_t l = 0; l < kLanes; ++l) h[l] = (h[l] ^ buffer[l * chunk + i]) * kPrime;
+          fnv_16_lanes(h, buffer.data(), chunk, chunk);
         }
       } else {
         for (std::uint64_t l = 0; l < lanes; ++l) {
@@ -469,8 +499,14 @@ void Hdf5File::write_pieces(const std::string& dataset, int64_t global_rows, int
   // Every row is written: skip the fill pass that would otherwise write the whole dataset twice.
   Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
   if (!dcpl.ok() || H5Pset_fill_time(dcpl.get(), H5D_FILL_TIME_NEVER) < 0) fail(dataset, "cannot set up creation");
+  // Each rank writes its rows alone (independent MPI-IO), in writes of at most kWriteBytes: a rank's rows of a
+  // piece are one contiguous run of the file, so a collective write would only add the aggregators' copy, and the
+  // kernel takes several times the system time for one write of a few MB as for the same bytes in writes of 1 MiB
+  // (docs/benchmarks.md, "Snapshot writes at half of dd"; dd writes 1 MiB blocks too).
+  constexpr int64_t kWriteBytes = int64_t{1} << 20;
+  const int64_t rows_a_write = std::max<int64_t>(1, kWriteBytes / (8 * static_cast<int64_t>(width)));
   Handle dxpl(H5Pcreate(H5P_DATASET_XFER), H5Pclose);
-  if (!dxpl.ok() || H5Pset_dxpl_mpio(dxpl.get(), H5FD_MPIO_COLLECTIVE) < 0) fail(dataset, "cannot set up transfer");
+  if (!dxpl.ok() || H5Pset_dxpl_mpio(dxpl.get(), H5FD_MPIO_INDEPENDENT) < 0) fail(dataset, "cannot set up transfer");
   // From here the work is agreed: a rank whose write fails (a full disk, a quota, an I/O error) stops every rank
   // with its line instead of leaving them in the file's next collective. The file is then abandoned, not closed:
   // after a failed write HDF5's ranks no longer agree on what closing it takes (one flushes its metadata in a
@@ -482,7 +518,7 @@ void Hdf5File::write_pieces(const std::string& dataset, int64_t global_rows, int
       dset.reset(H5Dcreate2(file_, dataset.c_str(), file_type, file_space.get(), lcpl.get(), dcpl.get(), H5P_DEFAULT));
       if (!dset.ok()) fail_io(dataset, "cannot create dataset", errno);
     });
-    // One agreed collective write a piece: each rank's rows of the piece are one block of the file's rows.
+    // One agreed step a piece: each rank's rows of the piece are one block of the file's rows.
     for (int64_t p = 0; p < pieces; ++p) {
       agree(comm_, [&] {
         int64_t offset = 0, rows = 0;
@@ -493,21 +529,21 @@ void Hdf5File::write_pieces(const std::string& dataset, int64_t global_rows, int
         if (any_bad)
           throw std::runtime_error(path_ + ": " + dataset + ": a rank's row block lies outside [0, " +
                                    std::to_string(global_rows) + ") or has no data");
-        Handle space(H5Scopy(file_space.get()), H5Sclose);
-        const hsize_t start[2] = {static_cast<hsize_t>(offset), 0};
-        const hsize_t count[2] = {static_cast<hsize_t>(rows), static_cast<hsize_t>(width)};
-        // A rank with no rows still takes part in the collective write, with empty selections.
-        const hsize_t mem_dims[2] = {rows > 0 ? count[0] : 1, count[1]};
-        Handle mem_space(H5Screate_simple(2, mem_dims, nullptr), H5Sclose);
-        if (!space.ok() || !mem_space.ok()) fail(dataset, "cannot create dataspace");
-        herr_t sel = rows > 0 ? H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr)
-                              : H5Sselect_none(space.get());
-        if (sel < 0 || (rows == 0 && H5Sselect_none(mem_space.get()) < 0)) fail(dataset, "cannot select rows");
-        const double dummy = 0.0;
-        errno = 0;
-        if (H5Dwrite(dset.get(), mem_type, mem_space.get(), space.get(), dxpl.get(), rows > 0 ? data : &dummy) < 0)
-          fail_io(dataset, "cannot write rows [" + std::to_string(offset) + ", " + std::to_string(offset + rows) + ")",
-                  errno);
+        for (int64_t done = 0; done < rows; done += rows_a_write) {
+          const int64_t n = std::min(rows_a_write, rows - done);
+          Handle space(H5Scopy(file_space.get()), H5Sclose);
+          const hsize_t start[2] = {static_cast<hsize_t>(offset + done), 0};
+          const hsize_t count[2] = {static_cast<hsize_t>(n), static_cast<hsize_t>(width)};
+          Handle mem_space(H5Screate_simple(2, count, nullptr), H5Sclose);
+          if (!space.ok() || !mem_space.ok()) fail(dataset, "cannot create dataspace");
+          if (H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr) < 0)
+            fail(dataset, "cannot select rows");
+          errno = 0;
+          const char* from = static_cast<const char*>(data) + done * width * 8;
+          if (H5Dwrite(dset.get(), mem_type, mem_space.get(), space.get(), dxpl.get(), from) < 0)
+            fail_io(dataset, "cannot write rows [" + std::to_string(offset + done) + ", " +
+                             std::to_string(offset + done + n) + ")", errno);
+        }
       });
     }
   } catch (...) {

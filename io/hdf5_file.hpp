@@ -2,8 +2,9 @@
 //
 // Every call here is collective over the file's communicator unless it says otherwise: all ranks call it, in the
 // same order, with the same names and global shapes. Data are 2-D datasets [global_rows x width] of double or
-// int64, each rank writing one contiguous block of rows (possibly none) with collective MPI-IO, or reading one
-// with an independent transfer (not collective: the caller agrees on the outcome).
+// int64, each rank writing one contiguous block of rows (possibly none) with independent MPI-IO writes of at most
+// 1 MiB (the dataset's creation and each piece's step are collective and agreed), or reading one with an
+// independent transfer (not collective: the caller agrees on the outcome).
 // Every HDF5 failure throws std::runtime_error naming the file and the dataset, in one line (HDF5's own error
 // stack printing is switched off; its innermost message is kept in the exception).
 //
@@ -74,8 +75,9 @@ public:
   void write(const std::string& dataset, int64_t global_rows, int width, int64_t offset, int64_t rows,
              const int64_t* data);
 
-  // Collective write of a new dataset [global_rows x width] in `pieces` agreed collective writes (the same count on
-  // every rank), so that no rank ever holds more than a piece: piece(p, &offset, &rows) returns this rank's rows
+  // Collective write of a new dataset [global_rows x width] in `pieces` agreed steps (the same count on every rank;
+  // each rank writes its rows of a piece independently, in writes of at most 1 MiB), so that no rank ever holds
+  // more than a piece: piece(p, &offset, &rows) returns this rank's rows
   // [offset, offset + rows) of piece p (rows * width values, valid until the next call; null when rows == 0).
   // `integer`: int64 values, otherwise double.
   using Piece = std::function<const void*(int64_t piece, int64_t* offset, int64_t* rows)>;

@@ -94,8 +94,12 @@ double Output::stage_bytes() const {
 
 const RowStream& Output::molecule_rows() {
   if (!molecule_rows_)
-    molecule_rows_ = std::make_unique<RowStream>(model_.comm, model_.global_molecules, model_.owned,
-                                                 [&m = model_](std::int64_t k) { return m.id[k]; });
+    molecule_rows_ = std::make_unique<RowStream>(
+        model_.comm, model_.global_molecules, model_.owned,
+        [&m = model_](std::int64_t first, std::int64_t end, std::int64_t* ids) {
+          for (std::int64_t k = first; k < end; ++k) *ids++ = m.id[static_cast<int>(k)];
+        },
+        RowStream::Batched{});
   return *molecule_rows_;
 }
 
@@ -103,7 +107,26 @@ const RowStream& Output::connection_rows() {
   if (!connection_rows_)
     connection_rows_ = std::make_unique<RowStream>(
         model_.comm, model_.global_connections, model_.connections(),
-        [&m = model_](std::int64_t c) { return m.end_a[c] < m.owned ? m.connection_id(static_cast<int>(c)) : -1; });
+        [&m = model_](std::int64_t first, std::int64_t end, std::int64_t* ids) {
+          // A batch's ends a decoded at once; an owned end a has its connections consecutive and in order, so the
+          // position among them (m.connection_id's second term) counts up from the batch's first.
+          int a[RowStream::kBatch];
+          const int c0 = static_cast<int>(first), n = static_cast<int>(end - first);
+          m.end_a.decode(c0, c0 + n, a);
+          const bool lattice = m.forward_rank.empty();
+          int position = 0;
+          for (int j = 0; j < n; ++j) {
+            if (a[j] >= m.owned) {
+              ids[j] = -1;
+              continue;
+            }
+            if (!lattice) position = m.forward_rank[c0 + j];
+            else if (j == 0 || a[j - 1] != a[j]) position = j == 0 ? m.end_a.row_position(c0) : 0;
+            else ++position;
+            ids[j] = m.first_connection[a[j]] + position;
+          }
+        },
+        RowStream::Batched{});
   return *connection_rows_;
 }
 
@@ -137,48 +160,68 @@ void Output::write_snapshot_stage(const SolverState& state, const ForceModel& fo
   // Every field goes out in pieces, computed from the state as its rows are sent (RowStream): nothing the size of
   // a field is held, except a field that only exists whole (the connection forces on each molecule, the fibres).
   std::vector<double> fibre_direction, fibre_stretch;
-  auto stretch_of = [&](int c) {
-    const double* xa = x + 3 * m.end_a[c];
-    const double* xb = x + 3 * m.end_b[c];
-    const double len = std::sqrt((xb[0] - xa[0]) * (xb[0] - xa[0]) + (xb[1] - xa[1]) * (xb[1] - xa[1]) +
-                                 (xb[2] - xa[2]) * (xb[2] - xa[2]));
-    return len - m.l0(c);
-  };
   constexpr RowStream::Checksum kSkip = RowStream::Checksum::skip;  // a snapshot carries no row hashes
-  auto write_field = [&](Hdf5File& file, SnapshotField field, const char* dataset, std::int64_t, int width) {
-    auto copy3 = [](const double* from) {
-      return [from](std::int64_t k, double* row) { std::copy(from + 3 * k, from + 3 * k + 3, row); };
+  // Rows a batch at a time (RowStream::write_double_rows): molecules' rows are slices of the state's arrays, a
+  // connection's ends are decoded once a batch.
+  auto copy3 = [](const double* from) {
+    return [from](std::int64_t first, std::int64_t end, const std::int64_t*, double* rows) {
+      std::copy(from + 3 * first, from + 3 * end, rows);
     };
+  };
+  auto connection_rows_of = [&](auto row_of) {
+    return [&m, x, row_of](std::int64_t first, std::int64_t end, const std::int64_t*, double* rows) {
+      int a[RowStream::kBatch], b[RowStream::kBatch];
+      const int c0 = static_cast<int>(first), n = static_cast<int>(end - first);
+      m.end_a.decode(c0, c0 + n, a);
+      m.end_b.decode(c0, c0 + n, b);
+      const ConnectionColumn l0 = m.table.rest_length_column(), k = m.table.stiffness_column();
+      for (int j = 0; j < n; ++j) {
+        const double* xa = x + 3 * a[j];
+        const double* xb = x + 3 * b[j];
+        const double len = std::sqrt((xb[0] - xa[0]) * (xb[0] - xa[0]) + (xb[1] - xa[1]) * (xb[1] - xa[1]) +
+                                     (xb[2] - xa[2]) * (xb[2] - xa[2]));
+        rows[j] = row_of(len - l0[c0 + j], l0[c0 + j], k[c0 + j]);
+      }
+    };
+  };
+  auto write_field = [&](Hdf5File& file, SnapshotField field, const char* dataset, std::int64_t, int width) {
     switch (field) {
-      case kPositions: molecule_rows().write_double(file, dataset, width, copy3(x), kSkip); break;
+      case kPositions: molecule_rows().write_double_rows(file, dataset, width, copy3(x), kSkip); break;
       case kDisplacements:
-        molecule_rows().write_double(file, dataset, width, [&](std::int64_t k, double* row) {
-          for (int d = 0; d < 3; ++d) row[d] = x[3 * k + d] - m.rest[3 * k + d];
+        molecule_rows().write_double_rows(file, dataset, width,
+                                          [&](std::int64_t first, std::int64_t end, const std::int64_t*, double* rows) {
+          for (std::int64_t i = 3 * first; i < 3 * end; ++i) *rows++ = x[i] - m.rest[i];
         }, kSkip);
         break;
-      case kVelocities: molecule_rows().write_double(file, dataset, width, copy3(state.v.data()), kSkip); break;
+      case kVelocities: molecule_rows().write_double_rows(file, dataset, width, copy3(state.v.data()), kSkip); break;
       case kForces: {
         // The connection forces on each molecule: they balance the loads at equilibrium and are the reactions at
         // held molecules (the net force, zero at equilibrium, would show nothing).
         std::vector<double> f(3 * m.local);
         forces.connection_forces(x, f.data());
-        molecule_rows().write_double(file, dataset, width, copy3(f.data()), kSkip);
+        molecule_rows().write_double_rows(file, dataset, width, copy3(f.data()), kSkip);
         break;
       }
       case kEndpoints:  // original molecule ids
-        connection_rows().write_int64(file, dataset, width, [&](std::int64_t c, std::int64_t* row) {
-          row[0] = m.id[m.end_a[c]], row[1] = m.id[m.end_b[c]];
+        connection_rows().write_int64_rows(file, dataset, width,
+                                           [&](std::int64_t first, std::int64_t end, const std::int64_t*,
+                                               std::int64_t* rows) {
+          int a[RowStream::kBatch], b[RowStream::kBatch];
+          const int c0 = static_cast<int>(first), n = static_cast<int>(end - first);
+          m.end_a.decode(c0, c0 + n, a);
+          m.end_b.decode(c0, c0 + n, b);
+          for (int j = 0; j < n; ++j) rows[2 * j] = m.id[a[j]], rows[2 * j + 1] = m.id[b[j]];
         }, kSkip);
         break;
       case kConnectionStrain:
-        connection_rows().write_double(file, dataset, width, [&](std::int64_t c, double* row) {
-          row[0] = stretch_of(static_cast<int>(c)) / m.l0(static_cast<int>(c));
-        }, kSkip);
+        connection_rows().write_double_rows(
+            file, dataset, width,
+            connection_rows_of([](double stretch, double l0, double) { return stretch / l0; }), kSkip);
         break;
       case kConnectionForce:
-        connection_rows().write_double(file, dataset, width, [&](std::int64_t c, double* row) {
-          row[0] = m.k(static_cast<int>(c)) * stretch_of(static_cast<int>(c));
-        }, kSkip);
+        connection_rows().write_double_rows(
+            file, dataset, width, connection_rows_of([](double stretch, double, double k) { return k * stretch; }),
+            kSkip);
         break;
       case kCellCorners: {
         const std::vector<std::int64_t> rows = cells_->to_natural_ids(cells.corners.data(), cells.nodes);
@@ -200,11 +243,13 @@ void Output::write_snapshot_stage(const SolverState& state, const ForceModel& fo
         // no fibre cell touches the molecule.
         fibre_direction.assign(3 * m.owned, 0.0), fibre_stretch.assign(m.owned, 0.0);
         forces.fibre_field(x, fibre_direction.data(), fibre_stretch.data());
-        molecule_rows().write_double(file, dataset, width, copy3(fibre_direction.data()), kSkip);
+        molecule_rows().write_double_rows(file, dataset, width, copy3(fibre_direction.data()), kSkip);
         break;
       case kFibreStretch:
-        molecule_rows().write_double(file, dataset, width,
-                                     [&](std::int64_t k, double* row) { row[0] = fibre_stretch[k]; }, kSkip);
+        molecule_rows().write_double_rows(file, dataset, width,
+                                          [&](std::int64_t first, std::int64_t end, const std::int64_t*, double* rows) {
+          std::copy(fibre_stretch.data() + first, fibre_stretch.data() + end, rows);
+        }, kSkip);
         break;
       case kSnapshotFields: break;
     }

@@ -63,19 +63,37 @@ template std::uint64_t row_hash_sum<double>(const double*, int, std::int64_t, st
 template std::uint64_t row_hash_sum<std::int64_t>(const std::int64_t*, int, std::int64_t, std::int64_t);
 
 std::int64_t RowStream::part_begin(std::int64_t p, int r) const {
-  const std::int64_t first = p * piece_rows_, length = std::min(global_rows_, first + piece_rows_) - first;
-  return first + NaturalOrder::block_begin(length, size_, r);
+  const std::int64_t first = p * piece_rows_, end = std::min(global_rows_, first + piece_rows_);
+  if (!own_begin_.empty()) return std::clamp(own_begin_[r], first, end);
+  return first + NaturalOrder::block_begin(end - first, size_, r);
 }
 
+namespace {
+
+RowStream::Ids one_at_a_time(RowStream::Id id) {
+  return [id = std::move(id)](std::int64_t first, std::int64_t end, std::int64_t* out) {
+    for (std::int64_t k = first; k < end; ++k) *out++ = id(k);
+  };
+}
+
+}  // namespace
+
 RowStream::RowStream(MPI_Comm comm, std::int64_t global_rows, std::int64_t slots, Id id, std::int64_t piece_rows)
-    : comm_(comm), global_rows_(global_rows), slots_(slots), piece_rows_(piece_rows), id_(std::move(id)) {
+    : comm_(comm), global_rows_(global_rows), slots_(slots), piece_rows_(piece_rows),
+      ids_(one_at_a_time(std::move(id))) {
+  plan(false);
+}
+
+RowStream::RowStream(MPI_Comm comm, std::int64_t global_rows, std::int64_t slots, Ids ids, Batched,
+                     std::int64_t piece_rows)
+    : comm_(comm), global_rows_(global_rows), slots_(slots), piece_rows_(piece_rows), ids_(std::move(ids)) {
   plan(false);
 }
 
 RowStream::RowStream(MPI_Comm comm, std::int64_t global_rows, std::int64_t slots, Id id, Shared,
                      std::int64_t piece_rows)
     : comm_(comm), global_rows_(global_rows), slots_(slots), piece_rows_(piece_rows), shared_(true),
-      id_(std::move(id)) {
+      ids_(one_at_a_time(std::move(id))) {
   plan(true);
 }
 
@@ -87,22 +105,59 @@ void RowStream::plan(bool shared) {
   const std::int64_t parts = pieces_ * size_;
   start_.assign(parts + 1, slots_);
   send_.assign(parts, 0);
-  // One pass over the slots: the items go to the parts in order, since their ids increase.
+  // One pass over the slots, a batch of ids at a time: the items go to the parts in order, since their ids
+  // increase (the part holding an id is found by moving past the parts that end before it: no division an item).
   int bad = global_rows_ < 0;
-  std::int64_t next_part = 0, last = -1;
-  for (std::int64_t k = 0; k < slots_ && !bad; ++k) {
-    const std::int64_t i = id_(k);
-    if (i < 0) continue;
-    if (i <= last || i >= global_rows_) {
-      bad = 1;
-      break;
+  std::int64_t next_part = 0, last = -1, part = 0, part_end = parts > 0 ? part_begin(0, 1) : 0;
+  std::int64_t ids[kBatch], count = 0, first_id = -1;
+  for (std::int64_t k0 = 0; k0 < slots_ && !bad; k0 += kBatch) {
+    const std::int64_t k1 = std::min(slots_, k0 + kBatch);
+    ids_(k0, k1, ids);
+    for (std::int64_t k = k0; k < k1; ++k) {
+      const std::int64_t i = ids[k - k0];
+      if (i < 0) continue;
+      if (i <= last || i >= global_rows_) {
+        bad = 1;
+        break;
+      }
+      if (count++ == 0) first_id = i;
+      last = i;
+      while (i >= part_end) {
+        ++part;
+        part_end = part_begin(part / size_, part % size_ + 1);
+      }
+      while (next_part <= part) start_[next_part++] = k;
+      ++send_[part];
     }
-    last = i;
-    const std::int64_t p = i / piece_rows_, first = p * piece_rows_;
-    const std::int64_t part =
-        p * size_ + NaturalOrder::block_owner(std::min(global_rows_, first + piece_rows_) - first, size_, i - first);
-    while (next_part <= part) start_[next_part++] = k;
-    ++send_[part];
+  }
+  // When each rank's ids are one run and the runs follow each other in rank order (a lattice's molecules, and the
+  // connections each rank writes, in every partition by slabs of ids), each rank's part of a piece is its own rows
+  // there: nothing travels, and each rank writes its rows where they lie (a part then holds up to a piece's rows, at
+  // most kPieceRows). The even split above becomes that by moving every item to its own rank's part of its piece.
+  if (!shared && size_ > 1) {
+    long long mine[3] = {bad, count, count > 0 && last - first_id + 1 == count ? first_id : -1};
+    std::vector<long long> all(3 * static_cast<std::size_t>(size_));
+    check_mpi(MPI_Allgather(mine, 3, MPI_LONG_LONG, all.data(), 3, MPI_LONG_LONG, comm_), "MPI_Allgather");
+    bool runs = true;
+    long long at = 0;
+    for (int r = 0; r < size_ && runs; ++r) {
+      runs = all[3 * r] == 0 && (all[3 * r + 1] == 0 || all[3 * r + 2] == at);
+      at += all[3 * r + 1];
+    }
+    if (runs && at == global_rows_) {
+      own_begin_.assign(size_ + 1, 0);
+      for (int r = 0; r < size_; ++r) own_begin_[r + 1] = own_begin_[r] + all[3 * r + 1];
+      std::vector<std::int64_t> start(parts + 1, slots_);
+      for (std::int64_t p = 0; p < pieces_; ++p) {
+        std::int64_t mine_here = 0;
+        for (int r = 0; r < size_; ++r) mine_here += send_[p * size_ + r];
+        for (int r = 0; r < size_; ++r) {
+          start[p * size_ + r] = r <= rank_ ? start_[p * size_] : start_[(p + 1) * size_];
+          send_[p * size_ + r] = r == rank_ ? mine_here : 0;
+        }
+      }
+      start_ = std::move(start);
+    }
   }
   // What each rank receives in each piece: one all-to-all of every piece's counts.
   std::vector<int> out(parts), in(parts);
@@ -169,12 +224,20 @@ void RowStream::release() {
 
 template <typename T>
 std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int width,
-                               const std::function<void(std::int64_t, T*)>& fill, Checksum checksum) const {
+                               const std::function<void(std::int64_t, std::int64_t, const std::int64_t*, T*)>& fill,
+                               Checksum checksum) const {
   if (shared_) throw std::logic_error("RowStream: a stream whose ids repeat across ranks writes no file");
   const int row = width + 1;  // the id (its bytes), then the values
   Buffers<T>& buffer = buffers_for<T>();
   std::vector<char>& seen = buffer.seen;
   std::vector<int> send_bytes(size_), send_displs(size_), recv_bytes(size_), recv_displs(size_);
+  // A batch's ids and, when its rows cannot go straight to their place, its rows (a few hundred kB at most).
+  std::int64_t ids[kBatch];
+  std::unique_ptr<T[]> batch;
+  auto batch_rows = [&] {
+    if (!batch) batch.reset(new T[static_cast<std::size_t>(kBatch) * width]);
+    return batch.get();
+  };
   std::uint64_t hash = 0;
   auto piece = [&](std::int64_t p, std::int64_t* offset, std::int64_t* count) -> const void* {
     const std::int64_t first = part_begin(p, rank_), length = part_begin(p, rank_ + 1) - first;
@@ -182,11 +245,23 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
     seen.assign(static_cast<std::size_t>(length), 0);
     // This rank's own items go straight to their rows (plan() checked their ids: increasing, inside this part);
     // only the other ranks' items travel, with their ids.
-    for (std::int64_t k = start_[p * size_ + rank_]; k < start_[p * size_ + rank_ + 1]; ++k) {
-      const std::int64_t i = id_(k);
-      if (i < 0) continue;
-      fill(k, rows + (i - first) * width);
-      seen[i - first] = 1;
+    for (std::int64_t k0 = start_[p * size_ + rank_], end = start_[p * size_ + rank_ + 1]; k0 < end; k0 += kBatch) {
+      const std::int64_t k1 = std::min(end, k0 + kBatch), n = k1 - k0;
+      ids_(k0, k1, ids);
+      bool consecutive = true;  // none skipped, each the one after the last
+      for (std::int64_t j = 0; j < n; ++j) consecutive &= ids[j] == ids[0] + j;
+      if (consecutive && ids[0] >= 0) {
+        fill(k0, k1, ids, rows + (ids[0] - first) * width);
+        std::memset(seen.data() + (ids[0] - first), 1, static_cast<std::size_t>(n));
+        continue;
+      }
+      T* b = batch_rows();
+      fill(k0, k1, ids, b);
+      for (std::int64_t j = 0; j < n; ++j)
+        if (const std::int64_t i = ids[j]; i >= 0) {
+          std::copy(b + j * width, b + (j + 1) * width, rows + (i - first) * width);
+          seen[i - first] = 1;
+        }
     }
     int bad = 0;
     if (size_ > 1) {
@@ -199,12 +274,17 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
       for (int r = 0; r < size_; ++r) {
         send_displs[r] = static_cast<int>(at * sizeof(T));
         if (r != rank_)
-          for (std::int64_t k = start_[p * size_ + r]; k < start_[p * size_ + r + 1]; ++k) {
-            const std::int64_t i = id_(k);
-            if (i < 0) continue;
-            std::memcpy(outgoing + at, &i, sizeof i);
-            fill(k, outgoing + at + 1);
-            at += row;
+          for (std::int64_t k0 = start_[p * size_ + r], end = start_[p * size_ + r + 1]; k0 < end; k0 += kBatch) {
+            const std::int64_t k1 = std::min(end, k0 + kBatch);
+            ids_(k0, k1, ids);
+            T* b = batch_rows();
+            fill(k0, k1, ids, b);
+            for (std::int64_t j = 0; j < k1 - k0; ++j)
+              if (const std::int64_t i = ids[j]; i >= 0) {
+                std::memcpy(outgoing + at, &i, sizeof i);
+                std::copy(b + j * width, b + (j + 1) * width, outgoing + at + 1);
+                at += row;
+              }
           }
         send_bytes[r] = static_cast<int>(at * sizeof(T)) - send_displs[r];
       }
@@ -259,6 +339,7 @@ RowStream::ReadCheck RowStream::read(const Hdf5File& file, const std::string& da
   } free_type{&row_type};
   std::vector<T> part, answer, got;
   std::vector<std::int64_t> wanted, asked;
+  std::int64_t ids[kBatch];
   std::vector<int> want_n(size_), want_at(size_), ask_n(size_), ask_at(size_);
   std::uint64_t hash = 0;
   int bad = 0;  // a value that is not finite, or a request outside this rank's part (a broken plan)
@@ -275,8 +356,12 @@ RowStream::ReadCheck RowStream::read(const Hdf5File& file, const std::string& da
     wanted.clear();
     for (int r = 0; r < size_; ++r) {
       want_at[r] = static_cast<int>(wanted.size());
-      for (std::int64_t k = start_[p * size_ + r]; k < start_[p * size_ + r + 1]; ++k)
-        if (const std::int64_t i = id_(k); i >= 0) wanted.push_back(i);
+      for (std::int64_t k0 = start_[p * size_ + r], end = start_[p * size_ + r + 1]; k0 < end; k0 += kBatch) {
+        const std::int64_t k1 = std::min(end, k0 + kBatch);
+        ids_(k0, k1, ids);
+        for (std::int64_t j = 0; j < k1 - k0; ++j)
+          if (ids[j] >= 0) wanted.push_back(ids[j]);
+      }
       want_n[r] = static_cast<int>(wanted.size()) - want_at[r];
     }
     int asked_total = 0;
@@ -299,8 +384,12 @@ RowStream::ReadCheck RowStream::read(const Hdf5File& file, const std::string& da
                             want_at.data(), row_type, comm_),
               "MPI_Alltoallv");
     std::size_t q = 0;
-    for (std::int64_t k = start_[p * size_]; k < start_[(p + 1) * size_]; ++k)
-      if (id_(k) >= 0) take(k, &got[q++ * width]);
+    for (std::int64_t k0 = start_[p * size_], end = start_[(p + 1) * size_]; k0 < end; k0 += kBatch) {
+      const std::int64_t k1 = std::min(end, k0 + kBatch);
+      ids_(k0, k1, ids);
+      for (std::int64_t k = k0; k < k1; ++k)
+        if (ids[k - k0] >= 0) take(k, &got[q++ * width]);
+    }
   }
   ReadCheck check;
   int any = 0;
@@ -320,13 +409,36 @@ RowStream::ReadCheck RowStream::read_int64(const Hdf5File& file, const std::stri
   return read<std::int64_t>(file, dataset, width, take, fault_stage);
 }
 
+namespace {
+
+// A row at a time, skipped slots left alone.
+template <typename T, typename Fill>
+auto each_row(int width, const Fill& fill) {
+  return [width, &fill](std::int64_t first, std::int64_t end, const std::int64_t* ids, T* rows) {
+    for (std::int64_t k = first; k < end; ++k)
+      if (ids[k - first] >= 0) fill(k, rows + (k - first) * width);
+  };
+}
+
+}  // namespace
+
 std::uint64_t RowStream::write_double(Hdf5File& file, const std::string& dataset, int width, const FillDouble& fill,
                                       Checksum checksum) const {
-  return write<double>(file, dataset, width, fill, checksum);
+  return write<double>(file, dataset, width, each_row<double>(width, fill), checksum);
 }
 
 std::uint64_t RowStream::write_int64(Hdf5File& file, const std::string& dataset, int width, const FillInt& fill,
                                      Checksum checksum) const {
+  return write<std::int64_t>(file, dataset, width, each_row<std::int64_t>(width, fill), checksum);
+}
+
+std::uint64_t RowStream::write_double_rows(Hdf5File& file, const std::string& dataset, int width,
+                                           const FillDoubles& fill, Checksum checksum) const {
+  return write<double>(file, dataset, width, fill, checksum);
+}
+
+std::uint64_t RowStream::write_int64_rows(Hdf5File& file, const std::string& dataset, int width,
+                                          const FillInts& fill, Checksum checksum) const {
   return write<std::int64_t>(file, dataset, width, fill, checksum);
 }
 

@@ -8,7 +8,9 @@
 // under load, but cost 1.116x instead of 1.080x the memory without output); each piece is split evenly among
 // the ranks; every rank sends each
 // item of the piece, with its id, to the rank whose part holds it (one MPI_Alltoallv), and each rank writes its
-// part in one collective hyperslab write. Per rank and piece that is at most kPieceRows rows in and out, whatever
+// part (independently, in writes of at most 1 MiB: Hdf5File::write_pieces). When each rank's ids are one run and
+// the runs follow each other in rank order (a lattice's molecules and written connections), each rank's part of a
+// piece is its own rows instead, and nothing is exchanged. Per rank and piece that is at most kPieceRows rows in and out, whatever
 // the sample's size or the rank count: a 10^6-molecule snapshot costs a few MB on top of the run, not a copy of
 // every field (docs/benchmarks.md, "Snapshots without the memory spike").
 //
@@ -45,6 +47,14 @@ public:
   // Keeps O(pieces x ranks) numbers, nothing per item.
   using Id = std::function<std::int64_t(std::int64_t slot)>;
   RowStream(MPI_Comm comm, std::int64_t global_rows, std::int64_t slots, Id id, std::int64_t piece_rows = kPieceRows);
+  // The same, with the ids given a batch at a time: ids(first, end, out) writes the ids of slots [first, end), at
+  // most kBatch of them, in order (-1: not written here). Writers whose items are costly to decode one by one (a
+  // lattice's connections stored as runs) decode each batch once instead of once a slot.
+  static constexpr std::int64_t kBatch = 4096;
+  using Ids = std::function<void(std::int64_t first_slot, std::int64_t end_slot, std::int64_t* ids)>;
+  struct Batched {};
+  RowStream(MPI_Comm comm, std::int64_t global_rows, std::int64_t slots, Ids ids, Batched,
+            std::int64_t piece_rows = kPieceRows);
   // Collective; for reading only: as above, but any rank may want any id (increasing in its slots), once, several
   // times across the ranks, or not at all. Ids outside [0, global_rows) throw std::invalid_argument on every rank.
   struct Shared {};
@@ -64,6 +74,18 @@ public:
                              Checksum checksum = Checksum::compute) const;
   std::uint64_t write_int64(Hdf5File& file, const std::string& dataset, int width, const FillInt& fill,
                             Checksum checksum = Checksum::compute) const;
+  // The same a batch of slots at a time: fill(first, end, ids, rows) writes the rows of slots [first, end) (at most
+  // kBatch) one after another into rows, `width` values each; ids are the slots' ids, and a slot whose id is -1 may
+  // be left unwritten (its row is dropped). Rows arrive in the piece's buffer directly when a batch's ids are
+  // consecutive (every slot at 1 rank): no copy, no call a row.
+  using FillDoubles = std::function<void(std::int64_t first_slot, std::int64_t end_slot, const std::int64_t* ids,
+                                         double* rows)>;
+  using FillInts = std::function<void(std::int64_t first_slot, std::int64_t end_slot, const std::int64_t* ids,
+                                      std::int64_t* rows)>;
+  std::uint64_t write_double_rows(Hdf5File& file, const std::string& dataset, int width, const FillDoubles& fill,
+                                  Checksum checksum = Checksum::compute) const;
+  std::uint64_t write_int64_rows(Hdf5File& file, const std::string& dataset, int width, const FillInts& fill,
+                                 Checksum checksum = Checksum::compute) const;
   static void release();
 
   // Collective: reads the dataset [global_rows x width] of `file` (its shape checked by the caller) and calls
@@ -82,11 +104,13 @@ public:
                        const char* fault_stage = nullptr) const;
 
   std::int64_t pieces() const { return pieces_; }  // ceil(global_rows / piece_rows), at least 1
+  bool own_parts() const { return !own_begin_.empty(); }  // each rank's part its own rows: no rows exchanged
 
 private:
   template <typename T>
   std::uint64_t write(Hdf5File& file, const std::string& dataset, int width,
-                      const std::function<void(std::int64_t, T*)>& fill, Checksum checksum) const;
+                      const std::function<void(std::int64_t, std::int64_t, const std::int64_t*, T*)>& fill,
+                      Checksum checksum) const;
   template <typename T>
   ReadCheck read(const Hdf5File& file, const std::string& dataset, int width,
                  const std::function<void(std::int64_t, const T*)>& take, const char* fault_stage) const;
@@ -98,11 +122,14 @@ private:
   int rank_ = 0, size_ = 1;
   std::int64_t global_rows_ = 0, slots_ = 0, piece_rows_ = 0, pieces_ = 1;
   bool shared_ = false;  // for reading only
-  Id id_;
+  Ids ids_;
   // Indexed by piece * size + rank: the first slot whose item goes to that (piece, rank) part (one more entry at
   // the end: slots), how many items this rank sends there, and how many it receives from that rank for the piece.
   std::vector<std::int64_t> start_;
   std::vector<int> send_, recv_;
+  // Parts aligned with the ranks' own rows (plan()): rank r's rows are [own_begin_[r], own_begin_[r + 1]); empty
+  // for the even split.
+  std::vector<std::int64_t> own_begin_;
 
 };
 

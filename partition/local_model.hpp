@@ -76,6 +76,26 @@ public:
         for (int j = 0; j < directions && c < last; ++j, ++c) f(c, a, a + offset[j]);
     }
   }
+  // Values [c0, c1) into out, in connection order: one run lookup, no division a value (writers of files walk
+  // every connection; operator[] costs a division each).
+  void decode(int c0, int c1, int* out) const {
+    if (runs_.empty()) {
+      std::copy(plain_.begin() + c0, plain_.begin() + c1, out);
+      return;
+    }
+    for (int c = c0; c < c1;) {
+      const std::size_t ri = find(c);
+      const Run& r = runs_[ri];
+      const int end = ri + 1 < runs_.size() ? std::min(c1, runs_[ri + 1].first_connection) : c1;
+      const int start = pattern_start_[r.pattern], directions = pattern_start_[r.pattern + 1] - start;
+      const int q = c - r.first_connection;
+      int a = r.first_molecule + q / directions, d = q % directions;
+      for (; c < end; ++c) {
+        *out++ = is_b_ ? a + offsets_[start + d] : a;
+        if (++d == directions) d = 0, ++a;
+      }
+    }
+  }
   std::vector<int> values() const {
     std::vector<int> out(size_);
     for (std::size_t c = 0; c < size_; ++c) out[c] = (*this)[static_cast<int>(c)];

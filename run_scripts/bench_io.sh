@@ -28,6 +28,7 @@
 #                molecule and the restart's over the run without output. Restarts read in pieces too.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+source run_scripts/io_scene.sh
 TISSUE=${TISSUE:-build/tissue}
 RANKS=${RANKS:-$(nproc)}
 OUT=${OUT:-out/bench_io}
@@ -45,23 +46,7 @@ for n in "${SIDES[@]}"; do
   dir="$OUT/side$n"
   rm -rf "$dir"
   mkdir -p "$dir"
-  cat > "$dir/scene.toml" <<EOF
-title = "bench_io $n^3"
-[body]
-molecules = [$n, $n, $n]
-spacing = [0.001, 0.001, 0.001]
-topology = "face-diagonals"
-material = "ligament"
-[[fix]]
-face = "z+"
-[solver]
-kind = "dynamic"
-steps = 0
-[output]
-directory = "$dir"
-fields = ["positions", "displacements", "velocities", "forces", "connection_strain", "connection_force"]
-progress = false
-EOF
+  io_scene "$dir/scene.toml" "bench_io $n^3" "$n" "$dir" "$ALL_FIELDS"
   mpirun --oversubscribe -np "$RANKS" "$TISSUE" run "$dir/scene.toml" > "$dir/log" 2>&1 &
   pid=$!
   t_tmp=""

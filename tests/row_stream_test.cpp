@@ -256,3 +256,70 @@ TEST(RowStream, SealIsTheBlockHashOfEveryByte) {
   h.close();
   if (comm_rank() == 0) std::filesystem::remove(file);
 }
+
+// The batched forms (a stream of batched ids, rows a batch at a time) against the closed form and the row hash,
+// in the two layouts: ids scrambled among the ranks (the even split, rows exchanged) and each rank's ids one run
+// in rank order (parts aligned with the ranks' own rows: nothing exchanged), each with and without skipped slots
+// (a batch of consecutive ids goes straight into the piece; a skipped slot's row, NaN here, must be dropped).
+// 10,000 rows in pieces of 9,000: batches of kBatch slots cut inside a part. Read back through the same stream.
+TEST(RowStream, BatchedRowsInBothLayouts) {
+  constexpr std::int64_t rows = 10000, piece = 9000;
+  const int size = comm_size(), rank = comm_rank();
+  for (const bool runs : {false, true})
+    for (const bool skips : {false, true}) {
+      std::vector<std::int64_t> ids;
+      for (std::int64_t id = 0; id < rows; ++id) {
+        const int owner = runs ? NaturalOrder::block_owner(rows, size, id) : rank_of(id, size);
+        if (owner != rank) continue;
+        ids.push_back(id);
+        if (skips && ids.size() % 5 == 0) ids.push_back(-1);
+      }
+      int batches = 0;
+      RowStream stream(
+          MPI_COMM_WORLD, rows, static_cast<std::int64_t>(ids.size()),
+          [&](std::int64_t first, std::int64_t end, std::int64_t* out) {
+            ASSERT_LE(end - first, RowStream::kBatch);
+            ++batches;
+            std::copy(ids.begin() + first, ids.begin() + end, out);
+          },
+          RowStream::Batched{}, piece);
+      EXPECT_EQ(stream.own_parts(), runs && size > 1);
+      const std::string file = path() + (runs ? ".runs" : ".scrambled") + (skips ? ".skips" : "");
+      Hdf5File f = Hdf5File::create(file, MPI_COMM_WORLD);
+      const std::uint64_t hash = stream.write_double_rows(
+          f, "/values", 3, [&](std::int64_t first, std::int64_t end, const std::int64_t* batch_ids, double* out) {
+            for (std::int64_t k = first; k < end; ++k) {
+              EXPECT_EQ(batch_ids[k - first], ids[k]);
+              for (int c = 0; c < 3; ++c)
+                out[3 * (k - first) + c] = ids[k] < 0 ? std::nan("") : value(ids[k], c);
+            }
+          });
+      const std::uint64_t hash_ids = stream.write_int64_rows(
+          f, "/ids", 2, [&](std::int64_t first, std::int64_t end, const std::int64_t*, std::int64_t* out) {
+            for (std::int64_t k = first; k < end; ++k) out[2 * (k - first)] = ids[k], out[2 * (k - first) + 1] = -ids[k];
+          });
+      f.close();
+      RowStream::release();
+      EXPECT_GT(batches, 0);
+      std::vector<double> expected;
+      std::vector<std::int64_t> expected_ids;
+      for (std::int64_t id = 0; id < rows; ++id) {
+        for (int c = 0; c < 3; ++c) expected.push_back(value(id, c));
+        expected_ids.push_back(id), expected_ids.push_back(-id);
+      }
+      EXPECT_EQ(hash, row_hash_sum(expected.data(), 3, rows, 0)) << file;
+      EXPECT_EQ(hash_ids, row_hash_sum(expected_ids.data(), 2, rows, 0)) << file;
+      Hdf5File h = Hdf5File::open(file, MPI_COMM_WORLD, "file", nullptr);
+      EXPECT_EQ(h.read_double("/values", 0, rows), expected) << file;
+      EXPECT_EQ(h.read_int64("/ids", 0, rows), expected_ids) << file;
+      int wrong = 0;
+      const RowStream::ReadCheck check = stream.read_double(h, "/values", 3, [&](std::int64_t k, const double* row) {
+        for (int c = 0; c < 3; ++c) wrong += ids[k] < 0 || row[c] != value(ids[k], c);
+      });
+      EXPECT_EQ(wrong, 0) << file;
+      EXPECT_EQ(check.hash, hash) << file;
+      h.close();
+      MPI_Barrier(MPI_COMM_WORLD);
+      if (rank == 0) std::filesystem::remove(file);
+    }
+}

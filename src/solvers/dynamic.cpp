@@ -235,12 +235,13 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
   // collective): the kick-kick-drift goes inside the kernel's sweep, and between steps nothing observes, x, v and
   // f stay as three streams each (Streams3), turned back into PETSc's interlaced blocks before any step that
   // something observes (every kReduceEvery-th at the latest) and at the end.
-  int springs = forces.springs_only() ? 1 : 0, everywhere = 0;
-  MPI_Allreduce(&springs, &everywhere, 1, MPI_INT, MPI_MIN, model.comm);
-  const bool fuse = everywhere == 1;
+  // Both decisions agreed: {springs only here, no ghosts here}, each the least over the ranks.
+  int here[2] = {forces.springs_only() ? 1 : 0, model.local == model.owned ? 1 : 0}, everywhere[2] = {0, 0};
+  MPI_Allreduce(here, everywhere, 2, MPI_INT, MPI_MIN, model.comm);
+  const bool fuse = everywhere[0] == 1;
   const int local = model.local;
   std::optional<StreamGhosts> stream_ghosts;
-  if (fuse && model.size > 1) stream_ghosts.emplace(model);
+  if (fuse && everywhere[1] == 0) stream_ghosts.emplace(model);
   bool streams = false;  // x, v, f hold three streams each (x and f: stride local, v: stride n)
   auto set_streams = [&](bool on) {
     if (on == streams) return;

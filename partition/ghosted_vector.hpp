@@ -4,6 +4,10 @@
 #pragma once
 #include <petscvec.h>
 
+#include <cstddef>
+#include <vector>
+
+#include "partition/exchange.hpp"
 #include "partition/local_model.hpp"
 
 namespace tissue {
@@ -27,6 +31,23 @@ public:
 private:
   Vec vec_ = nullptr, local_ = nullptr;
   double* array_ = nullptr;
+};
+
+// The same ghost update for positions held as three streams (x[d * stride + i], d = 0, 1, 2: the explicit
+// solver's fused step, src/solvers/dynamic.cpp), where the PETSc scatter, which moves blocks of 3 contiguous
+// values, does not apply: each ghost's owner sends its 3 values with one MPI_Alltoallv a call. The values are
+// copies, so the ghosts get the same bits as update_ghosts() gives. Collective, the constructor too (one exchange
+// of the ghosts' block ids to their owners).
+class StreamGhosts {
+public:
+  explicit StreamGhosts(const LocalModel& model);
+  void update(double* x, std::size_t stride);  // owners' values -> ghost copies (collective)
+
+private:
+  ExchangePlan plan_;           // items: ghosts, from the rank holding the copy to the owner
+  std::vector<int> send_rows_;  // per item received: the owned molecule to send back
+  std::vector<int> ghost_rows_; // per item sent: the ghost slot its values fill
+  std::vector<double> out_, in_;
 };
 
 }  // namespace tissue

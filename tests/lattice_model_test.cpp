@@ -11,6 +11,7 @@
 #include <string>
 
 #include "io/scene.hpp"
+#include "partition/ghosted_vector.hpp"
 #include "partition/lattice_blocks.hpp"
 #include "partition/lattice_model.hpp"
 #include "partition/local_model.hpp"
@@ -336,6 +337,42 @@ void expect_stencil_equals_generic(const char* body, double one_rank_share) {
   for (int j = 0; j < 3 * typed.owned; ++j) ASSERT_EQ(h[j], first[j]) << j;
   // On one rank the rows go in many pieces (the kernel's chunks), not all at the end.
   if (typed.size == 1) EXPECT_GT(check.calls, 1);
+
+  // x and f as three streams each (the explicit solver's fused steps), with a stride past the local molecules
+  // whose padding is NaN: the same bits from both kernels, so no force reads past the local molecules, and the
+  // same rows handed over in order, already final.
+  const std::size_t stride = typed.local + 5;
+  auto streams = [&](const std::vector<double>& interlaced) {
+    std::vector<double> s(3 * stride, nan);
+    for (int i = 0; i < typed.local; ++i)
+      for (int d = 0; d < 3; ++d) s[d * stride + i] = interlaced[3 * i + d];
+    return s;
+  };
+  const std::vector<double> xs = streams(x);
+  std::vector<double> fs(3 * stride, nan), gs(3 * stride, nan);
+  struct StreamCheck {
+    const std::vector<double>* expected;
+    const std::vector<double>* f;
+    std::size_t stride;
+    int next = 0;
+    bool ok = true;
+  };
+  StreamCheck stream_check{&first, &fs, stride};
+  stencil_kernel.forces_streams(xs.data(), fs.data(), stride, [](void* context, int begin, int end) {
+    StreamCheck& c = *static_cast<StreamCheck*>(context);
+    c.ok = c.ok && begin == c.next && end > begin;
+    for (int i = begin; i < end; ++i)
+      for (int d = 0; d < 3; ++d) c.ok = c.ok && (*c.f)[d * c.stride + i] == (*c.expected)[3 * i + d];
+    c.next = end;
+  }, &stream_check);
+  EXPECT_TRUE(stream_check.ok);
+  EXPECT_EQ(stream_check.next, typed.owned);
+  generic_kernel.forces_streams(xs.data(), gs.data(), stride, nullptr, nullptr);
+  for (int i = 0; i < typed.owned; ++i)
+    for (int d = 0; d < 3; ++d) {
+      ASSERT_EQ(fs[d * stride + i], first[3 * i + d]) << i;
+      ASSERT_EQ(gs[d * stride + i], first[3 * i + d]) << i;
+    }
 }
 
 // A lattice's connection ends as runs of rows (what the lattice build keeps for the dynamic solver): every end,
@@ -415,6 +452,39 @@ method = "linear"
     largest = std::max(largest, std::fabs(g[j]));
   }
   EXPECT_GT(largest, 0.0);
+}
+
+// The ghost update of positions held as three streams (StreamGhosts, the fused explicit step's) gives every ghost
+// slot the bits PETSc's update of the interlaced vector gives it, at 1, 2 and 3 ranks, and leaves the owned
+// values alone.
+TEST(StreamGhosts, GiveTheGhostsPetscsValues) {
+  const Scene scene = parse_scene(std::string(solver) + kOneMaterial, "ghosts.toml");
+  CalibrationInputs inputs;
+  const LocalModel model = build_local_model(scene, PETSC_COMM_WORLD, inputs);
+  GhostedVector x(model);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const std::size_t stride = model.local + 3;
+  std::vector<double> xs(3 * stride, nan);
+  for (int i = 0; i < model.local; ++i)
+    for (int d = 0; d < 3; ++d) {
+      // Owned: a value of the molecule's id that no other molecule has; ghosts: NaN until updated.
+      const double value = i < model.owned ? 1.0 + 1e-3 * static_cast<double>(model.id[i]) + 0.25 * d : nan;
+      x.array()[3 * i + d] = value, xs[d * stride + i] = value;
+    }
+  x.update_ghosts();
+  StreamGhosts ghosts(model);
+  ghosts.update(xs.data(), stride);
+  for (int i = 0; i < model.local; ++i)
+    for (int d = 0; d < 3; ++d) {
+      ASSERT_TRUE(std::isfinite(xs[d * stride + i])) << i;
+      ASSERT_EQ(xs[d * stride + i], x.array()[3 * i + d]) << i;
+    }
+  for (std::size_t j = model.local; j < stride; ++j) EXPECT_TRUE(std::isnan(xs[j]));  // the padding untouched
+  if (model.size > 1) {
+    int ghosts_here = model.local - model.owned, any = 0;
+    MPI_Allreduce(&ghosts_here, &any, 1, MPI_INT, MPI_MAX, PETSC_COMM_WORLD);
+    EXPECT_GT(any, 0);
+  }
 }
 
 // Per-molecule integer arrays as arithmetic runs (RunArray): the same values as the plain array they came from,

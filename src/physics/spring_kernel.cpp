@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <type_traits>
 
 namespace tissue {
 
@@ -21,9 +22,11 @@ namespace {
 // force on end a is summed in registers over its run of connections and stored once. A block never splits a run
 // of the same end a: where the runs end does not depend on the partition, where a block ends does, and a split
 // run would sum the force on a in another grouping.
-TISSUE_CLONES
-void generic_forces(int begin_c, int end_c, const int* a, const int* b, const std::uint16_t* ktype,
-                    const std::uint16_t* ltype, const double* ks, const double* ls, const double* x, double* f) {
+template <class Layout>
+__attribute__((always_inline)) inline void generic_body(int begin_c, int end_c, const int* a, const int* b,
+                                                        const std::uint16_t* ktype, const std::uint16_t* ltype,
+                                                        const double* ks, const double* ls, const double* x,
+                                                        double* f, Layout at) {
   constexpr int kBlock = 256;
   alignas(64) double d0[kBlock], d1[kBlock], d2[kBlock], k[kBlock], l0[kBlock], s[kBlock];
   for (int begin = begin_c, n = 0; begin < end_c; begin += n) {
@@ -32,9 +35,8 @@ void generic_forces(int begin_c, int end_c, const int* a, const int* b, const st
       while (n > 1 && a[begin + n] == a[begin + n - 1]) --n;
     for (int i = 0; i < n; ++i) {
       const int c = begin + i;
-      const double* xa = x + 3 * a[c];
-      const double* xb = x + 3 * b[c];
-      d0[i] = xb[0] - xa[0], d1[i] = xb[1] - xa[1], d2[i] = xb[2] - xa[2];
+      const int ea = a[c], eb = b[c];
+      d0[i] = x[at(eb, 0)] - x[at(ea, 0)], d1[i] = x[at(eb, 1)] - x[at(ea, 1)], d2[i] = x[at(eb, 2)] - x[at(ea, 2)];
       k[i] = ks[ktype ? ktype[c] : c];
       l0[i] = ls[ltype ? ltype[c] : c];
     }
@@ -50,13 +52,25 @@ void generic_forces(int begin_c, int end_c, const int* a, const int* b, const st
       for (; i < n && a[begin + i] == ia; ++i) {
         const double g0 = s[i] * d0[i], g1 = s[i] * d1[i], g2 = s[i] * d2[i];
         fa0 += g0, fa1 += g1, fa2 += g2;
-        double* fb = f + 3 * b[begin + i];
-        fb[0] -= g0, fb[1] -= g1, fb[2] -= g2;
+        const int eb = b[begin + i];
+        f[at(eb, 0)] -= g0, f[at(eb, 1)] -= g1, f[at(eb, 2)] -= g2;
       }
-      double* fa = f + 3 * ia;
-      fa[0] += fa0, fa[1] += fa1, fa[2] += fa2;
+      f[at(ia, 0)] += fa0, f[at(ia, 1)] += fa1, f[at(ia, 2)] += fa2;
     }
   }
+}
+
+TISSUE_CLONES
+void generic_forces_interlaced(int begin_c, int end_c, const int* a, const int* b, const std::uint16_t* ktype,
+                               const std::uint16_t* ltype, const double* ks, const double* ls, const double* x,
+                               double* f, Interlaced at) {
+  generic_body(begin_c, end_c, a, b, ktype, ltype, ks, ls, x, f, at);
+}
+TISSUE_CLONES
+void generic_forces_streams(int begin_c, int end_c, const int* a, const int* b, const std::uint16_t* ktype,
+                            const std::uint16_t* ltype, const double* ks, const double* ls, const double* x,
+                            double* f, Streams at) {
+  generic_body(begin_c, end_c, a, b, ktype, ltype, ks, ls, x, f, at);
 }
 
 constexpr int kMaxDirections = 32, kStencilBlock = 64;
@@ -88,13 +102,14 @@ __attribute__((always_inline)) inline void stencil_direction(int n, const double
 // A stencil block's start, in both kernels: f's owned rows zeroed up to what the block writes (a0 + n - 1 +
 // max_offset; `zeroed`: rows below it are zeroed), and the missing directions of the block's exceptions marked in
 // keep (next_exception moves past them); returns whether there are any.
+template <class Layout>
 __attribute__((always_inline)) inline bool begin_block(int a0, int n, int directions,
                                                        const StencilException* exceptions, int n_exceptions,
                                                        int& next_exception, double (*keep)[kStencilBlock], double* f,
-                                                       int owned, int max_offset, int* zeroed) {
+                                                       Layout at, int owned, int max_offset, int* zeroed) {
   const int reach = std::min(owned, a0 + n + max_offset);
   if (reach > *zeroed) {
-    std::fill(f + 3 * static_cast<std::size_t>(*zeroed), f + 3 * static_cast<std::size_t>(reach), 0.0);
+    at.zero(f, *zeroed, reach);
     *zeroed = reach;
   }
   const int e0 = next_exception;
@@ -103,6 +118,28 @@ __attribute__((always_inline)) inline bool begin_block(int a0, int n, int direct
     for (int s = 0; s < directions; ++s)
       if (!(exceptions[e].present >> s & 1u)) keep[s][exceptions[e].molecule - a0] = 0.0;
   return next_exception > e0;
+}
+
+// The same arithmetic on three streams (x, y, z each contiguous): every load and store is a plain vector one,
+// where the interlaced form spends most of its instructions de-interleaving (docs/benchmarks.md).
+template <bool kMasked>
+__attribute__((always_inline)) inline void stencil_direction_streams(
+    int n, const double* __restrict xa0, const double* __restrict xa1, const double* __restrict xa2,
+    const double* __restrict xb0, const double* __restrict xb1, const double* __restrict xb2,
+    double* __restrict fb0, double* __restrict fb1, double* __restrict fb2, double ks, double ls,
+    const double* __restrict keep, double* __restrict g0, double* __restrict g1, double* __restrict g2) {
+  for (int i = 0; i < n; ++i) {
+    const double d0 = xb0[i] - xa0[i], d1 = xb1[i] - xa1[i], d2 = xb2[i] - xa2[i];
+    const double len = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
+    const double sc = ks * (len - ls) / len;
+    double e0 = sc * d0, e1 = sc * d1, e2 = sc * d2;
+    if constexpr (kMasked) {
+      const bool on = keep[i] != 0.0;
+      e0 = on ? e0 : 0.0, e1 = on ? e1 : 0.0, e2 = on ? e2 : 0.0;
+    }
+    fb0[i] -= e0, fb1[i] -= e1, fb2[i] -= e2;
+    g0[i] = e0, g1[i] = e1, g2[i] = e2;
+  }
 }
 
 // A stencil segment: molecules first .. first + count - 1, each with `directions` forward connections to the
@@ -117,10 +154,12 @@ __attribute__((always_inline)) inline bool begin_block(int a0, int n, int direct
 // f's owned rows are zeroed just ahead of the block that first writes them (`zeroed`: rows below it are zeroed;
 // a block writes rows up to a0 + n - 1 + max_offset): a row then comes to the kernel from the cache, written
 // back once, instead of a separate pass over memory before the kernel (docs/benchmarks.md).
-TISSUE_CLONES
-void stencil_forces(int first, int count, int directions, const int* offset, const int* scatter, const double* k,
-                    const double* l0, const StencilException* exceptions, int n_exceptions,
-                    const double* __restrict x, double* __restrict f, int owned, int max_offset, int* zeroed) {
+template <class Layout>
+__attribute__((always_inline)) inline void stencil_body(int first, int count, int directions, const int* offset,
+                                                        const int* scatter, const double* k, const double* l0,
+                                                        const StencilException* exceptions, int n_exceptions,
+                                                        const double* __restrict x, double* __restrict f,
+                                                        Layout at, int owned, int max_offset, int* zeroed) {
   alignas(64) double g[kMaxDirections][3][kStencilBlock];
   // keep[s][i]: 1 where molecule a0 + i has direction s; 0 only for the exceptions of the current block.
   alignas(64) double keep[kMaxDirections][kStencilBlock];
@@ -129,17 +168,29 @@ void stencil_forces(int first, int count, int directions, const int* offset, con
   for (int a0 = first; a0 < first + count; a0 += kStencilBlock) {
     const int n = std::min(kStencilBlock, first + count - a0);
     const int e0 = next_exception;
-    const bool masked = begin_block(a0, n, directions, exceptions, n_exceptions, next_exception, keep, f, owned,
+    const bool masked = begin_block(a0, n, directions, exceptions, n_exceptions, next_exception, keep, f, at, owned,
                                     max_offset, zeroed);
-    const double* __restrict xa = x + 3 * a0;
     for (int q = 0; q < directions; ++q) {
-      const int s = scatter[q];
-      const double* xb = x + 3 * (a0 + offset[s]);
-      double* fb = f + 3 * (a0 + offset[s]);
-      if (masked)
-        stencil_direction<true>(n, xa, xb, fb, k[s], l0[s], keep[s], g[s][0], g[s][1], g[s][2]);
-      else
-        stencil_direction<false>(n, xa, xb, fb, k[s], l0[s], keep[s], g[s][0], g[s][1], g[s][2]);
+      const int s = scatter[q], b0 = a0 + offset[s];
+      if constexpr (std::is_same_v<Layout, Streams>) {
+        const double *xa0 = x + at(a0, 0), *xa1 = x + at(a0, 1), *xa2 = x + at(a0, 2);
+        const double *xb0 = x + at(b0, 0), *xb1 = x + at(b0, 1), *xb2 = x + at(b0, 2);
+        double *fb0 = f + at(b0, 0), *fb1 = f + at(b0, 1), *fb2 = f + at(b0, 2);
+        if (masked)
+          stencil_direction_streams<true>(n, xa0, xa1, xa2, xb0, xb1, xb2, fb0, fb1, fb2, k[s], l0[s], keep[s],
+                                          g[s][0], g[s][1], g[s][2]);
+        else
+          stencil_direction_streams<false>(n, xa0, xa1, xa2, xb0, xb1, xb2, fb0, fb1, fb2, k[s], l0[s], keep[s],
+                                           g[s][0], g[s][1], g[s][2]);
+      } else {
+        const double* xa = x + at(a0, 0);
+        const double* xb = x + at(b0, 0);
+        double* fb = f + at(b0, 0);
+        if (masked)
+          stencil_direction<true>(n, xa, xb, fb, k[s], l0[s], keep[s], g[s][0], g[s][1], g[s][2]);
+        else
+          stencil_direction<false>(n, xa, xb, fb, k[s], l0[s], keep[s], g[s][0], g[s][1], g[s][2]);
+      }
     }
     for (int e = e0; e < next_exception; ++e)
       for (int s = 0; s < directions; ++s) keep[s][exceptions[e].molecule - a0] = 1.0;
@@ -147,8 +198,13 @@ void stencil_forces(int first, int count, int directions, const int* offset, con
     alignas(64) double s0[kStencilBlock] = {}, s1[kStencilBlock] = {}, s2[kStencilBlock] = {};
     for (int s = 0; s < directions; ++s)
       for (int i = 0; i < n; ++i) s0[i] += g[s][0][i], s1[i] += g[s][1][i], s2[i] += g[s][2][i];
-    double* __restrict fa = f + 3 * a0;
-    for (int i = 0; i < n; ++i) fa[3 * i] += s0[i], fa[3 * i + 1] += s1[i], fa[3 * i + 2] += s2[i];
+    if constexpr (std::is_same_v<Layout, Streams>) {
+      double *__restrict fa0 = f + at(a0, 0), *__restrict fa1 = f + at(a0, 1), *__restrict fa2 = f + at(a0, 2);
+      for (int i = 0; i < n; ++i) fa0[i] += s0[i], fa1[i] += s1[i], fa2[i] += s2[i];
+    } else {
+      double* __restrict fa = f + at(a0, 0);
+      for (int i = 0; i < n; ++i) fa[3 * i] += s0[i], fa[3 * i + 1] += s1[i], fa[3 * i + 2] += s2[i];
+    }
   }
 }
 
@@ -223,8 +279,8 @@ void stencil_tangent(int first, int count, int directions, const int* offset, co
   for (int a0 = first; a0 < first + count; a0 += kStencilBlock) {
     const int n = std::min(kStencilBlock, first + count - a0);
     const int e0 = next_exception;
-    const bool masked = begin_block(a0, n, directions, exceptions, n_exceptions, next_exception, keep, out, owned,
-                                    max_offset, zeroed);
+    const bool masked = begin_block(a0, n, directions, exceptions, n_exceptions, next_exception, keep, out,
+                                    Interlaced{}, owned, max_offset, zeroed);
     const double* __restrict xa = x + 3 * a0;
     const double* __restrict ua = u + 3 * a0;
     for (int q = 0; q < directions; ++q) {
@@ -242,6 +298,46 @@ void stencil_tangent(int first, int count, int directions, const int* offset, co
       for (int i = 0; i < n; ++i) s0[i] += g[s][0][i], s1[i] += g[s][1][i], s2[i] += g[s][2][i];
     add_to_rows<1>(a0, n, s0, s1, s2, out, ghost, owned);
   }
+}
+
+TISSUE_CLONES
+void stencil_forces_interlaced(int first, int count, int directions, const int* offset, const int* scatter,
+                               const double* k, const double* l0, const StencilException* exceptions,
+                               int n_exceptions, const double* x, double* f, Interlaced at, int owned,
+                               int max_offset, int* zeroed) {
+  stencil_body(first, count, directions, offset, scatter, k, l0, exceptions, n_exceptions, x, f, at, owned,
+               max_offset, zeroed);
+}
+TISSUE_CLONES
+void stencil_forces_streams(int first, int count, int directions, const int* offset, const int* scatter,
+                            const double* k, const double* l0, const StencilException* exceptions, int n_exceptions,
+                            const double* x, double* f, Streams at, int owned, int max_offset, int* zeroed) {
+  stencil_body(first, count, directions, offset, scatter, k, l0, exceptions, n_exceptions, x, f, at, owned,
+               max_offset, zeroed);
+}
+
+// The two layouts' entry points, overloaded for SpringKernel::sweep.
+void generic_forces(int begin_c, int end_c, const int* a, const int* b, const std::uint16_t* ktype,
+                    const std::uint16_t* ltype, const double* ks, const double* ls, const double* x, double* f,
+                    Interlaced at) {
+  generic_forces_interlaced(begin_c, end_c, a, b, ktype, ltype, ks, ls, x, f, at);
+}
+void generic_forces(int begin_c, int end_c, const int* a, const int* b, const std::uint16_t* ktype,
+                    const std::uint16_t* ltype, const double* ks, const double* ls, const double* x, double* f,
+                    Streams at) {
+  generic_forces_streams(begin_c, end_c, a, b, ktype, ltype, ks, ls, x, f, at);
+}
+void stencil_forces(int first, int count, int directions, const int* offset, const int* scatter, const double* k,
+                    const double* l0, const StencilException* exceptions, int n_exceptions, const double* x,
+                    double* f, Interlaced at, int owned, int max_offset, int* zeroed) {
+  stencil_forces_interlaced(first, count, directions, offset, scatter, k, l0, exceptions, n_exceptions, x, f, at,
+                            owned, max_offset, zeroed);
+}
+void stencil_forces(int first, int count, int directions, const int* offset, const int* scatter, const double* k,
+                    const double* l0, const StencilException* exceptions, int n_exceptions, const double* x,
+                    double* f, Streams at, int owned, int max_offset, int* zeroed) {
+  stencil_forces_streams(first, count, directions, offset, scatter, k, l0, exceptions, n_exceptions, x, f, at,
+                         owned, max_offset, zeroed);
 }
 
 }  // namespace
@@ -409,31 +505,42 @@ SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
   }
 }
 
-void SpringKernel::zero_ahead(double* f, int& zeroed, int reach) const {
+template <class Layout>
+void SpringKernel::zero_ahead(double* f, Layout at, int& zeroed, int reach) const {
   reach = std::min(reach, model_.owned);
   if (reach <= zeroed) return;
-  std::fill(f + 3 * static_cast<std::size_t>(zeroed), f + 3 * static_cast<std::size_t>(reach), 0.0);
+  at.zero(f, zeroed, reach);
   zeroed = reach;
 }
 
 void SpringKernel::forces(const double* x, double* f, FinalRows final_rows, void* context) const {
+  sweep(x, f, Interlaced{}, final_rows, context);
+}
+
+void SpringKernel::forces_streams(const double* x, double* f, std::size_t stride, FinalRows final_rows,
+                                  void* context) const {
+  sweep(x, f, Streams{stride}, final_rows, context);
+}
+
+template <class Layout>
+void SpringKernel::sweep(const double* x, double* f, Layout at, FinalRows final_rows, void* context) const {
   const LocalModel& m = model_;
   // The ghost rows (scratch, few) now; the owned rows just ahead of their first write (zero_ahead).
-  std::fill(f + 3 * static_cast<std::size_t>(m.owned), f + 3 * static_cast<std::size_t>(m.local), 0.0);
+  at.zero(f, m.owned, m.local);
   int zeroed = 0;
   // Each of k and l0 is per connection or by type (partition/connection_table.hpp).
   const ConnectionColumn kc = m.table.stiffness_column(), lc = m.table.rest_length_column();
   const std::uint16_t *ktype = kc.type, *ltype = lc.type;
   const double *ks = kc.value, *ls = lc.value;
   // Generic connections [c0, c1): from the model's arrays, or (ends stored as runs) from this kernel's copies of
-  // their ends starting at `at`, the same connections in the same order.
-  auto generic = [&](int c0, int c1, int at) {
+  // their ends starting at `from`, the same connections in the same order.
+  auto generic = [&](int c0, int c1, int from) {
     if (m.end_a.plain()) {
-      generic_forces(c0, c1, m.end_a.data(), m.end_b.data(), ktype, ltype, ks, ls, x, f);
+      generic_forces(c0, c1, m.end_a.data(), m.end_b.data(), ktype, ltype, ks, ls, x, f, at);
       return;
     }
-    generic_forces(0, c1 - c0, generic_a_.data() + at, generic_b_.data() + at, ktype ? ktype + c0 : nullptr,
-                   ltype ? ltype + c0 : nullptr, ktype ? ks : ks + c0, ltype ? ls : ls + c0, x, f);
+    generic_forces(0, c1 - c0, generic_a_.data() + from, generic_b_.data() + from, ktype ? ktype + c0 : nullptr,
+                   ltype ? ltype + c0 : nullptr, ktype ? ks : ks + c0, ltype ? ls : ls + c0, x, f, at);
   };
   // Owned rows below `done` went to final_rows; rows below `below` are final (no connection still to come
   // touches them).
@@ -441,7 +548,7 @@ void SpringKernel::forces(const double* x, double* f, FinalRows final_rows, void
   auto finish = [&](int below) {
     below = std::min(below, m.owned);
     if (!final_rows || below <= done) return;
-    zero_ahead(f, zeroed, below);  // rows no connection touches are final too: zero
+    zero_ahead(f, at, zeroed, below);  // rows no connection touches are final too: zero
     final_rows(context, done, below);
     done = below;
   };
@@ -452,7 +559,7 @@ void SpringKernel::forces(const double* x, double* f, FinalRows final_rows, void
   int c = 0;
   for (const Segment& seg : segments_) {
     if (c < seg.first_connection) {
-      zero_ahead(f, zeroed, seg.generic_reach);
+      zero_ahead(f, at, zeroed, seg.generic_reach);
       generic(c, seg.first_connection, seg.generic_at);
       finish(std::min(seg.first_molecule, seg.later));
     }
@@ -464,7 +571,7 @@ void SpringKernel::forces(const double* x, double* f, FinalRows final_rows, void
       int e1 = e0;
       while (e1 < seg.exceptions && exceptions[e1].molecule < end) ++e1;
       stencil_forces(seg.first_molecule + m0, count, directions_[p], offsets_.data() + start, scatter_.data() + start,
-                     k_.data() + start, l0_.data() + start, exceptions + e0, e1 - e0, x, f, m.owned, reach_[p],
+                     k_.data() + start, l0_.data() + start, exceptions + e0, e1 - e0, x, f, at, m.owned, reach_[p],
                      &zeroed);
       e0 = e1;
       finish(std::min(end, seg.later));
@@ -472,10 +579,10 @@ void SpringKernel::forces(const double* x, double* f, FinalRows final_rows, void
     c = seg.first_connection + seg.connections;
   }
   if (c < m.connections()) {
-    zero_ahead(f, zeroed, tail_reach_);
+    zero_ahead(f, at, zeroed, tail_reach_);
     generic(c, m.connections(), tail_at_);
   }
-  zero_ahead(f, zeroed, m.owned);
+  zero_ahead(f, at, zeroed, m.owned);
   finish(m.owned);
 }
 

@@ -12,6 +12,8 @@
 // sum of its own forward connections by increasing end b: the order of the global connection list), with no
 // fused multiply-add, so forces do not depend on which form ran, nor on the partition.
 #pragma once
+#include <algorithm>
+#include <cstddef>
 #include <cstdint>
 #include <limits>
 #include <vector>
@@ -19,6 +21,21 @@
 #include "partition/local_model.hpp"
 
 namespace tissue {
+
+// Where component d (x, y, z) of local molecule i sits in a position or force array: interlaced, as PETSc's blocks
+// hold it (x[3 i + d]), or as three streams, a structure of arrays (x[d * stride + i], stride >= the local
+// molecules), which the explicit solver's fused step keeps between steps (src/solvers/dynamic.cpp).
+struct Interlaced {
+  std::size_t operator()(int i, int d) const { return 3 * static_cast<std::size_t>(i) + d; }
+  void zero(double* f, int begin, int end) const { std::fill(f + (*this)(begin, 0), f + (*this)(end, 0), 0.0); }
+};
+struct Streams {
+  std::size_t stride;
+  std::size_t operator()(int i, int d) const { return d * stride + static_cast<std::size_t>(i); }
+  void zero(double* f, int begin, int end) const {
+    for (int d = 0; d < 3; ++d) std::fill(f + (*this)(begin, d), f + (*this)(end, d), 0.0);
+  }
+};
 
 // A stencil segment's molecule that lacks some of the pattern's directions.
 struct StencilException {
@@ -37,6 +54,8 @@ public:
   // f: 3 * local values, zeroed here; the forces on ghosts are partial (scratch).
   void forces(const double* x, double* f) const { forces(x, f, nullptr, nullptr); }
   void forces(const double* x, double* f, FinalRows final_rows, void* context) const;
+  // The same forces, bit for bit, with x and f as three streams each (Streams: x[d * stride + i]).
+  void forces_streams(const double* x, double* f, std::size_t stride, FinalRows final_rows, void* context) const;
   // Connections handled by stencil segments (the rest go through the generic form).
   long structured_connections() const { return structured_; }
   // The connections' tangent applied to u (the matrix-free Newton tangent's springs, ForceModel::apply_tangent):
@@ -56,8 +75,11 @@ private:
     int first_exception, exceptions;  // its molecules that lack directions: exceptions_[first, + exceptions)
     int later;                        // the lowest row a connection after it touches
   };
+  template <class Layout>
+  void sweep(const double* x, double* f, Layout at, FinalRows final_rows, void* context) const;
   // Zeroes f's owned rows [zeroed, reach) (reach clamped to the owned molecules) and advances `zeroed`.
-  void zero_ahead(double* f, int& zeroed, int reach) const;
+  template <class Layout>
+  void zero_ahead(double* f, Layout at, int& zeroed, int reach) const;
   const LocalModel& model_;
   std::vector<Segment> segments_;         // in connection order; generic connections between them
   std::vector<int> offsets_;              // per pattern and direction: end b - end a

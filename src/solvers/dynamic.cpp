@@ -7,8 +7,12 @@
 // conserves exactly for linear springs; its drift measures the integrator and the nonlinearity, not dt.
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <vector>
 
+#include <mpi.h>
+
+#include "partition/ghosted_vector.hpp"
 #include "src/solvers/guards.hpp"
 #include "src/solvers/progress.hpp"
 #include "src/solvers/setup_checks.hpp"
@@ -85,40 +89,87 @@ double kick_kick_drift(int n, double dt, const double* __restrict m, const doubl
   }, kinetic);
 }
 
+// The fused steps' state as three streams (structure of arrays: x[d * stride + i] for d = x, y, z), so that the
+// spring kernel loads and stores whole vectors of one component instead of de-interleaving PETSc's blocks of 3:
+// the same arithmetic as kick_kick_drift, on other addresses.
+struct Streams3 {
+  const double* f[3];
+  double* v[3];
+  double* x[3];
+};
+Streams3 streams_at(const Streams3& s, int begin) {
+  return {{s.f[0] + begin, s.f[1] + begin, s.f[2] + begin},
+          {s.v[0] + begin, s.v[1] + begin, s.v[2] + begin},
+          {s.x[0] + begin, s.x[1] + begin, s.x[2] + begin}};
+}
+
+TISSUE_CLONES
+double kick_kick_drift_streams(int n, double dt, const double* __restrict m, const double* __restrict f0,
+                               const double* __restrict f1, const double* __restrict f2, double* __restrict v0,
+                               double* __restrict v1, double* __restrict v2, double* __restrict x0,
+                               double* __restrict x1, double* __restrict x2, double kinetic) {
+  return kinetic_sum(n, [&](int i) __attribute__((always_inline)) {
+    const double kick = 0.5 * dt / m[i];
+    const double w0 = v0[i] + kick * f0[i], w1 = v1[i] + kick * f1[i], w2 = v2[i] + kick * f2[i];
+    double vv = 0;
+    vv += w0 * w0, vv += w1 * w1, vv += w2 * w2;
+    v0[i] = w0 + kick * f0[i], v1[i] = w1 + kick * f1[i], v2[i] = w2 + kick * f2[i];
+    x0[i] += dt * v0[i], x1[i] += dt * v1[i], x2[i] += dt * v2[i];
+    return m[i] * vv;
+  }, kinetic);
+}
+
 // The same without the kinetic energy, for a run whose guards are off (nothing else reads it): the sum is a chain
 // of dependent additions (molecule order), a few cycles a molecule.
 TISSUE_CLONES
-void kick_kick_drift_only(int n, double dt, const double* __restrict m, const double* __restrict f,
-                          double* __restrict v, double* __restrict x) {
+void kick_kick_drift_only_streams(int n, double dt, const double* __restrict m, const double* __restrict f0,
+                                  const double* __restrict f1, const double* __restrict f2, double* __restrict v0,
+                                  double* __restrict v1, double* __restrict v2, double* __restrict x0,
+                                  double* __restrict x1, double* __restrict x2) {
   for (int i = 0; i < n; ++i) {
     const double kick = 0.5 * dt / m[i];
-    for (int d = 0; d < 3; ++d) {
-      const int j = 3 * i + d;
-      v[j] = (v[j] + kick * f[j]) + kick * f[j];
-      x[j] += dt * v[j];
-    }
+    v0[i] = (v0[i] + kick * f0[i]) + kick * f0[i];
+    v1[i] = (v1[i] + kick * f1[i]) + kick * f1[i];
+    v2[i] = (v2[i] + kick * f2[i]) + kick * f2[i];
+    x0[i] += dt * v0[i], x1[i] += dt * v1[i], x2[i] += dt * v2[i];
   }
 }
 
-// The fused step (springs only): kick_kick_drift on each run of rows the spring kernel hands over as final,
-// while they are still in cache, so x, v and f stream from memory once a step instead of twice. The runs come
-// in molecule order and the kinetic sum carries over, so every bit is that of the separate pass.
-struct FusedStep {
+// The fused step (springs only): the kick-kick-drift on each run of rows the spring kernel hands over as final,
+// while they are still in cache, so x, v and f stream from memory once a step instead of twice. The runs come in
+// molecule order and the kinetic sum carries over, so every bit is that of the separate pass.
+struct FusedStreams {
   double dt;
   const double* m;
-  const double* f;
-  double* v;
-  double* x;
+  Streams3 at;
   double kinetic;
   bool sum;  // whether anything reads the kinetic energy (the guards)
 };
-void fused_rows(void* context, int begin, int end) {
-  FusedStep& s = *static_cast<FusedStep*>(context);
-  const std::size_t j = 3 * static_cast<std::size_t>(begin);
+void fused_rows_streams(void* context, int begin, int end) {
+  FusedStreams& s = *static_cast<FusedStreams*>(context);
+  const Streams3 p = streams_at(s.at, begin);
   if (s.sum)
-    s.kinetic = kick_kick_drift(end - begin, s.dt, s.m + begin, s.f + j, s.v + j, s.x + j, s.kinetic);
+    s.kinetic = kick_kick_drift_streams(end - begin, s.dt, s.m + begin, p.f[0], p.f[1], p.f[2], p.v[0], p.v[1],
+                                        p.v[2], p.x[0], p.x[1], p.x[2], s.kinetic);
   else
-    kick_kick_drift_only(end - begin, s.dt, s.m + begin, s.f + j, s.v + j, s.x + j);
+    kick_kick_drift_only_streams(end - begin, s.dt, s.m + begin, p.f[0], p.f[1], p.f[2], p.v[0], p.v[1], p.v[2],
+                                 p.x[0], p.x[1], p.x[2]);
+}
+
+// n molecules' values, interlaced (a[3 i + d]) to three streams (a[d * n + i]) and back, in place through
+// `scratch` (3 n values): the fused steps borrow the force array, whose values no later pass reads, so the
+// streams cost no memory.
+TISSUE_CLONES
+void to_streams(double* __restrict a, int n, double* __restrict scratch) {
+  for (int i = 0; i < n; ++i)
+    for (int d = 0; d < 3; ++d) scratch[d * static_cast<std::size_t>(n) + i] = a[3 * static_cast<std::size_t>(i) + d];
+  std::copy(scratch, scratch + 3 * static_cast<std::size_t>(n), a);
+}
+TISSUE_CLONES
+void to_interlaced(double* __restrict a, int n, double* __restrict scratch) {
+  for (int i = 0; i < n; ++i)
+    for (int d = 0; d < 3; ++d) scratch[3 * static_cast<std::size_t>(i) + d] = a[d * static_cast<std::size_t>(n) + i];
+  std::copy(scratch, scratch + 3 * static_cast<std::size_t>(n), a);
 }
 
 // Half kick to the whole step; returns the sum of m v^2.
@@ -180,18 +231,41 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
   };
   if (rows > 0 && !state.restarted) hooks.record(state);  // history.csv's first row: the state at t = 0
   const bool history = forces.has_history();
-  // Springs alone (no load, term or held component): the kick-kick-drift goes inside the kernel's sweep.
-  const bool fuse = forces.springs_only();
+  // Springs alone (no load, term or held component, on every rank: the fused steps' ghost update is
+  // collective): the kick-kick-drift goes inside the kernel's sweep, and between steps nothing observes, x, v and
+  // f stay as three streams each (Streams3), turned back into PETSc's interlaced blocks before any step that
+  // something observes (every kReduceEvery-th at the latest) and at the end.
+  // Both decisions agreed: {springs only here, no ghosts here}, each the least over the ranks.
+  int here[2] = {forces.springs_only() ? 1 : 0, model.local == model.owned ? 1 : 0}, everywhere[2] = {0, 0};
+  MPI_Allreduce(here, everywhere, 2, MPI_INT, MPI_MIN, model.comm);
+  const bool fuse = everywhere[0] == 1;
+  const int local = model.local;
+  std::optional<StreamGhosts> stream_ghosts;
+  if (fuse && everywhere[1] == 0) stream_ghosts.emplace(model);
+  bool streams = false;  // x, v, f hold three streams each (x and f: stride local, v: stride n)
+  auto set_streams = [&](bool on) {
+    if (on == streams) return;
+    // f's values are spent here (the last step's kicks used them; the next step recomputes them).
+    if (on) to_streams(x, local, f), to_streams(v, n, f);
+    else to_interlaced(x, local, f), to_interlaced(v, n, f);
+    streams = on;
+  };
   bool drifted = false;  // the last pass already did this step's half kick and drift
   while (state.step < total) {
+    const bool next_unobserved = unobserved(state.step + 1);
+    const bool fused = fuse && next_unobserved;
+    if (!fused) set_streams(false);  // (a fused step always drifted: kick_drift below sees the interlaced state)
     if (!drifted) kick_drift(n, dt, m, f, v, x);
-    state.x.update_ghosts();
+    if (fused) set_streams(true);
+    if (!streams) state.x.update_ghosts();
+    else if (stream_ghosts) stream_ghosts->update(x, local);
     forces.set_time(state.time + dt);
     double kinetic = 0;
-    const bool next_unobserved = unobserved(state.step + 1);
-    if (fuse && next_unobserved) {
-      FusedStep step{dt, m, f, v, x, 0.0, guard.enabled()};
-      forces.kernel().forces(x, f, fused_rows, &step);
+    if (fused) {
+      const std::size_t sl = local, sn = n;
+      FusedStreams step{dt, m, {{f, f + sl, f + 2 * sl}, {v, v + sn, v + 2 * sn}, {x, x + sl, x + 2 * sl}}, 0.0,
+                        guard.enabled()};
+      forces.kernel().forces_streams(x, f, sl, fused_rows_streams, &step);
       kinetic = step.kinetic;
       drifted = true;
     } else {
@@ -222,6 +296,7 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
       break;
     }
   }
+  set_streams(false);  // (only an interrupted or failed loop could leave the streams on; none does today)
   report.iterations = state.step;
   report.guard_checks = guard.checks();
   report.guard_seconds = guard.seconds();

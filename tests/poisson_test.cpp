@@ -176,7 +176,8 @@ TEST(Poisson, SameOnEveryRankCount) {
 
 // The cell term's pieces inside the spring kernel's sweep (ForceModel::forces, Term::add_forces_below) against
 // the separate passes (-tissue_fuse_terms false: springs, then loads, then cells): every force bit for bit, at a
-// large deformation and after 40 dynamic steps (positions and velocities), at 1-3 ranks. Rollers on two faces,
+// large deformation and after 40 dynamic steps (positions and velocities), at 1-3 ranks, the term's pieces after
+// every row the kernel hands over and in the default batches. Rollers on two faces,
 // loads on three (two on y+, with histories: a component with two loads in order) and gravity (a term after the
 // cells) make rows end irregularly; rows of 13 cells take the row blocks, the partition cuts them.
 TEST(Poisson, FusedCellPassBitForBit) {
@@ -204,14 +205,23 @@ TEST(Poisson, FusedCellPassBitForBit) {
   ASSERT_TRUE(fused->forces->fuses_first_term());
   ASSERT_FALSE(separate->forces->fuses_first_term());
   ASSERT_EQ(fused->forces->term_names(), (std::vector<std::string>{"cell-elasticity", "gravity"}));
-  std::vector<double> x, ff(3 * fused->model.local), fs(3 * fused->model.local);
+  // The term after every row the kernel hands over (-tissue_fuse_rows 1) as well as in batches of 2,048 rows
+  // (this block has fewer: all after the kernel).
+  ASSERT_EQ(PetscOptionsSetValue(nullptr, "-tissue_fuse_rows", "1"), 0);
+  auto every_row = run(text, PETSC_COMM_WORLD, set, false, start);
+  ASSERT_EQ(PetscOptionsClearValue(nullptr, "-tissue_fuse_rows"), 0);
+  std::vector<double> x, ff(3 * fused->model.local), fs(3 * fused->model.local), fr(3 * fused->model.local);
   deform(fused->model, x);
   for (const double factor : {1.0, 0.37}) {
     fused->forces->forces(x.data(), nullptr, ff.data(), factor);
     separate->forces->forces(x.data(), nullptr, fs.data(), factor);
-    for (int j = 0; j < 3 * fused->model.owned; ++j) ASSERT_EQ(ff[j], fs[j]) << j << " factor " << factor;
+    every_row->forces->forces(x.data(), nullptr, fr.data(), factor);
+    for (int j = 0; j < 3 * fused->model.owned; ++j) {
+      ASSERT_EQ(ff[j], fs[j]) << j << " factor " << factor;
+      ASSERT_EQ(fr[j], fs[j]) << j << " factor " << factor;
+    }
   }
-  for (auto* r : {fused.get(), separate.get()}) {
+  for (auto* r : {fused.get(), separate.get(), every_row.get()}) {
     r->sim->solve(SolverHooks{});
     ASSERT_EQ(r->sim->outcome(), Simulation::Outcome::finished) << r->sim->failure();
   }
@@ -220,6 +230,8 @@ TEST(Poisson, FusedCellPassBitForBit) {
   for (int j = 0; j < 3 * fused->model.owned; ++j) {
     ASSERT_EQ(fused->state->x.array()[j], separate->state->x.array()[j]) << j;
     ASSERT_EQ(fused->state->v[j], separate->state->v[j]) << j;
+    ASSERT_EQ(every_row->state->x.array()[j], separate->state->x.array()[j]) << j;
+    ASSERT_EQ(every_row->state->v[j], separate->state->v[j]) << j;
     moved = std::max(moved, std::fabs(fused->state->v[j]));
   }
   double all = 0;

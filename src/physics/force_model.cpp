@@ -82,6 +82,11 @@ ForceModel::ForceModel(const Scene& scene, const LocalModel& model)
   if (PetscOptionsGetBool(nullptr, nullptr, "-tissue_fuse_terms", &fuse, nullptr))
     throw InputError("PETSc options", "-tissue_fuse_terms", "expects true or false");
   fuse_first_term_ = fuse && !terms_.empty() && terms_[0]->adds_by_rows();
+  PetscInt batch = term_batch_;
+  PetscBool given = PETSC_FALSE;
+  if (PetscOptionsGetInt(nullptr, nullptr, "-tissue_fuse_rows", &batch, &given) || (given && batch < 1))
+    throw InputError("PETSc options", "-tissue_fuse_rows", "expects a whole number >= 1");
+  term_batch_ = static_cast<int>(batch);
   if (fuse_first_term_) {
     applied_by_row_.resize(applied_.size());
     for (std::size_t q = 0; q < applied_.size(); ++q) applied_by_row_[q] = static_cast<int>(q);
@@ -149,6 +154,8 @@ struct RowPass {
   const double* x;
   double* f;
   int next_piece;
+  int term_below;  // the term has added its pieces below this row
+  int batch;       // ForceModel::term_batch_
 };
 void row_pass(void* context, int, int end) {
   RowPass& p = *static_cast<RowPass*>(context);
@@ -156,7 +163,9 @@ void row_pass(void* context, int, int end) {
     const ForceModel::AppliedForce& a = p.applied[p.order[p.next_load]];
     p.f[a.component] += p.load_factor * p.load_scale[a.load] * a.value;
   }
+  if (end - p.term_below < p.batch) return;  // the rest after the kernel (ForceModel::forces)
   p.next_piece = p.term->add_forces_below(p.x, end, p.next_piece, p.f);
+  p.term_below = end;
 }
 }  // namespace
 
@@ -166,9 +175,9 @@ void ForceModel::forces(const double* x, const double* v, double* f, double load
     // The first term's pieces one plane behind the kernel's front, where x and f are in cache (a molecule still
     // gets its connections, then its loads, then the term: the same bits as the passes below).
     RowPass pass{applied_.data(), applied_by_row_.data(), static_cast<int>(applied_by_row_.size()), 0,
-                 load_scale_.data(), load_factor, terms_[0].get(), x, f, 0};
+                 load_scale_.data(), load_factor, terms_[0].get(), x, f, 0, 0, term_batch_};
     kernel_.forces(x, f, row_pass, &pass);
-    terms_[0]->add_forces_below(x, model_.owned, pass.next_piece, f);  // nothing left: every row was handed over
+    terms_[0]->add_forces_below(x, model_.owned, pass.next_piece, f);  // the last batch
     first = 1;
   } else {
     connection_forces(x, f);

@@ -144,6 +144,10 @@ private:
   // added to each run of final rows just before: applied_ in the order of their components (stable: a component's
   // own loads keep their order). Off with -tissue_fuse_terms false (benchmarks, tests).
   bool fuse_first_term_ = false;
+  // The term runs on batches of at least this many final rows (-tissue_fuse_rows): each switch between the two
+  // kernels refills L1 with the other's blocks (cachegrind: a switch every lattice row doubled both kernels' L1
+  // misses), while a batch's x and f stay in L2 (docs/benchmarks.md).
+  int term_batch_ = 2048;
   std::vector<int> applied_by_row_;
   std::vector<const TermStyle*> term_styles_;  // the style of each (what it can do)
   double applied_norm_ = 0.0;

@@ -174,6 +174,71 @@ TEST(Poisson, SameOnEveryRankCount) {
   }
 }
 
+// The cell term's pieces inside the spring kernel's sweep (ForceModel::forces, Term::add_forces_below) against
+// the separate passes (-tissue_fuse_terms false: springs, then loads, then cells): every force bit for bit, at a
+// large deformation and after 40 dynamic steps (positions and velocities), at 1-3 ranks, the term's pieces after
+// every row the kernel hands over and in the default batches. Rollers on two faces,
+// loads on three (two on y+, with histories: a component with two loads in order) and gravity (a term after the
+// cells) make rows end irregularly; rows of 13 cells take the row blocks, the partition cuts them.
+TEST(Poisson, FusedCellPassBitForBit) {
+  Case c;
+  c.n = {14, 5, 7}, c.h = {1, 1, 0.5}, c.nu = 0.45, c.strain = 1e-3, c.solver = "dynamic";
+  std::string text = scene_text(c);
+  text.replace(text.find("[solver]"), 8,
+               "[[fix]]\nface = \"x-\"\nmode = \"roller\"\n"
+               "[[load]]\nface = \"x+\"\nforce = [0.3, 0.0, -0.1]\n"
+               "[[load]]\nface = \"y+\"\nforce = [0.0, 0.2, 0.05]\nhistory = [[0.0, 0.0], [2.0, 1.0]]\n"
+               "[[load]]\nface = \"y+\"\nforce = [0.1, 0.1, 0.0]\nhistory = [[0.0, 1.0], [3.0, 0.5]]\n"
+               "[physics]\ngravity = [0.0, 0.0, -0.01]\n[solver]");
+  const std::vector<std::string> set{"solver.steps=40"};
+  auto start = [](RunResult& r) {
+    std::vector<double> x;
+    deform(r.model, x, 0.0);
+    // A small start from the deformation: 2 % of it, so that the dynamic run stays well inside stability.
+    double* s = r.state->x.array();
+    for (int j = 0; j < 3 * r.model.local; ++j) s[j] = r.model.rest[j] + 0.02 * (x[j] - r.model.rest[j]);
+  };
+  auto fused = run(text, PETSC_COMM_WORLD, set, false, start);
+  ASSERT_EQ(PetscOptionsSetValue(nullptr, "-tissue_fuse_terms", "false"), 0);
+  auto separate = run(text, PETSC_COMM_WORLD, set, false, start);
+  ASSERT_EQ(PetscOptionsClearValue(nullptr, "-tissue_fuse_terms"), 0);
+  ASSERT_TRUE(fused->forces->fuses_first_term());
+  ASSERT_FALSE(separate->forces->fuses_first_term());
+  ASSERT_EQ(fused->forces->term_names(), (std::vector<std::string>{"cell-elasticity", "gravity"}));
+  // The term after every row the kernel hands over (-tissue_fuse_rows 1) as well as in batches of 2,048 rows
+  // (this block has fewer: all after the kernel).
+  ASSERT_EQ(PetscOptionsSetValue(nullptr, "-tissue_fuse_rows", "1"), 0);
+  auto every_row = run(text, PETSC_COMM_WORLD, set, false, start);
+  ASSERT_EQ(PetscOptionsClearValue(nullptr, "-tissue_fuse_rows"), 0);
+  std::vector<double> x, ff(3 * fused->model.local), fs(3 * fused->model.local), fr(3 * fused->model.local);
+  deform(fused->model, x);
+  for (const double factor : {1.0, 0.37}) {
+    fused->forces->forces(x.data(), nullptr, ff.data(), factor);
+    separate->forces->forces(x.data(), nullptr, fs.data(), factor);
+    every_row->forces->forces(x.data(), nullptr, fr.data(), factor);
+    for (int j = 0; j < 3 * fused->model.owned; ++j) {
+      ASSERT_EQ(ff[j], fs[j]) << j << " factor " << factor;
+      ASSERT_EQ(fr[j], fs[j]) << j << " factor " << factor;
+    }
+  }
+  for (auto* r : {fused.get(), separate.get(), every_row.get()}) {
+    r->sim->solve(SolverHooks{});
+    ASSERT_EQ(r->sim->outcome(), Simulation::Outcome::finished) << r->sim->failure();
+  }
+  ASSERT_EQ(fused->state->step, 40);
+  double moved = 0;
+  for (int j = 0; j < 3 * fused->model.owned; ++j) {
+    ASSERT_EQ(fused->state->x.array()[j], separate->state->x.array()[j]) << j;
+    ASSERT_EQ(fused->state->v[j], separate->state->v[j]) << j;
+    ASSERT_EQ(every_row->state->x.array()[j], separate->state->x.array()[j]) << j;
+    ASSERT_EQ(every_row->state->v[j], separate->state->v[j]) << j;
+    moved = std::max(moved, std::fabs(fused->state->v[j]));
+  }
+  double all = 0;
+  MPI_Allreduce(&moved, &all, 1, MPI_DOUBLE, MPI_MAX, PETSC_COMM_WORLD);
+  EXPECT_GT(all, 0.0);
+}
+
 // The critical time step of a body with the cell term is 0.8 h / c_p, c_p = sqrt((lambda + 2 mu) / rho); a
 // dynamic run at 0.8 times it stays finite, one at 2.5 times it is stopped by the guards.
 TEST(Poisson, CriticalTimeStepFromPWave) {

@@ -75,6 +75,24 @@ ForceModel::ForceModel(const Scene& scene, const LocalModel& model)
       if (constant[j] != 0.0) applied_.push_back({j, constant[j], 0});
   MPI_Allreduce(&sum, &applied_norm_, 1, MPI_DOUBLE, MPI_SUM, model.comm);
   applied_norm_ = std::sqrt(applied_norm_);
+
+  // The first term inside the kernel's sweep (Term::adds_by_rows). The switch is PETSc's options database, read
+  // the same on every rank (nothing collective depends on it).
+  PetscBool fuse = PETSC_TRUE;
+  if (PetscOptionsGetBool(nullptr, nullptr, "-tissue_fuse_terms", &fuse, nullptr))
+    throw InputError("PETSc options", "-tissue_fuse_terms", "expects true or false");
+  fuse_first_term_ = fuse && !terms_.empty() && terms_[0]->adds_by_rows();
+  PetscInt batch = term_batch_;
+  PetscBool given = PETSC_FALSE;
+  if (PetscOptionsGetInt(nullptr, nullptr, "-tissue_fuse_rows", &batch, &given) || (given && batch < 1))
+    throw InputError("PETSc options", "-tissue_fuse_rows", "expects a whole number >= 1");
+  term_batch_ = static_cast<int>(batch);
+  if (fuse_first_term_) {
+    applied_by_row_.resize(applied_.size());
+    for (std::size_t q = 0; q < applied_.size(); ++q) applied_by_row_[q] = static_cast<int>(q);
+    std::stable_sort(applied_by_row_.begin(), applied_by_row_.end(),
+                     [&](int p, int q) { return applied_[p].component < applied_[q].component; });
+  }
 }
 
 std::vector<std::string> ForceModel::term_names() const {
@@ -124,10 +142,49 @@ ForceModel::Contact ForceModel::contact_totals() const {
 
 void ForceModel::connection_forces(const double* x, double* f) const { kernel_.forces(x, f); }
 
+namespace {
+// The loads and the first term's pieces on each run of rows the connection kernel hands over as final.
+struct RowPass {
+  const ForceModel::AppliedForce* applied;
+  const int* order;  // applied by component
+  int loads, next_load;
+  const double* load_scale;
+  double load_factor;
+  Term* term;
+  const double* x;
+  double* f;
+  int next_piece;
+  int term_below;  // the term has added its pieces below this row
+  int batch;       // ForceModel::term_batch_
+};
+void row_pass(void* context, int, int end) {
+  RowPass& p = *static_cast<RowPass*>(context);
+  for (; p.next_load < p.loads && p.applied[p.order[p.next_load]].component < 3 * end; ++p.next_load) {
+    const ForceModel::AppliedForce& a = p.applied[p.order[p.next_load]];
+    p.f[a.component] += p.load_factor * p.load_scale[a.load] * a.value;
+  }
+  if (end - p.term_below < p.batch) return;  // the rest after the kernel (ForceModel::forces)
+  p.next_piece = p.term->add_forces_below(p.x, end, p.next_piece, p.f);
+  p.term_below = end;
+}
+}  // namespace
+
 void ForceModel::forces(const double* x, const double* v, double* f, double load_factor) const {
-  connection_forces(x, f);
-  for (const auto& a : applied_) f[a.component] += load_factor * load_scale_[a.load] * a.value;
-  for (const auto& t : terms_) t->add_forces(x, v, time_, f);  // one call per term, none per connection
+  std::size_t first = 0;  // the terms still to add
+  if (fuse_first_term_ && terms_[0]->adds_by_rows()) {
+    // The first term's pieces one plane behind the kernel's front, where x and f are in cache (a molecule still
+    // gets its connections, then its loads, then the term: the same bits as the passes below).
+    RowPass pass{applied_.data(), applied_by_row_.data(), static_cast<int>(applied_by_row_.size()), 0,
+                 load_scale_.data(), load_factor, terms_[0].get(), x, f, 0, 0, term_batch_};
+    kernel_.forces(x, f, row_pass, &pass);
+    terms_[0]->add_forces_below(x, model_.owned, pass.next_piece, f);  // the last batch
+    first = 1;
+  } else {
+    connection_forces(x, f);
+    for (const auto& a : applied_) f[a.component] += load_factor * load_scale_[a.load] * a.value;
+  }
+  for (std::size_t t = first; t < terms_.size(); ++t)
+    terms_[t]->add_forces(x, v, time_, f);  // one call per term, none per connection
   held_force_.resize(held_owned_.size());
   for (std::size_t q = 0; q < held_owned_.size(); ++q) held_force_[q] = f[held_owned_[q]], f[held_owned_[q]] = 0.0;
 }

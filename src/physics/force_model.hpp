@@ -84,6 +84,8 @@ public:
   double applied_norm() const { return applied_norm_; }             // global 2-norm of loads + gravity
   double largest_stiffness_rate() const;
   const SpringKernel& kernel() const { return kernel_; }
+  // Whether the first term adds its forces inside the kernel's sweep (Term::adds_by_rows; -tissue_fuse_terms).
+  bool fuses_first_term() const { return fuse_first_term_; }
   // Whether forces() is the connection forces alone (no load, term or held component).
   bool springs_only() const { return applied_.empty() && terms_.empty() && held_owned_.empty(); }  // max over molecules of 2 sum k / m (Gershgorin bound of omega^2)
 
@@ -139,6 +141,15 @@ private:
   std::vector<int> held_owned_;
   std::vector<AppliedForce> applied_;  // non-zero components only
   std::vector<std::unique_ptr<Term>> terms_;  // only what the scene lists, in the registry's order
+  // The first term adds its forces in pieces inside the kernel's sweep (Term::adds_by_rows), with the loads
+  // added to each run of final rows just before: applied_ in the order of their components (stable: a component's
+  // own loads keep their order). Off with -tissue_fuse_terms false (benchmarks, tests).
+  bool fuse_first_term_ = false;
+  // The term runs on batches of at least this many final rows (-tissue_fuse_rows): each switch between the two
+  // kernels refills L1 with the other's blocks (cachegrind: a switch every lattice row doubled both kernels' L1
+  // misses), while a batch's x and f stay in L2 (docs/benchmarks.md).
+  int term_batch_ = 2048;
+  std::vector<int> applied_by_row_;
   std::vector<const TermStyle*> term_styles_;  // the style of each (what it can do)
   double applied_norm_ = 0.0;
   mutable double time_ = 0.0;

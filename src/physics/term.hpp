@@ -48,6 +48,16 @@ public:
   // Adds the term's forces on the owned molecules to f[0 .. 3 owned). x: local positions (ghosts up to date);
   // v: owned velocities; time: s (dynamic runs). Collective when the term communicates (contact).
   virtual void add_forces(const double* x, const double* v, double time, double* f) = 0;
+  // Terms that can add their forces in pieces during the connection kernel's sweep, each piece as soon as the
+  // forces on its owned molecules are final (connections and constant loads), while x and f are still in cache:
+  // the cell term on box lattices (ForceModel::forces; it asks before every evaluation). Only the first term in
+  // the order is fused (so that each molecule still sums connections, loads, then the terms in order), and only
+  // one that reads neither v nor the time.
+  virtual bool adds_by_rows() const { return false; }
+  // Such terms: adds the pieces from `from` on, in add_forces' order, while each piece's owned molecules are all
+  // below `below` (local index), and returns the next piece; below = owned adds the rest. The pieces of one
+  // evaluation add exactly what one add_forces call adds, in the same order for every molecule (the same bits).
+  virtual int add_forces_below(const double* x, int below, int from, double* f) { return from; }
   // The term's potential energy, this rank's owned share (0 for dissipative or time-dependent terms).
   virtual double potential_energy(const double* x) const { return 0.0; }
   // Adds an upper bound of the term's stiffness per owned molecule (N/m, Gershgorin row sum halved) to ksum, for

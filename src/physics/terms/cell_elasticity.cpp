@@ -403,40 +403,28 @@ public:
         for (int d = 0; d < 3; ++d) geo.g[c][d] = (((c >> d) & 1) ? 1.0 : -1.0) / (4.0 * box.h[d]);
       geometry_.push_back(geo);
     }
+    if (fibre_begin_.empty()) make_blocks();
   }
 
   void add_forces(const double* x, const double*, double, double* f) override {
     // The explicit solvers' inner loop. Without fibres and a running history, runs of cells that share their
-    // moduli and corner pattern go through cell_block_forces (vectorized across cells); the general loop below
-    // does the same arithmetic one cell at a time.
-    const bool plain = fibre_begin_.empty() && (history_.empty() || !active_);
-    for (int k = 0; k < cells_;) {
-      int n = 1;
-      if (plain) {
-        while (n < kCellBlock && k + n < cells_ && kind_[k + n] == kind_[k] && pattern_[k + n] == pattern_[k]) ++n;
-        const std::array<int, 8>& p = patterns_[pattern_[k]];
-        int along = 1;  // cells consecutive along x from k
-        while (along < n && base_[k + along] == base_[k] + along) ++along;
-        bool rows = along >= 8 && p[1] == 1 && p[3] == p[2] + 1 && p[5] == p[4] + 1 && p[7] == p[6] + 1;
-        for (int r = 0; rows && r < 4; ++r)  // the rows' molecules (along + 1 each) must not overlap
-          for (int t = r + 1; t < 4; ++t) rows = rows && std::abs(p[2 * t] - p[2 * r]) > along;
-        if (rows) n = along;  // short runs stay with the general gather
-        const Kind& kind = kinds_[kind_[k]];
-        const Geometry& geo = geometry_[kind.body];
-        const double g[3] = {geo.g[1][0], geo.g[2][1], geo.g[4][2]};
-        RowRest rest;
-        if (rows && lattice_rest_) {
-          const BoxGeometry& box = m_.shape.body(kind.body);
-          const auto ijk = box.index(m_.id[base_[k]]);
-          for (int d = 0; d < 3; ++d) rest.offset[d] = box.offset[d], rest.h[d] = box.h[d], rest.ijk[d] = ijk[d];
-        }
-        cell_block_forces(n, base_.data() + k, p.data(), rows, rows && lattice_rest_ ? &rest : nullptr, x,
-                          m_.rest.data(), kind.moduli, geo.volume, g, m_.owned, f);
-      } else {
-        cell_forces(k, x, f);
-      }
-      k += n;
+    // moduli and corner pattern go through cell_block_forces (vectorized across cells: blocks_); otherwise
+    // cell_forces does the same arithmetic one cell at a time.
+    if (plain()) {
+      for (const Block& b : blocks_) block_forces(b, x, f);
+      return;
     }
+    for (int k = 0; k < cells_; ++k) cell_forces(k, x, f);
+  }
+
+  // The same blocks in the same order, each as soon as its owned corners are final: the force model calls this
+  // from the connection kernel's sweep (ForceModel::forces), one plane behind its front, so that x and f come
+  // from the cache. Every molecule still sums its cells in increasing order: the same bits as add_forces.
+  bool adds_by_rows() const override { return plain(); }
+  int add_forces_below(const double* x, int below, int from, double* f) override {
+    const int nb = static_cast<int>(blocks_.size());
+    for (; from < nb && blocks_[from].reach <= below; ++from) block_forces(blocks_[from], x, f);
+    return from;
   }
 
   double potential_energy(const double* x) const override {
@@ -709,6 +697,56 @@ private:
       for (int c = 0; c < 8; ++c)
         if (corner[c] < m_.owned) f[3 * corner[c] + i] += add[c];
     }
+  }
+
+  // Without fibres and a running history the cells go in blocks (cell_block_forces).
+  bool plain() const { return fibre_begin_.empty() && (history_.empty() || !active_); }
+
+  // A block: cells [first, first + n) of one moduli and corner pattern, as a lattice row (rows) or gathered;
+  // reach: 1 + its highest owned corner (the force model runs it once the rows below that are final).
+  struct Block {
+    int first, n, reach;
+    bool rows;
+  };
+  std::vector<Block> blocks_;  // in cell order; empty with fibres (no block ever runs then)
+
+  // Greedy from each cell: up to kCellBlock cells that share their moduli and corner pattern; cells consecutive
+  // along x (at least 8, their four corner rows apart) are a row block, the rest gathered.
+  void make_blocks() {
+    for (int k = 0; k < cells_;) {
+      int n = 1;
+      while (n < kCellBlock && k + n < cells_ && kind_[k + n] == kind_[k] && pattern_[k + n] == pattern_[k]) ++n;
+      const std::array<int, 8>& p = patterns_[pattern_[k]];
+      int along = 1;  // cells consecutive along x from k
+      while (along < n && base_[k + along] == base_[k] + along) ++along;
+      bool rows = along >= 8 && p[1] == 1 && p[3] == p[2] + 1 && p[5] == p[4] + 1 && p[7] == p[6] + 1;
+      for (int r = 0; rows && r < 4; ++r)  // the rows' molecules (along + 1 each) must not overlap
+        for (int t = r + 1; t < 4; ++t) rows = rows && std::abs(p[2 * t] - p[2 * r]) > along;
+      if (rows) n = along;  // short runs stay with the general gather
+      int reach = 0;
+      for (int i = k; i < k + n; ++i)
+        for (int c = 0; c < 8; ++c)
+          if (base_[i] + p[c] < m_.owned) reach = std::max(reach, base_[i] + p[c] + 1);
+      blocks_.push_back({k, n, reach, rows});
+      k += n;
+    }
+    blocks_.shrink_to_fit();
+  }
+
+  void block_forces(const Block& b, const double* x, double* f) const {
+    const int k = b.first;
+    const Kind& kind = kinds_[kind_[k]];
+    const Geometry& geo = geometry_[kind.body];
+    const double g[3] = {geo.g[1][0], geo.g[2][1], geo.g[4][2]};
+    RowRest rest;
+    const bool computed = b.rows && lattice_rest_;
+    if (computed) {
+      const BoxGeometry& box = m_.shape.body(kind.body);
+      const auto ijk = box.index(m_.id[base_[k]]);
+      for (int d = 0; d < 3; ++d) rest.offset[d] = box.offset[d], rest.h[d] = box.h[d], rest.ijk[d] = ijk[d];
+    }
+    cell_block_forces(b.n, base_.data() + k, patterns_[pattern_[k]].data(), b.rows, computed ? &rest : nullptr, x,
+                      m_.rest.data(), kind.moduli, geo.volume, g, m_.owned, f);
   }
 
   // Cell k's row of a checkpoint: its committed S, then h per Prony term.

@@ -604,7 +604,7 @@ void SpringKernel::tangent(const double* x, const double* u, double* out, double
   int c = 0;
   for (const Segment& seg : segments_) {
     if (c < seg.first_connection) {
-      zero_ahead(out, zeroed, seg.generic_reach);
+      zero_ahead(out, Interlaced{}, zeroed, seg.generic_reach);
       generic(c, seg.first_connection, seg.generic_at);
     }
     const int p = seg.pattern, start = pattern_start_[p];
@@ -614,10 +614,10 @@ void SpringKernel::tangent(const double* x, const double* u, double* out, double
     c = seg.first_connection + seg.connections;
   }
   if (c < m.connections()) {
-    zero_ahead(out, zeroed, tail_reach_);
+    zero_ahead(out, Interlaced{}, zeroed, tail_reach_);
     generic(c, m.connections(), tail_at_);
   }
-  zero_ahead(out, zeroed, m.owned);
+  zero_ahead(out, Interlaced{}, zeroed, m.owned);
 }
 
 }  // namespace tissue

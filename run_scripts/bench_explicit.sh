@@ -11,7 +11,10 @@
 #     peak resident set (/usr/bin/time %M) / molecules.
 #   - Ours: summary.json wall_seconds counts set-up (scene, global body, METIS, calibration, output) as well, so
 #     every size and rank count runs twice, with solver.steps = 200 and with solver.steps = 0, and
-#     steps/s = 200 / (wall(200) - wall(0)); memory = peak_memory_bytes (the largest rank's) x ranks / molecules,
+#     steps/s = 200 / (solver(200) - solver(0)), solver = summary.json solver.seconds (the solver's own clock: the
+#     loop and its fixed costs, the first energy and the final check, which the 0-step run cancels; the difference
+#     of the two runs' wall_seconds also carried the set-up's run-to-run spread, 2.5-3.2 s at 10^6 on 2 ranks,
+#     2026-12-02); memory = peak_memory_bytes (the largest rank's) x ranks / molecules,
 #     a peak that may well be set by the set-up rather than by the stepping.
 #   - The start differs: LAMMPS gives the atoms random velocities (temperature 0.01); our dynamic scene starts at
 #     rest and so stays at rest, but every step still computes every spring force and does the two half kicks and
@@ -90,7 +93,7 @@ GUARDS=${TISSUE_GUARDS:-on}
 # 2026-12-01 read TISSUE_GUARDS itself.
 if [ "$GUARDS" = off ]; then export PETSC_OPTIONS="${PETSC_OPTIONS:-} -tissue_guards false"; fi
 
-# ours N NP STEPS: prints "wall_seconds peak_memory_bytes connections process_seconds"
+# ours N NP STEPS: prints "wall_seconds peak_memory_bytes connections process_seconds solver_seconds"
 ours() {
   local n=$1 np=$2 steps=$3 dir="$WORK/ours-$1-np$2-s$3" t0 t1
   rm -rf "$dir"
@@ -99,7 +102,7 @@ ours() {
     --set "$FIELD_SET" --set output.progress=false --output "$dir" > "$dir.log" 2>&1 \
     || { echo "bench_explicit: our run N=$n np=$np steps=$steps failed, see $dir.log" >&2; return 1; }
   t1=$(date +%s.%N)
-  "$PYTHON" -c "import json,sys; d=json.load(open('$dir/summary.json')); print(d['wall_seconds'], d['peak_memory_bytes'], d['connections'], $t1-$t0)"
+  "$PYTHON" -c "import json,sys; d=json.load(open('$dir/summary.json')); print(d['wall_seconds'], d['peak_memory_bytes'], d['connections'], $t1-$t0, d['solver']['seconds'])"
 }
 
 # 2. Alternate ours and LAMMPS.
@@ -107,12 +110,12 @@ for n in $NS; do
   for np in $NPS; do
     for rep in $(seq "$REPEAT"); do
       echo "N = $n ($((n * n * n)) molecules), $np rank(s), repetition $rep"
-      read -r w200 p200 conn proc200 < <(ours "$n" "$np" "$STEPS")
-      read -r w0 p0 _ proc0 < <(ours "$n" "$np" 0)
+      read -r w200 p200 conn proc200 s200 < <(ours "$n" "$np" "$STEPS")
+      read -r w0 p0 _ proc0 s0 < <(ours "$n" "$np" 0)
       "$PYTHON" - >> "$CSV" <<EOF
 n, np, steps = $n, $np, $STEPS
 w200, w0, peak, conn = $w200, $w0, $p200, $conn
-loop = w200 - w0
+loop = $s200 - $s0
 rate = steps / loop
 load = open("/proc/loadavg").read().split()[0]
 print(",".join(str(v) for v in ["tissue", n, n**3, conn, np, steps, w200, w0, round(loop, 4), rate,

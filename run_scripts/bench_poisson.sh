@@ -3,7 +3,10 @@
 # (N = 100: 10^6 molecules), E = 10 MPa, homogenized:
 #  1. explicit speed: dynamic steps/s with the cell term (poisson_ratio = 0.45) against springs only (no
 #     poisson_ratio: nu = 1/4, no cell term). steps/s = (S1 - S0) / (cpu(S1 steps) - cpu(S0 steps)), so set-up and
-#     output cancel; cpu = user + system seconds; target: ratio >= 0.5.
+#     output cancel; cpu = user + system seconds of the whole process; and the same by the solver's own clock
+#     (summary.json solver.seconds, wall time of the solve): the two disagreed by 1.5x for the springs-only scene
+#     on 2026-12-02 (a VM's stolen time is in the wall clock, not in CPU time), so both are printed; target: ratio
+#     >= 0.5.
 #  2. static solve (clamped base, traction on top, strain 1e-4, tolerance 1e-8): solver.seconds and Newton /
 #     Krylov counts at nu = 0.45 against nu = 0.25; target: time ratio <= 1.5.
 # Prints a markdown table (docs/benchmarks.md). 10^6 molecules take minutes and several GB: run it once, on a
@@ -48,18 +51,19 @@ TOML
 scene dynamic > "$DIR/dynamic.toml"
 scene static > "$DIR/static.toml"
 
-cpu() {  # cpu seconds of one run: $1 steps, then --set arguments
+cpu() {  # "cpu solver" seconds of one run (the process's user + system; summary.json solver.seconds): $1 steps,
+         # then --set arguments
   local steps=$1
   shift
   /usr/bin/time -f "%U %S" -o "$DIR/time" "$TISSUE" run "$DIR/dynamic.toml" --set solver.steps="$steps" "$@" \
     > "$DIR/log" 2>&1 || { tail -3 "$DIR/log" >&2; exit 1; }
-  awk '{print $1 + $2}' "$DIR/time"
+  echo "$(awk '{print $1 + $2}' "$DIR/time") $(python3 -c "import json; print(json.load(open('$DIR/out/summary.json'))['solver']['seconds'])")"
 }
-rate() {  # steps/s: --set arguments
+rate() {  # "steps/s by CPU time, steps/s by the solver's clock": --set arguments
   local a b
   a=$(cpu "$S0" "$@")
   b=$(cpu "$S1" "$@")
-  python3 -c "print(($S1 - $S0) / ($b - $a))"
+  python3 -c "a, b = '$a'.split(), '$b'.split(); print(($S1 - $S0) / (float(b[0]) - float(a[0])), ($S1 - $S0) / (float(b[1]) - float(a[1])))"
 }
 static() {  # "seconds newton krylov" of the static solve: --set arguments
   "$TISSUE" run "$DIR/static.toml" "$@" > "$DIR/log" 2>&1 || { tail -3 "$DIR/log" >&2; exit 1; }
@@ -69,9 +73,10 @@ print(s['seconds'], s['iterations'], s['linear_iterations'])"
 
 echo "| $N^3 molecules, 1 rank | springs only / nu = 0.25 | cell term, nu = 0.45 | ratio | target |"
 echo "|---|---|---|---|---|"
-springs=$(rate)
-cells=$(rate --set body.poisson_ratio=0.45)
-python3 -c "print(f'| dynamic steps/s | {$springs:.3g} | {$cells:.3g} | {$cells / $springs:.2f} | >= 0.5 |')"
+read -r springs springs_wall < <(rate)
+read -r cells cells_wall < <(rate --set body.poisson_ratio=0.45)
+python3 -c "print(f'| dynamic steps/s (CPU seconds, whole process) | {$springs:.3g} | {$cells:.3g} | {$cells / $springs:.2f} | >= 0.5 |')"
+python3 -c "print(f'| dynamic steps/s (solver.seconds, wall) | {$springs_wall:.3g} | {$cells_wall:.3g} | {$cells_wall / $springs_wall:.2f} | >= 0.5 |')"
 [ "${STATIC:-1}" = 1 ] || exit 0  # STATIC=0: the explicit part only
 read -r s25 n25 k25 <<< "$(static --set body.poisson_ratio=0.25)"
 read -r s45 n45 k45 <<< "$(static --set body.poisson_ratio=0.45)"

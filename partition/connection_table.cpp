@@ -19,17 +19,6 @@ void ConnectionTable::set_rest_lengths(std::vector<std::uint16_t> type, std::vec
   length_type_ = std::move(type), length_table_ = std::move(table);
 }
 
-ConnectionColumn ConnectionTable::stiffness_column() const {
-  if (typed()) return {type_.data(), type_stiffness_.data()};
-  return {nullptr, stiffness_.data()};
-}
-
-ConnectionColumn ConnectionTable::rest_length_column() const {
-  if (typed()) return {type_.data(), type_rest_length_.data()};
-  if (!length_type_.empty()) return {length_type_.data(), length_table_.data()};
-  return {nullptr, rest_length_.data()};
-}
-
 ConnectionTable ConnectionTable::select(const std::vector<int>& which) const {
   ConnectionTable v;
   if (typed()) {
@@ -59,12 +48,23 @@ bool ConnectionTable::compact() {
   std::unordered_map<std::pair<std::uint64_t, std::uint64_t>, std::uint16_t, PairHash> types;
   std::vector<double> tk, tl;
   const ConnectionColumn length = rest_length_column();
+  // Box lattices: per length type, the last k seen with it and its type, a shortcut past the hash (a lattice
+  // repeats a few (k, l0) pairs); the same types in the same order of first appearance either way.
+  struct Recent {
+    std::uint64_t k_bits;
+    int type;  // -1: none yet
+  };
+  std::vector<Recent> recent(length_type_.empty() ? 0 : length_table_.size(), Recent{0, -1});
   auto type_of = [&](std::size_t c) {  // by bits: two different doubles are two types, -0.0 and 0.0 included
     std::uint64_t kb, lb;
+    std::memcpy(&kb, &stiffness_[c], 8);
+    Recent* r = recent.empty() ? nullptr : &recent[length_type_[c]];
+    if (r && r->type >= 0 && r->k_bits == kb) return static_cast<std::uint16_t>(r->type);
     const double l0 = length[static_cast<int>(c)];
-    std::memcpy(&kb, &stiffness_[c], 8), std::memcpy(&lb, &l0, 8);
+    std::memcpy(&lb, &l0, 8);
     auto [it, added] = types.try_emplace({kb, lb}, static_cast<std::uint16_t>(std::min<std::size_t>(tk.size(), 65535)));
     if (added) tk.push_back(stiffness_[c]), tl.push_back(l0);
+    if (r) *r = {kb, it->second};
     return it->second;
   };
   // First the table alone: past 65,536 types nothing changes.

@@ -40,8 +40,16 @@ public:
   bool calibrated() const { return typed() || !stiffness_.empty(); }  // false once stiffness_ was never set up
   double k(int c) const { return typed() ? type_stiffness_[type_[c]] : stiffness_[c]; }
   double l0(int c) const { return rest_length_column()[c]; }
-  ConnectionColumn stiffness_column() const;
-  ConnectionColumn rest_length_column() const;
+  // Inline: k(c) and l0(c) are read once a connection by set-up passes (checks, calibration).
+  ConnectionColumn stiffness_column() const {
+    if (typed()) return {type_.data(), type_stiffness_.data()};
+    return {nullptr, stiffness_.data()};
+  }
+  ConnectionColumn rest_length_column() const {
+    if (typed()) return {type_.data(), type_rest_length_.data()};
+    if (!length_type_.empty()) return {length_type_.data(), length_table_.data()};
+    return {nullptr, rest_length_.data()};
+  }
   // Box lattices: how many distinct rest lengths (0 when stored per connection or by connection type).
   std::size_t length_types() const { return length_table_.size(); }
   std::size_t connection_types() const { return type_stiffness_.size(); }

@@ -80,11 +80,11 @@ std::vector<int> partition_lattice_blocks(const Body& shape, MPI_Comm comm, int 
   // end) between different blocks, keyed by the ordered block pair.
   std::unordered_map<std::int64_t, std::int64_t> weight;
   std::vector<Neighbour> nb;
-  std::vector<const TopologyStyle*> style;
-  for (int b = 0; b < shape.bodies(); ++b) style.push_back(find_topology(shape.body(b).topology));
+  std::vector<LatticeStencil> stencil;
+  for (int b = 0; b < shape.bodies(); ++b) stencil.emplace_back(*find_topology(shape.body(b).topology), shape.body(b));
   for (std::int64_t g = begin; g < end; ++g) {
     const int body = shape.body_of(g);
-    lattice_neighbours(*style[body], shape.body(body), g, nb);
+    stencil[body].neighbours(g, nb);
     const std::int64_t u = blocks.of(body, g);
     for (const auto& x : nb) {
       if (x.id < g) continue;

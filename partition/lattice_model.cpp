@@ -42,8 +42,13 @@ long find_sorted_near(const std::int64_t* v, long n, long hint, std::int64_t id)
   hint = std::min(std::max(hint, 0L), n - 1);
   // Ids are distinct integers, so v[hint + d] >= v[hint] + d: where the rank owns every id in between (one rank,
   // or inside a partition block), id sits exactly id - v[hint] entries further on; otherwise before that.
+  // Likewise below: v[hint - d] <= v[hint] - d, so id sits no further back than id - v[hint] entries.
   if (v[hint] < id) {
     const long guess = hint + static_cast<long>(std::min<std::int64_t>(id - v[hint], n - 1 - hint));
+    if (v[guess] == id) return guess;
+    hint = guess;
+  } else if (v[hint] > id) {
+    const long guess = hint - static_cast<long>(std::min<std::int64_t>(v[hint] - id, hint));
     if (v[guess] == id) return guess;
     hint = guess;
   }
@@ -111,10 +116,12 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
   m.global_molecules = n;
   if (n * 3 > std::numeric_limits<PetscInt>::max())
     throw std::runtime_error("the body has more molecules than 32-bit PETSc indices can address");
+  std::vector<LatticeStencil> stencil;
+  for (int b = 0; b < nbodies; ++b) stencil.emplace_back(*style[b], m.shape.body(b));
   std::vector<Neighbour> nb;
   auto neighbours = [&](std::int64_t g) {
     const int b = m.shape.body_of(g);
-    lattice_neighbours(*style[b], m.shape.body(b), g, nb);
+    stencil[b].neighbours(g, nb);
     return b;
   };
 
@@ -315,7 +322,7 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
         const int j = static_cast<int>(owned_j >= 0 ? owned_j : m.owned + find_sorted(ghosts, x.id));
         end_a.push_back(i), end_b.push_back(j);
         m.connection_class.push_back(x.cls);
-        length_types.push_back(length_type(forward, box.rest_distance(a, x.id)));
+        length_types.push_back(length_type(forward, stencil[b].rest_distance(x)));
         if (a_owned) ++m.written_count;
         if (any_tetrahedra) {
           // Tetrahedra incident on the connection (Van Gelder's Eq. 5, Lloyd's sum): every Kuhn tetrahedron of

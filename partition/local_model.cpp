@@ -50,8 +50,13 @@ bool ConnectionEnd::to_runs(ConnectionEnd& a, ConnectionEnd& b) {
   runs.runs_.shrink_to_fit(), runs.pattern_start_.shrink_to_fit(), runs.offsets_.shrink_to_fit();
   ConnectionEnd run_b = runs;
   run_b.is_b_ = true;
-  for (int c = 0; c < n; ++c)  // every value back, or nothing changes
-    if (runs[c] != ea[c] || run_b[c] != eb[c]) return false;
+  // Every value back, or nothing changes: decoded a window at a time (no run search and division a value).
+  std::vector<int> back_a(4096), back_b(4096);
+  for (int c0 = 0; c0 < n; c0 += 4096) {
+    const int c1 = std::min(n, c0 + 4096);
+    runs.decode(c0, c1, back_a.data()), run_b.decode(c0, c1, back_b.data());
+    if (!std::equal(ea + c0, ea + c1, back_a.begin()) || !std::equal(eb + c0, eb + c1, back_b.begin())) return false;
+  }
   a = std::move(runs), b = std::move(run_b);
   return true;
 }

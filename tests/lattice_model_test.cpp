@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstring>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -569,6 +570,36 @@ TEST(LatticeBlocks, ValidBalancedAndIndependentOfTheRankCount) {
   big.topology = "face-diagonals";
   EXPECT_EQ(lattice_block_size(big, 2), 4);     // 25^3 = 15,625 blocks <= 32,768 < 34^3 with b = 3
   EXPECT_EQ(lattice_block_size(big, 1024), 2);  // 50^3 = 125,000 blocks <= 131,072
+}
+
+// The stencil laid on a box (LatticeStencil, the lattice set-up's neighbour lists) gives every molecule's
+// neighbours exactly as lattice_neighbours does (ids, classes, directions, order), and each one's rest distance
+// bit for bit BoxGeometry::rest_distance's, on every topology, in boxes thin enough that no molecule is interior
+// (sides of 1 and 2) and boxes where most are, with and without a first id.
+TEST(LatticeStencil, EqualsTheNeighbourListsAndRestDistances) {
+  long interior = 0;
+  for (const auto& style : topology_styles())
+    for (const std::array<long, 3> n : {std::array<long, 3>{1, 1, 1}, {2, 3, 1}, {2, 2, 2}, {3, 3, 3}, {5, 4, 3},
+                                        {7, 6, 5}, {3, 9, 2}}) {
+      BoxGeometry box;
+      box.n = n, box.h = {0.3, 0.7, 1.1}, box.topology = style.name, box.first = n[0] == 5 ? 17 : 0;
+      const LatticeStencil stencil(style, box);
+      std::vector<Neighbour> fast, slow;
+      for (std::int64_t g = box.first; g < box.first + box.molecules(); ++g) {
+        stencil.neighbours(g, fast);
+        lattice_neighbours(style, box, g, slow);
+        ASSERT_EQ(fast.size(), slow.size()) << style.name << " " << g;
+        for (std::size_t k = 0; k < fast.size(); ++k) {
+          EXPECT_EQ(fast[k].id, slow[k].id) << style.name << " " << g;
+          EXPECT_EQ(fast[k].cls, slow[k].cls);
+          EXPECT_EQ(fast[k].direction, slow[k].direction);
+          const double want = box.rest_distance(g, fast[k].id), got = stencil.rest_distance(fast[k]);
+          EXPECT_EQ(std::memcmp(&want, &got, sizeof want), 0) << style.name << " " << g << " " << fast[k].id;
+        }
+        interior += fast.size() == style.stencil.size();
+      }
+    }
+  EXPECT_GT(interior, 0);  // the interior shortcut ran
 }
 
 }  // namespace

@@ -7,10 +7,12 @@ namespace tissue {
 
 void calibrate_manual(const CalibrationContext& ctx, std::vector<double>& k) {
   const auto& table = ctx.scene.calibration.stiffness;
-  for (int c = 0; c < ctx.model.connections(); ++c) {
-    auto it = table.find(class_name(ctx.model.connection_class[c]));
-    k[c] = it == table.end() ? 0.0 : it->second;  // the scene reader requires every class the topology uses
+  double by_class[3];  // looked up once per class, not by name per connection
+  for (int cls = 0; cls < 3; ++cls) {
+    auto it = table.find(class_name(static_cast<ConnectionClass>(cls)));
+    by_class[cls] = it == table.end() ? 0.0 : it->second;  // the scene reader requires every class the topology uses
   }
+  for (int c = 0; c < ctx.model.connections(); ++c) k[c] = by_class[static_cast<int>(ctx.model.connection_class[c])];
 }
 
 TISSUE_CALIBRATION(manual, {"manual", calibrate_manual, "k given per connection class (calibration.stiffness)",

@@ -1,6 +1,8 @@
 #include "src/model/topology.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <functional>
 #include <iterator>
 
 #include "src/model/registry.hpp"
@@ -38,16 +40,33 @@ const std::vector<TopologyStyle>& topology_styles() {
 void lattice_neighbours(const TopologyStyle& style, const BoxGeometry& box, std::int64_t g, std::vector<Neighbour>& out) {
   out.clear();
   const auto ijk = box.index(g);
-  for (const auto& o : style.stencil) {
+  for (int s = 0; s < static_cast<int>(style.stencil.size()); ++s) {
+    const StencilOffset& o = style.stencil[s];
     long q[3];
     bool inside = true;
     for (int d = 0; d < 3; ++d) q[d] = ijk[d] + o.d[d], inside = inside && q[d] >= 0 && q[d] < box.n[d];
     if (!inside) continue;
     const int nonzero = (o.d[0] != 0) + (o.d[1] != 0) + (o.d[2] != 0);
-    out.push_back({box.id(q[0], q[1], q[2]), static_cast<ConnectionClass>(nonzero - 1)});
+    out.push_back({box.id(q[0], q[1], q[2]), static_cast<ConnectionClass>(nonzero - 1), s});
   }
   auto by_id = [](const Neighbour& x, const Neighbour& y) { return x.id < y.id; };
   if (!std::is_sorted(out.begin(), out.end(), by_id)) std::sort(out.begin(), out.end(), by_id);
+}
+
+LatticeStencil::LatticeStencil(const TopologyStyle& style, const BoxGeometry& box) : style_(&style), box_(box) {
+  for (const auto& o : style.stencil) {
+    const int nonzero = (o.d[0] != 0) + (o.d[1] != 0) + (o.d[2] != 0);
+    step_.push_back(o.d[0] + box.n[0] * (o.d[1] + static_cast<std::int64_t>(box.n[1]) * o.d[2]));
+    cls_.push_back(static_cast<ConnectionClass>(nonzero - 1));
+    for (int d = 0; d < 3; ++d) reach_[d] = std::max<long>(reach_[d], o.d[d] < 0 ? -o.d[d] : o.d[d]);
+    double sum = 0;  // as BoxGeometry::rest_distance sums it, so the same bits
+    for (int d = 0; d < 3; ++d) {
+      const double x = static_cast<double>(o.d[d]) * box.h[d];
+      sum += x * x;
+    }
+    distance_.push_back(std::sqrt(sum));
+  }
+  sorted_ = std::adjacent_find(step_.begin(), step_.end(), std::greater_equal<std::int64_t>()) == step_.end();
 }
 
 const TopologyStyle* find_topology(const std::string& name) { return find_style(topology_styles(), name); }

@@ -42,11 +42,41 @@ struct TopologyStyle {
 struct Neighbour {
   std::int64_t id;
   ConnectionClass cls;
+  int direction;  // its offset's index in the topology's stencil
 };
 
 // The neighbours of molecule g (global id) in its box, in increasing id order (the order of the global
 // connection list and of the METIS graph). `out` is cleared first.
 void lattice_neighbours(const TopologyStyle& style, const BoxGeometry& box, std::int64_t g, std::vector<Neighbour>& out);
+
+// The same neighbours, from a stencil laid on one box once: each offset's id step and class, and the margin its
+// offsets reach along each axis. A molecule at least that far from every face has every neighbour, already in id
+// order when the steps increase (any box whose sides hold more molecules than an offset spans): its list is g plus
+// the steps, with no bounds check and no sort. Others go through lattice_neighbours. Why: the lattice set-up asks
+// for every molecule's neighbours several times (partition, counts, ghosts, connections).
+class LatticeStencil {
+public:
+  LatticeStencil(const TopologyStyle& style, const BoxGeometry& box);
+  void neighbours(std::int64_t g, std::vector<Neighbour>& out) const {
+    const auto ijk = box_.index(g);
+    bool inside = sorted_;
+    for (int d = 0; d < 3; ++d) inside = inside && ijk[d] >= reach_[d] && ijk[d] < box_.n[d] - reach_[d];
+    if (!inside) return lattice_neighbours(*style_, box_, g, out);
+    out.resize(step_.size());
+    for (std::size_t s = 0; s < step_.size(); ++s) out[s] = {g + step_[s], cls_[s], static_cast<int>(s)};
+  }
+  // The rest distance of a neighbour in that direction: BoxGeometry::rest_distance's double for its offset.
+  double rest_distance(const Neighbour& x) const { return distance_[x.direction]; }
+
+private:
+  const TopologyStyle* style_;
+  BoxGeometry box_;
+  std::vector<std::int64_t> step_;  // per stencil offset, in the stencil's order: the id difference
+  std::vector<ConnectionClass> cls_;
+  std::vector<double> distance_;  // per stencil offset: the rest distance
+  long reach_[3] = {0, 0, 0};
+  bool sorted_ = false;  // the steps increase strictly: interior lists need no sort
+};
 
 // Tetrahedral topology: how many of the cells' Kuhn tetrahedra contain both molecules a and b (the connection's
 // incident tetrahedra, Van Gelder's Eq. 5), and the volume of one (every Kuhn tetrahedron of a box has the same).

@@ -340,12 +340,40 @@ void stencil_forces(int first, int count, int directions, const int* offset, con
                          owned, max_offset, zeroed);
 }
 
+// One end of every connection read by index, as the constructor below reads it (mostly forward, then one pass
+// backward): plain ends from their array; ends stored as runs decoded a window at a time (ConnectionEnd::decode),
+// not by a run search and a division per read.
+class EndReader {
+public:
+  explicit EndReader(const ConnectionEnd& end) : end_(end), plain_(end.plain() ? end.data() : nullptr) {}
+  bool plain() const { return plain_ != nullptr; }
+  int operator[](int c) const {
+    if (plain_) return plain_[c];
+    if (c < w0_ || c >= w1_) fill(c);
+    return window_[c - w0_];
+  }
+
+private:
+  static constexpr int kWindow = 4096, kMargin = 64;
+  void fill(int c) const {
+    const int n = static_cast<int>(end_.size());
+    w0_ = c >= w1_ ? std::max(0, c - kMargin) : std::max(0, c - kWindow + kMargin);
+    w1_ = std::min(n, w0_ + kWindow);
+    window_.resize(kWindow);
+    end_.decode(w0_, w1_, window_.data());
+  }
+  const ConnectionEnd& end_;
+  const int* plain_;
+  mutable std::vector<int> window_;
+  mutable int w0_ = 0, w1_ = 0;
+};
+
 }  // namespace
 
 SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
   const int nc = model.connections();
-  const ConnectionEnd& a = model.end_a;  // indexed as arrays; runs (ConnectionEnd) give the same values
-  const ConnectionEnd& b = model.end_b;
+  const EndReader a(model.end_a);  // indexed as arrays; runs (ConnectionEnd) give the same values
+  const EndReader b(model.end_b);
   // Ends stored as runs: the generic connections [c0, c1) get arrays of their own; returns where they start.
   auto keep_generic = [&](int c0, int c1) {
     const int at = static_cast<int>(generic_a_.size());

@@ -5,6 +5,8 @@
 #include <metis.h>
 
 #include <algorithm>
+#include <array>
+#include <cstdlib>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -31,10 +33,19 @@ public:
     }
   }
   std::int64_t total() const { return total_; }
-  std::int64_t of(int body, std::int64_t g) const {
-    const auto ijk = shape_.body(body).index(g);
+  std::int64_t of(int body, std::int64_t g) const { return at(body, shape_.body(body).index(g)); }
+  // The block of the molecule at lattice indices ijk of `body`.
+  std::int64_t at(int body, const std::array<long, 3>& ijk) const {
     const auto& c = count_[body];
     return first_[body] + ijk[0] / b_ + c[0] * (ijk[1] / b_ + static_cast<std::int64_t>(c[1]) * (ijk[2] / b_));
+  }
+  // The block e = (e_x, e_y, e_z) blocks away from block v of `body`.
+  std::int64_t shifted(int body, std::int64_t v, const int* e) const {
+    const auto& c = count_[body];
+    return v + e[0] + c[0] * (e[1] + static_cast<std::int64_t>(c[1]) * e[2]);
+  }
+  int body_of_block(std::int64_t v) const {
+    return static_cast<int>(std::upper_bound(first_.begin(), first_.end(), v) - first_.begin()) - 1;
   }
   // Molecules in block v (edge blocks are cut short by the box).
   long molecules(std::int64_t v) const {
@@ -55,6 +66,26 @@ private:
   std::vector<std::int64_t> first_;
   std::int64_t total_ = 0;
 };
+
+// f(g, body, ijk) for every molecule g in [begin, end) in increasing order, its lattice indices stepped (no
+// division a molecule).
+template <class F>
+void for_each_molecule(const Body& shape, std::int64_t begin, std::int64_t end, F&& f) {
+  for (int body = 0; body < shape.bodies() && begin < end; ++body) {
+    const BoxGeometry& box = shape.body(body);
+    const std::int64_t last = std::min(end, box.first + box.molecules());
+    if (last <= begin) continue;
+    std::array<long, 3> ijk = box.index(begin);
+    for (std::int64_t g = begin; g < last; ++g) {
+      f(g, body, ijk);
+      if (++ijk[0] == box.n[0]) {
+        ijk[0] = 0;
+        if (++ijk[1] == box.n[1]) ijk[1] = 0, ++ijk[2];
+      }
+    }
+    begin = last;
+  }
+}
 
 }  // namespace
 
@@ -77,25 +108,60 @@ std::vector<int> partition_lattice_blocks(const Body& shape, MPI_Comm comm, int 
   if (nv > std::numeric_limits<idx_t>::max() / 32) throw std::runtime_error("too many lattice blocks for METIS's idx_t");
 
   // Edge weights: each rank counts the connections of its natural block's molecules (each once, from its lower
-  // end) between different blocks, keyed by the ordered block pair.
-  std::unordered_map<std::int64_t, std::int64_t> weight;
-  std::vector<Neighbour> nb;
-  std::vector<LatticeStencil> stencil;
-  for (int b = 0; b < shape.bodies(); ++b) stencil.emplace_back(*find_topology(shape.body(b).topology), shape.body(b));
-  for (std::int64_t g = begin; g < end; ++g) {
-    const int body = shape.body_of(g);
-    stencil[body].neighbours(g, nb);
-    const std::int64_t u = blocks.of(body, g);
-    for (const auto& x : nb) {
-      if (x.id < g) continue;
-      const std::int64_t v = blocks.of(body, x.id);
-      if (u != v) ++weight[std::min(u, v) * nv + std::max(u, v)];
+  // end) between different blocks, by the lower end's block u and the other's offset in blocks e (within
+  // [-R, R] per axis, R = the stencil's reach in blocks): a dense count for the blocks the natural block
+  // touches, with no hash and no division a connection.
+  struct Forward {
+    int d[3];
+  };
+  std::vector<std::vector<Forward>> forward(shape.bodies());  // per body: the stencil's offsets to higher ids
+  long reach = 0;
+  for (int b = 0; b < shape.bodies(); ++b) {
+    const BoxGeometry& box = shape.body(b);
+    for (const auto& o : find_topology(box.topology)->stencil) {
+      if (o.d[0] + box.n[0] * (o.d[1] + static_cast<std::int64_t>(box.n[1]) * o.d[2]) <= 0) continue;
+      forward[b].push_back({{o.d[0], o.d[1], o.d[2]}});
+      for (int d = 0; d < 3; ++d) reach = std::max<long>(reach, std::abs(o.d[d]));
     }
   }
-  std::vector<std::int64_t> mine;  // (key, weight) pairs
-  mine.reserve(2 * weight.size());
-  for (const auto& [key, w] : weight) mine.push_back(key), mine.push_back(w);
-  weight = {};
+  const int R = static_cast<int>((reach + block - 1) / block), W = 2 * R + 1, directions = W * W * W;
+  std::int64_t u_lo = 0, u_hi = -1;  // blocks hold (body, z, y, x) in order, so the range's lie in [u_lo, u_hi]
+  if (begin < end) {
+    const int b0 = shape.body_of(begin), b1 = shape.body_of(end - 1);
+    const BoxGeometry &box0 = shape.body(b0), &box1 = shape.body(b1);
+    u_lo = blocks.at(b0, {0, 0, box0.index(begin)[2]});
+    u_hi = blocks.at(b1, {box1.n[0] - 1, box1.n[1] - 1, box1.index(end - 1)[2]});
+  }
+  std::vector<std::int64_t> dense(static_cast<std::size_t>(u_hi - u_lo + 1) * directions, 0);
+  for_each_molecule(shape, begin, end, [&](std::int64_t, int body, const std::array<long, 3>& ijk) {
+    const BoxGeometry& box = shape.body(body);
+    const long r[3] = {ijk[0] % block, ijk[1] % block, ijk[2] % block};  // place inside the block
+    std::int64_t* row = nullptr;
+    for (const Forward& o : forward[body]) {
+      int e[3];
+      bool inside = true, other = false;
+      for (int d = 0; d < 3; ++d) {
+        const long q = ijk[d] + o.d[d], p = r[d] + o.d[d];
+        inside = inside && q >= 0 && q < box.n[d];
+        e[d] = static_cast<int>(p < 0 ? -((-p + block - 1) / block) : p / block);
+        other = other || e[d] != 0;
+      }
+      if (!inside || !other) continue;
+      if (!row) row = dense.data() + (blocks.at(body, ijk) - u_lo) * directions;
+      ++row[((e[2] + R) * W + (e[1] + R)) * W + (e[0] + R)];
+    }
+  });
+  std::vector<std::int64_t> mine;  // (key, weight) pairs; rank 0 sums a pair that arrives twice
+  for (std::int64_t u = u_lo; u <= u_hi; ++u) {
+    const std::int64_t* row = dense.data() + (u - u_lo) * directions;
+    for (int k = 0; k < directions; ++k) {
+      if (row[k] == 0) continue;
+      const int e[3] = {k % W - R, (k / W) % W - R, k / (W * W) - R};
+      const std::int64_t v = blocks.shifted(blocks.body_of_block(u), u, e);
+      mine.push_back(std::min(u, v) * nv + std::max(u, v)), mine.push_back(row[k]);
+    }
+  }
+  dense = {};
   int count = static_cast<int>(mine.size());
   std::vector<int> counts(size), displs(size + 1, 0);
   MPI_Gather(&count, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, comm);
@@ -153,10 +219,10 @@ std::vector<int> partition_lattice_blocks(const Body& shape, MPI_Comm comm, int 
 
   std::vector<int> part(end - begin);
   std::vector<long> molecules(parts, 0), total(parts, 0);
-  for (std::int64_t g = begin; g < end; ++g) {
-    part[g - begin] = block_part[blocks.of(shape.body_of(g), g)];
+  for_each_molecule(shape, begin, end, [&](std::int64_t g, int body, const std::array<long, 3>& ijk) {
+    part[g - begin] = block_part[blocks.at(body, ijk)];
     ++molecules[part[g - begin]];
-  }
+  });
   MPI_Allreduce(molecules.data(), total.data(), parts, MPI_LONG, MPI_SUM, comm);
   stats = PartitionStats{};
   stats.edge_cut = edge_cut;

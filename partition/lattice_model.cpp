@@ -148,14 +148,26 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
 
   // 3. Molecules to their owners, with their first connection id. Blocks arrive in rank order and ascend within,
   //    so the owned ids arrive sorted.
-  std::vector<std::vector<std::int64_t>> out(m.size);
-  for (std::int64_t g = begin; g < end; ++g) {
-    out[part[g - begin]].push_back(g);
-    out[part[g - begin]].push_back(first_connection[g - begin]);
-  }
+  //    Placed straight into one send buffer by destination (lists per rank were copied into it, and grew by
+  //    doubling: every byte written two or three times, each a first touch of fresh pages).
   std::vector<int> from;
-  std::vector<std::int64_t> in = exchange_items(comm, out, 2, from);
-  out = {};  // 16 bytes a molecule, alive until the end otherwise
+  std::vector<std::int64_t> in;
+  {
+    std::vector<int> going(m.size, 0);
+    for (int p : part) ++going[p];
+    std::vector<std::size_t> at(m.size, 0);
+    for (int r = 1; r < m.size; ++r) at[r] = at[r - 1] + 2 * static_cast<std::size_t>(going[r - 1]);
+    std::vector<std::int64_t> send(2 * static_cast<std::size_t>(end - begin));
+    for (std::int64_t g = begin; g < end; ++g) {
+      std::size_t& k = at[part[g - begin]];
+      send[k] = g, send[k + 1] = first_connection[g - begin];
+      k += 2;
+    }
+    const ExchangePlan plan(comm, std::move(going));  // items of two values
+    from = plan.recv_counts();
+    in.resize(2 * plan.received());
+    plan.forward(send.data(), in.data(), 2);
+  }
   m.owned = static_cast<int>(in.size() / 2);
   std::vector<std::int64_t> owned_ids(m.owned), owned_first(m.owned);
   for (int i = 0; i < m.owned; ++i) owned_ids[i] = in[2 * i], owned_first[i] = in[2 * i + 1];
@@ -171,8 +183,10 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
   {
     std::vector<std::vector<std::int64_t>> back(m.size);
     int i = 0;
-    for (int r = 0; r < m.size; ++r)
+    for (int r = 0; r < m.size; ++r) {
+      back[r].reserve(from[r]);
       for (int k = 0; k < from[r]; ++k, ++i) back[r].push_back(m.first_block + i);
+    }
     std::vector<int> got;
     std::vector<std::int64_t> blocks = exchange_items(comm, back, 1, got);
     std::vector<std::size_t> next(m.size + 1, 0);  // where each owner's answers start
@@ -217,12 +231,14 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
     std::vector<std::int64_t> questions = exchange_items(comm, ask, 1, asked);
     std::vector<std::vector<std::int64_t>> answer(m.size);
     std::size_t q = 0;
-    for (int r = 0; r < m.size; ++r)
+    for (int r = 0; r < m.size; ++r) {
+      answer[r].reserve(2 * asked[r]);
       for (int k = 0; k < asked[r]; ++k, ++q) {
         const std::int64_t g = questions[q];
         answer[r].push_back(directory_block[g - begin]);
         answer[r].push_back(first_connection[g - begin]);
       }
+    }
     std::vector<int> answered;
     std::vector<std::int64_t> answers = exchange_items(comm, answer, 2, answered);
     // Answers come back grouped by directory rank, in the order asked; ghosts are sorted, and so are blocks.

@@ -389,7 +389,8 @@ SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
   const std::uint16_t* type = kc.type;  // typed: k and l0 share the connection type
   auto run_end = [&](int c) {
     int e = c + 1;
-    while (e < nc && a[e] == a[c]) ++e;
+    const int first = a[c];
+    while (e < nc && a[e] == first) ++e;
     return e;
   };
   // A run of one end a fits a stencil when its offsets are positive and increasing (the connection order is
@@ -443,7 +444,8 @@ SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
     }
     pattern.clear();
     for (int t = c; t < e; ++t) pattern.push_back({b[t] - a[t], type[t]});
-    if (a[c] + pattern.back().offset >= local) {
+    const int first_molecule = a[c];  // read once: the loop below reads ends far ahead of c
+    if (first_molecule + pattern.back().offset >= local) {
       c = e;
       continue;
     }
@@ -454,7 +456,7 @@ SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
     int next = e, molecules = 1;
     long present = e - c;
     for (;;) {
-      const int m = a[c] + molecules;
+      const int m = first_molecule + molecules;
       int run_first = next, run_last = next;
       if (next < nc && a[next] == m) {
         run_last = run_end(next);
@@ -511,9 +513,9 @@ SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
         while (pattern[s].offset != b[t] - a[t]) ++s;
         bits |= 1u << s;
       }
-      exceptions_.push_back({a[c] + i, bits});
+      exceptions_.push_back({first_molecule + i, bits});
     }
-    segments_.push_back({c, next - c, a[c], molecules, id, reach_of(generic_begin, c),
+    segments_.push_back({c, next - c, first_molecule, molecules, id, reach_of(generic_begin, c),
                          keep_generic(generic_begin, c), first_exception,
                          static_cast<int>(exceptions_.size()) - first_exception, 0});
     structured_ += next - c;

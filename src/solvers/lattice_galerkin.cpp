@@ -437,7 +437,13 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     int row = -1;
     std::uint32_t present = 0;
     bool off_stencil = false;
+    // Gershgorin's bound on the Jacobi-scaled operator, row by row as ForceModel::jacobi_gershgorin sums it (the
+    // diagonal and the off-diagonal magnitudes of each free component, in the stream's order; a held row's is 1).
+    double diag[3] = {}, off[3] = {}, bound = 1.0;
     auto flush = [&]() -> PetscErrorCode {
+      for (int r = 0; r < 3 && row >= 0; ++r)
+        if (!held_[3 * row + r]) bound = std::max(bound, 1.0 + off[r] / diag[r]);
+      for (int r = 0; r < 3; ++r) diag[r] = off[r] = 0.0;
       if (row >= 0 && present) PetscCall(scatter(model_.body[row], ijk_[row], present, blocks.data()));
       for (std::uint32_t rest = present; rest; rest &= rest - 1)
         std::fill_n(blocks.data() + __builtin_ctz(rest) * kBlock, kBlock, 0.0);
@@ -449,6 +455,21 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
         PetscCall(flush());
         row = i;
       }
+      const bool free = !(held_[3 * i] | held_[3 * i + 1] | held_[3 * i + 2] | held_[3 * j] | held_[3 * j + 1] |
+                          held_[3 * j + 2]);  // both molecules free (nearly every block): no masks below
+      if (free && i != j) {
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) off[r] += std::abs(K[3 * r + c]);
+      } else {
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) {
+            if (held_[3 * i + r] || held_[3 * j + c]) continue;
+            if (i == j && r == c)
+              diag[r] += K[4 * r];
+            else
+              off[r] += std::abs(K[3 * r + c]);
+          }
+      }
       const int d0 = ijk_[j][0] - ijk_[i][0], d1 = ijk_[j][1] - ijk_[i][1], d2 = ijk_[j][2] - ijk_[i][2];
       if (std::abs(d0) > 1 || std::abs(d1) > 1 || std::abs(d2) > 1 || model_.body[j] != model_.body[i]) {
         off_stencil = true;
@@ -456,8 +477,8 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
       }
       const int s = slot_of(d0, d1, d2);
       double* to = blocks.data() + s * kBlock;
-      if (!(held_[3 * i] | held_[3 * i + 1] | held_[3 * i + 2] | held_[3 * j] | held_[3 * j + 1] | held_[3 * j + 2])) {
-        for (int e = 0; e < kBlock; ++e) to[e] += K[e];  // both free (nearly every block): no masks
+      if (free) {
+        for (int e = 0; e < kBlock; ++e) to[e] += K[e];
         present |= 1u << s;
         return PetscErrorCode(0);
       }
@@ -477,6 +498,7 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     };
     PetscCall(stream->forces->tangent_blocks(stream->x, add, &put));
     PetscCall(flush());
+    jacobi_bound_ = bound;
     PetscCheck(!off_stencil, PETSC_COMM_SELF, PETSC_ERR_SUP,
                "lattice Galerkin product: the tangent has a block beyond the lattice stencil");
   }
@@ -821,6 +843,10 @@ PetscErrorCode LatticeGalerkin::update(Mat fine, const Stream* stream, PC pc) {
     PetscCall(KSPSetOperators(level, coarse_[l + 1], coarse_[l + 1]));
   }
   if (level_one_) halve_level_one();  // level 2 has been summed from the whole rows
+  if (stream) {
+    const double mine = jacobi_bound_;
+    PetscCallMPI(MPI_Allreduce(&mine, &jacobi_bound_, 1, MPI_DOUBLE, MPI_MAX, model_.comm));
+  }
   ijk_ = {};
   PetscCall(PetscLogEventEnd(galerkin_event(), pc, fine, 0, 0));
   PetscFunctionReturn(0);

@@ -178,6 +178,10 @@ struct LatticeGalerkin::Numbers {
   std::vector<PetscInt> packed, answers;
   std::vector<std::array<int, 3>> cplane;  // each of this rank's coarse nodes: its plane along each axis
   bool ascending = false;
+  // Each coarse node's neighbour numbers by slot, looked up once (mask_held) and read by the later steps (each
+  // lookup is two binary searches; the steps asked four times).
+  mutable std::vector<PetscInt> slot_numbers;
+  mutable bool numbered = false;
 
   std::ptrdiff_t own(std::int64_t g) const {
     const auto it = std::lower_bound(mine.begin(), mine.end(), g);
@@ -661,10 +665,17 @@ void LatticeGalerkin::neighbours(int l, const Numbers& num, const Rows& acc, std
   const BoxGeometry& box = shape.body(b);
   norder = 0;
   const std::uint32_t bits = acc.present[acc.row[c]];
+  if (num.slot_numbers.size() != kSlots * cnodes.size()) num.slot_numbers.assign(kSlots * cnodes.size(), -1);
+  PetscInt* cached = num.slot_numbers.data() + kSlots * c;
   for (int s = 0; s < kSlots; ++s) {
     if (!(bits >> s & 1)) continue;
-    const int q[3] = {cplane[c][0] + s % 3 - 1, cplane[c][1] + s / 3 % 3 - 1, cplane[c][2] + s / 9 - 1};
-    jnum[s] = num.number(box.id(planes[l + 1][b][0][q[0]], planes[l + 1][b][1][q[1]], planes[l + 1][b][2][q[2]]));
+    if (num.numbered) {
+      jnum[s] = cached[s];  // present now, so present (and looked up) in mask_held's call
+    } else {
+      const int q[3] = {cplane[c][0] + s % 3 - 1, cplane[c][1] + s / 3 % 3 - 1, cplane[c][2] + s / 9 - 1};
+      jnum[s] = cached[s] =
+          num.number(box.id(planes[l + 1][b][0][q[0]], planes[l + 1][b][1][q[1]], planes[l + 1][b][2][q[2]]));
+    }
     order[norder++] = s;
   }
   // Columns in increasing order, as AIJ keeps them.
@@ -708,6 +719,7 @@ PetscErrorCode LatticeGalerkin::mask_held(int l, const Numbers& num, Rows& acc, 
         if (mask >> k & 1) (local ? dnnz : onnz)[row++] += __builtin_popcount(jmask);
     }
   }
+  num.numbered = true;  // every later step's present slots were looked up above
   PetscFunctionReturn(0);
 }
 

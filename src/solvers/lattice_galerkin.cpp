@@ -120,15 +120,6 @@ TISSUE_CLONES void spread_blocks(std::uint64_t touched, const double* T, int nro
   }
 }
 
-// A large array about to be written from scratch (the rows, about 1.9 kB a coarse node): transparent huge pages
-// where the system leaves them to madvise, so its first touch faults once per 2 MB instead of once per 4 kB.
-void prefer_huge_pages(const void* p, std::size_t bytes) {
-  const std::uintptr_t page = static_cast<std::uintptr_t>(sysconf(_SC_PAGESIZE));
-  const auto from = (reinterpret_cast<std::uintptr_t>(p) + page - 1) / page * page;
-  const auto to = (reinterpret_cast<std::uintptr_t>(p) + bytes) / page * page;
-  if (to > from + (4u << 20)) (void)madvise(reinterpret_cast<void*>(from), to - from, MADV_HUGEPAGE);
-}
-
 // The fine operator's parts: diagonal block (SeqAIJ) and, on 2+ ranks, off-diagonal block and its global columns.
 struct FineParts {
   Mat Ad = nullptr, Ao = nullptr;
@@ -368,7 +359,6 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     // About this rank's coarse nodes and a layer more: no regrowth (a copy and fresh pages) while filling.
     const std::size_t expect = levels_.owned_nodes[l + 1].size() * 5 / 4 + 64;
     acc.id.reserve(expect), acc.present.reserve(expect), acc.a.reserve(expect * kSlots * kBlock);
-    prefer_huge_pages(acc.a.data(), sizeof(double) * acc.a.capacity());
     acc.index.reserve(expect);
   }
   std::array<double, kSlots * kBlock> blocks{};

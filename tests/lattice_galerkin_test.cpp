@@ -101,3 +101,54 @@ TEST(LatticeGalerkin, EqualsPetscTripleProductOnEveryLevel) {
   PCDestroy(&pc);
   MatDestroy(&J);
 }
+
+// The matrix-free update's Gershgorin bound on the Jacobi-scaled tangent (summed from the block stream it coarsens)
+// against the force model's own pass (the same sums: equal to the bit) and against the assembled tangent's rows
+// (max over rows of sum_c |a_rc| / a_rr; held rows are identity rows there, held columns zero).
+TEST(LatticeGalerkin, StreamGershgorinBoundEqualsForceModelsAndAssembledRows) {
+  const auto rp = run(scene, PETSC_COMM_WORLD, {}, false);
+  const RunResult& r = *rp;
+  std::vector<double> x(r.model.rest);
+  for (int i = 0; i < r.model.local; ++i)
+    for (int d = 0; d < 3; ++d) x[3 * i + d] += 0.05 * std::sin(0.7 * x[3 * i + (d + 1) % 3] + 0.3 * d + x[3 * i + d]);
+  Mat J;
+  ASSERT_EQ(r.forces->create_tangent(&J), 0);
+  ASSERT_EQ(r.forces->assemble_tangent(x.data(), J), 0);
+  PC pc;
+  ASSERT_EQ(PCCreate(PETSC_COMM_WORLD, &pc), 0);
+  ASSERT_EQ(PCSetOperators(pc, J, J), 0);
+  PetscInt levels = 0;
+  LatticeLevels hierarchy;
+  ASSERT_EQ(setup_lattice_mg(r.model, r.forces->held(), pc, 40, &levels, &hierarchy), 0);
+  ASSERT_GE(levels, 3);
+  LatticeGalerkin galerkin(r.model, r.forces->held(), std::move(hierarchy));
+  ASSERT_EQ(galerkin.update(*r.forces, x.data(), pc), 0);
+  double bound = 0.0;
+  bool exact = false;
+  ASSERT_EQ(r.forces->jacobi_gershgorin(x.data(), &bound, &exact), 0);
+  ASSERT_TRUE(exact);
+  EXPECT_EQ(galerkin.jacobi_bound(), bound);
+  PetscInt lo, hi;
+  ASSERT_EQ(MatGetOwnershipRange(J, &lo, &hi), 0);
+  double rows = 1.0;
+  for (PetscInt row = lo; row < hi; ++row) {
+    PetscInt n;
+    const PetscInt* cols;
+    const PetscScalar* v;
+    ASSERT_EQ(MatGetRow(J, row, &n, &cols, &v), 0);
+    double diag = 0.0, sum = 0.0;
+    for (PetscInt e = 0; e < n; ++e) {
+      sum += std::abs(v[e]);
+      if (cols[e] == row) diag = v[e];
+    }
+    ASSERT_EQ(MatRestoreRow(J, row, &n, &cols, &v), 0);
+    ASSERT_GT(diag, 0.0);
+    rows = std::max(rows, sum / diag);
+  }
+  double all = 0.0;
+  MPI_Allreduce(&rows, &all, 1, MPI_DOUBLE, MPI_MAX, PETSC_COMM_WORLD);
+  EXPECT_GT(all, 1.5);  // a real bound, not the held rows' 1
+  EXPECT_NEAR(galerkin.jacobi_bound(), all, 1e-13 * all);
+  PCDestroy(&pc);
+  MatDestroy(&J);
+}

@@ -52,6 +52,74 @@ PetscLogEvent galerkin_event() {
   return event;
 }
 
+// The stencil slots whose offset along axis a is d - 1.
+constexpr std::array<std::array<std::uint32_t, 3>, 3> slots_at() {
+  std::array<std::array<std::uint32_t, 3>, 3> m{};
+  for (int s = 0; s < kSlots; ++s) {
+    m[0][s % 3] |= 1u << s;
+    m[1][s / 3 % 3] |= 1u << s;
+    m[2][s / 9] |= 1u << s;
+  }
+  return m;
+}
+constexpr std::array<std::array<std::uint32_t, 3>, 3> kSlotsAt = slots_at();
+
+// A fine row's neighbour plane along one axis (offset d - 1 from the row's) among the coarse planes of the row's
+// 4x4x4 box: n coarse planes J (box index) with weights w.
+struct AxisStep {
+  int n = 0;
+  std::array<int, 2> J{};
+  std::array<double, 2> w{};
+};
+using AxisSteps = std::array<std::array<AxisStep, 3>, 3>;  // [axis][d]
+
+// The coarsening's two inner loops, compiled for AVX-512, AVX2 and the baseline (picked at run time, as the
+// spring kernel's; no fused multiply-adds in this build, so every clone rounds alike). A 3x3 block's 9 products
+// are one vector operation and a remainder.
+#define TISSUE_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+
+// Stage 1 of a fine row: T_J = sum_s w_J(s) A_s over the present slots s (ascending) and the coarse nodes J of
+// each slot's neighbour, into the 4x4x4 box T; returns which J were touched (the others are not written).
+TISSUE_CLONES std::uint64_t sum_blocks(std::uint32_t present, const double* src, const AxisSteps& steps, double* T) {
+  std::uint64_t touched = 0;
+  for (std::uint32_t rest = present; rest; rest &= rest - 1) {
+    const int s = __builtin_ctz(rest);
+    const AxisStep &sx = steps[0][s % 3], &sy = steps[1][s / 3 % 3], &sz = steps[2][s / 9];
+    const double* blk = src + s * kBlock;
+    for (int x = 0; x < sx.n; ++x)
+      for (int y = 0; y < sy.n; ++y)
+        for (int z = 0; z < sz.n; ++z) {
+          const int t = sx.J[x] + 4 * sy.J[y] + 16 * sz.J[z];
+          const double w = sx.w[x] * sy.w[y] * sz.w[z];
+          double* to = T + t * kBlock;
+          if (!(touched >> t & 1)) {
+            touched |= std::uint64_t{1} << t;
+            for (int e = 0; e < kBlock; ++e) to[e] = w * blk[e];
+          } else {
+            for (int e = 0; e < kBlock; ++e) to[e] += w * blk[e];
+          }
+        }
+  }
+  return touched;
+}
+
+// Stage 2: row_k += w_k T_J at slot shift_k + J for each of the row's coarse nodes k; bits_k: the slots written.
+TISSUE_CLONES void spread_blocks(std::uint64_t touched, const double* T, int nrows, double* const* rows,
+                                 const double* w, const int* shift, std::uint32_t* bits) {
+  for (int k = 0; k < nrows; ++k) {
+    std::uint32_t b = 0;
+    for (std::uint64_t rest = touched; rest; rest &= rest - 1) {
+      const int t = __builtin_ctzll(rest);
+      const int s = shift[k] + kBoxToSlot[t];
+      double* to = rows[k] + s * kBlock;
+      const double* from = T + t * kBlock;
+      for (int e = 0; e < kBlock; ++e) to[e] += w[k] * from[e];
+      b |= 1u << s;
+    }
+    bits[k] = b;
+  }
+}
+
 // The fine operator's parts: diagonal block (SeqAIJ) and, on 2+ ranks, off-diagonal block and its global columns.
 struct FineParts {
   Mat Ad = nullptr, Ao = nullptr;
@@ -101,6 +169,10 @@ struct LatticeGalerkin::Numbers {
   std::vector<PetscInt> packed, answers;
   std::vector<std::array<int, 3>> cplane;  // each of this rank's coarse nodes: its plane along each axis
   bool ascending = false;
+  // Each coarse node's neighbour numbers by slot, looked up once (mask_held) and read by the later steps (each
+  // lookup is two binary searches; the steps asked four times).
+  mutable std::vector<PetscInt> slot_numbers;
+  mutable bool numbered = false;
 
   std::ptrdiff_t own(std::int64_t g) const {
     const auto it = std::lower_bound(mine.begin(), mine.end(), g);
@@ -298,35 +370,29 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     const std::array<const AxisWeights*, 3> wi{&weights[b][0][p[0]], &weights[b][1][p[1]], &weights[b][2][p[2]]};
     std::array<int, 3> c0;
     for (int a = 0; a < 3; ++a) c0[a] = wi[a]->at[0] - 1;
-    std::uint64_t touched = 0;
-    for (int s = 0; s < kSlots; ++s) {
-      if (!(present >> s & 1)) continue;
-      const int d[3] = {s % 3 - 1, s / 3 % 3 - 1, s / 9 - 1};
-      std::array<const AxisWeights*, 3> wj;
-      for (int a = 0; a < 3; ++a) {
-        const int q = p[a] + d[a];
-        PetscCheck(q >= 0 && q < static_cast<int>(weights[b][a].size()), PETSC_COMM_SELF, PETSC_ERR_PLIB,
-                   "lattice Galerkin product: a block outside the lattice");
-        wj[a] = &weights[b][a][q];
+    // Each axis's three neighbour planes among the coarse planes from c0 (sum_blocks reads them for every slot);
+    // a plane outside the lattice or a coarse node outside the 4x4x4 box is an error only for a present slot.
+    AxisSteps steps{};
+    std::uint32_t outside = 0, beyond = 0;
+    for (int a = 0; a < 3; ++a)
+      for (int d = 0; d < 3; ++d) {
+        const int q = p[a] + d - 1;
+        if (q < 0 || q >= static_cast<int>(weights[b][a].size())) {
+          outside |= kSlotsAt[a][d];
+          continue;
+        }
+        const AxisWeights& wq = weights[b][a][q];
+        AxisStep& st = steps[a][d];
+        st.n = wq.n;
+        for (int k = 0; k < wq.n; ++k) {
+          st.J[k] = wq.at[k] - c0[a], st.w[k] = wq.w[k];
+          if (st.J[k] < 0 || st.J[k] >= 4) beyond |= kSlotsAt[a][d];
+        }
       }
-      const double* blk = src + s * kBlock;
-      for (int x = 0; x < wj[0]->n; ++x)
-        for (int y = 0; y < wj[1]->n; ++y)
-          for (int z = 0; z < wj[2]->n; ++z) {
-            const int J0 = wj[0]->at[x] - c0[0], J1 = wj[1]->at[y] - c0[1], J2 = wj[2]->at[z] - c0[2];
-            PetscCheck(J0 >= 0 && J0 < 4 && J1 >= 0 && J1 < 4 && J2 >= 0 && J2 < 4, PETSC_COMM_SELF, PETSC_ERR_PLIB,
-                       "lattice Galerkin product: a coarse node outside the box");
-            const int t = J0 + 4 * J1 + 16 * J2;
-            const double w = wj[0]->w[x] * wj[1]->w[y] * wj[2]->w[z];
-            double* to = T.data() + t * kBlock;
-            if (!(touched >> t & 1)) {
-              touched |= std::uint64_t{1} << t;
-              for (int e = 0; e < kBlock; ++e) to[e] = w * blk[e];
-            } else {
-              for (int e = 0; e < kBlock; ++e) to[e] += w * blk[e];
-            }
-          }
-    }
+    PetscCheck(!(present & outside), PETSC_COMM_SELF, PETSC_ERR_PLIB, "lattice Galerkin product: a block outside the lattice");
+    PetscCheck(!(present & beyond), PETSC_COMM_SELF, PETSC_ERR_PLIB,
+               "lattice Galerkin product: a coarse node outside the box");
+    const std::uint64_t touched = sum_blocks(present, src, steps, T.data());
     // Every touched J within one coarse plane of every I, so the slot arithmetic below cannot wrap.
     std::array<int, 3> lo{4, 4, 4}, hi{-1, -1, -1};
     for (std::uint64_t rest = touched; rest; rest &= rest - 1) {
@@ -336,28 +402,26 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     for (int a = 0; a < 3; ++a)
       PetscCheck(c0[a] + lo[a] >= wi[a]->at[wi[a]->n - 1] - 1 && c0[a] + hi[a] <= wi[a]->at[0] + 1, PETSC_COMM_SELF,
                  PETSC_ERR_PLIB, "lattice Galerkin product: a coarse block beyond the 27-point stencil");
+    // The coarse rows first (find_or_add may move the rows' storage), then their blocks.
+    std::array<int, 8> rows, shift;
+    std::array<double, 8> w;
+    std::array<std::uint32_t, 8> bits;
+    int nrows = 0;
     for (int x = 0; x < wi[0]->n; ++x)
       for (int y = 0; y < wi[1]->n; ++y)
-        for (int z = 0; z < wi[2]->n; ++z) {
+        for (int z = 0; z < wi[2]->n; ++z, ++nrows) {
           const int I[3] = {wi[0]->at[x], wi[1]->at[y], wi[2]->at[z]};
-          const double w = wi[0]->w[x] * wi[1]->w[y] * wi[2]->w[z];
-          const int r = acc.find_or_add(box.id(planes[l + 1][b][0][I[0]], planes[l + 1][b][1][I[1]],
+          w[nrows] = wi[0]->w[x] * wi[1]->w[y] * wi[2]->w[z];
+          rows[nrows] = acc.find_or_add(box.id(planes[l + 1][b][0][I[0]], planes[l + 1][b][1][I[1]],
                                                planes[l + 1][b][2][I[2]]));
           // J - I along each axis is -1, 0 or 1 (a fine neighbour's enclosing planes are at most one coarse
           // plane from the node's own), so slot = the box index shifted by the node's place in the box.
-          const int shift = slot_of(c0[0] - I[0], c0[1] - I[1], c0[2] - I[2]);
-          double* row = acc.block(r, 0);
-          std::uint32_t bits = 0;
-          for (std::uint64_t rest = touched; rest; rest &= rest - 1) {
-            const int t = __builtin_ctzll(rest);
-            const int s = shift + kBoxToSlot[t];
-            double* to = row + s * kBlock;
-            const double* from = T.data() + t * kBlock;
-            for (int e = 0; e < kBlock; ++e) to[e] += w * from[e];
-            bits |= 1u << s;
-          }
-          acc.present[r] |= bits;
+          shift[nrows] = slot_of(c0[0] - I[0], c0[1] - I[1], c0[2] - I[2]);
         }
+    std::array<double*, 8> to;
+    for (int k = 0; k < nrows; ++k) to[k] = acc.block(rows[k], 0);
+    spread_blocks(touched, T.data(), nrows, to.data(), w.data(), shift.data(), bits.data());
+    for (int k = 0; k < nrows; ++k) acc.present[rows[k]] |= bits[k];
     return PetscErrorCode(0);
   };
   if (l == 0 && stream) {
@@ -367,7 +431,13 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     int row = -1;
     std::uint32_t present = 0;
     bool off_stencil = false;
+    // Gershgorin's bound on the Jacobi-scaled operator, row by row as ForceModel::jacobi_gershgorin sums it (the
+    // diagonal and the off-diagonal magnitudes of each free component, in the stream's order; a held row's is 1).
+    double diag[3] = {}, off[3] = {}, bound = 1.0;
     auto flush = [&]() -> PetscErrorCode {
+      for (int r = 0; r < 3 && row >= 0; ++r)
+        if (!held_[3 * row + r]) bound = std::max(bound, 1.0 + off[r] / diag[r]);
+      for (int r = 0; r < 3; ++r) diag[r] = off[r] = 0.0;
       if (row >= 0 && present) PetscCall(scatter(model_.body[row], ijk_[row], present, blocks.data()));
       for (std::uint32_t rest = present; rest; rest &= rest - 1)
         std::fill_n(blocks.data() + __builtin_ctz(rest) * kBlock, kBlock, 0.0);
@@ -379,6 +449,21 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
         PetscCall(flush());
         row = i;
       }
+      const bool free = !(held_[3 * i] | held_[3 * i + 1] | held_[3 * i + 2] | held_[3 * j] | held_[3 * j + 1] |
+                          held_[3 * j + 2]);  // both molecules free (nearly every block): no masks below
+      if (free && i != j) {
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) off[r] += std::abs(K[3 * r + c]);
+      } else {
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) {
+            if (held_[3 * i + r] || held_[3 * j + c]) continue;
+            if (i == j && r == c)
+              diag[r] += K[4 * r];
+            else
+              off[r] += std::abs(K[3 * r + c]);
+          }
+      }
       const int d0 = ijk_[j][0] - ijk_[i][0], d1 = ijk_[j][1] - ijk_[i][1], d2 = ijk_[j][2] - ijk_[i][2];
       if (std::abs(d0) > 1 || std::abs(d1) > 1 || std::abs(d2) > 1 || model_.body[j] != model_.body[i]) {
         off_stencil = true;
@@ -386,6 +471,11 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
       }
       const int s = slot_of(d0, d1, d2);
       double* to = blocks.data() + s * kBlock;
+      if (free) {
+        for (int e = 0; e < kBlock; ++e) to[e] += K[e];
+        present |= 1u << s;
+        return PetscErrorCode(0);
+      }
       bool any = false;
       for (int r = 0; r < 3; ++r) {
         if (held_[3 * i + r]) continue;
@@ -402,6 +492,7 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     };
     PetscCall(stream->forces->tangent_blocks(stream->x, add, &put));
     PetscCall(flush());
+    jacobi_bound_ = bound;
     PetscCheck(!off_stencil, PETSC_COMM_SELF, PETSC_ERR_SUP,
                "lattice Galerkin product: the tangent has a block beyond the lattice stencil");
   }
@@ -564,10 +655,17 @@ void LatticeGalerkin::neighbours(int l, const Numbers& num, const Rows& acc, std
   const BoxGeometry& box = shape.body(b);
   norder = 0;
   const std::uint32_t bits = acc.present[acc.row[c]];
+  if (num.slot_numbers.size() != kSlots * cnodes.size()) num.slot_numbers.assign(kSlots * cnodes.size(), -1);
+  PetscInt* cached = num.slot_numbers.data() + kSlots * c;
   for (int s = 0; s < kSlots; ++s) {
     if (!(bits >> s & 1)) continue;
-    const int q[3] = {cplane[c][0] + s % 3 - 1, cplane[c][1] + s / 3 % 3 - 1, cplane[c][2] + s / 9 - 1};
-    jnum[s] = num.number(box.id(planes[l + 1][b][0][q[0]], planes[l + 1][b][1][q[1]], planes[l + 1][b][2][q[2]]));
+    if (num.numbered) {
+      jnum[s] = cached[s];  // present now, so present (and looked up) in mask_held's call
+    } else {
+      const int q[3] = {cplane[c][0] + s % 3 - 1, cplane[c][1] + s / 3 % 3 - 1, cplane[c][2] + s / 9 - 1};
+      jnum[s] = cached[s] =
+          num.number(box.id(planes[l + 1][b][0][q[0]], planes[l + 1][b][1][q[1]], planes[l + 1][b][2][q[2]]));
+    }
     order[norder++] = s;
   }
   // Columns in increasing order, as AIJ keeps them.
@@ -611,6 +709,7 @@ PetscErrorCode LatticeGalerkin::mask_held(int l, const Numbers& num, Rows& acc, 
         if (mask >> k & 1) (local ? dnnz : onnz)[row++] += __builtin_popcount(jmask);
     }
   }
+  num.numbered = true;  // every later step's present slots were looked up above
   PetscFunctionReturn(0);
 }
 
@@ -746,6 +845,10 @@ PetscErrorCode LatticeGalerkin::update(Mat fine, const Stream* stream, PC pc) {
     PetscCall(KSPSetOperators(level, coarse_[l + 1], coarse_[l + 1]));
   }
   if (level_one_) halve_level_one();  // level 2 has been summed from the whole rows
+  if (stream) {
+    const double mine = jacobi_bound_;
+    PetscCallMPI(MPI_Allreduce(&mine, &jacobi_bound_, 1, MPI_DOUBLE, MPI_MAX, model_.comm));
+  }
   ijk_ = {};
   PetscCall(PetscLogEventEnd(galerkin_event(), pc, fine, 0, 0));
   PetscFunctionReturn(0);
@@ -878,9 +981,19 @@ PetscErrorCode LatticeGalerkin::stencil_mult(Mat A, Vec in, Vec out) {
     double acc[3] = {0.0, 0.0, 0.0};
     for (int s = 0; s < kHalf; ++s, blk += kBlock) {
       if (col[s] < 0) continue;
-      const int jm = static_cast<int>(col[s] % 8);
-      const PetscInt at = col[s] / 8;
+      const int jm = static_cast<int>(col[s] & 7);
+      const PetscInt at = col[s] >> 3;
       const double* src = at < n ? u + at : g + (at - n);
+      if ((mask & jm) == 7) {
+        // Both nodes free in every component (nearly every block): the general path below without its masks,
+        // the same operations in the same order.
+        const double v0 = src[0], v1 = src[1], v2 = src[2];
+        for (int k = 0; k < 3; ++k) acc[k] += blk[3 * k] * v0 + blk[3 * k + 1] * v1 + blk[3 * k + 2] * v2;
+        if (s == 0) continue;
+        PetscScalar* back = at < n ? y + at : h + (at - n);
+        for (int k = 0; k < 3; ++k) back[k] += blk[k] * ui[0] + blk[3 + k] * ui[1] + blk[6 + k] * ui[2];
+        continue;
+      }
       double v[3];
       for (int m = 0, q = 0; m < 3; ++m) v[m] = jm >> m & 1 ? src[q++] : 0.0;
       for (int k = 0; k < 3; ++k) acc[k] += blk[3 * k] * v[0] + blk[3 * k + 1] * v[1] + blk[3 * k + 2] * v[2];

@@ -45,6 +45,10 @@ public:
   // matrix-free solve), and once level 2 is summed only the rows' upper half (symmetric: 126 B a fine molecule
   // instead of 243). Its MatMult and diagonal only: Chebyshev-Jacobi smoothing and its estimator need no more.
   void keep_level_one_as_stencil() { stencil_level_one_ = true; }
+  // After update(forces, x, pc): Gershgorin's bound on the Jacobi-scaled fine operator, summed from the same block
+  // stream (the same numbers as ForceModel::jacobi_gershgorin's own pass when the force model has no terms and no
+  // cached tangent, which then need not stream the blocks again).
+  double jacobi_bound() const { return jacobi_bound_; }
 
 private:
   struct Rows;
@@ -83,6 +87,7 @@ private:
   std::vector<Csr> csr_;     // the storage of coarse_ (PETSc does not copy it): destroyed after the matrices
   std::vector<Mat> coarse_;  // coarse_[l]: the operator of level l (l >= 1; coarse_[0] unused)
   bool stencil_level_one_ = false;
+  mutable double jacobi_bound_ = 0.0;  // this rank's while the stream runs (accumulate_rows), then every rank's
   std::unique_ptr<StencilOperator> level_one_;  // when level 1 is a shell: its rows, columns and ghost scatter
 };
 

@@ -219,7 +219,12 @@ PetscErrorCode fine_chebyshev(Context* ctx, PC pc) {
   PetscCall(PCMGGetSmoother(pc, levels - 1, &smoother));
   double bound = 0.0;
   bool exact = false;
-  PetscCall(ctx->forces->jacobi_gershgorin(ctx->shell->positions(), &bound, &exact));
+  if (!ctx->forces->has_terms() && !ctx->forces->has_cached_tangent()) {
+    bound = ctx->galerkin->jacobi_bound();  // summed from the coarse operators' block stream just now (no 2nd pass)
+    exact = true;
+  } else {
+    PetscCall(ctx->forces->jacobi_gershgorin(ctx->shell->positions(), &bound, &exact));
+  }
   if (exact) {
     PetscCall(KSPChebyshevEstEigSet(smoother, 0, 0, 0, 0));  // no estimator (it is destroyed)
     PetscCall(KSPChebyshevSetEigenvalues(smoother, bound, ctx->chebyshev_fraction * bound));

@@ -368,8 +368,14 @@ TEST(Physics, FusedStepEqualsSeparatePassesBitForBit) {
   for (int j = 0; j < 3 * fused->model.owned; ++j) {
     ASSERT_EQ(fused->state->x.array()[j], separate->state->x.array()[j]) << j;
     ASSERT_EQ(fused->state->v[j], separate->state->v[j]) << j;
+    ASSERT_EQ(fused->state->f[j], separate->state->f[j]) << j;
     moved = std::max(moved, std::fabs(fused->state->v[j]));
   }
+  // The guard's full checks (steps 128 and 256) read the state back from the streams mid-run: the same checks
+  // and the same energies as the separate passes.
+  EXPECT_EQ(fused->report.guard_checks, separate->report.guard_checks);
+  EXPECT_GE(fused->report.guard_checks, 3);
+  EXPECT_EQ(fused->report.energy_final, separate->report.energy_final);
   double all = 0;
   MPI_Allreduce(&moved, &all, 1, MPI_DOUBLE, MPI_MAX, PETSC_COMM_WORLD);
   EXPECT_GT(all, 1e-3);  // the springs did move the molecules (m/s)

@@ -101,9 +101,10 @@ __attribute__((always_inline)) inline void stencil_direction(int n, const double
 
 // A stencil block's start, in both kernels: f's owned rows zeroed up to what the block writes (a0 + n - 1 +
 // max_offset; `zeroed`: rows below it are zeroed), and the missing directions of the block's exceptions marked in
-// keep (next_exception moves past them); returns whether there are any.
+// keep (next_exception moves past them); returns the directions some exception of the block lacks (bit s:
+// direction s is masked; a row end lacks 2-3 of a face-diagonal lattice's 9, the other directions run unmasked).
 template <class Layout>
-__attribute__((always_inline)) inline bool begin_block(int a0, int n, int directions,
+__attribute__((always_inline)) inline std::uint32_t begin_block(int a0, int n, int directions,
                                                        const StencilException* exceptions, int n_exceptions,
                                                        int& next_exception, double (*keep)[kStencilBlock], double* f,
                                                        Layout at, int owned, int max_offset, int* zeroed) {
@@ -114,10 +115,13 @@ __attribute__((always_inline)) inline bool begin_block(int a0, int n, int direct
   }
   const int e0 = next_exception;
   while (next_exception < n_exceptions && exceptions[next_exception].molecule < a0 + n) ++next_exception;
-  for (int e = e0; e < next_exception; ++e)
+  std::uint32_t lacking = 0;
+  for (int e = e0; e < next_exception; ++e) {
+    lacking |= ~exceptions[e].present;
     for (int s = 0; s < directions; ++s)
       if (!(exceptions[e].present >> s & 1u)) keep[s][exceptions[e].molecule - a0] = 0.0;
-  return next_exception > e0;
+  }
+  return lacking;
 }
 
 // The same arithmetic on three streams (x, y, z each contiguous): every load and store is a plain vector one,
@@ -168,15 +172,15 @@ __attribute__((always_inline)) inline void stencil_body(int first, int count, in
   for (int a0 = first; a0 < first + count; a0 += kStencilBlock) {
     const int n = std::min(kStencilBlock, first + count - a0);
     const int e0 = next_exception;
-    const bool masked = begin_block(a0, n, directions, exceptions, n_exceptions, next_exception, keep, f, at, owned,
-                                    max_offset, zeroed);
+    const std::uint32_t masked = begin_block(a0, n, directions, exceptions, n_exceptions, next_exception, keep, f,
+                                             at, owned, max_offset, zeroed);
     for (int q = 0; q < directions; ++q) {
       const int s = scatter[q], b0 = a0 + offset[s];
       if constexpr (std::is_same_v<Layout, Streams>) {
         const double *xa0 = x + at(a0, 0), *xa1 = x + at(a0, 1), *xa2 = x + at(a0, 2);
         const double *xb0 = x + at(b0, 0), *xb1 = x + at(b0, 1), *xb2 = x + at(b0, 2);
         double *fb0 = f + at(b0, 0), *fb1 = f + at(b0, 1), *fb2 = f + at(b0, 2);
-        if (masked)
+        if (masked >> s & 1u)
           stencil_direction_streams<true>(n, xa0, xa1, xa2, xb0, xb1, xb2, fb0, fb1, fb2, k[s], l0[s], keep[s],
                                           g[s][0], g[s][1], g[s][2]);
         else
@@ -186,7 +190,7 @@ __attribute__((always_inline)) inline void stencil_body(int first, int count, in
         const double* xa = x + at(a0, 0);
         const double* xb = x + at(b0, 0);
         double* fb = f + at(b0, 0);
-        if (masked)
+        if (masked >> s & 1u)
           stencil_direction<true>(n, xa, xb, fb, k[s], l0[s], keep[s], g[s][0], g[s][1], g[s][2]);
         else
           stencil_direction<false>(n, xa, xb, fb, k[s], l0[s], keep[s], g[s][0], g[s][1], g[s][2]);
@@ -279,13 +283,13 @@ void stencil_tangent(int first, int count, int directions, const int* offset, co
   for (int a0 = first; a0 < first + count; a0 += kStencilBlock) {
     const int n = std::min(kStencilBlock, first + count - a0);
     const int e0 = next_exception;
-    const bool masked = begin_block(a0, n, directions, exceptions, n_exceptions, next_exception, keep, out,
-                                    Interlaced{}, owned, max_offset, zeroed);
+    const std::uint32_t masked = begin_block(a0, n, directions, exceptions, n_exceptions, next_exception, keep,
+                                             out, Interlaced{}, owned, max_offset, zeroed);
     const double* __restrict xa = x + 3 * a0;
     const double* __restrict ua = u + 3 * a0;
     for (int q = 0; q < directions; ++q) {
       const int s = scatter[q], b0 = a0 + offset[s];
-      if (masked)
+      if (masked >> s & 1u)
         tangent_direction<true>(n, xa, x + 3 * b0, ua, u + 3 * b0, k[s], l0[s], keep[s], g[s][0], g[s][1], g[s][2]);
       else
         tangent_direction<false>(n, xa, x + 3 * b0, ua, u + 3 * b0, k[s], l0[s], keep[s], g[s][0], g[s][1], g[s][2]);

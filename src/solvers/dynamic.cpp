@@ -180,10 +180,13 @@ struct FusedStreams {
   double kinetic;
   bool sum;  // whether anything reads the kinetic energy (the guards)
   bool drift;  // false: the step ends at an observed whole step (the half kick to it alone)
+  std::size_t ring = 0;  // f's rows in a ring of this many (SpringKernel::forces_ring); 0: f has every row
 };
 void fused_rows_streams(void* context, int begin, int end) {
   FusedStreams& s = *static_cast<FusedStreams*>(context);
-  const Streams3 p = streams_at(s.at, begin);
+  Streams3 p = streams_at(s.at, begin);
+  if (s.ring)  // the kernel hands over runs within one turn of the ring
+    for (int d = 0; d < 3; ++d) p.f[d] = s.at.f[d] + (static_cast<std::size_t>(begin) & (s.ring - 1));
   if (!s.drift) {
     if (s.sum)
       s.kinetic = kick_streams(end - begin, s.dt, s.m + begin, p.f[0], p.f[1], p.f[2], p.v[0], p.v[1], p.v[2],
@@ -288,6 +291,11 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
   const int local = model.local;
   std::optional<StreamGhosts> stream_ghosts;
   if (fuse && everywhere[1] == 0) stream_ghosts.emplace(model);
+  // The fused steps that drift need each force only until its row's kicks: their forces go into a ring of a few
+  // planes' rows that stays in cache (SpringKernel::forces_ring), not through memory. The steps that end at a
+  // whole step keep every row's force in f (the next step's half kick reads it, and the state may be read).
+  const std::size_t ring_rows = fuse ? static_cast<std::size_t>(forces.kernel().ring_rows()) : 0;
+  std::vector<double> ring(ring_rows ? 3 * (ring_rows + static_cast<std::size_t>(model.local - model.owned)) : 0);
   bool streams = false;  // x, v, f hold three streams each (x and f: stride local, v: stride n)
   auto set_streams = [&](bool on) {
     if (on == streams) return;
@@ -333,7 +341,14 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
       const std::size_t sl = local, sn = n;
       FusedStreams step{dt, m, {{f, f + sl, f + 2 * sl}, {v, v + sn, v + 2 * sn}, {x, x + sl, x + 2 * sl}}, 0.0,
                         guard.enabled(), next_unobserved};
-      forces.kernel().forces_streams(x, f, sl, fused_rows_streams, &step);
+      if (ring_rows && next_unobserved) {
+        double* r = ring.data();
+        step.at.f[0] = r, step.at.f[1] = r + ring_rows, step.at.f[2] = r + 2 * ring_rows;
+        step.ring = ring_rows;
+        forces.kernel().forces_ring(x, r, sl, fused_rows_streams, &step);
+      } else {
+        forces.kernel().forces_streams(x, f, sl, fused_rows_streams, &step);
+      }
       kinetic = step.kinetic;
       drifted = next_unobserved;
     } else {

@@ -53,9 +53,9 @@ __attribute__((always_inline)) inline void generic_body(int begin_c, int end_c, 
         const double g0 = s[i] * d0[i], g1 = s[i] * d1[i], g2 = s[i] * d2[i];
         fa0 += g0, fa1 += g1, fa2 += g2;
         const int eb = b[begin + i];
-        f[at(eb, 0)] -= g0, f[at(eb, 1)] -= g1, f[at(eb, 2)] -= g2;
+        f[at.f(eb, 0)] -= g0, f[at.f(eb, 1)] -= g1, f[at.f(eb, 2)] -= g2;
       }
-      f[at(ia, 0)] += fa0, f[at(ia, 1)] += fa1, f[at(ia, 2)] += fa2;
+      f[at.f(ia, 0)] += fa0, f[at.f(ia, 1)] += fa1, f[at.f(ia, 2)] += fa2;
     }
   }
 }
@@ -67,6 +67,12 @@ void generic_forces_interlaced(int begin_c, int end_c, const int* a, const int* 
   generic_body(begin_c, end_c, a, b, ktype, ltype, ks, ls, x, f, at);
 }
 TISSUE_CLONES
+void generic_forces_ring(int begin_c, int end_c, const int* a, const int* b, const std::uint16_t* ktype,
+                         const std::uint16_t* ltype, const double* ks, const double* ls, const double* x, double* f,
+                         RingStreams at) {
+  generic_body(begin_c, end_c, a, b, ktype, ltype, ks, ls, x, f, at);
+}
+TISSUE_CLONES
 void generic_forces_streams(int begin_c, int end_c, const int* a, const int* b, const std::uint16_t* ktype,
                             const std::uint16_t* ltype, const double* ks, const double* ls, const double* x,
                             double* f, Streams at) {
@@ -74,6 +80,9 @@ void generic_forces_streams(int begin_c, int end_c, const int* a, const int* b, 
 }
 
 constexpr int kMaxDirections = 32, kStencilBlock = 64;
+// With final_rows, the sweep goes in chunks of molecules so that a chunk's rows are handed over while still in
+// cache (sweep()); the largest ring forces_ring uses (rows: 1.5 MB).
+constexpr int kChunk = 16 * kStencilBlock, kLargestRing = 1 << 16;
 
 // One direction of a stencil block: the springs from molecules a0 .. a0 + n - 1 to a0 + offset; their forces go
 // into end b's rows at once and into g for end a's sum. Masked: a spring whose keep[i] is 0 gives +0.0 (a select,
@@ -101,9 +110,10 @@ __attribute__((always_inline)) inline void stencil_direction(int n, const double
 
 // A stencil block's start, in both kernels: f's owned rows zeroed up to what the block writes (a0 + n - 1 +
 // max_offset; `zeroed`: rows below it are zeroed), and the missing directions of the block's exceptions marked in
-// keep (next_exception moves past them); returns whether there are any.
+// keep (next_exception moves past them); returns the directions some exception of the block lacks (bit s:
+// direction s is masked; a row end lacks 2-3 of a face-diagonal lattice's 9, the other directions run unmasked).
 template <class Layout>
-__attribute__((always_inline)) inline bool begin_block(int a0, int n, int directions,
+__attribute__((always_inline)) inline std::uint32_t begin_block(int a0, int n, int directions,
                                                        const StencilException* exceptions, int n_exceptions,
                                                        int& next_exception, double (*keep)[kStencilBlock], double* f,
                                                        Layout at, int owned, int max_offset, int* zeroed) {
@@ -114,10 +124,13 @@ __attribute__((always_inline)) inline bool begin_block(int a0, int n, int direct
   }
   const int e0 = next_exception;
   while (next_exception < n_exceptions && exceptions[next_exception].molecule < a0 + n) ++next_exception;
-  for (int e = e0; e < next_exception; ++e)
+  std::uint32_t lacking = 0;
+  for (int e = e0; e < next_exception; ++e) {
+    lacking |= ~exceptions[e].present;
     for (int s = 0; s < directions; ++s)
       if (!(exceptions[e].present >> s & 1u)) keep[s][exceptions[e].molecule - a0] = 0.0;
-  return next_exception > e0;
+  }
+  return lacking;
 }
 
 // The same arithmetic on three streams (x, y, z each contiguous): every load and store is a plain vector one,
@@ -168,25 +181,30 @@ __attribute__((always_inline)) inline void stencil_body(int first, int count, in
   for (int a0 = first; a0 < first + count; a0 += kStencilBlock) {
     const int n = std::min(kStencilBlock, first + count - a0);
     const int e0 = next_exception;
-    const bool masked = begin_block(a0, n, directions, exceptions, n_exceptions, next_exception, keep, f, at, owned,
-                                    max_offset, zeroed);
+    const std::uint32_t masked = begin_block(a0, n, directions, exceptions, n_exceptions, next_exception, keep, f,
+                                             at, owned, max_offset, zeroed);
     for (int q = 0; q < directions; ++q) {
       const int s = scatter[q], b0 = a0 + offset[s];
-      if constexpr (std::is_same_v<Layout, Streams>) {
-        const double *xa0 = x + at(a0, 0), *xa1 = x + at(a0, 1), *xa2 = x + at(a0, 2);
-        const double *xb0 = x + at(b0, 0), *xb1 = x + at(b0, 1), *xb2 = x + at(b0, 2);
-        double *fb0 = f + at(b0, 0), *fb1 = f + at(b0, 1), *fb2 = f + at(b0, 2);
-        if (masked)
-          stencil_direction_streams<true>(n, xa0, xa1, xa2, xb0, xb1, xb2, fb0, fb1, fb2, k[s], l0[s], keep[s],
-                                          g[s][0], g[s][1], g[s][2]);
-        else
-          stencil_direction_streams<false>(n, xa0, xa1, xa2, xb0, xb1, xb2, fb0, fb1, fb2, k[s], l0[s], keep[s],
-                                           g[s][0], g[s][1], g[s][2]);
+      if constexpr (!std::is_same_v<Layout, Interlaced>) {
+        // In pieces that lie contiguous in f (one piece but where a ring turns): each spring is on its own, so
+        // the pieces change no bit.
+        for (int i0 = 0, len = 0; i0 < n; i0 += len) {
+          len = at.run(b0 + i0, n - i0);
+          const double *xa0 = x + at(a0 + i0, 0), *xa1 = x + at(a0 + i0, 1), *xa2 = x + at(a0 + i0, 2);
+          const double *xb0 = x + at(b0 + i0, 0), *xb1 = x + at(b0 + i0, 1), *xb2 = x + at(b0 + i0, 2);
+          double *fb0 = f + at.f(b0 + i0, 0), *fb1 = f + at.f(b0 + i0, 1), *fb2 = f + at.f(b0 + i0, 2);
+          if (masked >> s & 1u)
+            stencil_direction_streams<true>(len, xa0, xa1, xa2, xb0, xb1, xb2, fb0, fb1, fb2, k[s], l0[s],
+                                            keep[s] + i0, g[s][0] + i0, g[s][1] + i0, g[s][2] + i0);
+          else
+            stencil_direction_streams<false>(len, xa0, xa1, xa2, xb0, xb1, xb2, fb0, fb1, fb2, k[s], l0[s],
+                                             keep[s] + i0, g[s][0] + i0, g[s][1] + i0, g[s][2] + i0);
+        }
       } else {
         const double* xa = x + at(a0, 0);
         const double* xb = x + at(b0, 0);
         double* fb = f + at(b0, 0);
-        if (masked)
+        if (masked >> s & 1u)
           stencil_direction<true>(n, xa, xb, fb, k[s], l0[s], keep[s], g[s][0], g[s][1], g[s][2]);
         else
           stencil_direction<false>(n, xa, xb, fb, k[s], l0[s], keep[s], g[s][0], g[s][1], g[s][2]);
@@ -198,9 +216,13 @@ __attribute__((always_inline)) inline void stencil_body(int first, int count, in
     alignas(64) double s0[kStencilBlock] = {}, s1[kStencilBlock] = {}, s2[kStencilBlock] = {};
     for (int s = 0; s < directions; ++s)
       for (int i = 0; i < n; ++i) s0[i] += g[s][0][i], s1[i] += g[s][1][i], s2[i] += g[s][2][i];
-    if constexpr (std::is_same_v<Layout, Streams>) {
-      double *__restrict fa0 = f + at(a0, 0), *__restrict fa1 = f + at(a0, 1), *__restrict fa2 = f + at(a0, 2);
-      for (int i = 0; i < n; ++i) fa0[i] += s0[i], fa1[i] += s1[i], fa2[i] += s2[i];
+    if constexpr (!std::is_same_v<Layout, Interlaced>) {
+      for (int i0 = 0, len = 0; i0 < n; i0 += len) {
+        len = at.run(a0 + i0, n - i0);
+        double *__restrict fa0 = f + at.f(a0 + i0, 0), *__restrict fa1 = f + at.f(a0 + i0, 1),
+                           *__restrict fa2 = f + at.f(a0 + i0, 2);
+        for (int i = 0; i < len; ++i) fa0[i] += s0[i0 + i], fa1[i] += s1[i0 + i], fa2[i] += s2[i0 + i];
+      }
     } else {
       double* __restrict fa = f + at(a0, 0);
       for (int i = 0; i < n; ++i) fa[3 * i] += s0[i], fa[3 * i + 1] += s1[i], fa[3 * i + 2] += s2[i];
@@ -279,13 +301,13 @@ void stencil_tangent(int first, int count, int directions, const int* offset, co
   for (int a0 = first; a0 < first + count; a0 += kStencilBlock) {
     const int n = std::min(kStencilBlock, first + count - a0);
     const int e0 = next_exception;
-    const bool masked = begin_block(a0, n, directions, exceptions, n_exceptions, next_exception, keep, out,
-                                    Interlaced{}, owned, max_offset, zeroed);
+    const std::uint32_t masked = begin_block(a0, n, directions, exceptions, n_exceptions, next_exception, keep,
+                                             out, Interlaced{}, owned, max_offset, zeroed);
     const double* __restrict xa = x + 3 * a0;
     const double* __restrict ua = u + 3 * a0;
     for (int q = 0; q < directions; ++q) {
       const int s = scatter[q], b0 = a0 + offset[s];
-      if (masked)
+      if (masked >> s & 1u)
         tangent_direction<true>(n, xa, x + 3 * b0, ua, u + 3 * b0, k[s], l0[s], keep[s], g[s][0], g[s][1], g[s][2]);
       else
         tangent_direction<false>(n, xa, x + 3 * b0, ua, u + 3 * b0, k[s], l0[s], keep[s], g[s][0], g[s][1], g[s][2]);
@@ -309,6 +331,13 @@ void stencil_forces_interlaced(int first, int count, int directions, const int* 
                max_offset, zeroed);
 }
 TISSUE_CLONES
+void stencil_forces_ring(int first, int count, int directions, const int* offset, const int* scatter,
+                         const double* k, const double* l0, const StencilException* exceptions, int n_exceptions,
+                         const double* x, double* f, RingStreams at, int owned, int max_offset, int* zeroed) {
+  stencil_body(first, count, directions, offset, scatter, k, l0, exceptions, n_exceptions, x, f, at, owned,
+               max_offset, zeroed);
+}
+TISSUE_CLONES
 void stencil_forces_streams(int first, int count, int directions, const int* offset, const int* scatter,
                             const double* k, const double* l0, const StencilException* exceptions, int n_exceptions,
                             const double* x, double* f, Streams at, int owned, int max_offset, int* zeroed) {
@@ -326,6 +355,17 @@ void generic_forces(int begin_c, int end_c, const int* a, const int* b, const st
                     const std::uint16_t* ltype, const double* ks, const double* ls, const double* x, double* f,
                     Streams at) {
   generic_forces_streams(begin_c, end_c, a, b, ktype, ltype, ks, ls, x, f, at);
+}
+void generic_forces(int begin_c, int end_c, const int* a, const int* b, const std::uint16_t* ktype,
+                    const std::uint16_t* ltype, const double* ks, const double* ls, const double* x, double* f,
+                    RingStreams at) {
+  generic_forces_ring(begin_c, end_c, a, b, ktype, ltype, ks, ls, x, f, at);
+}
+void stencil_forces(int first, int count, int directions, const int* offset, const int* scatter, const double* k,
+                    const double* l0, const StencilException* exceptions, int n_exceptions, const double* x,
+                    double* f, RingStreams at, int owned, int max_offset, int* zeroed) {
+  stencil_forces_ring(first, count, directions, offset, scatter, k, l0, exceptions, n_exceptions, x, f, at, owned,
+                      max_offset, zeroed);
 }
 void stencil_forces(int first, int count, int directions, const int* offset, const int* scatter, const double* k,
                     const double* l0, const StencilException* exceptions, int n_exceptions, const double* x,
@@ -533,6 +573,38 @@ SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
     seg->later = lowest;
     c = seg->first_connection;
   }
+  // The ring's rows: the sweep with final_rows (sweep(), the same steps without the arithmetic) holds rows
+  // [done, zeroed) live; the ring must hold the widest such window.
+  long done = 0, zeroed = 0, widest = 0;
+  auto zero_to = [&](long reach) {
+    zeroed = std::max(zeroed, std::min<long>(reach, owned));
+    widest = std::max(widest, zeroed - done);
+  };
+  auto finish = [&](long below) {
+    below = std::min<long>(below, owned);
+    if (below <= done) return;
+    zero_to(below);
+    done = below;
+  };
+  c = 0;
+  for (const Segment& seg : segments_) {
+    if (c < seg.first_connection) {
+      zero_to(seg.generic_reach);
+      finish(std::min(seg.first_molecule, seg.later));
+    }
+    for (int m0 = 0; m0 < seg.molecules; m0 += kChunk) {
+      const long end = seg.first_molecule + m0 + std::min(kChunk, seg.molecules - m0);
+      zero_to(end + reach_[seg.pattern]);  // the chunk's last block zeroes up to here
+      finish(std::min<long>(end, seg.later));
+    }
+    c = seg.first_connection + seg.connections;
+  }
+  if (c < nc) zero_to(tail_reach_);
+  finish(owned);
+  long rows = 64;
+  while (rows < widest) rows *= 2;
+  // Worth it only when much smaller than f, and small enough to stay in cache (24 B a row).
+  if (rows <= kLargestRing && 2 * rows <= owned) ring_rows_ = static_cast<int>(rows);
 }
 
 template <class Layout>
@@ -550,6 +622,14 @@ void SpringKernel::forces(const double* x, double* f, FinalRows final_rows, void
 void SpringKernel::forces_streams(const double* x, double* f, std::size_t stride, FinalRows final_rows,
                                   void* context) const {
   sweep(x, f, Streams{stride}, final_rows, context);
+}
+
+void SpringKernel::forces_ring(const double* x, double* ring, std::size_t stride, FinalRows final_rows,
+                               void* context) const {
+  sweep(x, ring,
+        RingStreams{stride, static_cast<std::size_t>(ring_rows_), static_cast<std::size_t>(model_.local - model_.owned),
+                    model_.owned},
+        final_rows, context);
 }
 
 template <class Layout>
@@ -579,13 +659,14 @@ void SpringKernel::sweep(const double* x, double* f, Layout at, FinalRows final_
     below = std::min(below, m.owned);
     if (!final_rows || below <= done) return;
     zero_ahead(f, at, zeroed, below);  // rows no connection touches are final too: zero
-    final_rows(context, done, below);
-    done = below;
+    for (int len = 0; done < below; done += len) {  // each run within one turn of a ring
+      len = at.run(done, below - done);
+      final_rows(context, done, done + len);
+    }
   };
   // With final_rows, a segment goes in chunks so that a chunk's rows are handed over while still in cache (a
   // row is final once the sweep passed it as end a: it is end b only of lower ends a). The chunks keep the
   // blocks of kStencilBlock molecules, and no block boundary changes a bit anyway.
-  constexpr int kChunk = 16 * kStencilBlock;
   int c = 0;
   for (const Segment& seg : segments_) {
     if (c < seg.first_connection) {

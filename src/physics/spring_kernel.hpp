@@ -25,15 +25,45 @@ namespace tissue {
 // Where component d (x, y, z) of local molecule i sits in a position or force array: interlaced, as PETSc's blocks
 // hold it (x[3 i + d]), or as three streams, a structure of arrays (x[d * stride + i], stride >= the local
 // molecules), which the explicit solver's fused step keeps between steps (src/solvers/dynamic.cpp).
+// A layout maps x (operator()) and f (f(), zero(), and run(r, n): how many of rows r .. r + n - 1 lie contiguous in
+// f from row r on); the first two use one map for both.
 struct Interlaced {
   std::size_t operator()(int i, int d) const { return 3 * static_cast<std::size_t>(i) + d; }
+  std::size_t f(int i, int d) const { return (*this)(i, d); }
+  int run(int, int n) const { return n; }
   void zero(double* f, int begin, int end) const { std::fill(f + (*this)(begin, 0), f + (*this)(end, 0), 0.0); }
 };
 struct Streams {
   std::size_t stride;
   std::size_t operator()(int i, int d) const { return d * stride + static_cast<std::size_t>(i); }
+  std::size_t f(int i, int d) const { return (*this)(i, d); }
+  int run(int, int n) const { return n; }
   void zero(double* f, int begin, int end) const {
     for (int d = 0; d < 3; ++d) std::fill(f + (*this)(begin, d), f + (*this)(end, d), 0.0);
+  }
+};
+// x as three streams (stride), f as three rings of `rows` rows (a power of two) for the owned molecules, row i at
+// i mod rows, then the ghosts' rows (scratch) as three streams of `ghosts`: the sweep holds only a window of f's rows
+// live (zeroed, not yet handed to FinalRows; SpringKernel::ring_rows), so f stays in cache and never goes to memory.
+struct RingStreams {
+  std::size_t stride, rows, ghosts;
+  int owned;
+  std::size_t operator()(int i, int d) const { return d * stride + static_cast<std::size_t>(i); }
+  std::size_t f(int i, int d) const {
+    return i < owned ? d * rows + (static_cast<std::size_t>(i) & (rows - 1))
+                     : 3 * rows + d * ghosts + static_cast<std::size_t>(i - owned);
+  }
+  int run(int r, int n) const {
+    if (r >= owned) return n;
+    const long to_wrap = static_cast<long>(rows - (static_cast<std::size_t>(r) & (rows - 1)));
+    return static_cast<int>(std::min<long>({static_cast<long>(n), to_wrap, static_cast<long>(owned - r)}));
+  }
+  void zero(double* f, int begin, int end) const {
+    for (int r = begin; r < end;) {
+      const int len = run(r, end - r);
+      for (int d = 0; d < 3; ++d) std::fill(f + this->f(r, d), f + this->f(r, d) + len, 0.0);
+      r += len;
+    }
   }
 };
 
@@ -56,6 +86,13 @@ public:
   void forces(const double* x, double* f, FinalRows final_rows, void* context) const;
   // The same forces, bit for bit, with x and f as three streams each (Streams: x[d * stride + i]).
   void forces_streams(const double* x, double* f, std::size_t stride, FinalRows final_rows, void* context) const;
+  // The same forces into a ring (RingStreams: 3 * ring_rows() values, then 3 * (local - owned) for the ghosts'
+  // rows), with final_rows (required): each run it hands over lies within one turn of the ring (f's row begin
+  // at ring[d * ring_rows() + begin % ring_rows()]); a row's forces are there until the call returns.
+  void forces_ring(const double* x, double* ring, std::size_t stride, FinalRows final_rows, void* context) const;
+  // The ring's rows: a power of two that holds every row between the lowest one not yet handed over and the
+  // highest zeroed at any point of the sweep; 0 when no small ring does (forces_ring unusable).
+  int ring_rows() const { return ring_rows_; }
   // Connections handled by stencil segments (the rest go through the generic form).
   long structured_connections() const { return structured_; }
   // The connections' tangent applied to u (the matrix-free Newton tangent's springs, ForceModel::apply_tangent):
@@ -97,6 +134,7 @@ private:
   // connections' ends, in connection order (a lattice's row ends: about 2 % of the connections).
   std::vector<int> generic_a_, generic_b_;
   int tail_at_ = 0;
+  int ring_rows_ = 0;
 };
 
 }  // namespace tissue

@@ -135,6 +135,41 @@ void kick_kick_drift_only_streams(int n, double dt, const double* __restrict m, 
   }
 }
 
+// The half kick to the whole step alone (the step before an observed state) and the half kick and drift that
+// follow it, on the streams: kick() and kick_drift()'s arithmetic, on other addresses.
+TISSUE_CLONES
+double kick_streams(int n, double dt, const double* __restrict m, const double* __restrict f0,
+                    const double* __restrict f1, const double* __restrict f2, double* __restrict v0,
+                    double* __restrict v1, double* __restrict v2, double kinetic) {
+  return kinetic_sum(n, [&](int i) __attribute__((always_inline)) {
+    const double kick = 0.5 * dt / m[i];
+    v0[i] += kick * f0[i], v1[i] += kick * f1[i], v2[i] += kick * f2[i];
+    double vv = 0;
+    vv += v0[i] * v0[i], vv += v1[i] * v1[i], vv += v2[i] * v2[i];
+    return m[i] * vv;
+  }, kinetic);
+}
+TISSUE_CLONES
+void kick_only_streams(int n, double dt, const double* __restrict m, const double* __restrict f0,
+                       const double* __restrict f1, const double* __restrict f2, double* __restrict v0,
+                       double* __restrict v1, double* __restrict v2) {
+  for (int i = 0; i < n; ++i) {
+    const double kick = 0.5 * dt / m[i];
+    v0[i] += kick * f0[i], v1[i] += kick * f1[i], v2[i] += kick * f2[i];
+  }
+}
+TISSUE_CLONES
+void kick_drift_streams(int n, double dt, const double* __restrict m, const double* __restrict f0,
+                        const double* __restrict f1, const double* __restrict f2, double* __restrict v0,
+                        double* __restrict v1, double* __restrict v2, double* __restrict x0, double* __restrict x1,
+                        double* __restrict x2) {
+  for (int i = 0; i < n; ++i) {
+    const double kick = 0.5 * dt / m[i];
+    v0[i] += kick * f0[i], v1[i] += kick * f1[i], v2[i] += kick * f2[i];
+    x0[i] += dt * v0[i], x1[i] += dt * v1[i], x2[i] += dt * v2[i];
+  }
+}
+
 // The fused step (springs only): the kick-kick-drift on each run of rows the spring kernel hands over as final,
 // while they are still in cache, so x, v and f stream from memory once a step instead of twice. The runs come in
 // molecule order and the kinetic sum carries over, so every bit is that of the separate pass.
@@ -144,10 +179,22 @@ struct FusedStreams {
   Streams3 at;
   double kinetic;
   bool sum;  // whether anything reads the kinetic energy (the guards)
+  bool drift;  // false: the step ends at an observed whole step (the half kick to it alone)
+  std::size_t ring = 0;  // f's rows in a ring of this many (SpringKernel::forces_ring); 0: f has every row
 };
 void fused_rows_streams(void* context, int begin, int end) {
   FusedStreams& s = *static_cast<FusedStreams*>(context);
-  const Streams3 p = streams_at(s.at, begin);
+  Streams3 p = streams_at(s.at, begin);
+  if (s.ring)  // the kernel hands over runs within one turn of the ring
+    for (int d = 0; d < 3; ++d) p.f[d] = s.at.f[d] + (static_cast<std::size_t>(begin) & (s.ring - 1));
+  if (!s.drift) {
+    if (s.sum)
+      s.kinetic = kick_streams(end - begin, s.dt, s.m + begin, p.f[0], p.f[1], p.f[2], p.v[0], p.v[1], p.v[2],
+                               s.kinetic);
+    else
+      kick_only_streams(end - begin, s.dt, s.m + begin, p.f[0], p.f[1], p.f[2], p.v[0], p.v[1], p.v[2]);
+    return;
+  }
   if (s.sum)
     s.kinetic = kick_kick_drift_streams(end - begin, s.dt, s.m + begin, p.f[0], p.f[1], p.f[2], p.v[0], p.v[1],
                                         p.v[2], p.x[0], p.x[1], p.x[2], s.kinetic);
@@ -220,21 +267,23 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
   // loops then read no held flags.
   for (int j : forces.held_owned()) v[j] = 0.0;
   const int n = model.owned;
-  // Whether nothing reads the state at whole step s (the guard's reductions, the signal check, snapshots and
-  // checkpoints all come at multiples of their cadences): then the half kick that ends step s, the one that
-  // starts step s + 1 and its drift are one pass over the molecules instead of two, with the same arithmetic.
+  // Whether nothing but the guard's reductions and the signal check reads the state at whole step s (snapshots,
+  // checkpoints and history.csv's rows come at multiples of their cadences): then the fused streams may end
+  // there; and whether not even those do: then the half kick that ends step s, the one that starts step s + 1
+  // and its drift are one pass over the molecules instead of two, with the same arithmetic.
   const long rows = hooks.record ? scene.output.history_every : 0;  // history.csv's cadence
-  auto unobserved = [&](long s) {
+  auto unread = [&](long s) {
     const long snap = hooks.snapshot ? scene.output.snapshot_every : 0, ckpt = scene.output.checkpoint_every;
-    return s < total && s % kReduceEvery != 0 && !(snap > 0 && s % snap == 0) && !(ckpt > 0 && s % ckpt == 0) &&
-           !(rows > 0 && s % rows == 0);
+    return s < total && !(snap > 0 && s % snap == 0) && !(ckpt > 0 && s % ckpt == 0) && !(rows > 0 && s % rows == 0);
   };
+  auto unobserved = [&](long s) { return unread(s) && s % kReduceEvery != 0; };
   if (rows > 0 && !state.restarted) hooks.record(state);  // history.csv's first row: the state at t = 0
   const bool history = forces.has_history();
   // Springs alone (no load, term or held component, on every rank: the fused steps' ghost update is
-  // collective): the kick-kick-drift goes inside the kernel's sweep, and between steps nothing observes, x, v and
-  // f stay as three streams each (Streams3), turned back into PETSc's interlaced blocks before any step that
-  // something observes (every kReduceEvery-th at the latest) and at the end.
+  // collective): the kicks go inside the kernel's sweep, and x, v and f stay as three streams each (Streams3)
+  // between steps, the guards' steps (every kReduceEvery-th) included: turned back into PETSc's interlaced blocks
+  // only before a step whose state something reads (a snapshot, checkpoint or history row), when the guard reads
+  // the state (its full checks) or a stop writes a checkpoint, and at the end.
   // Both decisions agreed: {springs only here, no ghosts here}, each the least over the ranks.
   int here[2] = {forces.springs_only() ? 1 : 0, model.local == model.owned ? 1 : 0}, everywhere[2] = {0, 0};
   MPI_Allreduce(here, everywhere, 2, MPI_INT, MPI_MIN, model.comm);
@@ -242,6 +291,11 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
   const int local = model.local;
   std::optional<StreamGhosts> stream_ghosts;
   if (fuse && everywhere[1] == 0) stream_ghosts.emplace(model);
+  // The fused steps that drift need each force only until its row's kicks: their forces go into a ring of a few
+  // planes' rows that stays in cache (SpringKernel::forces_ring), not through memory. The steps that end at a
+  // whole step keep every row's force in f (the next step's half kick reads it, and the state may be read).
+  const std::size_t ring_rows = fuse ? static_cast<std::size_t>(forces.kernel().ring_rows()) : 0;
+  std::vector<double> ring(ring_rows ? 3 * (ring_rows + static_cast<std::size_t>(model.local - model.owned)) : 0);
   bool streams = false;  // x, v, f hold three streams each (x and f: stride local, v: stride n)
   auto set_streams = [&](bool on) {
     if (on == streams) return;
@@ -251,12 +305,34 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
     streams = on;
   };
   bool drifted = false;  // the last pass already did this step's half kick and drift
+  // The state at a whole step, interlaced, for whatever reads it (the guard, a checkpoint): the conversion spends
+  // f, so the forces are evaluated again, at the same positions (the ghosts' too: nothing drifted since the
+  // step's evaluation), the same bits as the streams' (SpringKernel).
+  auto expose = [&] {
+    if (!streams) return;
+    set_streams(false);
+    forces.forces(x, v, f);
+  };
+  guard.on_read(expose);
+  SolverHooks exposed = hooks;  // a stop's checkpoint reads the state
+  if (hooks.checkpoint)
+    exposed.checkpoint = [&](const SolverState& s) {
+      expose();
+      hooks.checkpoint(s);
+    };
   while (state.step < total) {
     const bool next_unobserved = unobserved(state.step + 1);
-    const bool fused = fuse && next_unobserved;
-    if (!fused) set_streams(false);  // (a fused step always drifted: kick_drift below sees the interlaced state)
-    if (!drifted) kick_drift(n, dt, m, f, v, x);
-    if (fused) set_streams(true);
+    const bool fused = fuse && unread(state.step + 1);
+    // (the layout the last step left: a fused step that ended at an observed state kept the streams)
+    if (!drifted) {
+      if (streams) {
+        const std::size_t sl = local, sn = n;
+        kick_drift_streams(n, dt, m, f, f + sl, f + 2 * sl, v, v + sn, v + 2 * sn, x, x + sl, x + 2 * sl);
+      } else {
+        kick_drift(n, dt, m, f, v, x);
+      }
+    }
+    set_streams(fused);
     if (!streams) state.x.update_ghosts();
     else if (stream_ghosts) stream_ghosts->update(x, local);
     forces.set_time(state.time + dt);
@@ -264,10 +340,17 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
     if (fused) {
       const std::size_t sl = local, sn = n;
       FusedStreams step{dt, m, {{f, f + sl, f + 2 * sl}, {v, v + sn, v + 2 * sn}, {x, x + sl, x + 2 * sl}}, 0.0,
-                        guard.enabled()};
-      forces.kernel().forces_streams(x, f, sl, fused_rows_streams, &step);
+                        guard.enabled(), next_unobserved};
+      if (ring_rows && next_unobserved) {
+        double* r = ring.data();
+        step.at.f[0] = r, step.at.f[1] = r + ring_rows, step.at.f[2] = r + 2 * ring_rows;
+        step.ring = ring_rows;
+        forces.kernel().forces_ring(x, r, sl, fused_rows_streams, &step);
+      } else {
+        forces.kernel().forces_streams(x, f, sl, fused_rows_streams, &step);
+      }
       kinetic = step.kinetic;
-      drifted = true;
+      drifted = next_unobserved;
     } else {
       if (history) forces.begin_step(dt);  // viscoelastic history: this step's update, committed at its end
       forces.forces(x, v, f);
@@ -291,12 +374,15 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
     if (hooks.snapshot && scene.output.snapshot_every > 0 && state.step % scene.output.snapshot_every == 0 &&
         state.step < total)
       hooks.snapshot(state);
-    if (state.step < total && step_boundary(scene, model, state, hooks, 16)) {
+    if (state.step < total && step_boundary(scene, model, state, exposed, 16)) {
       report.interrupted = true;
       break;
     }
   }
-  set_streams(false);  // (only an interrupted or failed loop could leave the streams on; none does today)
+  // Only a stop at a guard's step can leave the streams on (every other step that ends the loop is read, so
+  // interlaced): that step ended at the whole step, nothing drifted since its forces.
+  expose();
+  guard.on_read(nullptr);
   report.iterations = state.step;
   report.guard_checks = guard.checks();
   report.guard_seconds = guard.seconds();

@@ -145,6 +145,7 @@ void StepGuard::check_lengths(bool from_energy) {
 
 void StepGuard::full_check() {
   Timer timer{seconds_};
+  read_state();
   ++checks_;
   check_finite_state();
   check_lengths();
@@ -166,6 +167,7 @@ void StepGuard::dynamic_step(double local_kinetic) {
     long mine = first_bad_step_ >= 0 ? first_bad_step_ : state_.step, first = 0;
     MPI_Allreduce(&mine, &first, 1, MPI_LONG, MPI_MIN, model_.comm);
     first_seen_ = fmt::format(" (first non-finite kinetic energy at step {})", first);
+    read_state();
     check_finite_state();  // names the first non-finite molecule and throws
     fail("non-finite kinetic energy" + first_seen_, -1);
   }
@@ -180,6 +182,7 @@ void StepGuard::dynamic_step(double local_kinetic) {
   // passed near rest re-armed a dozen checks: 25 checks per 1000 steps of a loaded 40^3 box, now 11; each costs
   // about one force evaluation. docs/stability.md.)
   kinetic_checked_ = std::max(kinetic_checked_, kinetic_);
+  read_state();
   double spring, work;
   const double e = kinetic_ + energy(&spring, &work);
   const double scale = kinetic_ + spring + std::fabs(work) + std::fabs(energy0_);
@@ -215,6 +218,7 @@ void StepGuard::relaxation_step(double residual) {
 }
 
 void StepGuard::fail(const std::string& problem, std::int64_t molecule) {
+  read_state();
   std::string where = molecule >= 0 ? describe_molecule(model_, state_.x.array(), molecule) : "no molecule found";
   const long step = state_.step;
   if (!enabled_)  // the final check of an unguarded run: no earlier state kept, so nothing may be written

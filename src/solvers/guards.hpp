@@ -15,6 +15,7 @@
 //    puts that state back into the SolverState before throwing, and main() writes it as DIR/last_good.h5.
 #pragma once
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -52,6 +53,10 @@ public:
   // Restores the last good state into the SolverState and throws SolverFailure with `problem` at `molecule`.
   [[noreturn]] void fail(const std::string& problem, std::int64_t molecule);
 
+  // Called before the guard reads the state (x, v, f) at a whole step: a solver that keeps its state in another
+  // layout between steps puts it back there (the dynamic solver's streams). Empty: nothing to do.
+  void on_read(std::function<void()> prepare) { prepare_ = std::move(prepare); }
+
   double kinetic_energy() const { return kinetic_; }
   bool enabled() const { return enabled_; }  // false: -tissue_guards false
   long checks() const { return checks_; }  // full checks made so far (energy and/or lengths)
@@ -64,6 +69,9 @@ private:
   double energy(double* spring, double* work);
   void check_lengths(bool from_energy = false);         // collective
   void check_finite_state();                            // collective
+  void read_state() {
+    if (prepare_) prepare_();
+  }
 
   std::string solver_;
   const Scene& scene_;
@@ -85,6 +93,7 @@ private:
   int worst_c_ = -1;
   double seconds_ = 0.0;
   double good_time_ = 0.0;
+  std::function<void()> prepare_;
 };
 
 }  // namespace tissue

@@ -17,11 +17,14 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <type_traits>
 #include <vector>
 
 namespace tissue {
+
+class SealStream;
 
 // Whether a written file was abandoned after a failed write (a full disk, a quota, an I/O error): HDF5 still holds
 // it open, and finalizing HDF5 (MPI_Finalize) would try to close it in collectives that cannot complete. The
@@ -143,6 +146,7 @@ private:
   MPI_Comm comm_ = MPI_COMM_NULL;
   bool writable_ = false;
   hid_t file_ = -1;
+  std::unique_ptr<SealStream> seal_;  // a created file: this rank's side of the seal (io/file_seal.hpp)
 };
 
 }  // namespace tissue

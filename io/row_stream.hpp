@@ -25,6 +25,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "io/hdf5_file.hpp"
@@ -115,8 +116,10 @@ private:
   ReadCheck read(const Hdf5File& file, const std::string& dataset, int width,
                  const std::function<void(std::int64_t, const T*)>& take, const char* fault_stage) const;
   void plan(bool shared);
-  // Rows [first, end) of piece p that rank r writes.
+  // The first row of rank r's part of piece p in the even split (the file's rows of piece p shared evenly).
   std::int64_t part_begin(std::int64_t p, int r) const;
+  // Rows [first, end) of piece p that rank r writes (or reads).
+  std::pair<std::int64_t, std::int64_t> part_rows(std::int64_t p, int r) const;
 
   MPI_Comm comm_;
   int rank_ = 0, size_ = 1;

@@ -273,14 +273,23 @@ TEST(RowStream, SealIsTheBlockHashOfEveryByte) {
 // in rank order (parts aligned with the ranks' own rows: nothing exchanged), each with and without skipped slots
 // (a batch of consecutive ids goes straight into the piece; a skipped slot's row, NaN here, must be dropped).
 // 10,000 rows in pieces of 9,000: batches of kBatch slots cut inside a part. Read back through the same stream.
+// Pieces of 1,234 rows too: each rank's own rows in several pieces of its own (runs of uneven length, rank r holding
+// a share proportional to r + 1: the ranks with fewer pieces take part in the others' last ones with none).
 TEST(RowStream, BatchedRowsInBothLayouts) {
-  constexpr std::int64_t rows = 10000, piece = 9000;
+  constexpr std::int64_t rows = 10000;
   const int size = comm_size(), rank = comm_rank();
+  auto uneven_owner = [&](std::int64_t id) {
+    int r = 0;
+    while (r + 1 < size && rows * (r + 1) * (r + 2) / (size * (size + 1)) <= id) ++r;
+    return r;
+  };
+  for (const std::int64_t piece : {std::int64_t{9000}, std::int64_t{1234}})
   for (const bool runs : {false, true})
     for (const bool skips : {false, true}) {
       std::vector<std::int64_t> ids;
       for (std::int64_t id = 0; id < rows; ++id) {
-        const int owner = runs ? NaturalOrder::block_owner(rows, size, id) : rank_of(id, size);
+        const int owner = runs ? (piece == 9000 ? NaturalOrder::block_owner(rows, size, id) : uneven_owner(id))
+                               : rank_of(id, size);
         if (owner != rank) continue;
         ids.push_back(id);
         if (skips && ids.size() % 5 == 0) ids.push_back(-1);
@@ -295,7 +304,8 @@ TEST(RowStream, BatchedRowsInBothLayouts) {
           },
           RowStream::Batched{}, piece);
       EXPECT_EQ(stream.own_parts(), runs && size > 1);
-      const std::string file = path() + (runs ? ".runs" : ".scrambled") + (skips ? ".skips" : "");
+      const std::string file =
+          path() + (runs ? ".runs" : ".scrambled") + (skips ? ".skips" : "") + ".piece" + std::to_string(piece);
       Hdf5File f = Hdf5File::create(file, MPI_COMM_WORLD);
       const std::uint64_t hash = stream.write_double_rows(
           f, "/values", 3, [&](std::int64_t first, std::int64_t end, const std::int64_t* batch_ids, double* out) {

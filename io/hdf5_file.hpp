@@ -9,7 +9,8 @@
 // stack printing is switched off; its innermost message is kept in the exception).
 //
 // Written files appear atomically: create() writes "<path>.tmp", and close() renames it to <path> once every
-// rank has closed it. A created file that is destroyed without close() (an exception unwound past it) is
+// rank has closed it. While a file is written, each rank hashes the seal's blocks it wrote whole and has their
+// pages written to the disk and dropped from the page cache (io/file_seal.hpp): close() re-reads only the rest. A created file that is destroyed without close() (an exception unwound past it) is
 // removed, so a failed write leaves no partial output.
 #pragma once
 #include <hdf5.h>

@@ -9,8 +9,9 @@
 // the ranks; every rank sends each
 // item of the piece, with its id, to the rank whose part holds it (one MPI_Alltoallv), and each rank writes its
 // part (independently, in writes of at most 1 MiB: Hdf5File::write_pieces). When each rank's ids are one run and
-// the runs follow each other in rank order (a lattice's molecules and written connections), each rank's part of a
-// piece is its own rows instead, and nothing is exchanged. Per rank and piece that is at most kPieceRows rows in and out, whatever
+// the runs follow each other in rank order (a lattice's molecules and written connections), each rank writes its
+// own rows instead, in pieces of its own of at most kPieceRows rows, every rank at once, and nothing is exchanged.
+// Per rank and piece that is at most kPieceRows rows in and out, whatever
 // the sample's size or the rank count: a 10^6-molecule snapshot costs a few MB on top of the run, not a copy of
 // every field (docs/benchmarks.md, "Snapshots without the memory spike").
 //

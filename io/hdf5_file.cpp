@@ -460,13 +460,13 @@ void Hdf5File::write_block(const std::string& dataset, int64_t global_rows, int 
 }
 
 void Hdf5File::write_pieces(const std::string& dataset, int64_t global_rows, int width, bool integer, int64_t pieces,
-                            const Piece& piece) {
+                            const Piece& piece, bool independent) {
   write_pieces(dataset, global_rows, width, integer ? H5T_STD_I64LE : H5T_IEEE_F64LE,
-               integer ? H5T_NATIVE_INT64 : H5T_NATIVE_DOUBLE, pieces, piece);
+               integer ? H5T_NATIVE_INT64 : H5T_NATIVE_DOUBLE, pieces, piece, independent);
 }
 
 void Hdf5File::write_pieces(const std::string& dataset, int64_t global_rows, int width, hid_t file_type,
-                            hid_t mem_type, int64_t pieces, const Piece& piece) {
+                            hid_t mem_type, int64_t pieces, const Piece& piece, bool independent) {
   if (!writable_ || file_ < 0) fail(dataset, "file is not open for writing");
   long long mine[5] = {global_rows, -global_rows, width, -width, pieces}, all[5];
   check_mpi(MPI_Allreduce(mine, all, 5, MPI_LONG_LONG, MPI_MAX, comm_), path_, "MPI_Allreduce");
@@ -506,35 +506,41 @@ void Hdf5File::write_pieces(const std::string& dataset, int64_t global_rows, int
     // writes whole as it goes (io/file_seal.hpp).
     const haddr_t base = H5Dget_offset(dset.get());
     SealStream* seal = base != HADDR_UNDEF ? seal_.get() : nullptr;
-    // One agreed step a piece: each rank's rows of the piece are one block of the file's rows.
-    for (int64_t p = 0; p < pieces; ++p) {
+    // Each rank's rows of a piece are one block of the file's rows. One agreed step a piece (a rank's bad block
+    // stops every rank before anything is written), or, `independent`, one for all of them: no rank waits for
+    // another between its pieces.
+    auto write_piece = [&](int64_t p) {
+      int64_t offset = 0, rows = 0;
+      const void* data = piece(p, &offset, &rows);
+      const int bad = offset < 0 || rows < 0 || offset + rows > global_rows || (rows > 0 && !data);
+      int any_bad = bad;
+      if (!independent) check_mpi(MPI_Allreduce(&bad, &any_bad, 1, MPI_INT, MPI_MAX, comm_), path_, "MPI_Allreduce");
+      if (any_bad)
+        throw std::runtime_error(path_ + ": " + dataset + ": a rank's row block lies outside [0, " +
+                                 std::to_string(global_rows) + ") or has no data");
+      for (int64_t done = 0; done < rows; done += rows_a_write) {
+        const int64_t n = std::min(rows_a_write, rows - done);
+        Handle space(H5Scopy(file_space.get()), H5Sclose);
+        const hsize_t start[2] = {static_cast<hsize_t>(offset + done), 0};
+        const hsize_t count[2] = {static_cast<hsize_t>(n), static_cast<hsize_t>(width)};
+        Handle mem_space(H5Screate_simple(2, count, nullptr), H5Sclose);
+        if (!space.ok() || !mem_space.ok()) fail(dataset, "cannot create dataspace");
+        if (H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr) < 0)
+          fail(dataset, "cannot select rows");
+        errno = 0;
+        const char* from = static_cast<const char*>(data) + done * width * 8;
+        if (H5Dwrite(dset.get(), mem_type, mem_space.get(), space.get(), dxpl.get(), from) < 0)
+          fail_io(dataset, "cannot write rows [" + std::to_string(offset + done) + ", " +
+                           std::to_string(offset + done + n) + ")", errno);
+        if (seal) seal->wrote(base + static_cast<std::uint64_t>((offset + done) * width * 8), n * width * 8);
+      }
+    };
+    if (independent)
       agree(comm_, [&] {
-        int64_t offset = 0, rows = 0;
-        const void* data = piece(p, &offset, &rows);
-        const int bad = offset < 0 || rows < 0 || offset + rows > global_rows || (rows > 0 && !data);
-        int any_bad = 0;
-        check_mpi(MPI_Allreduce(&bad, &any_bad, 1, MPI_INT, MPI_MAX, comm_), path_, "MPI_Allreduce");
-        if (any_bad)
-          throw std::runtime_error(path_ + ": " + dataset + ": a rank's row block lies outside [0, " +
-                                   std::to_string(global_rows) + ") or has no data");
-        for (int64_t done = 0; done < rows; done += rows_a_write) {
-          const int64_t n = std::min(rows_a_write, rows - done);
-          Handle space(H5Scopy(file_space.get()), H5Sclose);
-          const hsize_t start[2] = {static_cast<hsize_t>(offset + done), 0};
-          const hsize_t count[2] = {static_cast<hsize_t>(n), static_cast<hsize_t>(width)};
-          Handle mem_space(H5Screate_simple(2, count, nullptr), H5Sclose);
-          if (!space.ok() || !mem_space.ok()) fail(dataset, "cannot create dataspace");
-          if (H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr) < 0)
-            fail(dataset, "cannot select rows");
-          errno = 0;
-          const char* from = static_cast<const char*>(data) + done * width * 8;
-          if (H5Dwrite(dset.get(), mem_type, mem_space.get(), space.get(), dxpl.get(), from) < 0)
-            fail_io(dataset, "cannot write rows [" + std::to_string(offset + done) + ", " +
-                             std::to_string(offset + done + n) + ")", errno);
-          if (seal) seal->wrote(base + static_cast<std::uint64_t>((offset + done) * width * 8), n * width * 8);
-        }
+        for (int64_t p = 0; p < pieces; ++p) write_piece(p);
       });
-    }
+    else
+      for (int64_t p = 0; p < pieces; ++p) agree(comm_, [&] { write_piece(p); });
   } catch (...) {
     abandon();
     throw;

@@ -83,10 +83,11 @@ public:
   // each rank writes its rows of a piece independently, in writes of at most 1 MiB), so that no rank ever holds
   // more than a piece: piece(p, &offset, &rows) returns this rank's rows
   // [offset, offset + rows) of piece p (rows * width values, valid until the next call; null when rows == 0).
-  // `integer`: int64 values, otherwise double.
+  // `integer`: int64 values, otherwise double. `independent`: piece() makes no MPI call (each rank's rows its own:
+  // io/row_stream.hpp), so each rank writes all its pieces on its own and the ranks agree once, after the last.
   using Piece = std::function<const void*(int64_t piece, int64_t* offset, int64_t* rows)>;
   void write_pieces(const std::string& dataset, int64_t global_rows, int width, bool integer, int64_t pieces,
-                    const Piece& piece);
+                    const Piece& piece, bool independent = false);
 
   // The shape {rows, width} of a 2-D dataset (a 1-D dataset reads as width 1).
   std::vector<int64_t> shape(const std::string& dataset) const;
@@ -125,7 +126,7 @@ private:
   void write_block(const std::string& dataset, int64_t global_rows, int width, int64_t offset, int64_t rows,
                    const void* data, hid_t file_type, hid_t mem_type);
   void write_pieces(const std::string& dataset, int64_t global_rows, int width, hid_t file_type, hid_t mem_type,
-                    int64_t pieces, const Piece& piece);
+                    int64_t pieces, const Piece& piece, bool independent = false);
   void write_numeric_attribute(const std::string& object, const std::string& name, hid_t file_type,
                                hid_t mem_type, const void* value);
   void read_block(const std::string& dataset, int64_t offset, int64_t rows, void* data, hid_t mem_type,

@@ -288,7 +288,7 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
         }
     }
     int bad = 0;
-    if (size_ > 1) {
+    if (size_ > 1 && !own_parts()) {
       std::int64_t sent = 0, received = 0;
       for (int r = 0; r < size_; ++r)
         if (r != rank_) sent += send_[p * size_ + r], received += recv_[p * size_ + r];
@@ -335,14 +335,16 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
         std::copy(incoming + q * row + 1, incoming + q * row + 1 + width, rows + r * width);
       }
     }
+    // Each rank's own rows only (own_parts()): nothing received, nothing to check, no MPI call (the pieces are
+    // written without a collective between them).
     int any = 0;
-    check_mpi(MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, comm_), "MPI_Allreduce");
+    if (!own_parts()) check_mpi(MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, comm_), "MPI_Allreduce");
     if (any) throw std::invalid_argument(file.path() + ": " + dataset + ": the ranks' rows repeat an id");
     if (checksum == Checksum::compute) hash += row_hash_sum(rows, width, length, first);
     *offset = first, *count = length;
     return rows;
   };
-  file.write_pieces(dataset, global_rows_, width, std::is_same_v<T, std::int64_t>, pieces_, piece);
+  file.write_pieces(dataset, global_rows_, width, std::is_same_v<T, std::int64_t>, pieces_, piece, own_parts());
   std::uint64_t total = 0;
   check_mpi(MPI_Allreduce(&hash, &total, 1, MPI_UINT64_T, MPI_SUM, comm_), "MPI_Allreduce");
   return total;

@@ -14,6 +14,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "io/file_seal.hpp"
 #include "io/isolated_parse.hpp"
 #include "partition/agreement.hpp"
 
@@ -97,85 +98,49 @@ hid_t file_access(MPI_Comm comm) {
 // holding "TISSUE-HDF5-SEAL 1 <size> <hash>": the file's size and a hash of all its bytes after the user block.
 // Readers check it before HDF5 parses anything, so a truncated, damaged or foreign file is refused with one line
 // instead of reaching HDF5's parser (which can crash on corrupt metadata).
-constexpr std::size_t kUserBlock = 512;
+constexpr std::size_t kUserBlock = kSealUserBlock;
 
 // Set when a file was abandoned after a failed write (Hdf5File::abandon): see hdf5_files_abandoned().
 bool abandoned_files = false;
 const char kSealTag[] = "TISSUE-HDF5-SEAL 1 ";
 
-// FNV-1a of 16 byte streams side by side: h[l] takes the n bytes at bytes + l * stride (n a multiple of 8). FNV-1a is
-// one chain of multiplications a byte; with AVX-512 (vpmullq) two vectors of 8 lanes each keep the multiplier busy
-// (1.5-2.5x the bytes a second of 8 scalar lanes on a loaded machine: docs/benchmarks.md, "Snapshot writes at half
-// of dd").
-using Lanes8 = std::uint64_t __attribute__((vector_size(64)));
-__attribute__((target_clones("arch=x86-64-v4", "default"))) void fnv_16_lanes(std::uint64_t* h,
-                                                                              const unsigned char* bytes,
-                                                                              std::size_t stride, std::size_t n) {
-  constexpr std::uint64_t kPrime = 1099511628211ULL;
-  Lanes8 lo, hi;
-  std::memcpy(&lo, h, sizeof lo);
-  std::memcpy(&hi, h + 8, sizeof hi);
-  for (std::size_t i = 0; i < n; i += 8) {
-    Lanes8 wl, wh;
-    for (int l = 0; l < 8; ++l) {
-      std::uint64_t w;
-      std::memcpy(&w, bytes + l * stride + i, 8);
-      wl[l] = w;
-      std::memcpy(&w, bytes + (l + 8) * stride + i, 8);
-      wh[l] = w;
-    }
-    for (int b = 0; b < 8; ++b) {  // little-endian: the lowest byte is the first
-      lo = (lo ^ (wl & 0xff)) * kPrime;
-      hi = (hi ^ (wh & 0xff)) * kPrime;
-      wl >>= 8, wh >>= 8;
-    }
-  }
-  std::memcpy(h, &lo, sizeof lo);
-  std::memcpy(h + 8, &hi, sizeof hi);
-}
-
-// Sum (mod 2^64) over 1 MiB blocks of FNV-1a(block offset, block bytes): order-independent, so every rank hashes
-// its own contiguous share of the file in parallel and one reduction gives the total.
-std::uint64_t seal_hash(const std::string& path, std::uint64_t size, MPI_Comm comm) {
+// The seal's hash (io/file_seal.hpp) of the file's blocks, split among the ranks: each rank hashes its share of the
+// blocks that no rank hashed while writing (`stream`: this rank's side of a file being written; null for a file
+// being read, whose every block is hashed here), and one reduction gives the total.
+std::uint64_t seal_hash(const std::string& path, std::uint64_t size, MPI_Comm comm,
+                        const SealStream* stream = nullptr) {
   int rank = 0, ranks = 1;
   MPI_Comm_rank(comm, &rank);
   MPI_Comm_size(comm, &ranks);
-  const std::uint64_t block = 1 << 20;
-  const std::uint64_t blocks = size > kUserBlock ? (size - kUserBlock + block - 1) / block : 0;
-  const std::uint64_t first = blocks * rank / ranks, last = blocks * (rank + 1) / ranks;
+  const std::uint64_t blocks = seal_blocks(size);
+  std::vector<std::uint64_t> left;
   std::uint64_t sum = 0;
+  if (stream) {
+    // Blocks written whole lie inside the file; if not (this rank's bookkeeping is wrong), its blocks are re-read.
+    const auto& hashed = stream->hashed();
+    const bool inside = std::all_of(hashed.begin(), hashed.end(), [&](std::uint64_t b) { return b < blocks; });
+    std::vector<unsigned char> done(blocks, 0);
+    if (inside) {
+      for (const std::uint64_t b : hashed) done[b] = 1;
+      sum = stream->sum();
+    }
+    MPI_Allreduce(MPI_IN_PLACE, done.data(), static_cast<int>(blocks), MPI_UNSIGNED_CHAR, MPI_MAX, comm);
+    for (std::uint64_t b = 0; b < blocks; ++b)
+      if (!done[b]) left.push_back(b);
+  } else {
+    left.resize(blocks);
+    for (std::uint64_t b = 0; b < blocks; ++b) left[b] = b;
+  }
+  const std::size_t first = left.size() * rank / ranks, last = left.size() * (rank + 1) / ranks;
   int failed = 0;
   if (first < last) {
-    int fd = ::open(path.c_str(), O_RDONLY);
-    // Sixteen blocks hashed side by side, a sixteenth of each at a time (1 MiB of buffer): FNV-1a is one chain of
-    // multiplications a byte, so independent blocks keep the multiplier busy (the same hashes as one block at a
-    // time, as the share's last blocks are hashed).
-    constexpr std::uint64_t kLanes = 16, kBasis = 1469598103934665603ULL, kPrime = 1099511628211ULL;
-    const std::size_t chunk = block / kLanes;
-    std::vector<unsigned char> buffer(block);
-    auto read = [&](std::uint64_t offset, std::size_t n, unsigned char* to) {
-      if (!failed && ::pread(fd, to, n, static_cast<off_t>(offset)) != static_cast<ssize_t>(n)) failed = 1;
-    };
-    for (std::uint64_t b = first; b < last && fd >= 0 && !failed; b += kLanes) {
-      const std::uint64_t lanes = std::min(kLanes, last - b), offset = kUserBlock + b * block;
-      std::uint64_t h[kLanes];
-      for (std::uint64_t l = 0; l < kLanes; ++l) {
-        h[l] = kBasis;
-        for (int i = 0; i < 8; ++i) h[l] = (h[l] ^ (((offset + l * block) >> (8 * i)) & 0xff)) * kPrime;
-      }
-      if (lanes == kLanes && offset + kLanes * block <= size) {
-        for (std::size_t c = 0; c < kLanes && !failed; ++c) {
-          for (std::uint64_t l = 0; l < kLanes; ++l) read(offset + l * block + c * chunk, chunk, &buffer[l * chunk]);
-          fnv_16_lanes(h, buffer.data(), chunk, chunk);
-        }
-      } else {
-        for (std::uint64_t l = 0; l < lanes; ++l) {
-          const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(block, size - offset - l * block));
-          read(offset + l * block, n, buffer.data());
-          for (std::size_t i = 0; i < n; ++i) h[l] = (h[l] ^ buffer[i]) * kPrime;
-        }
-      }
-      for (std::uint64_t l = 0; l < lanes; ++l) sum += h[l];
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    std::vector<unsigned char> buffer;
+    std::uint64_t h[16];
+    for (std::size_t b = first; b < last && !failed; b += 16) {
+      const int n = static_cast<int>(std::min<std::size_t>(16, last - b));
+      if (!hash_seal_blocks(fd, size, &left[b], n, h, buffer)) failed = 1;
+      for (int i = 0; i < n; ++i) sum += h[i];
     }
     if (fd < 0) failed = 1;
     else ::close(fd);
@@ -243,6 +208,7 @@ Hdf5File Hdf5File::create(const std::string& path, MPI_Comm comm, int64_t reserv
       errno = 0;
       f.file_ = H5Fcreate((path + ".tmp").c_str(), H5F_ACC_TRUNC, fcpl.get(), fapl.get());
       if (f.file_ < 0) f.fail_io("", "cannot create " + path + ".tmp", errno);
+      f.seal_ = std::make_unique<SealStream>(path + ".tmp");
     });
     if (reserve > 0)
       agree(comm, [&] {
@@ -299,7 +265,11 @@ Hdf5File Hdf5File::open_serial(const std::string& path) {
 }
 
 Hdf5File::Hdf5File(Hdf5File&& o) noexcept
-    : path_(std::move(o.path_)), comm_(o.comm_), writable_(o.writable_), file_(std::exchange(o.file_, -1)) {}
+    : path_(std::move(o.path_)),
+      comm_(o.comm_),
+      writable_(o.writable_),
+      file_(std::exchange(o.file_, -1)),
+      seal_(std::move(o.seal_)) {}
 
 Hdf5File& Hdf5File::operator=(Hdf5File&& o) noexcept {
   if (this != &o) {
@@ -308,6 +278,7 @@ Hdf5File& Hdf5File::operator=(Hdf5File&& o) noexcept {
     comm_ = o.comm_;
     writable_ = o.writable_;
     file_ = std::exchange(o.file_, -1);
+    seal_ = std::move(o.seal_);
   }
   return *this;
 }
@@ -315,6 +286,7 @@ Hdf5File& Hdf5File::operator=(Hdf5File&& o) noexcept {
 Hdf5File::~Hdf5File() { release(); }
 
 void Hdf5File::release() noexcept {
+  seal_.reset();
   if (file_ < 0) return;
   H5Fclose(file_);
   file_ = -1;
@@ -342,6 +314,14 @@ void Hdf5File::close() {
   // Written files: every step is agreed (io/agreement), so that a rank whose flush, seal or rename fails stops
   // every rank with the same line, and no .tmp stays behind.
   try {
+    // The raw data's blocks still waiting for a group are hashed now (io/file_seal.hpp); a page of it that could
+    // not be written back fails the file here, as its fsync would have.
+    agree(comm_, [&] {
+      if (!seal_) return;
+      seal_->finish();
+      if (seal_->error())
+        throw OutputError(path_ + ": cannot write " + tmp + ": " + std::strerror(seal_->error()));
+    });
     agree(comm_, [&] {
       errno = 0;
       const herr_t rc = H5Fclose(file_);
@@ -359,7 +339,8 @@ void Hdf5File::close() {
     // Every rank's data is on disk before the file appears under its real name.
     agree(comm_, [&] {
       const std::uint64_t size = file_size(tmp);
-      const std::uint64_t hash = seal_hash(tmp, size, comm_);  // collective; throws on every rank
+      const std::uint64_t hash = seal_hash(tmp, size, comm_, seal_.get());  // collective; throws on every rank
+      seal_.reset();
       if (rank != 0) return;
       // Seal, then flush to the disk before the name appears: after a power loss a published name holds it all.
       char header[kUserBlock] = {0};
@@ -389,6 +370,7 @@ void Hdf5File::close() {
 }
 
 void Hdf5File::abandon() noexcept {
+  seal_.reset();
   if (file_ >= 0) {
     file_ = -1;  // the identifier is leaked on purpose: closing it is a collective that cannot complete
     abandoned_files = true;
@@ -478,13 +460,13 @@ void Hdf5File::write_block(const std::string& dataset, int64_t global_rows, int 
 }
 
 void Hdf5File::write_pieces(const std::string& dataset, int64_t global_rows, int width, bool integer, int64_t pieces,
-                            const Piece& piece) {
+                            const Piece& piece, bool independent) {
   write_pieces(dataset, global_rows, width, integer ? H5T_STD_I64LE : H5T_IEEE_F64LE,
-               integer ? H5T_NATIVE_INT64 : H5T_NATIVE_DOUBLE, pieces, piece);
+               integer ? H5T_NATIVE_INT64 : H5T_NATIVE_DOUBLE, pieces, piece, independent);
 }
 
 void Hdf5File::write_pieces(const std::string& dataset, int64_t global_rows, int width, hid_t file_type,
-                            hid_t mem_type, int64_t pieces, const Piece& piece) {
+                            hid_t mem_type, int64_t pieces, const Piece& piece, bool independent) {
   if (!writable_ || file_ < 0) fail(dataset, "file is not open for writing");
   long long mine[5] = {global_rows, -global_rows, width, -width, pieces}, all[5];
   check_mpi(MPI_Allreduce(mine, all, 5, MPI_LONG_LONG, MPI_MAX, comm_), path_, "MPI_Allreduce");
@@ -498,7 +480,9 @@ void Hdf5File::write_pieces(const std::string& dataset, int64_t global_rows, int
   if (!lcpl.ok() || H5Pset_create_intermediate_group(lcpl.get(), 1) < 0) fail(dataset, "cannot set up creation");
   // Every row is written: skip the fill pass that would otherwise write the whole dataset twice.
   Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
-  if (!dcpl.ok() || H5Pset_fill_time(dcpl.get(), H5D_FILL_TIME_NEVER) < 0) fail(dataset, "cannot set up creation");
+  if (!dcpl.ok() || H5Pset_fill_time(dcpl.get(), H5D_FILL_TIME_NEVER) < 0 ||
+      H5Pset_alloc_time(dcpl.get(), H5D_ALLOC_TIME_EARLY) < 0)
+    fail(dataset, "cannot set up creation");
   // Each rank writes its rows alone (independent MPI-IO), in writes of at most kWriteBytes: a rank's rows of a
   // piece are one contiguous run of the file, so a collective write would only add the aggregators' copy, and the
   // kernel takes several times the system time for one write of a few MB as for the same bytes in writes of 1 MiB
@@ -518,34 +502,45 @@ void Hdf5File::write_pieces(const std::string& dataset, int64_t global_rows, int
       dset.reset(H5Dcreate2(file_, dataset.c_str(), file_type, file_space.get(), lcpl.get(), dcpl.get(), H5P_DEFAULT));
       if (!dset.ok()) fail_io(dataset, "cannot create dataset", errno);
     });
-    // One agreed step a piece: each rank's rows of the piece are one block of the file's rows.
-    for (int64_t p = 0; p < pieces; ++p) {
+    // Where the rows lie in the file (contiguous, allocated at creation): the seal hashes the blocks this rank
+    // writes whole as it goes (io/file_seal.hpp).
+    const haddr_t base = H5Dget_offset(dset.get());
+    SealStream* seal = base != HADDR_UNDEF ? seal_.get() : nullptr;
+    // Each rank's rows of a piece are one block of the file's rows. One agreed step a piece (a rank's bad block
+    // stops every rank before anything is written), or, `independent`, one for all of them: no rank waits for
+    // another between its pieces.
+    auto write_piece = [&](int64_t p) {
+      int64_t offset = 0, rows = 0;
+      const void* data = piece(p, &offset, &rows);
+      const int bad = offset < 0 || rows < 0 || offset + rows > global_rows || (rows > 0 && !data);
+      int any_bad = bad;
+      if (!independent) check_mpi(MPI_Allreduce(&bad, &any_bad, 1, MPI_INT, MPI_MAX, comm_), path_, "MPI_Allreduce");
+      if (any_bad)
+        throw std::runtime_error(path_ + ": " + dataset + ": a rank's row block lies outside [0, " +
+                                 std::to_string(global_rows) + ") or has no data");
+      for (int64_t done = 0; done < rows; done += rows_a_write) {
+        const int64_t n = std::min(rows_a_write, rows - done);
+        Handle space(H5Scopy(file_space.get()), H5Sclose);
+        const hsize_t start[2] = {static_cast<hsize_t>(offset + done), 0};
+        const hsize_t count[2] = {static_cast<hsize_t>(n), static_cast<hsize_t>(width)};
+        Handle mem_space(H5Screate_simple(2, count, nullptr), H5Sclose);
+        if (!space.ok() || !mem_space.ok()) fail(dataset, "cannot create dataspace");
+        if (H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr) < 0)
+          fail(dataset, "cannot select rows");
+        errno = 0;
+        const char* from = static_cast<const char*>(data) + done * width * 8;
+        if (H5Dwrite(dset.get(), mem_type, mem_space.get(), space.get(), dxpl.get(), from) < 0)
+          fail_io(dataset, "cannot write rows [" + std::to_string(offset + done) + ", " +
+                           std::to_string(offset + done + n) + ")", errno);
+        if (seal) seal->wrote(base + static_cast<std::uint64_t>((offset + done) * width * 8), n * width * 8);
+      }
+    };
+    if (independent)
       agree(comm_, [&] {
-        int64_t offset = 0, rows = 0;
-        const void* data = piece(p, &offset, &rows);
-        const int bad = offset < 0 || rows < 0 || offset + rows > global_rows || (rows > 0 && !data);
-        int any_bad = 0;
-        check_mpi(MPI_Allreduce(&bad, &any_bad, 1, MPI_INT, MPI_MAX, comm_), path_, "MPI_Allreduce");
-        if (any_bad)
-          throw std::runtime_error(path_ + ": " + dataset + ": a rank's row block lies outside [0, " +
-                                   std::to_string(global_rows) + ") or has no data");
-        for (int64_t done = 0; done < rows; done += rows_a_write) {
-          const int64_t n = std::min(rows_a_write, rows - done);
-          Handle space(H5Scopy(file_space.get()), H5Sclose);
-          const hsize_t start[2] = {static_cast<hsize_t>(offset + done), 0};
-          const hsize_t count[2] = {static_cast<hsize_t>(n), static_cast<hsize_t>(width)};
-          Handle mem_space(H5Screate_simple(2, count, nullptr), H5Sclose);
-          if (!space.ok() || !mem_space.ok()) fail(dataset, "cannot create dataspace");
-          if (H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr) < 0)
-            fail(dataset, "cannot select rows");
-          errno = 0;
-          const char* from = static_cast<const char*>(data) + done * width * 8;
-          if (H5Dwrite(dset.get(), mem_type, mem_space.get(), space.get(), dxpl.get(), from) < 0)
-            fail_io(dataset, "cannot write rows [" + std::to_string(offset + done) + ", " +
-                             std::to_string(offset + done + n) + ")", errno);
-        }
+        for (int64_t p = 0; p < pieces; ++p) write_piece(p);
       });
-    }
+    else
+      for (int64_t p = 0; p < pieces; ++p) agree(comm_, [&] { write_piece(p); });
   } catch (...) {
     abandon();
     throw;

@@ -9,7 +9,8 @@
 // stack printing is switched off; its innermost message is kept in the exception).
 //
 // Written files appear atomically: create() writes "<path>.tmp", and close() renames it to <path> once every
-// rank has closed it. A created file that is destroyed without close() (an exception unwound past it) is
+// rank has closed it. While a file is written, each rank hashes the seal's blocks it wrote whole and has their
+// pages written to the disk and dropped from the page cache (io/file_seal.hpp): close() re-reads only the rest. A created file that is destroyed without close() (an exception unwound past it) is
 // removed, so a failed write leaves no partial output.
 #pragma once
 #include <hdf5.h>
@@ -17,11 +18,14 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <type_traits>
 #include <vector>
 
 namespace tissue {
+
+class SealStream;
 
 // Whether a written file was abandoned after a failed write (a full disk, a quota, an I/O error): HDF5 still holds
 // it open, and finalizing HDF5 (MPI_Finalize) would try to close it in collectives that cannot complete. The
@@ -79,10 +83,11 @@ public:
   // each rank writes its rows of a piece independently, in writes of at most 1 MiB), so that no rank ever holds
   // more than a piece: piece(p, &offset, &rows) returns this rank's rows
   // [offset, offset + rows) of piece p (rows * width values, valid until the next call; null when rows == 0).
-  // `integer`: int64 values, otherwise double.
+  // `integer`: int64 values, otherwise double. `independent`: piece() makes no MPI call (each rank's rows its own:
+  // io/row_stream.hpp), so each rank writes all its pieces on its own and the ranks agree once, after the last.
   using Piece = std::function<const void*(int64_t piece, int64_t* offset, int64_t* rows)>;
   void write_pieces(const std::string& dataset, int64_t global_rows, int width, bool integer, int64_t pieces,
-                    const Piece& piece);
+                    const Piece& piece, bool independent = false);
 
   // The shape {rows, width} of a 2-D dataset (a 1-D dataset reads as width 1).
   std::vector<int64_t> shape(const std::string& dataset) const;
@@ -121,7 +126,7 @@ private:
   void write_block(const std::string& dataset, int64_t global_rows, int width, int64_t offset, int64_t rows,
                    const void* data, hid_t file_type, hid_t mem_type);
   void write_pieces(const std::string& dataset, int64_t global_rows, int width, hid_t file_type, hid_t mem_type,
-                    int64_t pieces, const Piece& piece);
+                    int64_t pieces, const Piece& piece, bool independent = false);
   void write_numeric_attribute(const std::string& object, const std::string& name, hid_t file_type,
                                hid_t mem_type, const void* value);
   void read_block(const std::string& dataset, int64_t offset, int64_t rows, void* data, hid_t mem_type,
@@ -143,6 +148,7 @@ private:
   MPI_Comm comm_ = MPI_COMM_NULL;
   bool writable_ = false;
   hid_t file_ = -1;
+  std::unique_ptr<SealStream> seal_;  // a created file: this rank's side of the seal (io/file_seal.hpp)
 };
 
 }  // namespace tissue

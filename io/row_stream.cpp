@@ -64,8 +64,15 @@ template std::uint64_t row_hash_sum<std::int64_t>(const std::int64_t*, int, std:
 
 std::int64_t RowStream::part_begin(std::int64_t p, int r) const {
   const std::int64_t first = p * piece_rows_, end = std::min(global_rows_, first + piece_rows_);
-  if (!own_begin_.empty()) return std::clamp(own_begin_[r], first, end);
   return first + NaturalOrder::block_begin(end - first, size_, r);
+}
+
+std::pair<std::int64_t, std::int64_t> RowStream::part_rows(std::int64_t p, int r) const {
+  if (!own_begin_.empty()) {
+    const std::int64_t end = own_begin_[r + 1], first = std::min(end, own_begin_[r] + p * piece_rows_);
+    return {first, std::min(end, first + piece_rows_)};
+  }
+  return {part_begin(p, r), part_begin(p, r + 1)};
 }
 
 namespace {
@@ -102,7 +109,7 @@ void RowStream::plan(bool shared) {
   check_mpi(MPI_Comm_size(comm_, &size_), "MPI_Comm_size");
   if (piece_rows_ <= 0) throw std::invalid_argument("RowStream: pieces of no rows");
   pieces_ = std::max<std::int64_t>(1, (global_rows_ + piece_rows_ - 1) / piece_rows_);
-  const std::int64_t parts = pieces_ * size_;
+  std::int64_t parts = pieces_ * size_;
   start_.assign(parts + 1, slots_);
   send_.assign(parts, 0);
   // One pass over the slots, a batch of ids at a time: the items go to the parts in order, since their ids
@@ -145,18 +152,33 @@ void RowStream::plan(bool shared) {
       at += all[3 * r + 1];
     }
     if (runs && at == global_rows_) {
+      // Each rank's own rows in pieces of its own, written at the same time as the other ranks' (pieces of the
+      // file's rows would leave every rank but the one holding a piece's rows waiting): piece p of rank r is its
+      // items [p, p + 1) x piece_rows_, and there are as many pieces as the largest rank needs.
       own_begin_.assign(size_ + 1, 0);
-      for (int r = 0; r < size_; ++r) own_begin_[r + 1] = own_begin_[r] + all[3 * r + 1];
-      std::vector<std::int64_t> start(parts + 1, slots_);
-      for (std::int64_t p = 0; p < pieces_; ++p) {
-        std::int64_t mine_here = 0;
-        for (int r = 0; r < size_; ++r) mine_here += send_[p * size_ + r];
-        for (int r = 0; r < size_; ++r) {
-          start[p * size_ + r] = r <= rank_ ? start_[p * size_] : start_[(p + 1) * size_];
-          send_[p * size_ + r] = r == rank_ ? mine_here : 0;
-        }
+      std::int64_t most = 0;
+      for (int r = 0; r < size_; ++r) {
+        own_begin_[r + 1] = own_begin_[r] + all[3 * r + 1];
+        most = std::max<std::int64_t>(most, all[3 * r + 1]);
       }
-      start_ = std::move(start);
+      pieces_ = std::max<std::int64_t>(1, (most + piece_rows_ - 1) / piece_rows_);
+      parts = pieces_ * size_;
+      // The slot of this rank's item p x piece_rows_, for each piece (slots_ past its last item).
+      std::vector<std::int64_t> piece_slot(pieces_ + 1, slots_);
+      std::int64_t item = 0, p = 0;
+      for (std::int64_t k0 = 0; k0 < slots_ && p < pieces_; k0 += kBatch) {
+        const std::int64_t k1 = std::min(slots_, k0 + kBatch);
+        ids_(k0, k1, ids);
+        for (std::int64_t k = k0; k < k1 && p < pieces_; ++k)
+          if (ids[k - k0] >= 0 && item++ == p * piece_rows_) piece_slot[p++] = k;
+      }
+      start_.assign(parts + 1, slots_);
+      send_.assign(parts, 0);
+      for (std::int64_t q = 0; q < pieces_; ++q)
+        for (int r = 0; r < size_; ++r) {
+          start_[q * size_ + r] = r <= rank_ ? piece_slot[q] : piece_slot[q + 1];
+          if (r == rank_) send_[q * size_ + r] = std::clamp(count - q * piece_rows_, std::int64_t{0}, piece_rows_);
+        }
     }
   }
   // What each rank receives in each piece: one all-to-all of every piece's counts.
@@ -173,7 +195,8 @@ void RowStream::plan(bool shared) {
   for (std::int64_t p = 0; p < pieces_ && !bad && !shared; ++p) {
     std::int64_t got = 0;
     for (int r = 0; r < size_; ++r) got += recv_[p * size_ + r];
-    bad = got != part_begin(p, rank_ + 1) - part_begin(p, rank_);
+    const auto [first, end] = part_rows(p, rank_);
+    bad = got != end - first;
   }
   int any = 0;
   check_mpi(MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, comm_), "MPI_Allreduce");
@@ -240,7 +263,8 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
   };
   std::uint64_t hash = 0;
   auto piece = [&](std::int64_t p, std::int64_t* offset, std::int64_t* count) -> const void* {
-    const std::int64_t first = part_begin(p, rank_), length = part_begin(p, rank_ + 1) - first;
+    const auto [first, end] = part_rows(p, rank_);
+    const std::int64_t length = end - first;
     T* rows = buffer.rows.at_least(static_cast<std::size_t>(length) * width);
     seen.assign(static_cast<std::size_t>(length), 0);
     // This rank's own items go straight to their rows (plan() checked their ids: increasing, inside this part);
@@ -264,7 +288,7 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
         }
     }
     int bad = 0;
-    if (size_ > 1) {
+    if (size_ > 1 && !own_parts()) {
       std::int64_t sent = 0, received = 0;
       for (int r = 0; r < size_; ++r)
         if (r != rank_) sent += send_[p * size_ + r], received += recv_[p * size_ + r];
@@ -311,14 +335,16 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
         std::copy(incoming + q * row + 1, incoming + q * row + 1 + width, rows + r * width);
       }
     }
+    // Each rank's own rows only (own_parts()): nothing received, nothing to check, no MPI call (the pieces are
+    // written without a collective between them).
     int any = 0;
-    check_mpi(MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, comm_), "MPI_Allreduce");
+    if (!own_parts()) check_mpi(MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, comm_), "MPI_Allreduce");
     if (any) throw std::invalid_argument(file.path() + ": " + dataset + ": the ranks' rows repeat an id");
     if (checksum == Checksum::compute) hash += row_hash_sum(rows, width, length, first);
     *offset = first, *count = length;
     return rows;
   };
-  file.write_pieces(dataset, global_rows_, width, std::is_same_v<T, std::int64_t>, pieces_, piece);
+  file.write_pieces(dataset, global_rows_, width, std::is_same_v<T, std::int64_t>, pieces_, piece, own_parts());
   std::uint64_t total = 0;
   check_mpi(MPI_Allreduce(&hash, &total, 1, MPI_UINT64_T, MPI_SUM, comm_), "MPI_Allreduce");
   return total;
@@ -344,7 +370,8 @@ RowStream::ReadCheck RowStream::read(const Hdf5File& file, const std::string& da
   std::uint64_t hash = 0;
   int bad = 0;  // a value that is not finite, or a request outside this rank's part (a broken plan)
   for (std::int64_t p = 0; p < pieces_; ++p) {
-    const std::int64_t first = part_begin(p, rank_), length = part_begin(p, rank_ + 1) - first;
+    const auto [first, end] = part_rows(p, rank_);
+    const std::int64_t length = end - first;
     part.resize(static_cast<std::size_t>(length) * width);
     // The injected failure first, agreed on its own: a rank that threw there would never reach the collective read.
     if (fault_stage) agree(comm_, [&] { fault_point(fault_stage, comm_); });

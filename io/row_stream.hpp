@@ -9,8 +9,9 @@
 // the ranks; every rank sends each
 // item of the piece, with its id, to the rank whose part holds it (one MPI_Alltoallv), and each rank writes its
 // part (independently, in writes of at most 1 MiB: Hdf5File::write_pieces). When each rank's ids are one run and
-// the runs follow each other in rank order (a lattice's molecules and written connections), each rank's part of a
-// piece is its own rows instead, and nothing is exchanged. Per rank and piece that is at most kPieceRows rows in and out, whatever
+// the runs follow each other in rank order (a lattice's molecules and written connections), each rank writes its
+// own rows instead, in pieces of its own of at most kPieceRows rows, every rank at once, and nothing is exchanged.
+// Per rank and piece that is at most kPieceRows rows in and out, whatever
 // the sample's size or the rank count: a 10^6-molecule snapshot costs a few MB on top of the run, not a copy of
 // every field (docs/benchmarks.md, "Snapshots without the memory spike").
 //
@@ -25,6 +26,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "io/hdf5_file.hpp"
@@ -115,8 +117,10 @@ private:
   ReadCheck read(const Hdf5File& file, const std::string& dataset, int width,
                  const std::function<void(std::int64_t, const T*)>& take, const char* fault_stage) const;
   void plan(bool shared);
-  // Rows [first, end) of piece p that rank r writes.
+  // The first row of rank r's part of piece p in the even split (the file's rows of piece p shared evenly).
   std::int64_t part_begin(std::int64_t p, int r) const;
+  // Rows [first, end) of piece p that rank r writes (or reads).
+  std::pair<std::int64_t, std::int64_t> part_rows(std::int64_t p, int r) const;
 
   MPI_Comm comm_;
   int rank_ = 0, size_ = 1;

@@ -212,49 +212,60 @@ TEST(RowStream, RowHashIsEachRowsFnv1a) {
     }
 }
 
-// A file of 48 MiB (eight 1 MiB blocks hashed side by side on each rank, and the shares' last blocks one by one):
-// its seal equals the sum over 1 MiB blocks of FNV-1a(block offset, block bytes), computed here from the bytes on
+// A file of 48 MiB: its seal equals the sum over 1 MiB blocks of FNV-1a(block offset, block bytes), computed here
+// from the bytes on disk, in both layouts: each rank's rows one run (every block but those at the ranks' and the
+// datasets' boundaries hashed as it is written, io/file_seal.hpp) and rows scrambled among the ranks (each rank
+// writes a part of every piece: at several ranks the blocks across parts are hashed by the re-read at close).
+// The file's page cache is dropped as it is written: the reader's check and the values read back come from the
 // disk. A stream asked for no checksum returns 0.
 TEST(RowStream, SealIsTheBlockHashOfEveryByte) {
   const std::int64_t rows = std::int64_t{1} << 21;
-  const std::int64_t first = NaturalOrder::block_begin(rows, comm_size(), comm_rank()),
-                     end = NaturalOrder::block_begin(rows, comm_size(), comm_rank() + 1);
-  const RowStream stream(MPI_COMM_WORLD, rows, end - first, [&](std::int64_t k) { return first + k; });
-  const std::string file = std::string(TISSUE_TEST_OUT_DIR) + "/row_stream_seal_np" + std::to_string(comm_size()) +
-                           ".h5";
-  Hdf5File f = Hdf5File::create(file, MPI_COMM_WORLD);
-  const std::uint64_t hash = stream.write_double(
-      f, "/values", 3,
-      [&](std::int64_t k, double* row) {
-        for (int c = 0; c < 3; ++c) row[c] = std::sqrt(static_cast<double>(3 * (first + k) + c));
-      },
-      RowStream::Checksum::skip);
-  EXPECT_EQ(hash, 0u);
-  f.close();
-  RowStream::release();
-  if (comm_rank() == 0) {
-    std::ifstream in(file, std::ios::binary);
-    const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    ASSERT_GT(bytes.size(), std::size_t{48} << 20);
-    const std::size_t user_block = 512, block = std::size_t{1} << 20;
-    std::uint64_t sum = 0;
-    for (std::size_t offset = user_block; offset < bytes.size(); offset += block) {
-      const std::uint64_t at = offset;
-      unsigned char le[8];
-      for (int i = 0; i < 8; ++i) le[i] = static_cast<unsigned char>((at >> (8 * i)) & 0xff);
-      sum += fnv1a(fnv1a(kFnvBasis, le, 8), &bytes[offset], std::min(block, bytes.size() - offset));
+  const int size = comm_size(), rank = comm_rank();
+  for (const bool runs : {true, false}) {
+    std::vector<std::int64_t> ids;
+    for (std::int64_t id = 0; id < rows; ++id)
+      if ((runs ? NaturalOrder::block_owner(rows, size, id) : rank_of(id, size)) == rank) ids.push_back(id);
+    const RowStream stream(MPI_COMM_WORLD, rows, static_cast<std::int64_t>(ids.size()),
+                           [&](std::int64_t k) { return ids[static_cast<std::size_t>(k)]; });
+    const std::string file = std::string(TISSUE_TEST_OUT_DIR) + "/row_stream_seal_np" + std::to_string(size) +
+                             (runs ? "_runs" : "_scrambled") + ".h5";
+    Hdf5File f = Hdf5File::create(file, MPI_COMM_WORLD);
+    const std::uint64_t hash = stream.write_double(
+        f, "/values", 3,
+        [&](std::int64_t k, double* row) {
+          for (int c = 0; c < 3; ++c) row[c] = std::sqrt(static_cast<double>(3 * ids[static_cast<std::size_t>(k)] + c));
+        },
+        RowStream::Checksum::skip);
+    EXPECT_EQ(hash, 0u);
+    f.close();
+    RowStream::release();
+    if (rank == 0) {
+      std::ifstream in(file, std::ios::binary);
+      const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+      ASSERT_GT(bytes.size(), std::size_t{48} << 20);
+      const std::size_t user_block = 512, block = std::size_t{1} << 20;
+      std::uint64_t sum = 0;
+      for (std::size_t offset = user_block; offset < bytes.size(); offset += block) {
+        const std::uint64_t at = offset;
+        unsigned char le[8];
+        for (int i = 0; i < 8; ++i) le[i] = static_cast<unsigned char>((at >> (8 * i)) & 0xff);
+        sum += fnv1a(fnv1a(kFnvBasis, le, 8), &bytes[offset], std::min(block, bytes.size() - offset));
+      }
+      char header[128];
+      std::snprintf(header, sizeof header, "TISSUE-HDF5-SEAL 1 %zu %016llx\n", bytes.size(),
+                    static_cast<unsigned long long>(sum));
+      EXPECT_EQ(std::string(bytes.begin(), bytes.begin() + static_cast<long>(std::strlen(header))), header)
+          << (runs ? "runs" : "scrambled");
     }
-    char header[128];
-    std::snprintf(header, sizeof header, "TISSUE-HDF5-SEAL 1 %zu %016llx\n", bytes.size(),
-                  static_cast<unsigned long long>(sum));
-    EXPECT_EQ(std::string(bytes.begin(), bytes.begin() + static_cast<long>(std::strlen(header))), header);
+    Hdf5File h = Hdf5File::open(file, MPI_COMM_WORLD, "file", nullptr);  // the seal checked by the reader too
+    for (const std::int64_t row : {std::int64_t{0}, rows / 3, rows - 1}) {
+      const std::vector<double> back = h.read_double("/values", row, 1);
+      ASSERT_EQ(back.size(), 3u);
+      for (int c = 0; c < 3; ++c) EXPECT_EQ(back[c], std::sqrt(static_cast<double>(3 * row + c))) << row;
+    }
+    h.close();
+    if (rank == 0) std::filesystem::remove(file);
   }
-  Hdf5File h = Hdf5File::open(file, MPI_COMM_WORLD, "file", nullptr);  // the seal checked by the reader too
-  const std::vector<double> back = h.read_double("/values", rows - 1, 1);
-  ASSERT_EQ(back.size(), 3u);
-  EXPECT_EQ(back[2], std::sqrt(static_cast<double>(3 * (rows - 1) + 2)));
-  h.close();
-  if (comm_rank() == 0) std::filesystem::remove(file);
 }
 
 // The batched forms (a stream of batched ids, rows a batch at a time) against the closed form and the row hash,
@@ -262,14 +273,23 @@ TEST(RowStream, SealIsTheBlockHashOfEveryByte) {
 // in rank order (parts aligned with the ranks' own rows: nothing exchanged), each with and without skipped slots
 // (a batch of consecutive ids goes straight into the piece; a skipped slot's row, NaN here, must be dropped).
 // 10,000 rows in pieces of 9,000: batches of kBatch slots cut inside a part. Read back through the same stream.
+// Pieces of 1,234 rows too: each rank's own rows in several pieces of its own (runs of uneven length, rank r holding
+// a share proportional to r + 1: the ranks with fewer pieces take part in the others' last ones with none).
 TEST(RowStream, BatchedRowsInBothLayouts) {
-  constexpr std::int64_t rows = 10000, piece = 9000;
+  constexpr std::int64_t rows = 10000;
   const int size = comm_size(), rank = comm_rank();
+  auto uneven_owner = [&](std::int64_t id) {
+    int r = 0;
+    while (r + 1 < size && rows * (r + 1) * (r + 2) / (size * (size + 1)) <= id) ++r;
+    return r;
+  };
+  for (const std::int64_t piece : {std::int64_t{9000}, std::int64_t{1234}})
   for (const bool runs : {false, true})
     for (const bool skips : {false, true}) {
       std::vector<std::int64_t> ids;
       for (std::int64_t id = 0; id < rows; ++id) {
-        const int owner = runs ? NaturalOrder::block_owner(rows, size, id) : rank_of(id, size);
+        const int owner = runs ? (piece == 9000 ? NaturalOrder::block_owner(rows, size, id) : uneven_owner(id))
+                               : rank_of(id, size);
         if (owner != rank) continue;
         ids.push_back(id);
         if (skips && ids.size() % 5 == 0) ids.push_back(-1);
@@ -284,7 +304,8 @@ TEST(RowStream, BatchedRowsInBothLayouts) {
           },
           RowStream::Batched{}, piece);
       EXPECT_EQ(stream.own_parts(), runs && size > 1);
-      const std::string file = path() + (runs ? ".runs" : ".scrambled") + (skips ? ".skips" : "");
+      const std::string file =
+          path() + (runs ? ".runs" : ".scrambled") + (skips ? ".skips" : "") + ".piece" + std::to_string(piece);
       Hdf5File f = Hdf5File::create(file, MPI_COMM_WORLD);
       const std::uint64_t hash = stream.write_double_rows(
           f, "/values", 3, [&](std::int64_t first, std::int64_t end, const std::int64_t* batch_ids, double* out) {

@@ -448,17 +448,8 @@ public:
       int corner[8];
       corners(k, corner);
       const Geometry& geo = geometry_[kinds_[kind_[k]].body];
-      double F[9];
-      gradient(x, corner, geo, F);
-      // dP/dF_kl, one direction at a time: D[kl][ij].
       double D[9][9];
-      for (int kl = 0; kl < 9; ++kl) {
-        Dual Fd[9], Pd[9];
-        for (int q = 0; q < 9; ++q) Fd[q] = Dual(F[q], q == kl ? 1.0 : 0.0);
-        // Inverted: the residual is NaN already.
-        if (!stress(Fd, kinds_[kind_[k]].moduli, fibres(k), fibre_count(k), Pd) || !add_history(Fd, k, Pd)) return 0;
-        for (int q = 0; q < 9; ++q) D[kl][q] = Pd[q].d;
-      }
+      if (!stress_tangent(k, x, D[0])) return 0;  // inverted: the residual is NaN already
       // Dg[kl][a][i] = sum_j D[kl][ij] g_a[j]
       double Dg[9][8][3];
       for (int kl = 0; kl < 9; ++kl)
@@ -480,6 +471,69 @@ public:
       }
     }
     return 0;
+  }
+
+  // The matrix-free product: per cell dP/dF (81 doubles, 648 B a cell, where add_tangent's blocks take 27 a
+  // molecule, 1,944 B), applied as the force is computed: dF from the corners' u, dP = D dF, K u = V0 dP g_a.
+  bool has_tangent_state() const override { return true; }
+  std::size_t tangent_state_size() const override { return 81 * static_cast<std::size_t>(cells_); }
+  void tangent_state(const double* x, double* state) const override {
+    for (int k = 0; k < cells_; ++k) {
+      double* D = state + 81 * static_cast<std::size_t>(k);
+      // Inverted: the residual is NaN already; the cell adds nothing.
+      if (!stress_tangent(k, x, D)) std::fill(D, D + 81, 0.0);
+    }
+  }
+  void apply_tangent_state(const double* state, const double* u, double* out) const override {
+    const int owned = m_.owned;
+    for (int k = 0; k < cells_; ++k) {
+      const double* D = state + 81 * static_cast<std::size_t>(k);
+      int corner[8];
+      corners(k, corner);
+      const Geometry& geo = geometry_[kinds_[kind_[k]].body];
+      const double gx = geo.g[1][0], gy = geo.g[2][1], gz = geo.g[4][2];
+      double v[8][3];
+      for (int c = 0; c < 8; ++c)
+        for (int i = 0; i < 3; ++i) v[c][i] = u[3 * corner[c] + i];
+      double dF[9];
+      for (int i = 0; i < 3; ++i) {
+        dF[3 * i] = ((v[1][i] - v[0][i]) + (v[3][i] - v[2][i]) + (v[5][i] - v[4][i]) + (v[7][i] - v[6][i])) * gx;
+        dF[3 * i + 1] = ((v[2][i] - v[0][i]) + (v[3][i] - v[1][i]) + (v[6][i] - v[4][i]) + (v[7][i] - v[5][i])) * gy;
+        dF[3 * i + 2] = ((v[4][i] - v[0][i]) + (v[5][i] - v[1][i]) + (v[6][i] - v[2][i]) + (v[7][i] - v[3][i])) * gz;
+      }
+      double dP[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
+      for (int p = 0; p < 9; ++p)
+        for (int q = 0; q < 9; ++q) dP[q] += D[9 * p + q] * dF[p];
+      for (int i = 0; i < 3; ++i) {
+        // corner c's row i: V0 sum_j dP_ij g_c[j] = s_x q0 + s_y q1 + s_z q2 (cell_forces' sums, negated)
+        const double q0 = geo.volume * dP[3 * i] * gx, q1 = geo.volume * dP[3 * i + 1] * gy,
+                     q2 = geo.volume * dP[3 * i + 2] * gz;
+        const double lo = q0 + q1, hi = q1 - q0;
+        const double add[8] = {lo + q2, hi + q2, -hi + q2, -lo + q2, lo - q2, hi - q2, -hi - q2, -lo - q2};
+        for (int c = 0; c < 8; ++c)
+          if (corner[c] < owned) out[3 * corner[c] + i] -= add[c];
+      }
+    }
+  }
+  void add_tangent_state_diagonal(const double* state, double* diag) const override {
+    for (int k = 0; k < cells_; ++k) {
+      const double* D = state + 81 * static_cast<std::size_t>(k);
+      int corner[8];
+      corners(k, corner);
+      const Geometry& geo = geometry_[kinds_[kind_[k]].body];
+      for (int a = 0; a < 8; ++a) {
+        if (corner[a] >= m_.owned) continue;
+        const double* g = geo.g[a];
+        for (int i = 0; i < 3; ++i) {
+          // K_aa[i][i] = V0 sum_jl dP_ij/dF_il g_a[j] g_a[l]
+          double K = 0;
+          for (int l = 0; l < 3; ++l)
+            K += (D[9 * (3 * i + l) + 3 * i] * g[0] + D[9 * (3 * i + l) + 3 * i + 1] * g[1] +
+                  D[9 * (3 * i + l) + 3 * i + 2] * g[2]) * g[l];
+          diag[3 * corner[a] + i] += geo.volume * K;
+        }
+      }
+    }
   }
 
   void add_couplings(std::vector<std::vector<int>>& extra) const override {
@@ -747,6 +801,22 @@ private:
     }
     cell_block_forces(b.n, base_.data() + k, patterns_[pattern_[k]].data(), b.rows, computed ? &rest : nullptr, x,
                       m_.rest.data(), kind.moduli, geo.volume, g, m_.owned, f);
+  }
+
+  // Cell k's dP/dF at x, D[9 kl + ij] = dP_ij / dF_kl, one direction kl at a time (dual numbers through stress()
+  // and the history); false when the cell is inverted.
+  bool stress_tangent(int k, const double* x, double* D) const {
+    int corner[8];
+    corners(k, corner);
+    double F[9];
+    gradient(x, corner, geometry_[kinds_[kind_[k]].body], F);
+    for (int kl = 0; kl < 9; ++kl) {
+      Dual Fd[9], Pd[9];
+      for (int q = 0; q < 9; ++q) Fd[q] = Dual(F[q], q == kl ? 1.0 : 0.0);
+      if (!stress(Fd, kinds_[kind_[k]].moduli, fibres(k), fibre_count(k), Pd) || !add_history(Fd, k, Pd)) return false;
+      for (int q = 0; q < 9; ++q) D[9 * kl + q] = Pd[q].d;
+    }
+    return true;
   }
 
   // Cell k's row of a checkpoint: its committed S, then h per Prony term.

@@ -309,12 +309,56 @@ void cell_block_tangent(int n, const int* __restrict base, const int* __restrict
       }
   }
   if (m) {
+    // plain_stress_direction's arithmetic with the cells as vector lanes: the isotropic parts, then each face
+    // diagonal in its own loop (as cell_block_forces).
     const std::size_t sn = static_cast<std::size_t>(n);
+    const double* __restrict Fs = D;
+    const double half = 0.5 * m->kappa;
     for (int i = 0; i < n; ++i) {
-      double F[9], d[9], P[9];
-      for (int q = 0; q < 9; ++q) F[q] = D[q * sn + i], d[q] = dF[q][i];
-      plain_stress_direction(F, D[9 * sn + i], *m, d, P);
-      for (int q = 0; q < 9; ++q) dP[q][i] = P[q];
+      const double F0 = Fs[i], F1 = Fs[sn + i], F2 = Fs[2 * sn + i], F3 = Fs[3 * sn + i], F4 = Fs[4 * sn + i],
+                   F5 = Fs[5 * sn + i], F6 = Fs[6 * sn + i], F7 = Fs[7 * sn + i], F8 = Fs[8 * sn + i];
+      const double s = Fs[9 * sn + i];
+      const double d0 = dF[0][i], d1 = dF[1][i], d2 = dF[2][i], d3 = dF[3][i], d4 = dF[4][i], d5 = dF[5][i],
+                   d6 = dF[6][i], d7 = dF[7][i], d8 = dF[8][i];
+      const double F[9] = {F0, F1, F2, F3, F4, F5, F6, F7, F8}, d[9] = {d0, d1, d2, d3, d4, d5, d6, d7, d8};
+      const double cof[9] = {F4 * F8 - F5 * F7, F5 * F6 - F3 * F8, F3 * F7 - F4 * F6,
+                             F2 * F7 - F1 * F8, F0 * F8 - F2 * F6, F1 * F6 - F0 * F7,
+                             F1 * F5 - F2 * F4, F2 * F3 - F0 * F5, F0 * F4 - F1 * F3};
+      const double dcof[9] = {(d4 * F8 + F4 * d8) - (d5 * F7 + F5 * d7), (d5 * F6 + F5 * d6) - (d3 * F8 + F3 * d8),
+                              (d3 * F7 + F3 * d7) - (d4 * F6 + F4 * d6), (d2 * F7 + F2 * d7) - (d1 * F8 + F1 * d8),
+                              (d0 * F8 + F0 * d8) - (d2 * F6 + F2 * d6), (d1 * F6 + F1 * d6) - (d0 * F7 + F0 * d7),
+                              (d1 * F5 + F1 * d5) - (d2 * F4 + F2 * d4), (d2 * F3 + F2 * d3) - (d0 * F5 + F0 * d5),
+                              (d0 * F4 + F0 * d4) - (d1 * F3 + F1 * d3)};
+      const double J = F0 * cof[0] + F1 * cof[1] + F2 * cof[2];
+      double dJ = 0, I1 = 0, dI1 = 0;
+      for (int q = 0; q < 9; ++q) dJ += cof[q] * d[q], I1 += F[q] * F[q], dI1 += F[q] * d[q];
+      const double rJ = 1.0 / J, third = I1 * rJ / 3.0;
+      const double ds = -2.0 / 3.0 * s * dJ * rJ, dthird = (2.0 * dI1 / 3.0 - third * dJ) * rJ;
+      const double vol = half * (J - rJ), dvol = half * (1.0 + rJ * rJ) * dJ;
+      for (int q = 0; q < 9; ++q)
+        dP[q][i] = ds * (F[q] - third * cof[q]) + s * (d[q] - dthird * cof[q] - third * dcof[q]) + dvol * cof[q] +
+                   vol * dcof[q];
+    }
+    for (int w = 0; w < 3; ++w) {
+      if (m->alpha[w] == 0) continue;
+      const int a = (w + 1) % 3, b = (w + 2) % 3;
+      const double alpha = m->alpha[w] * M_SQRT1_2;
+      for (int k = 0; k < 2; ++k) {
+        const double sign = k == 0 ? 1.0 : -1.0;
+        for (int i = 0; i < n; ++i) {
+          double Fn[3], dFn[3];
+          for (int r = 0; r < 3; ++r)
+            Fn[r] = (Fs[(3 * r + a) * sn + i] + sign * Fs[(3 * r + b) * sn + i]) * M_SQRT1_2,
+            dFn[r] = (dF[3 * r + a][i] + sign * dF[3 * r + b][i]) * M_SQRT1_2;
+          const double stretch = Fn[0] * Fn[0] + Fn[1] * Fn[1] + Fn[2] * Fn[2] - 1.0;
+          const double dstretch = 2.0 * (Fn[0] * dFn[0] + Fn[1] * dFn[1] + Fn[2] * dFn[2]);
+          const double c = alpha * stretch, dc = alpha * dstretch;
+          for (int r = 0; r < 3; ++r) {
+            const double t = dc * Fn[r] + c * dFn[r];
+            dP[3 * r + a][i] += t, dP[3 * r + b][i] += sign * t;
+          }
+        }
+      }
     }
   } else {
     for (int q = 0; q < 9; ++q) {

@@ -83,6 +83,9 @@ public:
   virtual void tangent_state(const double* x, double* state) const {}
   virtual void apply_tangent_state(const double* state, const double* u, double* out) const {}
   virtual void add_tangent_state_diagonal(const double* state, double* diag) const {}
+  // Such terms whose product costs no more than the springs' (measured: docs/benchmarks.md): the static solve is
+  // then matrix-free by default (the cell term without fibres).
+  virtual bool tangent_state_fast() const { return false; }
   // Contact terms: the force totals of the last evaluation (this rank's owned molecules).
   virtual void add_totals(ContactTotals& t) const {}
   // Terms whose tangent couples molecules no connection joins: the local columns each owned row needs beyond its

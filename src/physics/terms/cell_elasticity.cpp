@@ -661,6 +661,7 @@ public:
   // the block from `first` with n cells at w first + c n + k - first, w values a cell); without blocks (fibres)
   // one cell at a time.
   bool has_tangent_state() const override { return true; }
+  bool tangent_state_fast() const override { return state_width() == 10; }
   std::size_t tangent_state_size() const override { return state_width() * static_cast<std::size_t>(cells_); }
   void tangent_state(const double* x, double* state) const override {
     const int w = state_width();

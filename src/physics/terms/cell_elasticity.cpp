@@ -662,9 +662,12 @@ public:
   // one cell at a time.
   bool has_tangent_state() const override { return true; }
   bool tangent_state_fast() const override { return state_width() == 10; }
-  std::size_t tangent_state_size() const override { return state_width() * static_cast<std::size_t>(cells_); }
-  void tangent_state(const double* x, double* state) const override {
+  // state[0]: the width w it was made with (a history may start between the state and a product: begin_step).
+  std::size_t tangent_state_size() const override { return 1 + state_width() * static_cast<std::size_t>(cells_); }
+  void tangent_state(const double* x, double* state_with_width) const override {
     const int w = state_width();
+    state_with_width[0] = w;
+    double* state = state_with_width + 1;
     for_each_state_block([&](int first, int n) {
       double* block = state + w * static_cast<std::size_t>(first);
       for (int i = 0; i < n; ++i) {
@@ -686,8 +689,9 @@ public:
       }
     });
   }
-  void apply_tangent_state(const double* state, const double* u, double* out) const override {
-    const int w = state_width();
+  void apply_tangent_state(const double* state_with_width, const double* u, double* out) const override {
+    const int w = static_cast<int>(state_with_width[0]);
+    const double* state = state_with_width + 1;
     if (!blocks_.empty()) {
       for (const Block& b : blocks_) {
         const Kind& kind = kinds_[kind_[b.first]];
@@ -706,8 +710,9 @@ public:
                          state + 81 * static_cast<std::size_t>(k), nullptr, geo.volume, g, m_.owned, out);
     }
   }
-  void add_tangent_state_diagonal(const double* state, double* diag) const override {
-    const int w = state_width();
+  void add_tangent_state_diagonal(const double* state_with_width, double* diag) const override {
+    const int w = static_cast<int>(state_with_width[0]);
+    const double* state = state_with_width + 1;
     for_each_state_block([&](int first, int n) {
       const double* block = state + w * static_cast<std::size_t>(first);
       for (int k = first; k < first + n; ++k) {

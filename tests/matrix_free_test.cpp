@@ -394,9 +394,10 @@ TEST(MatrixFree, StaticTensionCellTerm) {
   compare_static(cells, "[12, 11, 14]", "[[load]]\nface = \"z+\"\nforce = [0.0, 0.0, 1e-4]\n");
 }
 
-// solver.operator not given: matrix-free on a springs-only lattice with the lattice multigrid, assembled with a
-// term (the cell term) or where the multigrid does not apply (840 molecules), and no note either way: each the
-// named operator's answer bit for bit.
+// solver.operator not given: matrix-free on a lattice with the lattice multigrid, springs only or with the cell
+// term (its own product, Term::tangent_state_fast), assembled with fibres (that product is not cheap there), with
+// another term (the viscoelastic springs) or where the multigrid does not apply (840 molecules), and no note
+// either way: each the named operator's answer bit for bit.
 void expect_default_is(const std::string& scene, const std::vector<std::string>& set, const std::string& named) {
   auto d = run(scene, PETSC_COMM_WORLD, set);
   std::vector<std::string> with = set;
@@ -415,7 +416,10 @@ TEST(MatrixFree, DefaultOperator) {
   expect_default_is(springs + pull, {"body.molecules=[14, 12, 16]"}, "matrix-free");
   expect_default_is(springs + pull, {}, "assembled");
   expect_default_is(cells + "[[load]]\nface = \"z+\"\nforce = [0.0, 0.0, 1e-4]\n", {"body.molecules=[12, 11, 14]"},
+                    "matrix-free");
+  expect_default_is(fibres + "[[load]]\nface = \"z+\"\nforce = [0.0, 0.0, 1e-4]\n", {"body.molecules=[12, 11, 14]"},
                     "assembled");
+  expect_default_is(visco + pull, {"body.molecules=[14, 12, 16]"}, "assembled");
   // The two operators differ at round-off (other summation order): the default is not the assembled one here.
   auto a = run(springs + pull, PETSC_COMM_WORLD, {"body.molecules=[14, 12, 16]", "solver.operator=assembled"});
   auto d = run(springs + pull, PETSC_COMM_WORLD, {"body.molecules=[14, 12, 16]"});

@@ -120,6 +120,8 @@ public:
   Term* cell_history() const;
   // The terms built for this scene, by name (the connection forces and constant loads are not listed).
   std::vector<std::string> term_names() const;
+  // The terms themselves (the matrix-free tangent asks them for their own products: Term::has_tangent_state).
+  const std::vector<std::unique_ptr<Term>>& terms() const { return terms_; }
   // Every listed term keeps the total energy from growing (TermStyle::energy_never_grows; true with none).
   bool energy_never_grows() const;
   // Some listed term reads the velocities (TermStyle::reads_velocity).

@@ -8,6 +8,7 @@
 #pragma once
 #include <petscmat.h>
 
+#include <cstddef>
 #include <cstdint>
 #include <limits>
 #include <memory>
@@ -71,6 +72,20 @@ public:
   // evaluations a cell): the matrix-free tangent computes their blocks once per Newton iteration and keeps them
   // (src/solvers/matrix_free.hpp) instead of recomputing them on every matrix-vector product.
   virtual bool tangent_worth_caching() const { return false; }
+  // Terms that apply their own tangent in the matrix-free product from a state computed once per Newton iteration
+  // and kept by the caller, far smaller than their cached blocks (the cell term: dP/dF per cell, 81 doubles, where
+  // its blocks take 27 a molecule): tangent_state_size() doubles, filled by tangent_state at x (local positions,
+  // ghosts up to date). apply_tangent_state adds K u to the owned rows of out (u: local, ghosts up to date, held
+  // components zero; held rows are the caller's to overwrite); add_tangent_state_diagonal adds K's diagonal. Both
+  // give add_tangent's blocks' products and diagonal to round-off.
+  virtual bool has_tangent_state() const { return false; }
+  virtual std::size_t tangent_state_size() const { return 0; }
+  virtual void tangent_state(const double* x, double* state) const {}
+  virtual void apply_tangent_state(const double* state, const double* u, double* out) const {}
+  virtual void add_tangent_state_diagonal(const double* state, double* diag) const {}
+  // Such terms whose product costs no more than the springs' (measured: docs/benchmarks.md): the static solve is
+  // then matrix-free by default (the cell term without fibres).
+  virtual bool tangent_state_fast() const { return false; }
   // Contact terms: the force totals of the last evaluation (this rank's owned molecules).
   virtual void add_totals(ContactTotals& t) const {}
   // Terms whose tangent couples molecules no connection joins: the local columns each owned row needs beyond its

@@ -7,7 +7,12 @@
 namespace tissue {
 
 MatrixFreeTangent::MatrixFreeTangent(const LocalModel& model, const ForceModel& forces, double* scratch)
-    : model_(model), forces_(forces), x_(model.rest.data()), cached_(forces.has_cached_tangent()) {
+    : model_(model),
+      forces_(forces),
+      x_(model.rest.data()),
+      cached_(forces.has_cached_tangent()),
+      by_state_(cached_ && std::all_of(forces.terms().begin(), forces.terms().end(),
+                                       [](const auto& t) { return t->has_tangent_state(); })) {
   if (!scratch) own_.assign(3 * static_cast<std::size_t>(model.local), 0.0);
   w_ = scratch ? scratch : own_.data();
 }
@@ -35,7 +40,16 @@ PetscErrorCode MatrixFreeTangent::create(Mat* J) {
 PetscErrorCode MatrixFreeTangent::set_positions(const double* x, Mat J) {
   PetscFunctionBeginUser;
   x_ = x;
-  if (cached_) PetscCall(cache_blocks());
+  if (by_state_) {
+    const auto& terms = forces_.terms();
+    state_.resize(terms.size());
+    for (std::size_t t = 0; t < terms.size(); ++t) {
+      state_[t].resize(terms[t]->tangent_state_size());
+      terms[t]->tangent_state(x, state_[t].data());
+    }
+  } else if (cached_) {
+    PetscCall(cache_blocks());
+  }
   PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));  // a new state: PCSetUp sees a changed operator
   PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
   PetscFunctionReturn(0);
@@ -79,7 +93,15 @@ PetscErrorCode MatrixFreeTangent::mult(Mat J, Vec in, Vec out) {
   PetscCall(VecGetArray(out, &y));
   double* w = self->w_;
   PetscCall(self->forces_.apply_tangent(self->x_, w, y, self->cached_));
-  if (self->cached_) {
+  if (self->by_state_) {
+    // w's held components are zero now (apply_tangent); the held rows keep the identity's values it wrote.
+    const std::vector<int>& held = self->forces_.held_owned();
+    self->held_out_.resize(held.size());
+    for (std::size_t h = 0; h < held.size(); ++h) self->held_out_[h] = y[held[h]];
+    const auto& terms = self->forces_.terms();
+    for (std::size_t t = 0; t < terms.size(); ++t) terms[t]->apply_tangent_state(self->state_[t].data(), w, y);
+    for (std::size_t h = 0; h < held.size(); ++h) y[held[h]] = self->held_out_[h];
+  } else if (self->cached_) {
     // Held rows and columns of the cached blocks are zero: the identity rows apply_tangent wrote stay.
     const int n = self->model_.owned;
     for (int i = 0; i < n; ++i) {
@@ -104,7 +126,11 @@ PetscErrorCode MatrixFreeTangent::diagonal(Mat J, Vec d) {
   PetscScalar* y;
   PetscCall(VecGetArray(d, &y));
   PetscCall(self->forces_.tangent_diagonal(self->x_, y, self->cached_));
-  if (self->cached_) {
+  if (self->by_state_) {
+    const auto& terms = self->forces_.terms();
+    for (std::size_t t = 0; t < terms.size(); ++t) terms[t]->add_tangent_state_diagonal(self->state_[t].data(), y);
+    for (int h : self->forces_.held_owned()) y[h] = 1.0;
+  } else if (self->cached_) {
     const int n = self->model_.owned;
     for (int i = 0; i < n; ++i) {
       const int* col = self->cache_col_.data() + static_cast<std::size_t>(kSlots) * i;

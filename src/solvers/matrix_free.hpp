@@ -5,7 +5,9 @@
 // and columns are the identity's. MatMult and MatGetDiagonal only: the smoothers on it are Chebyshev on Jacobi.
 // In scenes with a term worth caching (Term::tangent_worth_caching: the cell term) every term's blocks are computed
 // once per Newton iteration, in set_positions, and kept per owned molecule (up to 27, a lattice stencil: 2,052 B a
-// molecule, only in such scenes); the springs' blocks are recomputed on every product.
+// molecule, only in such scenes); the springs' blocks are recomputed on every product. Where every term applies its
+// own product from a smaller state (Term::has_tangent_state: the cell term's dP/dF, 648 B a cell), that state is
+// kept instead of the blocks.
 #pragma once
 #include <petscmat.h>
 
@@ -50,6 +52,10 @@ private:
   // molecule; -1 ends the row) and their 3x3 blocks, duplicates summed, held rows and columns zero.
   static constexpr int kSlots = 27;
   const bool cached_;
+  // Every term applies its own product (Term::has_tangent_state): their states at x_, in the terms' order.
+  const bool by_state_;
+  std::vector<std::vector<double>> state_;
+  std::vector<double> held_out_;  // mult's copy of the held rows' values while the terms add theirs
   std::vector<int> cache_col_;
   std::vector<double> cache_K_;
 };

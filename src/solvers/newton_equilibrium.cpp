@@ -383,9 +383,12 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
   PetscCall(PetscOptionsHasName(nullptr, nullptr, "-snes_lag_preconditioner", &user_lag));
   // The matrix-free tangent is decided once the lattice multigrid is known (use_matrix_free); the assembled one
   // is made here. Not given, it is matrix-free where that was measured never slower and 3.8x smaller (box lattices,
-  // springs only: docs/benchmarks.md, "The static solve at 1 kB a molecule"), and falls back without a note.
+  // springs only: docs/benchmarks.md, "The static solve at 1 kB a molecule"; with terms that apply their own
+  // product, the cell term: "The cell term's tangent product on its blocks"), and falls back without a note.
   const std::string& op = scene.solver.tangent_operator;
-  by_default = op.empty() && !user_pc && !user_lag && !forces.has_terms() &&
+  const auto& terms = forces.terms();
+  by_default = op.empty() && !user_pc && !user_lag &&
+               std::all_of(terms.begin(), terms.end(), [](const auto& t) { return t->tangent_state_fast(); }) &&
                std::none_of(scene.bodies.begin(), scene.bodies.end(), [](const BodySpec& b) { return b.unstructured(); });
   const bool want_matrix_free = op == "matrix-free" || by_default;
   if (!want_matrix_free) PetscCall(forces.create_tangent(&J));

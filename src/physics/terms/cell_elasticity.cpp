@@ -227,6 +227,187 @@ void cell_block_forces(int n, const int* __restrict base, const int* __restrict 
   }
 }
 
+// stress()'s derivative along d for plain moduli (no fibres, no history) at F, with s = mu J^(-2/3) given:
+// d(cof) is bilinear in F and d; dJ = cof : d; s moves by -2/3 s dJ / J, I1 / (3J) by (2/3 F : d - I1 / (3J) dJ) / J;
+// the volumetric factor kappa/2 (J - 1/J) by kappa/2 (1 + 1/J^2) dJ; a face diagonal's c Fn by dc Fn + c dFn.
+inline void plain_stress_direction(const double F[9], double s, const Moduli& m, const double d[9], double P[9]) {
+  const double half = 0.5 * m.kappa;
+  double cof[9], dcof[9];
+  cof[0] = F[4] * F[8] - F[5] * F[7], cof[1] = F[5] * F[6] - F[3] * F[8], cof[2] = F[3] * F[7] - F[4] * F[6];
+  cof[3] = F[2] * F[7] - F[1] * F[8], cof[4] = F[0] * F[8] - F[2] * F[6], cof[5] = F[1] * F[6] - F[0] * F[7];
+  cof[6] = F[1] * F[5] - F[2] * F[4], cof[7] = F[2] * F[3] - F[0] * F[5], cof[8] = F[0] * F[4] - F[1] * F[3];
+  dcof[0] = (d[4] * F[8] + F[4] * d[8]) - (d[5] * F[7] + F[5] * d[7]);
+  dcof[1] = (d[5] * F[6] + F[5] * d[6]) - (d[3] * F[8] + F[3] * d[8]);
+  dcof[2] = (d[3] * F[7] + F[3] * d[7]) - (d[4] * F[6] + F[4] * d[6]);
+  dcof[3] = (d[2] * F[7] + F[2] * d[7]) - (d[1] * F[8] + F[1] * d[8]);
+  dcof[4] = (d[0] * F[8] + F[0] * d[8]) - (d[2] * F[6] + F[2] * d[6]);
+  dcof[5] = (d[1] * F[6] + F[1] * d[6]) - (d[0] * F[7] + F[0] * d[7]);
+  dcof[6] = (d[1] * F[5] + F[1] * d[5]) - (d[2] * F[4] + F[2] * d[4]);
+  dcof[7] = (d[2] * F[3] + F[2] * d[3]) - (d[0] * F[5] + F[0] * d[5]);
+  dcof[8] = (d[0] * F[4] + F[0] * d[4]) - (d[1] * F[3] + F[1] * d[3]);
+  const double J = F[0] * cof[0] + F[1] * cof[1] + F[2] * cof[2];
+  double dJ = 0, I1 = 0, dI1 = 0;
+  for (int q = 0; q < 9; ++q) dJ += cof[q] * d[q], I1 += F[q] * F[q], dI1 += F[q] * d[q];
+  const double rJ = 1.0 / J, third = I1 * rJ / 3.0;
+  const double ds = -2.0 / 3.0 * s * dJ * rJ, dthird = (2.0 * dI1 / 3.0 - third * dJ) * rJ;
+  const double vol = half * (J - rJ), dvol = half * (1.0 + rJ * rJ) * dJ;
+  for (int q = 0; q < 9; ++q)
+    P[q] = ds * (F[q] - third * cof[q]) + s * (d[q] - dthird * cof[q] - third * dcof[q]) + dvol * cof[q] +
+           vol * dcof[q];
+  for (int w = 0; w < 3; ++w) {
+    if (m.alpha[w] == 0) continue;
+    const int a = (w + 1) % 3, b = (w + 2) % 3;
+    for (const double sign : {1.0, -1.0}) {
+      double Fn[3], dFn[3];
+      for (int r = 0; r < 3; ++r)
+        Fn[r] = (F[3 * r + a] + sign * F[3 * r + b]) * M_SQRT1_2,
+        dFn[r] = (d[3 * r + a] + sign * d[3 * r + b]) * M_SQRT1_2;
+      const double stretch = Fn[0] * Fn[0] + Fn[1] * Fn[1] + Fn[2] * Fn[2] - 1.0;
+      const double dstretch = 2.0 * (Fn[0] * dFn[0] + Fn[1] * dFn[1] + Fn[2] * dFn[2]);
+      const double c = m.alpha[w] * stretch * M_SQRT1_2, dc = m.alpha[w] * dstretch * M_SQRT1_2;
+      for (int r = 0; r < 3; ++r) {
+        const double t = dc * Fn[r] + c * dFn[r];
+        P[3 * r + a] += t, P[3 * r + b] += sign * t;
+      }
+    }
+  }
+}
+
+// The tangent's product on the same blocks as cell_block_forces (the same corner patterns and row layout): per
+// cell dF = sum_a u_a (x) g_a from the corners' u, dP = dP/dF [dF], and K u = V0 dP g_a added to the owned
+// corners, each molecule summing its cells in increasing order. The block's cells are the vector lanes of its
+// state: with moduli m (plain cells: no fibres, no history), F and scale = mu J^(-2/3) per cell
+// (state[q n + i], q = 0..8 F's, 9 the scale: 80 B a cell) and dP is stress()'s derivative along dF in closed
+// form (below); without, D = dP/dF (state[(9 p + q) n + i] = dP_q / dF_p: 648 B a cell). An inverted cell's
+// state is F = I, scale 0 (adds a finite value; the residual is NaN already) or D = 0.
+TISSUE_CELL_CLONES
+void cell_block_tangent(int n, const int* __restrict base, const int* __restrict offset, bool rows,
+                        const double* __restrict u, const double* __restrict D, const Moduli* m, double volume,
+                        const double g[3], int owned, double* __restrict out) {
+  alignas(64) double dF[9][kCellBlock], dP[9][kCellBlock];
+  const double gx = g[0], gy = g[1], gz = g[2];
+  if (rows) {
+    const double* ur[4];
+    for (int r = 0; r < 4; ++r) ur[r] = u + 3 * (base[0] + offset[2 * r]);
+    for (int d = 0; d < 3; ++d)
+      for (int i = 0; i < n; ++i) {
+        const int a = 3 * i + d, b = 3 * (i + 1) + d;
+        const double u0 = ur[0][a], u1 = ur[0][b], u2 = ur[1][a], u3 = ur[1][b], u4 = ur[2][a], u5 = ur[2][b],
+                     u6 = ur[3][a], u7 = ur[3][b];
+        dF[3 * d][i] = ((u1 - u0) + (u3 - u2) + (u5 - u4) + (u7 - u6)) * gx;
+        dF[3 * d + 1][i] = ((u2 - u0) + (u3 - u1) + (u6 - u4) + (u7 - u5)) * gy;
+        dF[3 * d + 2][i] = ((u4 - u0) + (u5 - u1) + (u6 - u2) + (u7 - u3)) * gz;
+      }
+  } else {
+    for (int d = 0; d < 3; ++d)
+      for (int i = 0; i < n; ++i) {
+        double v[8];
+        for (int c = 0; c < 8; ++c) v[c] = u[3 * (base[i] + offset[c]) + d];
+        dF[3 * d][i] = ((v[1] - v[0]) + (v[3] - v[2]) + (v[5] - v[4]) + (v[7] - v[6])) * gx;
+        dF[3 * d + 1][i] = ((v[2] - v[0]) + (v[3] - v[1]) + (v[6] - v[4]) + (v[7] - v[5])) * gy;
+        dF[3 * d + 2][i] = ((v[4] - v[0]) + (v[5] - v[1]) + (v[6] - v[2]) + (v[7] - v[3])) * gz;
+      }
+  }
+  if (m) {
+    // plain_stress_direction's arithmetic with the cells as vector lanes: the isotropic parts, then each face
+    // diagonal in its own loop (as cell_block_forces).
+    const std::size_t sn = static_cast<std::size_t>(n);
+    const double* __restrict Fs = D;
+    const double half = 0.5 * m->kappa;
+    for (int i = 0; i < n; ++i) {
+      const double F0 = Fs[i], F1 = Fs[sn + i], F2 = Fs[2 * sn + i], F3 = Fs[3 * sn + i], F4 = Fs[4 * sn + i],
+                   F5 = Fs[5 * sn + i], F6 = Fs[6 * sn + i], F7 = Fs[7 * sn + i], F8 = Fs[8 * sn + i];
+      const double s = Fs[9 * sn + i];
+      const double d0 = dF[0][i], d1 = dF[1][i], d2 = dF[2][i], d3 = dF[3][i], d4 = dF[4][i], d5 = dF[5][i],
+                   d6 = dF[6][i], d7 = dF[7][i], d8 = dF[8][i];
+      const double F[9] = {F0, F1, F2, F3, F4, F5, F6, F7, F8}, d[9] = {d0, d1, d2, d3, d4, d5, d6, d7, d8};
+      const double cof[9] = {F4 * F8 - F5 * F7, F5 * F6 - F3 * F8, F3 * F7 - F4 * F6,
+                             F2 * F7 - F1 * F8, F0 * F8 - F2 * F6, F1 * F6 - F0 * F7,
+                             F1 * F5 - F2 * F4, F2 * F3 - F0 * F5, F0 * F4 - F1 * F3};
+      const double dcof[9] = {(d4 * F8 + F4 * d8) - (d5 * F7 + F5 * d7), (d5 * F6 + F5 * d6) - (d3 * F8 + F3 * d8),
+                              (d3 * F7 + F3 * d7) - (d4 * F6 + F4 * d6), (d2 * F7 + F2 * d7) - (d1 * F8 + F1 * d8),
+                              (d0 * F8 + F0 * d8) - (d2 * F6 + F2 * d6), (d1 * F6 + F1 * d6) - (d0 * F7 + F0 * d7),
+                              (d1 * F5 + F1 * d5) - (d2 * F4 + F2 * d4), (d2 * F3 + F2 * d3) - (d0 * F5 + F0 * d5),
+                              (d0 * F4 + F0 * d4) - (d1 * F3 + F1 * d3)};
+      const double J = F0 * cof[0] + F1 * cof[1] + F2 * cof[2];
+      double dJ = 0, I1 = 0, dI1 = 0;
+      for (int q = 0; q < 9; ++q) dJ += cof[q] * d[q], I1 += F[q] * F[q], dI1 += F[q] * d[q];
+      const double rJ = 1.0 / J, third = I1 * rJ / 3.0;
+      const double ds = -2.0 / 3.0 * s * dJ * rJ, dthird = (2.0 * dI1 / 3.0 - third * dJ) * rJ;
+      const double vol = half * (J - rJ), dvol = half * (1.0 + rJ * rJ) * dJ;
+      for (int q = 0; q < 9; ++q)
+        dP[q][i] = ds * (F[q] - third * cof[q]) + s * (d[q] - dthird * cof[q] - third * dcof[q]) + dvol * cof[q] +
+                   vol * dcof[q];
+    }
+    for (int w = 0; w < 3; ++w) {
+      if (m->alpha[w] == 0) continue;
+      const int a = (w + 1) % 3, b = (w + 2) % 3;
+      const double alpha = m->alpha[w] * M_SQRT1_2;
+      for (int k = 0; k < 2; ++k) {
+        const double sign = k == 0 ? 1.0 : -1.0;
+        for (int i = 0; i < n; ++i) {
+          double Fn[3], dFn[3];
+          for (int r = 0; r < 3; ++r)
+            Fn[r] = (Fs[(3 * r + a) * sn + i] + sign * Fs[(3 * r + b) * sn + i]) * M_SQRT1_2,
+            dFn[r] = (dF[3 * r + a][i] + sign * dF[3 * r + b][i]) * M_SQRT1_2;
+          const double stretch = Fn[0] * Fn[0] + Fn[1] * Fn[1] + Fn[2] * Fn[2] - 1.0;
+          const double dstretch = 2.0 * (Fn[0] * dFn[0] + Fn[1] * dFn[1] + Fn[2] * dFn[2]);
+          const double c = alpha * stretch, dc = alpha * dstretch;
+          for (int r = 0; r < 3; ++r) {
+            const double t = dc * Fn[r] + c * dFn[r];
+            dP[3 * r + a][i] += t, dP[3 * r + b][i] += sign * t;
+          }
+        }
+      }
+    }
+  } else {
+    for (int q = 0; q < 9; ++q) {
+      for (int i = 0; i < n; ++i) dP[q][i] = 0.0;
+      for (int p = 0; p < 9; ++p) {
+        const double* __restrict Dpq = D + static_cast<std::size_t>(9 * p + q) * n;
+        for (int i = 0; i < n; ++i) dP[q][i] = dP[q][i] + Dpq[i] * dF[p][i];
+      }
+    }
+  }
+  // Q = V0 dP g per column (in dP's place); corner c's row: s_x q0 + s_y q1 + s_z q2, cell_block_forces's sums
+  // with the opposite sign.
+  for (int r = 0; r < 3; ++r)
+    for (int i = 0; i < n; ++i) {
+      dP[3 * r][i] = -volume * dP[3 * r][i] * gx;
+      dP[3 * r + 1][i] = -volume * dP[3 * r + 1][i] * gy;
+      dP[3 * r + 2][i] = -volume * dP[3 * r + 2][i] * gz;
+    }
+  const double(&q)[9][kCellBlock] = dP;
+  if (rows) {
+    alignas(64) double at[3 * kCellBlock], next[3 * kCellBlock];
+    for (int r = 0; r < 4; ++r) {
+      const bool odd = r & 1;
+      const double z = (r >> 1) ? -1.0 : 1.0;
+      for (int i = 0; i < n; ++i)
+        for (int d = 0; d < 3; ++d) {
+          const double q0 = q[3 * d][i], q1 = q[3 * d + 1][i], q2 = z * q[3 * d + 2][i];
+          const double lo = q0 + q1, hi = q1 - q0;
+          at[3 * i + d] = (odd ? -hi : lo) + q2;
+          next[3 * i + d] = (odd ? -lo : hi) + q2;
+        }
+      const int s = base[0] + offset[2 * r];
+      const int touched = std::min(n + 1, owned - s);
+      double* __restrict fr = out + 3 * s;
+      for (int j = 3; j < 3 * touched; ++j) fr[j] += next[j - 3];
+      for (int j = 0; j < 3 * std::min(n, touched); ++j) fr[j] += at[j];
+    }
+    return;
+  }
+  for (int i = 0; i < n; ++i)
+    for (int r = 0; r < 3; ++r) {
+      const double q0 = q[3 * r][i], q1 = q[3 * r + 1][i], q2 = q[3 * r + 2][i];
+      const double lo = q0 + q1, hi = q1 - q0;
+      const double add[8] = {lo + q2, hi + q2, -hi + q2, -lo + q2, lo - q2, hi - q2, -hi - q2, -lo - q2};
+      for (int c = 0; c < 8; ++c)
+        if (base[i] + offset[c] < owned) out[3 * (base[i] + offset[c]) + r] += add[c];
+    }
+}
+
 class CellElasticity final : public Term {
 public:
   CellElasticity(const Scene& scene, const LocalModel& model) : m_(model) {
@@ -448,17 +629,8 @@ public:
       int corner[8];
       corners(k, corner);
       const Geometry& geo = geometry_[kinds_[kind_[k]].body];
-      double F[9];
-      gradient(x, corner, geo, F);
-      // dP/dF_kl, one direction at a time: D[kl][ij].
       double D[9][9];
-      for (int kl = 0; kl < 9; ++kl) {
-        Dual Fd[9], Pd[9];
-        for (int q = 0; q < 9; ++q) Fd[q] = Dual(F[q], q == kl ? 1.0 : 0.0);
-        // Inverted: the residual is NaN already.
-        if (!stress(Fd, kinds_[kind_[k]].moduli, fibres(k), fibre_count(k), Pd) || !add_history(Fd, k, Pd)) return 0;
-        for (int q = 0; q < 9; ++q) D[kl][q] = Pd[q].d;
-      }
+      if (!stress_tangent(k, x, D[0])) return 0;  // inverted: the residual is NaN already
       // Dg[kl][a][i] = sum_j D[kl][ij] g_a[j]
       double Dg[9][8][3];
       for (int kl = 0; kl < 9; ++kl)
@@ -480,6 +652,101 @@ public:
       }
     }
     return 0;
+  }
+
+  // The matrix-free product (cell_block_tangent), from a state per cell kept for a Newton iteration: plain cells
+  // in blocks (no fibres, no history running) F and mu J^(-2/3), 80 B a cell, the derivative of the stress along
+  // dF in closed form on every product; otherwise dP/dF from the dual numbers, 648 B a cell (add_tangent's blocks:
+  // 27 a molecule, 1,944 B). The state goes by the force's blocks, the block's cells as vector lanes (cell k of
+  // the block from `first` with n cells at w first + c n + k - first, w values a cell); without blocks (fibres)
+  // one cell at a time.
+  bool has_tangent_state() const override { return true; }
+  bool tangent_state_fast() const override { return state_width() == 10; }
+  // state[0]: the width w it was made with (a history may start between the state and a product: begin_step).
+  std::size_t tangent_state_size() const override { return 1 + state_width() * static_cast<std::size_t>(cells_); }
+  void tangent_state(const double* x, double* state_with_width) const override {
+    const int w = state_width();
+    state_with_width[0] = w;
+    double* state = state_with_width + 1;
+    for_each_state_block([&](int first, int n) {
+      double* block = state + w * static_cast<std::size_t>(first);
+      for (int i = 0; i < n; ++i) {
+        const int k = first + i;
+        double D[81];
+        if (w == 10) {
+          int corner[8];
+          corners(k, corner);
+          gradient(x, corner, geometry_[kinds_[kind_[k]].body], D);
+          const double J = D[0] * (D[4] * D[8] - D[5] * D[7]) - D[1] * (D[3] * D[8] - D[5] * D[6]) +
+                           D[2] * (D[3] * D[7] - D[4] * D[6]);
+          D[9] = kinds_[kind_[k]].moduli.mu * std::pow(J, -2.0 / 3.0);  // stress()'s
+          // Inverted: the residual is NaN already; F = I and no isochoric part keep the product finite.
+          if (!(J > 0)) std::fill(D, D + 10, 0.0), D[0] = D[4] = D[8] = 1.0;
+        } else if (!stress_tangent(k, x, D)) {
+          std::fill(D, D + 81, 0.0);  // inverted (as above)
+        }
+        for (int c = 0; c < w; ++c) block[static_cast<std::size_t>(c) * n + i] = D[c];
+      }
+    });
+  }
+  void apply_tangent_state(const double* state_with_width, const double* u, double* out) const override {
+    const int w = static_cast<int>(state_with_width[0]);
+    const double* state = state_with_width + 1;
+    if (!blocks_.empty()) {
+      for (const Block& b : blocks_) {
+        const Kind& kind = kinds_[kind_[b.first]];
+        const Geometry& geo = geometry_[kind.body];
+        const double g[3] = {geo.g[1][0], geo.g[2][1], geo.g[4][2]};
+        cell_block_tangent(b.n, base_.data() + b.first, patterns_[pattern_[b.first]].data(), b.rows, u,
+                           state + w * static_cast<std::size_t>(b.first), w == 10 ? &kind.moduli : nullptr,
+                           geo.volume, g, m_.owned, out);
+      }
+      return;
+    }
+    for (int k = 0; k < cells_; ++k) {
+      const Geometry& geo = geometry_[kinds_[kind_[k]].body];
+      const double g[3] = {geo.g[1][0], geo.g[2][1], geo.g[4][2]};
+      cell_block_tangent(1, base_.data() + k, patterns_[pattern_[k]].data(), false, u,
+                         state + 81 * static_cast<std::size_t>(k), nullptr, geo.volume, g, m_.owned, out);
+    }
+  }
+  void add_tangent_state_diagonal(const double* state_with_width, double* diag) const override {
+    const int w = static_cast<int>(state_with_width[0]);
+    const double* state = state_with_width + 1;
+    for_each_state_block([&](int first, int n) {
+      const double* block = state + w * static_cast<std::size_t>(first);
+      for (int k = first; k < first + n; ++k) {
+        int corner[8];
+        corners(k, corner);
+        const Geometry& geo = geometry_[kinds_[kind_[k]].body];
+        double D[81];
+        if (w == 10) {
+          // dP/dF from the closed form, one direction at a time (once per Newton iteration, not per product).
+          double F[9];
+          for (int c = 0; c < 9; ++c) F[c] = block[static_cast<std::size_t>(c) * n + (k - first)];
+          const double scale = block[static_cast<std::size_t>(9) * n + (k - first)];
+          for (int p = 0; p < 9; ++p) {
+            double d[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
+            d[p] = 1.0;
+            plain_stress_direction(F, scale, kinds_[kind_[k]].moduli, d, D + 9 * p);
+          }
+        } else {
+          for (int c = 0; c < 81; ++c) D[c] = block[static_cast<std::size_t>(c) * n + (k - first)];
+        }
+        for (int a = 0; a < 8; ++a) {
+          if (corner[a] >= m_.owned) continue;
+          const double* g = geo.g[a];
+          for (int i = 0; i < 3; ++i) {
+            // K_aa[i][i] = V0 sum_jl dP_ij/dF_il g_a[j] g_a[l]
+            double K = 0;
+            for (int l = 0; l < 3; ++l)
+              K += (D[9 * (3 * i + l) + 3 * i] * g[0] + D[9 * (3 * i + l) + 3 * i + 1] * g[1] +
+                    D[9 * (3 * i + l) + 3 * i + 2] * g[2]) * g[l];
+            diag[3 * corner[a] + i] += geo.volume * K;
+          }
+        }
+      }
+    });
   }
 
   void add_couplings(std::vector<std::vector<int>>& extra) const override {
@@ -699,6 +966,18 @@ private:
     }
   }
 
+  // The tangent state's values a cell: F and mu J^(-2/3) for plain cells in blocks, else dP/dF.
+  int state_width() const { return !blocks_.empty() && plain() ? 10 : 81; }
+
+  // The tangent state's blocks (first cell, cells): the force's blocks, or one cell each without them (fibres).
+  template <class Visit>
+  void for_each_state_block(Visit visit) const {
+    if (!blocks_.empty())
+      for (const Block& b : blocks_) visit(b.first, b.n);
+    else
+      for (int k = 0; k < cells_; ++k) visit(k, 1);
+  }
+
   // Without fibres and a running history the cells go in blocks (cell_block_forces).
   bool plain() const { return fibre_begin_.empty() && (history_.empty() || !active_); }
 
@@ -747,6 +1026,22 @@ private:
     }
     cell_block_forces(b.n, base_.data() + k, patterns_[pattern_[k]].data(), b.rows, computed ? &rest : nullptr, x,
                       m_.rest.data(), kind.moduli, geo.volume, g, m_.owned, f);
+  }
+
+  // Cell k's dP/dF at x, D[9 kl + ij] = dP_ij / dF_kl, one direction kl at a time (dual numbers through stress()
+  // and the history); false when the cell is inverted.
+  bool stress_tangent(int k, const double* x, double* D) const {
+    int corner[8];
+    corners(k, corner);
+    double F[9];
+    gradient(x, corner, geometry_[kinds_[kind_[k]].body], F);
+    for (int kl = 0; kl < 9; ++kl) {
+      Dual Fd[9], Pd[9];
+      for (int q = 0; q < 9; ++q) Fd[q] = Dual(F[q], q == kl ? 1.0 : 0.0);
+      if (!stress(Fd, kinds_[kind_[k]].moduli, fibres(k), fibre_count(k), Pd) || !add_history(Fd, k, Pd)) return false;
+      for (int q = 0; q < 9; ++q) D[9 * kl + q] = Pd[q].d;
+    }
+    return true;
   }
 
   // Cell k's row of a checkpoint: its committed S, then h per Prony term.

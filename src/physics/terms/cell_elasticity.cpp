@@ -56,6 +56,17 @@ bool cell_pk2(const T F[9], const Moduli& m, const Fibre* fibres, int nfibres, T
 #define TISSUE_CELL_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
 constexpr int kCellBlock = 64;
 
+// One cell's one-point gradient row along component d from its eight corners' values u[c] (corner c's offsets
+// along x, y, z are bits 0, 1, 2 of c): the three entries F[3d + 0..2] = the axis differences x g. Inlined into
+// every clone of the kernels below, so each keeps its own vector width.
+__attribute__((always_inline)) inline void corner_gradient(double u0, double u1, double u2, double u3, double u4,
+                                                           double u5, double u6, double u7, double gx, double gy,
+                                                           double gz, double& a, double& b, double& c) {
+  a = ((u1 - u0) + (u3 - u2) + (u5 - u4) + (u7 - u6)) * gx;
+  b = ((u2 - u0) + (u3 - u1) + (u6 - u4) + (u7 - u5)) * gy;
+  c = ((u4 - u0) + (u5 - u1) + (u6 - u2) + (u7 - u3)) * gz;
+}
+
 // The forces of n <= kCellBlock cells of one moduli (no fibres, no history) and one corner pattern (cell i's
 // corner c is base[i] + offset[c]), added to their owned corners: CellElasticity::cell_forces's arithmetic,
 // operation for operation (stress() for plain moduli, with the same order of sums), with the cells as the
@@ -116,9 +127,7 @@ void cell_block_forces(int n, const int* __restrict base, const int* __restrict 
         const int a = 3 * i + d, b = 3 * (i + 1) + d;
         const double u0 = ur[0][a], u1 = ur[0][b], u2 = ur[1][a], u3 = ur[1][b], u4 = ur[2][a], u5 = ur[2][b],
                      u6 = ur[3][a], u7 = ur[3][b];
-        F[3 * d][i] = ((u1 - u0) + (u3 - u2) + (u5 - u4) + (u7 - u6)) * gx;
-        F[3 * d + 1][i] = ((u2 - u0) + (u3 - u1) + (u6 - u4) + (u7 - u5)) * gy;
-        F[3 * d + 2][i] = ((u4 - u0) + (u5 - u1) + (u6 - u2) + (u7 - u3)) * gz;
+        corner_gradient(u0, u1, u2, u3, u4, u5, u6, u7, gx, gy, gz, F[3 * d][i], F[3 * d + 1][i], F[3 * d + 2][i]);
       }
   } else {
     for (int d = 0; d < 3; ++d)
@@ -128,9 +137,8 @@ void cell_block_forces(int n, const int* __restrict base, const int* __restrict 
           const int j = 3 * (base[i] + offset[c]) + d;
           u[c] = x[j] - X[j];
         }
-        F[3 * d][i] = ((u[1] - u[0]) + (u[3] - u[2]) + (u[5] - u[4]) + (u[7] - u[6])) * gx;
-        F[3 * d + 1][i] = ((u[2] - u[0]) + (u[3] - u[1]) + (u[6] - u[4]) + (u[7] - u[5])) * gy;
-        F[3 * d + 2][i] = ((u[4] - u[0]) + (u[5] - u[1]) + (u[6] - u[2]) + (u[7] - u[3])) * gz;
+        corner_gradient(u[0], u[1], u[2], u[3], u[4], u[5], u[6], u[7], gx, gy, gz, F[3 * d][i], F[3 * d + 1][i],
+                        F[3 * d + 2][i]);
       }
   }
   for (int i = 0; i < n; ++i) F[0][i] += 1.0, F[4][i] += 1.0, F[8][i] += 1.0;
@@ -294,18 +302,15 @@ void cell_block_tangent(int n, const int* __restrict base, const int* __restrict
         const int a = 3 * i + d, b = 3 * (i + 1) + d;
         const double u0 = ur[0][a], u1 = ur[0][b], u2 = ur[1][a], u3 = ur[1][b], u4 = ur[2][a], u5 = ur[2][b],
                      u6 = ur[3][a], u7 = ur[3][b];
-        dF[3 * d][i] = ((u1 - u0) + (u3 - u2) + (u5 - u4) + (u7 - u6)) * gx;
-        dF[3 * d + 1][i] = ((u2 - u0) + (u3 - u1) + (u6 - u4) + (u7 - u5)) * gy;
-        dF[3 * d + 2][i] = ((u4 - u0) + (u5 - u1) + (u6 - u2) + (u7 - u3)) * gz;
+        corner_gradient(u0, u1, u2, u3, u4, u5, u6, u7, gx, gy, gz, dF[3 * d][i], dF[3 * d + 1][i], dF[3 * d + 2][i]);
       }
   } else {
     for (int d = 0; d < 3; ++d)
       for (int i = 0; i < n; ++i) {
         double v[8];
         for (int c = 0; c < 8; ++c) v[c] = u[3 * (base[i] + offset[c]) + d];
-        dF[3 * d][i] = ((v[1] - v[0]) + (v[3] - v[2]) + (v[5] - v[4]) + (v[7] - v[6])) * gx;
-        dF[3 * d + 1][i] = ((v[2] - v[0]) + (v[3] - v[1]) + (v[6] - v[4]) + (v[7] - v[5])) * gy;
-        dF[3 * d + 2][i] = ((v[4] - v[0]) + (v[5] - v[1]) + (v[6] - v[2]) + (v[7] - v[3])) * gz;
+        corner_gradient(v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], gx, gy, gz, dF[3 * d][i], dF[3 * d + 1][i],
+                        dF[3 * d + 2][i]);
       }
   }
   if (m) {

@@ -67,6 +67,45 @@ __attribute__((always_inline)) inline void corner_gradient(double u0, double u1,
   c = ((u4 - u0) + (u5 - u1) + (u6 - u2) + (u7 - u3)) * gz;
 }
 
+// Cell i's corner sums of q (per component r, q[3r + 0..2]: the x, y, z columns of V0 P g, with the caller's
+// sign), added to its owned corners c (corner c's offsets along x, y, z are bits 0, 1, 2 of c), in order.
+__attribute__((always_inline)) inline void add_cell_corners(const double (&q)[9][kCellBlock], int i,
+                                                            const int* __restrict base, const int* __restrict offset,
+                                                            int owned, double* __restrict f) {
+  for (int r = 0; r < 3; ++r) {
+    const double q0 = q[3 * r][i], q1 = q[3 * r + 1][i], q2 = q[3 * r + 2][i];
+    const double lo = q0 + q1, hi = q1 - q0;
+    const double add[8] = {lo + q2, hi + q2, -hi + q2, -lo + q2, lo - q2, hi - q2, -hi - q2, -lo - q2};
+    for (int c = 0; c < 8; ++c)
+      if (base[i] + offset[c] < owned) f[3 * (base[i] + offset[c]) + r] += add[c];
+  }
+}
+
+// The same for n cells in a row (the kernels' row layout: row r holds the cells' corners 2r (cell i's at molecule
+// i) and 2r + 1 (at molecule i + 1)): their forces interleaved as f, one row at a time, corner 2r + 1 first, so each
+// molecule sums its cells in increasing order (the same sums as add_cell_corners; a - b is a + (-b)).
+__attribute__((always_inline)) inline void add_row_corners(const double (&q)[9][kCellBlock], int n,
+                                                           const int* __restrict base, const int* __restrict offset,
+                                                           int owned, double* __restrict f) {
+  alignas(64) double at[3 * kCellBlock], next[3 * kCellBlock];
+  for (int r = 0; r < 4; ++r) {
+    const bool odd = r & 1;
+    const double z = (r >> 1) ? -1.0 : 1.0;
+    for (int i = 0; i < n; ++i)
+      for (int d = 0; d < 3; ++d) {
+        const double q0 = q[3 * d][i], q1 = q[3 * d + 1][i], q2 = z * q[3 * d + 2][i];
+        const double lo = q0 + q1, hi = q1 - q0;
+        at[3 * i + d] = (odd ? -hi : lo) + q2;
+        next[3 * i + d] = (odd ? -lo : hi) + q2;
+      }
+    const int s = base[0] + offset[2 * r];
+    const int touched = std::min(n + 1, owned - s);  // the row's owned molecules: s .. s + touched - 1
+    double* __restrict fr = f + 3 * s;
+    for (int j = 3; j < 3 * touched; ++j) fr[j] += next[j - 3];
+    for (int j = 0; j < 3 * std::min(n, touched); ++j) fr[j] += at[j];
+  }
+}
+
 // The forces of n <= kCellBlock cells of one moduli (no fibres, no history) and one corner pattern (cell i's
 // corner c is base[i] + offset[c]), added to their owned corners: CellElasticity::cell_forces's arithmetic,
 // operation for operation (stress() for plain moduli, with the same order of sums), with the cells as the
@@ -196,25 +235,7 @@ void cell_block_forces(int n, const int* __restrict base, const int* __restrict 
   bool inverted = false;
   for (int i = 0; i < n; ++i) inverted |= !(J[i] > 0);
   if (rows && !inverted) {
-    // Row r holds the cells' corners 2r (cell i's at molecule i) and 2r + 1 (at molecule i + 1): their forces,
-    // interleaved as f, one row at a time (the same sums as the general loop's add[8]; a - b is a + (-b)).
-    alignas(64) double at[3 * kCellBlock], next[3 * kCellBlock];
-    for (int r = 0; r < 4; ++r) {
-      const bool odd = r & 1;
-      const double z = (r >> 1) ? -1.0 : 1.0;
-      for (int i = 0; i < n; ++i)
-        for (int d = 0; d < 3; ++d) {
-          const double q0 = q[3 * d][i], q1 = q[3 * d + 1][i], q2 = z * q[3 * d + 2][i];
-          const double lo = q0 + q1, hi = q1 - q0;
-          at[3 * i + d] = (odd ? -hi : lo) + q2;
-          next[3 * i + d] = (odd ? -lo : hi) + q2;
-        }
-      const int s = base[0] + offset[2 * r];
-      const int touched = std::min(n + 1, owned - s);  // the row's owned molecules: s .. s + touched - 1
-      double* __restrict fr = f + 3 * s;
-      for (int j = 3; j < 3 * touched; ++j) fr[j] += next[j - 3];
-      for (int j = 0; j < 3 * std::min(n, touched); ++j) fr[j] += at[j];
-    }
+    add_row_corners(q, n, base, offset, owned, f);
     return;
   }
   for (int i = 0; i < n; ++i) {
@@ -225,13 +246,7 @@ void cell_block_forces(int n, const int* __restrict base, const int* __restrict 
           for (int r = 0; r < 3; ++r) f[3 * (base[i] + offset[c]) + r] = std::numeric_limits<double>::quiet_NaN();
       continue;
     }
-    for (int r = 0; r < 3; ++r) {
-      const double q0 = q[3 * r][i], q1 = q[3 * r + 1][i], q2 = q[3 * r + 2][i];
-      const double lo = q0 + q1, hi = q1 - q0;
-      const double add[8] = {lo + q2, hi + q2, -hi + q2, -lo + q2, lo - q2, hi - q2, -hi - q2, -lo - q2};
-      for (int c = 0; c < 8; ++c)
-        if (base[i] + offset[c] < owned) f[3 * (base[i] + offset[c]) + r] += add[c];
-    }
+    add_cell_corners(q, i, base, offset, owned, f);
   }
 }
 
@@ -384,33 +399,10 @@ void cell_block_tangent(int n, const int* __restrict base, const int* __restrict
     }
   const double(&q)[9][kCellBlock] = dP;
   if (rows) {
-    alignas(64) double at[3 * kCellBlock], next[3 * kCellBlock];
-    for (int r = 0; r < 4; ++r) {
-      const bool odd = r & 1;
-      const double z = (r >> 1) ? -1.0 : 1.0;
-      for (int i = 0; i < n; ++i)
-        for (int d = 0; d < 3; ++d) {
-          const double q0 = q[3 * d][i], q1 = q[3 * d + 1][i], q2 = z * q[3 * d + 2][i];
-          const double lo = q0 + q1, hi = q1 - q0;
-          at[3 * i + d] = (odd ? -hi : lo) + q2;
-          next[3 * i + d] = (odd ? -lo : hi) + q2;
-        }
-      const int s = base[0] + offset[2 * r];
-      const int touched = std::min(n + 1, owned - s);
-      double* __restrict fr = out + 3 * s;
-      for (int j = 3; j < 3 * touched; ++j) fr[j] += next[j - 3];
-      for (int j = 0; j < 3 * std::min(n, touched); ++j) fr[j] += at[j];
-    }
+    add_row_corners(q, n, base, offset, owned, out);
     return;
   }
-  for (int i = 0; i < n; ++i)
-    for (int r = 0; r < 3; ++r) {
-      const double q0 = q[3 * r][i], q1 = q[3 * r + 1][i], q2 = q[3 * r + 2][i];
-      const double lo = q0 + q1, hi = q1 - q0;
-      const double add[8] = {lo + q2, hi + q2, -hi + q2, -lo + q2, lo - q2, hi - q2, -hi - q2, -lo - q2};
-      for (int c = 0; c < 8; ++c)
-        if (base[i] + offset[c] < owned) out[3 * (base[i] + offset[c]) + r] += add[c];
-    }
+  for (int i = 0; i < n; ++i) add_cell_corners(q, i, base, offset, owned, out);
 }
 
 class CellElasticity final : public Term {

@@ -350,19 +350,7 @@ steps = 300
 )";
 // Large enough that the fused steps' forces go through the spring kernel's ring (SpringKernel::forces_ring): a
 // window of about three planes' rows against 15,360 molecules.
-const char* springs_only_ring = R"(
-title = "springs only, forces in a ring"
-[body]
-molecules = [24, 16, 40]
-spacing = [0.1, 0.1, 0.1]
-topology = "face-diagonals"
-youngs_modulus = 1.0e4
-density = 1000.0
-[solver]
-kind = "dynamic"
-time_step = 2e-5
-steps = 300
-)";
+const char* ring_molecules = "body.molecules=[24, 16, 40]";
 void perturb(RunResult& r) {
   double* x = r.state->x.array();
   for (int i = 0; i < r.model.local; ++i)
@@ -408,8 +396,9 @@ TEST(Physics, FusedStepEqualsSeparatePassesBitForBit) {
 // late or zeroed too early changes the bits) against the separate passes, guards on: equal bits at every rank
 // count; on one rank the ring is in use.
 TEST(Physics, FusedStepInARingEqualsSeparatePassesBitForBit) {
-  auto fused = run(springs_only_ring, PETSC_COMM_WORLD, {}, true, perturb);
-  auto separate = run(springs_only_ring, PETSC_COMM_WORLD, {"physics.gravity=[0.0, 0.0, 0.0]"}, true, perturb);
+  auto fused = run(springs_only, PETSC_COMM_WORLD, {ring_molecules}, true, perturb);
+  auto separate =
+      run(springs_only, PETSC_COMM_WORLD, {ring_molecules, "physics.gravity=[0.0, 0.0, 0.0]"}, true, perturb);
   ASSERT_TRUE(fused->forces->springs_only());
   int size = 1;
   MPI_Comm_size(PETSC_COMM_WORLD, &size);

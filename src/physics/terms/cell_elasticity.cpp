@@ -67,6 +67,19 @@ __attribute__((always_inline)) inline void corner_gradient(double u0, double u1,
   c = ((u4 - u0) + (u5 - u1) + (u6 - u2) + (u7 - u3)) * gz;
 }
 
+// The gradients of n cells in a row from their four corner rows' values (row r: corners 2r and 2r + 1 of cell i
+// at molecules i and i + 1, interleaved as x): F[3d + 0..2][i] for each component d.
+__attribute__((always_inline)) inline void row_gradient(const double* r0, const double* r1, const double* r2,
+                                                        const double* r3, int n, double gx, double gy, double gz,
+                                                        double (&F)[9][kCellBlock]) {
+  for (int d = 0; d < 3; ++d)
+    for (int i = 0; i < n; ++i) {
+      const int a = 3 * i + d, b = 3 * (i + 1) + d;
+      corner_gradient(r0[a], r0[b], r1[a], r1[b], r2[a], r2[b], r3[a], r3[b], gx, gy, gz, F[3 * d][i], F[3 * d + 1][i],
+                      F[3 * d + 2][i]);
+    }
+}
+
 // Cell i's corner sums of q (per component r, q[3r + 0..2]: the x, y, z columns of V0 P g, with the caller's
 // sign), added to its owned corners c (corner c's offsets along x, y, z are bits 0, 1, 2 of c), in order.
 __attribute__((always_inline)) inline void add_cell_corners(const double (&q)[9][kCellBlock], int i,
@@ -161,13 +174,7 @@ void cell_block_forces(int n, const int* __restrict base, const int* __restrict 
         for (int j = 0; j < 3 * (n + 1); ++j) ur[r][j] = x[s + j] - X[s + j];
       }
     }
-    for (int d = 0; d < 3; ++d)
-      for (int i = 0; i < n; ++i) {
-        const int a = 3 * i + d, b = 3 * (i + 1) + d;
-        const double u0 = ur[0][a], u1 = ur[0][b], u2 = ur[1][a], u3 = ur[1][b], u4 = ur[2][a], u5 = ur[2][b],
-                     u6 = ur[3][a], u7 = ur[3][b];
-        corner_gradient(u0, u1, u2, u3, u4, u5, u6, u7, gx, gy, gz, F[3 * d][i], F[3 * d + 1][i], F[3 * d + 2][i]);
-      }
+    row_gradient(ur[0], ur[1], ur[2], ur[3], n, gx, gy, gz, F);
   } else {
     for (int d = 0; d < 3; ++d)
       for (int i = 0; i < n; ++i) {
@@ -312,13 +319,7 @@ void cell_block_tangent(int n, const int* __restrict base, const int* __restrict
   if (rows) {
     const double* ur[4];
     for (int r = 0; r < 4; ++r) ur[r] = u + 3 * (base[0] + offset[2 * r]);
-    for (int d = 0; d < 3; ++d)
-      for (int i = 0; i < n; ++i) {
-        const int a = 3 * i + d, b = 3 * (i + 1) + d;
-        const double u0 = ur[0][a], u1 = ur[0][b], u2 = ur[1][a], u3 = ur[1][b], u4 = ur[2][a], u5 = ur[2][b],
-                     u6 = ur[3][a], u7 = ur[3][b];
-        corner_gradient(u0, u1, u2, u3, u4, u5, u6, u7, gx, gy, gz, dF[3 * d][i], dF[3 * d + 1][i], dF[3 * d + 2][i]);
-      }
+    row_gradient(ur[0], ur[1], ur[2], ur[3], n, gx, gy, gz, dF);
   } else {
     for (int d = 0; d < 3; ++d)
       for (int i = 0; i < n; ++i) {

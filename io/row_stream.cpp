@@ -375,7 +375,8 @@ RowStream::ReadCheck RowStream::read(const Hdf5File& file, const std::string& da
     part.resize(static_cast<std::size_t>(length) * width);
     // The injected failure first, agreed on its own: a rank that threw there would never reach the collective read.
     if (fault_stage) agree(comm_, [&] { fault_point(fault_stage, comm_); });
-    agree(comm_, [&] { file.read_rows(dataset, first, length, width, part.data()); });
+    const std::int64_t from = first;  // a lambda may not capture a structured binding before C++20 (clang)
+    agree(comm_, [&] { file.read_rows(dataset, from, length, width, part.data()); });
     hash += row_hash_sum(part.data(), width, length, first);
     if constexpr (std::is_same_v<T, double>)
       for (double v : part) bad |= !std::isfinite(v);

@@ -15,7 +15,8 @@
 #include <unistd.h>  // defines __GLIBC__ on glibc
 
 #include <cstring>
-#include <initializer_list>
+
+#include "src/huge_pages.hpp"
 
 #if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
 #define TISSUE_HUGE_PAGES_REEXEC 1
@@ -39,9 +40,7 @@
 
 namespace {
 
-// Runs before libc's own initializer: no environ, no stdio, no malloc; the arguments and plain system calls only.
-bool starts_with(const char* s, const char* prefix) { return std::strncmp(s, prefix, std::strlen(prefix)) == 0; }
-
+// "[madvise]" in the kernel's THP mode: huge pages are granted where a mapping asks for them.
 bool huge_pages_on_request() {
   const int fd = ::open("/sys/kernel/mm/transparent_hugepage/enabled", O_RDONLY | O_CLOEXEC);
   if (fd < 0) return false;
@@ -53,45 +52,19 @@ bool huge_pages_on_request() {
   return std::strstr(text, "[madvise]") != nullptr;
 }
 
-bool opted_out(const char* value) {
-  for (const char* off : {"off", "0", "no", "false"})
-    if (std::strcmp(value, off) == 0) return true;
-  return false;
-}
-
 void reexecute_with_huge_pages(int argc, char** argv, char** envp) {
-  if (argc < 2 || argv == nullptr || envp == nullptr) return;
-  const char* command = argv[1];
-  if (std::strcmp(command, "run") != 0 && std::strcmp(command, "restart") != 0 && std::strcmp(command, "fit") != 0)
-    return;
-  const char* tunables = nullptr;
-  std::size_t count = 0;
-  for (; envp[count] != nullptr; ++count) {
-    const char* e = envp[count];
-    if (starts_with(e, "TISSUE_HUGE_PAGES=") && opted_out(e + std::strlen("TISSUE_HUGE_PAGES="))) return;
-    if (starts_with(e, "GLIBC_TUNABLES=")) tunables = e + std::strlen("GLIBC_TUNABLES=");
-    if (starts_with(e, "LD_PRELOAD=") && std::strstr(e, "vgpreload") != nullptr) return;  // valgrind
-  }
-  // Already set: the user's own choice, or this is the re-executed image.
-  if (tunables != nullptr && std::strstr(tunables, "glibc.malloc.hugetlb") != nullptr) return;
-  if (RUNNING_ON_VALGRIND) return;
-  if (!huge_pages_on_request()) return;
-
   static char entry[4096];
-  const char* add = "glibc.malloc.hugetlb=1";
-  const std::size_t old_length = tunables != nullptr ? std::strlen(tunables) : 0;
-  if (std::strlen("GLIBC_TUNABLES=") + old_length + 1 + std::strlen(add) + 1 > sizeof entry) return;
-  std::strcpy(entry, "GLIBC_TUNABLES=");
-  if (tunables != nullptr && old_length > 0) {
-    std::strcat(entry, tunables);
-    std::strcat(entry, ":");
-  }
-  std::strcat(entry, add);
-
+  // Cheap checks first: the kernel's mode is a file read.
+  if (!tissue::huge_pages_entry(argc, argv, envp, /*granted_on_request=*/true, RUNNING_ON_VALGRIND != 0, entry,
+                                sizeof entry))
+    return;
+  if (!huge_pages_on_request()) return;
+  std::size_t count = 0;
+  while (envp[count] != nullptr) ++count;
   char** env = static_cast<char**>(alloca((count + 2) * sizeof(char*)));
   std::size_t k = 0;
   for (std::size_t i = 0; i < count; ++i)
-    if (!starts_with(envp[i], "GLIBC_TUNABLES=")) env[k++] = envp[i];
+    if (std::strncmp(envp[i], "GLIBC_TUNABLES=", 15) != 0) env[k++] = envp[i];
   env[k++] = entry;
   env[k] = nullptr;
   ::execve("/proc/self/exe", argv, env);

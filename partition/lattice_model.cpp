@@ -313,10 +313,17 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
     recent[forward] = {bits, static_cast<int>(it->second)};
     return it->second;
   };
-  // Two walks: the first counts, so the arrays are allocated once at their size (no doubling at the peak).
+  // The arrays are reserved once for every local molecule's forward connections (no doubling at the peak): a
+  // bound, not the count (a ghost's connections to other ghosts are not kept), counted from the stencil alone,
+  // without the owner searches of the walk; the pages of the unused rest are never touched.
   std::size_t count = 0;
+  for (int i = 0; i < m.local; ++i) {
+    const std::int64_t a = ids[i];
+    neighbours(a);
+    for (const auto& x : nb) count += x.id > a;
+  }
   std::vector<int> end_a, end_b;
-  auto walk = [&](bool emit) {
+  auto walk = [&]() {
     long owned_before = 0;  // owned molecules with ids below a: where a sits among them
     for (int i : order) {
       const std::int64_t a = ids[i];
@@ -331,10 +338,6 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
         const int forward = rank_of_b++;
         const long owned_j = owned_index(x.id, near);
         if (!a_owned && owned_j < 0) continue;
-        if (!emit) {
-          ++count;
-          continue;
-        }
         const int j = static_cast<int>(owned_j >= 0 ? owned_j : m.owned + find_sorted(ghosts, x.id));
         end_a.push_back(i), end_b.push_back(j);
         m.connection_class.push_back(x.cls);
@@ -353,11 +356,10 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
       }
     }
   };
-  walk(false);
   end_a.reserve(count), end_b.reserve(count);
   m.connection_class.reserve(count), length_types.reserve(count);
   if (any_tetrahedra) inputs.tetra_volume.reserve(count), inputs.tetra_lloyd_sum.reserve(count);
-  walk(true);
+  walk();
   m.end_a.assign(std::move(end_a)), m.end_b.assign(std::move(end_b));
   // Before the per-connection k (8 B a connection, set below) joins them at the set-up peak.
   if (ends_as_runs(scene)) ConnectionEnd::to_runs(m.end_a, m.end_b);

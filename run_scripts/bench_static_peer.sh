@@ -21,6 +21,8 @@
 # default 2), FIRE_N, FIRE_RANKS, VV_N ("" skips that comparison), REPEAT (pairs per comparison, default 2), WORK,
 # CSV, TOL (default 1e-8), OPERATOR (solver.operator of ours: "" = not given, the default: matrix-free on this
 # springs-only lattice since branch setup18, assembled before; or assembled, matrix-free).
+# Huge pages: ours puts malloc on transparent huge pages by itself (src/huge_pages.cpp, since branch static18g);
+# TISSUE_HUGE_PAGES=off in the environment measures it without. A GLIBC_TUNABLES exported here reaches both codes.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 

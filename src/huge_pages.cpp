@@ -1,0 +1,80 @@
+//                  tissue: transparent huge pages for malloc, without an environment variable
+//
+// The set-up of a large sample first-touches gigabytes: on a 4 kB page that is one page fault each, and on a
+// virtual machine a fault is microseconds. glibc (2.35 and later) madvises its large allocations for
+// transparent huge pages when the tunable glibc.malloc.hugetlb=1 is set, which it reads only at start-up. So the
+// program re-executes itself once with the tunable added, before any library initializer has run (a
+// .preinit_array function runs before the shared libraries' initializers: the second start costs only the
+// dynamic loader's work). Only for the commands that compute (run, restart, fit), only where the kernel gives huge
+// pages on request ("[madvise]" in /sys/kernel/mm/transparent_hugepage/enabled: "always" needs no request,
+// "never" grants none), never under valgrind (the new image would run outside it) or a sanitizer (it owns
+// malloc). Results do not depend on where memory lies. Opt-out: TISSUE_HUGE_PAGES=off (README).
+
+#include <alloca.h>
+#include <fcntl.h>
+#include <unistd.h>  // defines __GLIBC__ on glibc
+
+#include <cstring>
+
+#include "src/huge_pages.hpp"
+
+#if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 35))
+#define TISSUE_HUGE_PAGES_REEXEC 1
+#endif
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#undef TISSUE_HUGE_PAGES_REEXEC
+#endif
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer) || __has_feature(memory_sanitizer)
+#undef TISSUE_HUGE_PAGES_REEXEC
+#endif
+#endif
+
+#ifdef TISSUE_HUGE_PAGES_REEXEC
+
+#if __has_include(<valgrind/valgrind.h>)
+#include <valgrind/valgrind.h>
+#else
+#define RUNNING_ON_VALGRIND 0
+#endif
+
+namespace {
+
+// "[madvise]" in the kernel's THP mode: huge pages are granted where a mapping asks for them.
+bool huge_pages_on_request() {
+  const int fd = ::open("/sys/kernel/mm/transparent_hugepage/enabled", O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return false;
+  char text[128];
+  const ssize_t n = ::read(fd, text, sizeof text - 1);
+  ::close(fd);
+  if (n <= 0) return false;
+  text[n] = '\0';
+  return std::strstr(text, "[madvise]") != nullptr;
+}
+
+void reexecute_with_huge_pages(int argc, char** argv, char** envp) {
+  static char entry[4096];
+  // Cheap checks first: the kernel's mode is a file read.
+  if (!tissue::huge_pages_entry(argc, argv, envp, /*granted_on_request=*/true, RUNNING_ON_VALGRIND != 0, entry,
+                                sizeof entry))
+    return;
+  if (!huge_pages_on_request()) return;
+  std::size_t count = 0;
+  while (envp[count] != nullptr) ++count;
+  char** env = static_cast<char**>(alloca((count + 2) * sizeof(char*)));
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < count; ++i)
+    if (std::strncmp(envp[i], "GLIBC_TUNABLES=", 15) != 0) env[k++] = envp[i];
+  env[k++] = entry;
+  env[k] = nullptr;
+  ::execve("/proc/self/exe", argv, env);
+  // The re-execution failed (no /proc, say): carry on as started, on 4 kB pages.
+}
+
+}  // namespace
+
+// glibc calls the executable's .preinit_array functions with (argc, argv, envp) before any initializer.
+__attribute__((section(".preinit_array"), used)) static void (*const tissue_huge_pages)(int, char**, char**) =
+    reexecute_with_huge_pages;
+
+#endif

@@ -1,0 +1,155 @@
+// src/huge_pages.hpp: when `tissue` re-executes itself with glibc's huge pages for malloc, and with what
+// environment entry (the expected strings written out here); and, end to end, that the program's running image
+// carries the tunable by default and not with the opt-out (its /proc/PID/environ, read while it waits on its scene).
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <mpi.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "src/huge_pages.hpp"
+
+namespace {
+
+// argv and envp as the loader passes them: null-terminated arrays of C strings.
+struct Args {
+  std::vector<std::string> text;
+  std::vector<char*> ptrs;
+  explicit Args(std::vector<std::string> t) : text(std::move(t)) {
+    for (auto& s : text) ptrs.push_back(s.data());
+    ptrs.push_back(nullptr);
+  }
+  char* const* get() { return ptrs.data(); }
+  int count() const { return static_cast<int>(text.size()); }
+};
+
+std::string entry_for(std::vector<std::string> argv, std::vector<std::string> env, bool granted = true,
+                      bool valgrind = false, std::size_t size = 4096) {
+  Args a(std::move(argv)), e(std::move(env));
+  std::vector<char> entry(size + 1, '\0');
+  if (!tissue::huge_pages_entry(a.count(), a.get(), e.get(), granted, valgrind, entry.data(), size)) return "<none>";
+  return entry.data();
+}
+
+TEST(HugePages, TheComputingCommandsAddTheTunable) {
+  for (const char* command : {"run", "restart", "fit"})
+    EXPECT_EQ(entry_for({"tissue", command, "s.toml"}, {"HOME=/root"}), "GLIBC_TUNABLES=glibc.malloc.hugetlb=1");
+  for (const char* other : {"info", "--version", "--help", "runs"})
+    EXPECT_EQ(entry_for({"tissue", other}, {"HOME=/root"}), "<none>");
+  EXPECT_EQ(entry_for({"tissue"}, {"HOME=/root"}), "<none>");
+}
+
+TEST(HugePages, OtherTunablesAreKept) {
+  EXPECT_EQ(entry_for({"tissue", "run", "s.toml"}, {"GLIBC_TUNABLES=glibc.malloc.check=0", "PATH=/bin"}),
+            "GLIBC_TUNABLES=glibc.malloc.check=0:glibc.malloc.hugetlb=1");
+  EXPECT_EQ(entry_for({"tissue", "run", "s.toml"}, {"GLIBC_TUNABLES="}), "GLIBC_TUNABLES=glibc.malloc.hugetlb=1");
+}
+
+TEST(HugePages, NoReexecutionWhenAsked) {
+  const std::vector<std::string> run{"tissue", "run", "s.toml"};
+  for (const char* off : {"off", "0", "no", "false"})
+    EXPECT_EQ(entry_for(run, {std::string("TISSUE_HUGE_PAGES=") + off}), "<none>") << off;
+  EXPECT_EQ(entry_for(run, {"TISSUE_HUGE_PAGES=on"}), "GLIBC_TUNABLES=glibc.malloc.hugetlb=1");
+  // Set already: the user's value, or the re-executed image (no loop).
+  EXPECT_EQ(entry_for(run, {"GLIBC_TUNABLES=glibc.malloc.hugetlb=0"}), "<none>");
+  EXPECT_EQ(entry_for(run, {"GLIBC_TUNABLES=glibc.malloc.check=0:glibc.malloc.hugetlb=1"}), "<none>");
+  // Valgrind: by its preload or its client request; the kernel not granting huge pages on request.
+  EXPECT_EQ(entry_for(run, {"LD_PRELOAD=/usr/libexec/valgrind/vgpreload_core-amd64-linux.so"}), "<none>");
+  EXPECT_EQ(entry_for(run, {}, true, /*valgrind=*/true), "<none>");
+  EXPECT_EQ(entry_for(run, {}, /*granted=*/false), "<none>");
+  // An entry that does not fit.
+  EXPECT_EQ(entry_for(run, {"GLIBC_TUNABLES=" + std::string(5000, 'x')}), "<none>");
+  EXPECT_EQ(entry_for(run, {}, true, false, /*size=*/20), "<none>");
+}
+
+#ifdef TISSUE_BINARY
+// The running image's environment: `tissue run FIFO` blocks reading its scene from a named pipe, so its
+// /proc/PID/environ can be read before it finishes; then it gets an empty file (exit 2, bad input).
+std::string running_environment(const std::vector<std::string>& extra_env) {
+  const std::string fifo = "huge_pages_test_" + std::to_string(::getpid()) + ".toml";
+  ::unlink(fifo.c_str());
+  if (::mkfifo(fifo.c_str(), 0600) != 0) return "<mkfifo failed>";
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    std::vector<std::string> env_text;
+    for (char** e = environ; *e; ++e) {
+      const std::string s = *e;
+      if (s.rfind("GLIBC_TUNABLES=", 0) != 0 && s.rfind("TISSUE_HUGE_PAGES=", 0) != 0 && s.rfind("OMPI_", 0) != 0 &&
+          s.rfind("PMIX_", 0) != 0)
+        env_text.push_back(s);
+    }
+    for (const auto& s : extra_env) env_text.push_back(s);
+    Args env(env_text), argv({TISSUE_BINARY, "run", fifo, "--output", fifo + ".out"});
+    const int null = ::open("/dev/null", O_WRONLY);
+    ::dup2(null, 1), ::dup2(null, 2);
+    ::execve(TISSUE_BINARY, argv.get(), env.get());
+    std::_Exit(127);
+  }
+  // The FIFO opens for writing once the program (re-executed or not) opens its scene; poll, so that a program
+  // that stops before that fails the test instead of hanging it.
+  int writer = -1, status = 0;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while (writer < 0 && std::chrono::steady_clock::now() < deadline) {
+    writer = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK | O_CLOEXEC);
+    if (writer < 0 && ::waitpid(pid, &status, WNOHANG) == pid) {
+      ::unlink(fifo.c_str());
+      return "<the program ended before reading its scene>";
+    }
+    if (writer < 0) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  std::string environ_text = "<the program never read its scene>";
+  if (writer >= 0) {
+    std::ifstream in("/proc/" + std::to_string(pid) + "/environ");
+    environ_text.assign((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    ::close(writer);
+  } else {
+    ::kill(pid, SIGKILL);
+  }
+  ::waitpid(pid, &status, 0);
+  ::unlink(fifo.c_str());
+  if (writer < 0) return environ_text;
+  // The GLIBC_TUNABLES entry as the loader left it: glibc's parser ends each tunable with a NUL written in place
+  // of its ':', so the entry reads as several; they are joined again here.
+  std::string found = "<none>";
+  bool in_tunables = false;
+  for (std::size_t at = 0; at < environ_text.size();) {
+    const std::size_t end = environ_text.find('\0', at);
+    const std::string s = environ_text.substr(at, end == std::string::npos ? std::string::npos : end - at);
+    if (s.rfind("GLIBC_TUNABLES=", 0) == 0) {
+      found = s, in_tunables = true;
+    } else if (in_tunables && s.rfind("glibc.", 0) == 0) {
+      found += ":" + s;
+    } else {
+      in_tunables = false;
+    }
+    if (end == std::string::npos) break;
+    at = end + 1;
+  }
+  return found;
+}
+
+TEST(HugePages, TheRunningImageCarriesTheTunable) {
+  int rank = 0;
+  MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+  if (rank != 0) GTEST_SKIP() << "one rank runs the program";
+  std::ifstream mode("/sys/kernel/mm/transparent_hugepage/enabled");
+  const std::string text((std::istreambuf_iterator<char>(mode)), std::istreambuf_iterator<char>());
+  if (text.find("[madvise]") == std::string::npos) GTEST_SKIP() << "the kernel does not grant huge pages on request";
+  EXPECT_EQ(running_environment({}), "GLIBC_TUNABLES=glibc.malloc.hugetlb=1");
+  EXPECT_EQ(running_environment({"TISSUE_HUGE_PAGES=off"}), "<none>");
+  EXPECT_EQ(running_environment({"GLIBC_TUNABLES=glibc.malloc.check=0"}),
+            "GLIBC_TUNABLES=glibc.malloc.check=0:glibc.malloc.hugetlb=1");
+}
+#endif
+
+}  // namespace

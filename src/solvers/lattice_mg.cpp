@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <climits>
 #include <numeric>
 
 #include "partition/exchange.hpp"
@@ -185,30 +186,59 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
     std::vector<int> start(rows.size() + 1, 0);
     std::vector<Entry> entries;
     entries.reserve(8 * rows.size());
+    // Each coarse node is asked of the directory once: a fine row's coarse nodes are also its neighbours' (at
+    // level 0 each is named by about 27 rows). Distinct ones are found on a dense box, per body, of the coarse
+    // planes this rank's rows name (a compact block of the lattice); asked[u]: the u-th distinct node.
+    std::vector<std::array<int, 6>> span(nb, {INT_MAX, INT_MAX, INT_MAX, -1, -1, -1});
+    std::vector<std::array<PlaneWeights, 3>> pw(rows.size());
+    for (std::size_t r = 0; r < rows.size(); ++r) {
+      const std::int64_t g = model.id[rows[r]];
+      const int b = shape.body_of(g);
+      const auto ijk = shape.body(b).index(g);
+      for (int a = 0; a < 3; ++a) {
+        pw[r][a] = plane_weights(planes[l + 1][b][a], ijk[a]);
+        span[b][a] = std::min(span[b][a], pw[r][a].at[0]);
+        span[b][3 + a] = std::max(span[b][3 + a], pw[r][a].at[pw[r][a].n - 1]);
+      }
+    }
+    std::vector<std::vector<int>> distinct(nb);
+    for (int b = 0; b < nb; ++b)
+      if (span[b][3] >= 0)
+        distinct[b].assign(static_cast<std::size_t>(span[b][3] - span[b][0] + 1) * (span[b][4] - span[b][1] + 1) *
+                               (span[b][5] - span[b][2] + 1),
+                           -1);
+    std::vector<std::int64_t> asked;
+    std::vector<int> which;  // each entry's distinct node
+    which.reserve(8 * rows.size());
     for (std::size_t r = 0; r < rows.size(); ++r) {
       const std::int64_t g = model.id[rows[r]];
       const int b = shape.body_of(g);
       const BoxGeometry& box = shape.body(b);
-      const auto ijk = box.index(g);
-      std::array<std::array<long, 2>, 3> at{};  // the enclosing planes, as molecule indices
-      std::array<PlaneWeights, 3> w;
-      for (int a = 0; a < 3; ++a) {
-        const auto& s = planes[l + 1][b][a];
-        w[a] = plane_weights(s, ijk[a]);
-        for (int k = 0; k < w[a].n; ++k) at[a][k] = s[w[a].at[k]];
-      }
+      const auto& w = pw[r];
+      const auto& sp = span[b];
+      const long ny = sp[4] - sp[1] + 1, nz = sp[5] - sp[2] + 1;
       for (int x = 0; x < w[0].n; ++x)
         for (int y = 0; y < w[1].n; ++y)
-          for (int z = 0; z < w[2].n; ++z)
-            entries.push_back({box.id(at[0][x], at[1][y], at[2][z]), w[0].w[x] * w[1].w[y] * w[2].w[z]});
+          for (int z = 0; z < w[2].n; ++z) {
+            const int I[3] = {w[0].at[x], w[1].at[y], w[2].at[z]};
+            const std::int64_t id = box.id(planes[l + 1][b][0][I[0]], planes[l + 1][b][1][I[1]], planes[l + 1][b][2][I[2]]);
+            entries.push_back({id, w[0].w[x] * w[1].w[y] * w[2].w[z]});
+            int& u = distinct[b][((I[0] - sp[0]) * ny + (I[1] - sp[1])) * nz + (I[2] - sp[2])];
+            if (u < 0) u = static_cast<int>(asked.size()), asked.push_back(id);
+            which.push_back(u);
+          }
       start[r + 1] = static_cast<int>(entries.size());
     }
+    std::vector<std::array<PlaneWeights, 3>>().swap(pw);
+    std::vector<std::vector<int>>().swap(distinct);
     // The directory carries each coarse node's first unknown and free-component mask, packed as 8 base + mask.
-    std::vector<std::int64_t> mine(cols.size()), asked(entries.size());
-    std::vector<PetscInt> packed(cols.size()), answers;
+    std::vector<std::int64_t> mine(cols.size());
+    std::vector<PetscInt> packed(cols.size()), answers, distinct_answers;
     for (std::size_t c = 0; c < cols.size(); ++c) mine[c] = model.id[cols[c]], packed[c] = 8 * base[l + 1][c] + free_mask(cols[c]);
-    for (std::size_t e = 0; e < entries.size(); ++e) asked[e] = entries[e].g;
-    PetscCall(lattice_lookup(model.comm, total, mine, packed, asked, answers));
+    PetscCall(lattice_lookup(model.comm, total, mine, packed, asked, distinct_answers));
+    answers.resize(entries.size());
+    for (std::size_t e = 0; e < entries.size(); ++e) answers[e] = distinct_answers[which[e]];
+    std::vector<int>().swap(which);
     // Column of component k of a coarse node, or -1 when that component is held.
     auto column = [](PetscInt packed, int k) -> PetscInt {
       const int mask = static_cast<int>(packed % 8);

@@ -174,6 +174,7 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
 
   const std::int64_t total = shape.molecules();
   std::vector<Mat> interp(L - 1, nullptr);
+  std::vector<std::size_t> named(L, 0);
   PetscBool empty_column = PETSC_FALSE;
   for (int l = 0; l + 1 < L; ++l) {
     const auto& rows = owned_nodes[l];
@@ -235,6 +236,7 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
     std::vector<std::int64_t> mine(cols.size());
     std::vector<PetscInt> packed(cols.size()), answers, distinct_answers;
     for (std::size_t c = 0; c < cols.size(); ++c) mine[c] = model.id[cols[c]], packed[c] = 8 * base[l + 1][c] + free_mask(cols[c]);
+    named[l + 1] = asked.size();
     PetscCall(lattice_lookup(model.comm, total, mine, packed, asked, distinct_answers));
     answers.resize(entries.size());
     for (std::size_t e = 0; e < entries.size(); ++e) answers[e] = distinct_answers[which[e]];
@@ -315,7 +317,8 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
     PetscFunctionReturn(0);
   }
 
-  if (hierarchy) *hierarchy = LatticeLevels{std::move(planes), std::move(owned_nodes), std::move(base), first, count};
+  if (hierarchy) *hierarchy = LatticeLevels{std::move(planes), std::move(owned_nodes), std::move(base), first, count,
+                                            std::move(named)};
   PetscCall(PCSetType(pc, PCMG));
   PetscCall(PCMGSetLevels(pc, L, nullptr));
   PetscCall(PCMGSetType(pc, PC_MG_MULTIPLICATIVE));

@@ -181,7 +181,7 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
     const auto& cols = owned_nodes[l + 1];
     // Trilinear weights: per axis the enclosing planes of level l+1 and their weights, then all products.
     struct Entry {
-      std::int64_t g;
+      std::int64_t node;  // the coarse node: its index among the distinct ones (asked)
       double w;
     };
     std::vector<int> start(rows.size() + 1, 0);
@@ -189,48 +189,51 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
     entries.reserve(8 * rows.size());
     // Each coarse node is asked of the directory once: a fine row's coarse nodes are also its neighbours' (at
     // level 0 each is named by about 27 rows). Distinct ones are found on a dense box, per body, of the coarse
-    // planes this rank's rows name (a compact block of the lattice); asked[u]: the u-th distinct node.
-    std::vector<std::array<int, 6>> span(nb, {INT_MAX, INT_MAX, INT_MAX, -1, -1, -1});
-    std::vector<std::array<PlaneWeights, 3>> pw(rows.size());
-    for (std::size_t r = 0; r < rows.size(); ++r) {
-      const std::int64_t g = model.id[rows[r]];
+    // planes this rank's rows name (a compact block of the lattice: from the rows' lowest and highest planes).
+    std::vector<std::array<long, 6>> extent(nb, {LONG_MAX, LONG_MAX, LONG_MAX, -1, -1, -1});
+    for (int i : rows) {
+      const std::int64_t g = model.id[i];
       const int b = shape.body_of(g);
       const auto ijk = shape.body(b).index(g);
-      for (int a = 0; a < 3; ++a) {
-        pw[r][a] = plane_weights(planes[l + 1][b][a], ijk[a]);
-        span[b][a] = std::min(span[b][a], pw[r][a].at[0]);
-        span[b][3 + a] = std::max(span[b][3 + a], pw[r][a].at[pw[r][a].n - 1]);
-      }
+      for (int a = 0; a < 3; ++a)
+        extent[b][a] = std::min(extent[b][a], ijk[a]), extent[b][3 + a] = std::max(extent[b][3 + a], ijk[a]);
     }
+    std::vector<std::array<int, 6>> span(nb);  // per body the coarse planes named: lowest, highest per axis
     std::vector<std::vector<int>> distinct(nb);
-    for (int b = 0; b < nb; ++b)
-      if (span[b][3] >= 0)
-        distinct[b].assign(static_cast<std::size_t>(span[b][3] - span[b][0] + 1) * (span[b][4] - span[b][1] + 1) *
-                               (span[b][5] - span[b][2] + 1),
-                           -1);
-    std::vector<std::int64_t> asked;
-    std::vector<int> which;  // each entry's distinct node
-    which.reserve(8 * rows.size());
+    for (int b = 0; b < nb; ++b) {
+      if (extent[b][3] < 0) continue;
+      for (int a = 0; a < 3; ++a) {
+        span[b][a] = plane_weights(planes[l + 1][b][a], extent[b][a]).at[0];
+        const PlaneWeights hi = plane_weights(planes[l + 1][b][a], extent[b][3 + a]);
+        span[b][3 + a] = hi.at[hi.n - 1];
+      }
+      distinct[b].assign(static_cast<std::size_t>(span[b][3] - span[b][0] + 1) * (span[b][4] - span[b][1] + 1) *
+                             (span[b][5] - span[b][2] + 1),
+                         -1);
+    }
+    std::vector<std::int64_t> asked;  // asked[u]: the u-th distinct node's id
     for (std::size_t r = 0; r < rows.size(); ++r) {
       const std::int64_t g = model.id[rows[r]];
       const int b = shape.body_of(g);
       const BoxGeometry& box = shape.body(b);
-      const auto& w = pw[r];
+      const auto ijk = box.index(g);
+      std::array<PlaneWeights, 3> w;
+      for (int a = 0; a < 3; ++a) w[a] = plane_weights(planes[l + 1][b][a], ijk[a]);
       const auto& sp = span[b];
       const long ny = sp[4] - sp[1] + 1, nz = sp[5] - sp[2] + 1;
       for (int x = 0; x < w[0].n; ++x)
         for (int y = 0; y < w[1].n; ++y)
           for (int z = 0; z < w[2].n; ++z) {
             const int I[3] = {w[0].at[x], w[1].at[y], w[2].at[z]};
-            const std::int64_t id = box.id(planes[l + 1][b][0][I[0]], planes[l + 1][b][1][I[1]], planes[l + 1][b][2][I[2]]);
-            entries.push_back({id, w[0].w[x] * w[1].w[y] * w[2].w[z]});
             int& u = distinct[b][((I[0] - sp[0]) * ny + (I[1] - sp[1])) * nz + (I[2] - sp[2])];
-            if (u < 0) u = static_cast<int>(asked.size()), asked.push_back(id);
-            which.push_back(u);
+            if (u < 0) {
+              u = static_cast<int>(asked.size());
+              asked.push_back(box.id(planes[l + 1][b][0][I[0]], planes[l + 1][b][1][I[1]], planes[l + 1][b][2][I[2]]));
+            }
+            entries.push_back({u, w[0].w[x] * w[1].w[y] * w[2].w[z]});
           }
       start[r + 1] = static_cast<int>(entries.size());
     }
-    std::vector<std::array<PlaneWeights, 3>>().swap(pw);
     std::vector<std::vector<int>>().swap(distinct);
     // The directory carries each coarse node's first unknown and free-component mask, packed as 8 base + mask.
     std::vector<std::int64_t> mine(cols.size());
@@ -239,8 +242,7 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
     named[l + 1] = asked.size();
     PetscCall(lattice_lookup(model.comm, total, mine, packed, asked, distinct_answers));
     answers.resize(entries.size());
-    for (std::size_t e = 0; e < entries.size(); ++e) answers[e] = distinct_answers[which[e]];
-    std::vector<int>().swap(which);
+    for (std::size_t e = 0; e < entries.size(); ++e) answers[e] = distinct_answers[entries[e].node];
     // Column of component k of a coarse node, or -1 when that component is held.
     auto column = [](PetscInt packed, int k) -> PetscInt {
       const int mask = static_cast<int>(packed % 8);

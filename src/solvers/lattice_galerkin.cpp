@@ -510,28 +510,38 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
       present = 0, row = -1;
       return PetscErrorCode(0);
     };
+    // The row's own values are read once a row, and the stencil check skips the body lookup for one body: the
+    // same operations on the blocks in the same order.
+    const std::uint8_t* held = held_.data();
+    const std::array<int, 3>* ijk = ijk_.data();
+    const bool one_body = shape.bodies() == 1;
+    bool row_free = false;
+    std::array<int, 3> row_ijk{};
     auto put = [&](int i, int j, const double K[9]) -> PetscErrorCode {
       if (i != row) {
         PetscCall(flush());
         row = i;
+        row_free = !(held[3 * i] | held[3 * i + 1] | held[3 * i + 2]);
+        row_ijk = ijk[i];
       }
-      const bool free = !(held_[3 * i] | held_[3 * i + 1] | held_[3 * i + 2] | held_[3 * j] | held_[3 * j + 1] |
-                          held_[3 * j + 2]);  // both molecules free (nearly every block): no masks below
+      // Both molecules free (nearly every block): no masks below.
+      const bool free = row_free && !(held[3 * j] | held[3 * j + 1] | held[3 * j + 2]);
       if (free && i != j) {
         for (int r = 0; r < 3; ++r)
           for (int c = 0; c < 3; ++c) off[r] += std::abs(K[3 * r + c]);
       } else {
         for (int r = 0; r < 3; ++r)
           for (int c = 0; c < 3; ++c) {
-            if (held_[3 * i + r] || held_[3 * j + c]) continue;
+            if (held[3 * i + r] || held[3 * j + c]) continue;
             if (i == j && r == c)
               diag[r] += K[4 * r];
             else
               off[r] += std::abs(K[3 * r + c]);
           }
       }
-      const int d0 = ijk_[j][0] - ijk_[i][0], d1 = ijk_[j][1] - ijk_[i][1], d2 = ijk_[j][2] - ijk_[i][2];
-      if (std::abs(d0) > 1 || std::abs(d1) > 1 || std::abs(d2) > 1 || model_.body[j] != model_.body[i]) {
+      const int d0 = ijk[j][0] - row_ijk[0], d1 = ijk[j][1] - row_ijk[1], d2 = ijk[j][2] - row_ijk[2];
+      if (std::abs(d0) > 1 || std::abs(d1) > 1 || std::abs(d2) > 1 ||
+          (!one_body && model_.body[j] != model_.body[i])) {
         off_stencil = true;
         return PetscErrorCode(0);
       }
@@ -544,10 +554,10 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
       }
       bool any = false;
       for (int r = 0; r < 3; ++r) {
-        if (held_[3 * i + r]) continue;
+        if (held[3 * i + r]) continue;
         any = true;
         for (int c = 0; c < 3; ++c)
-          if (!held_[3 * j + c]) to[3 * r + c] += K[3 * r + c];
+          if (!held[3 * j + c]) to[3 * r + c] += K[3 * r + c];
       }
       if (any) present |= 1u << s;
       return PetscErrorCode(0);

@@ -212,7 +212,9 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
                          -1);
     }
     std::vector<std::int64_t> asked;  // asked[u]: the u-th distinct node's id
+    std::vector<char> by_free;        // whether a row with a free component names it (a held row sums nothing)
     for (std::size_t r = 0; r < rows.size(); ++r) {
+      const bool free_row = free_mask(rows[r]) != 0;
       const std::int64_t g = model.id[rows[r]];
       const int b = shape.body_of(g);
       const BoxGeometry& box = shape.body(b);
@@ -229,7 +231,9 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
             if (u < 0) {
               u = static_cast<int>(asked.size());
               asked.push_back(box.id(planes[l + 1][b][0][I[0]], planes[l + 1][b][1][I[1]], planes[l + 1][b][2][I[2]]));
+              by_free.push_back(0);
             }
+            if (free_row && !by_free[u]) by_free[u] = 1, named[l + 1]++;
             entries.push_back({u, w[0].w[x] * w[1].w[y] * w[2].w[z]});
           }
       start[r + 1] = static_cast<int>(entries.size());
@@ -239,7 +243,6 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
     std::vector<std::int64_t> mine(cols.size());
     std::vector<PetscInt> packed(cols.size()), answers, distinct_answers;
     for (std::size_t c = 0; c < cols.size(); ++c) mine[c] = model.id[cols[c]], packed[c] = 8 * base[l + 1][c] + free_mask(cols[c]);
-    named[l + 1] = asked.size();
     PetscCall(lattice_lookup(model.comm, total, mine, packed, asked, distinct_answers));
     answers.resize(entries.size());
     for (std::size_t e = 0; e < entries.size(); ++e) answers[e] = distinct_answers[entries[e].node];

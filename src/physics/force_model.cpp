@@ -721,14 +721,15 @@ PetscErrorCode ForceModel::connection_blocks(const double* x, Term::BlockAdd add
       const Stretch st(model_, x, i, j, c);
       const double* d = st.d;
       const double len2 = st.len2, k = st.k, geo = st.geo;
+      // The block is symmetric to the bit (d[r] d[s] = d[s] d[r] exactly): its upper triangle only, 6 divisions.
       double minus[9];
       for (int r = 0; r < 3; ++r)
-        for (int s = 0; s < 3; ++s) {
+        for (int s = r; s < 3; ++s) {
           const double nn = d[r] * d[s] / len2;
           const double K = k * (nn + geo * ((r == s ? 1.0 : 0.0) - nn));
-          self[3 * r + s] += K;
-          minus[3 * r + s] = -K;
+          minus[3 * r + s] = minus[3 * s + r] = -K;
         }
+      for (int e = 0; e < 9; ++e) self[e] -= minus[e];  // += K, exactly
       PetscCall(add(ctx, i, j, minus));
     }
     PetscCall(add(ctx, i, i, self));

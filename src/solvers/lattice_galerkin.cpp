@@ -120,6 +120,67 @@ TISSUE_CLONES void spread_blocks(std::uint64_t touched, const double* T, int nro
   }
 }
 
+// Level 1's product over its halved rows (LatticeGalerkin::stencil_mult) when every block between two wholly
+// free nodes is symmetric to the bit: then a block's row r read as its column r gives A_ij u_j with the same
+// operations in the same order, so both products of a block, A_ij u_j and A_ij^T u_i, take its three rows as
+// 4-lane vectors (the fourth lane is unused: it reads the next value and is never stored). Blocks with a held
+// component go the general way (masks), as in stencil_mult.
+using Lanes = double __attribute__((vector_size(32)));
+
+TISSUE_CLONES void symmetric_stencil_product(std::size_t nodes, const PetscInt* first, const int* row,
+                                             const double* a, const PetscInt* cols, PetscInt n, const double* u,
+                                             const double* g, double* y, double* h) {
+  for (std::size_t c = 0; c < nodes; ++c) {
+    const int mask = static_cast<int>(first[c] % 8);
+    if (!mask) continue;
+    const double* blk = a + kHalf * kBlock * static_cast<std::size_t>(row[c]);
+    const PetscInt* col = cols + kHalf * c;
+    double* to = y + first[c] / 8;
+    double ui[3];
+    for (int m = 0, q = 0; m < 3; ++m) ui[m] = mask >> m & 1 ? u[first[c] / 8 + q++] : 0.0;
+    Lanes acc = {0.0, 0.0, 0.0, 0.0};
+    for (int s = 0; s < kHalf; ++s, blk += kBlock) {
+      if (col[s] < 0) continue;
+      const int jm = static_cast<int>(col[s] & 7);
+      const PetscInt at = col[s] >> 3;
+      const double* src = at < n ? u + at : g + (at - n);
+      if ((mask & jm) == 7) {
+        Lanes r0, r1, r2;
+        std::memcpy(&r0, blk, sizeof r0), std::memcpy(&r1, blk + 3, sizeof r1), std::memcpy(&r2, blk + 6, sizeof r2);
+        acc += r0 * src[0] + r1 * src[1] + r2 * src[2];
+        if (s == 0) continue;
+        double* back = at < n ? y + at : h + (at - n);
+        const Lanes t = r0 * ui[0] + r1 * ui[1] + r2 * ui[2];
+        back[0] += t[0], back[1] += t[1], back[2] += t[2];
+        continue;
+      }
+      double v[3];
+      for (int m = 0, q = 0; m < 3; ++m) v[m] = jm >> m & 1 ? src[q++] : 0.0;
+      for (int k = 0; k < 3; ++k) acc[k] += blk[3 * k] * v[0] + blk[3 * k + 1] * v[1] + blk[3 * k + 2] * v[2];
+      if (s == 0) continue;
+      double* back = at < n ? y + at : h + (at - n);
+      for (int k = 0, q = 0; k < 3; ++k)
+        if (jm >> k & 1) back[q++] += blk[k] * ui[0] + blk[3 + k] * ui[1] + blk[6 + k] * ui[2];
+    }
+    for (int k = 0, q = 0; k < 3; ++k)
+      if (mask >> k & 1) to[q++] += acc[k];
+  }
+}
+
+// Pages about to be written from scratch, faulted in by one call instead of one trap a 4 kB page at first touch:
+// about half the cost a page on this project's VMs (docs/benchmarks.md, branch static18f). Whole pages inside
+// [p, p + bytes) only, so nothing beyond what is written anyway becomes resident; best effort (a kernel before
+// 5.14 answers EINVAL, and the pages fault as before).
+void populate(const void* p, std::size_t bytes) {
+#ifndef MADV_POPULATE_WRITE
+  constexpr int MADV_POPULATE_WRITE = 23;
+#endif
+  const std::uintptr_t page = static_cast<std::uintptr_t>(sysconf(_SC_PAGESIZE));
+  const auto from = (reinterpret_cast<std::uintptr_t>(p) + page - 1) / page * page;
+  const auto to = (reinterpret_cast<std::uintptr_t>(p) + bytes) / page * page;
+  if (to > from + (1u << 20)) (void)madvise(reinterpret_cast<void*>(from), to - from, MADV_POPULATE_WRITE);
+}
+
 // The fine operator's parts: diagonal block (SeqAIJ) and, on 2+ ranks, off-diagonal block and its global columns.
 struct FineParts {
   Mat Ad = nullptr, Ao = nullptr;
@@ -195,6 +256,7 @@ struct LatticeGalerkin::StencilOperator {
   std::vector<PetscInt> col;    // per owned coarse node and slot (upper slots once halved): 8 * offset + mask of
                                 // the neighbour; -1: no block
   PetscInt n = 0;               // owned unknowns
+  bool symmetric = false;       // every block between two wholly free nodes symmetric to the bit (halve_level_one)
   Vec ghosts = nullptr;         // the neighbours' values owned elsewhere
   Vec shares = nullptr;         // what the transposed blocks add to them (a product's reverse scatter)
   VecScatter scatter = nullptr;
@@ -357,9 +419,13 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
   const std::size_t nnodes = l == 0 ? static_cast<std::size_t>(model_.owned) : nodes.size();
   {
     // About this rank's coarse nodes and a layer more: no regrowth (a copy and fresh pages) while filling.
-    const std::size_t expect = levels_.owned_nodes[l + 1].size() * 5 / 4 + 64;
+    const std::size_t named = l + 1 < static_cast<int>(levels_.named.size()) ? levels_.named[l + 1] : 0;
+    const std::size_t expect = std::max(levels_.owned_nodes[l + 1].size() * 5 / 4 + 64, named);
     acc.id.reserve(expect), acc.present.reserve(expect), acc.a.reserve(expect * kSlots * kBlock);
     acc.index.reserve(expect);
+    // The rows this rank's nodes are about to name (their first touch was the largest part of the coarse
+    // operators' time at 64,000 molecules), faulted in at once.
+    populate(acc.a.data(), sizeof(double) * std::min(named, expect) * kSlots * kBlock);
   }
   std::array<double, kSlots * kBlock> blocks{};
   std::array<double, 64 * kBlock> T{};
@@ -444,28 +510,38 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
       present = 0, row = -1;
       return PetscErrorCode(0);
     };
+    // The row's own values are read once a row, and the stencil check skips the body lookup for one body: the
+    // same operations on the blocks in the same order.
+    const std::uint8_t* held = held_.data();
+    const std::array<int, 3>* ijk = ijk_.data();
+    const bool one_body = shape.bodies() == 1;
+    bool row_free = false;
+    std::array<int, 3> row_ijk{};
     auto put = [&](int i, int j, const double K[9]) -> PetscErrorCode {
       if (i != row) {
         PetscCall(flush());
         row = i;
+        row_free = !(held[3 * i] | held[3 * i + 1] | held[3 * i + 2]);
+        row_ijk = ijk[i];
       }
-      const bool free = !(held_[3 * i] | held_[3 * i + 1] | held_[3 * i + 2] | held_[3 * j] | held_[3 * j + 1] |
-                          held_[3 * j + 2]);  // both molecules free (nearly every block): no masks below
+      // Both molecules free (nearly every block): no masks below.
+      const bool free = row_free && !(held[3 * j] | held[3 * j + 1] | held[3 * j + 2]);
       if (free && i != j) {
         for (int r = 0; r < 3; ++r)
           for (int c = 0; c < 3; ++c) off[r] += std::abs(K[3 * r + c]);
       } else {
         for (int r = 0; r < 3; ++r)
           for (int c = 0; c < 3; ++c) {
-            if (held_[3 * i + r] || held_[3 * j + c]) continue;
+            if (held[3 * i + r] || held[3 * j + c]) continue;
             if (i == j && r == c)
               diag[r] += K[4 * r];
             else
               off[r] += std::abs(K[3 * r + c]);
           }
       }
-      const int d0 = ijk_[j][0] - ijk_[i][0], d1 = ijk_[j][1] - ijk_[i][1], d2 = ijk_[j][2] - ijk_[i][2];
-      if (std::abs(d0) > 1 || std::abs(d1) > 1 || std::abs(d2) > 1 || model_.body[j] != model_.body[i]) {
+      const int d0 = ijk[j][0] - row_ijk[0], d1 = ijk[j][1] - row_ijk[1], d2 = ijk[j][2] - row_ijk[2];
+      if (std::abs(d0) > 1 || std::abs(d1) > 1 || std::abs(d2) > 1 ||
+          (!one_body && model_.body[j] != model_.body[i])) {
         off_stencil = true;
         return PetscErrorCode(0);
       }
@@ -478,10 +554,10 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
       }
       bool any = false;
       for (int r = 0; r < 3; ++r) {
-        if (held_[3 * i + r]) continue;
+        if (held[3 * i + r]) continue;
         any = true;
         for (int c = 0; c < 3; ++c)
-          if (!held_[3 * j + c]) to[3 * r + c] += K[3 * r + c];
+          if (!held[3 * j + c]) to[3 * r + c] += K[3 * r + c];
       }
       if (any) present |= 1u << s;
       return PetscErrorCode(0);
@@ -951,6 +1027,20 @@ void LatticeGalerkin::halve_level_one() {
   if (to > from + (1u << 20)) (void)madvise(reinterpret_cast<void*>(from), to - from, MADV_DONTNEED);
   op.rows.index = {};
   op.rows.present = {};
+  // A spring's block is symmetric to the bit and so is every weighted sum of them; a term's blocks need not be.
+  op.symmetric = true;
+  for (std::size_t c = 0; c < nodes && op.symmetric; ++c) {
+    const int mask = static_cast<int>(op.first[c] % 8);
+    if (mask != 7) continue;
+    const double* blk = a + kHalf * kBlock * static_cast<std::size_t>(op.rows.row[c]);
+    for (int q = 0; q < kHalf; ++q, blk += kBlock) {
+      const PetscInt cq = op.col[kHalf * c + q];
+      if (cq < 0 || (cq & 7) != 7) continue;
+      for (int r = 0; r < 3; ++r)
+        for (int k = r + 1; k < 3; ++k)
+          op.symmetric = op.symmetric && std::memcmp(blk + 3 * r + k, blk + 3 * k + r, sizeof(double)) == 0;
+    }
+  }
 }
 
 // y = A u over the halved rows: each kept block A_ij adds A_ij u_j to row i and A_ij^T u_i to row j, whose
@@ -970,7 +1060,10 @@ PetscErrorCode LatticeGalerkin::stencil_mult(Mat A, Vec in, Vec out) {
   PetscCall(VecGetArray(out, &y));
   PetscCall(VecGetArray(op->shares, &h));
   const PetscInt n = op->n;
-  for (std::size_t c = 0; c < op->first.size(); ++c) {
+  if (op->symmetric)
+    symmetric_stencil_product(op->first.size(), op->first.data(), op->rows.row.data(), op->rows.a.data(),
+                              op->col.data(), n, u, g, y, h);
+  for (std::size_t c = 0; c < (op->symmetric ? 0 : op->first.size()); ++c) {
     const int mask = static_cast<int>(op->first[c] % 8);
     if (!mask) continue;
     const double* blk = op->rows.a.data() + kHalf * kBlock * op->rows.row[c];

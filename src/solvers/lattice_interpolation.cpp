@@ -40,9 +40,13 @@ PetscErrorCode add_interpolated(Interpolation* ip, Vec c, PetscScalar* y) {
     const int n = ip->node[i] & 15, held = ip->node[i] >> 4;
     double acc[3] = {0.0, 0.0, 0.0};
     for (int q = 0; q < n; ++q, ++e) {
-      const std::int32_t at = ip->at[e] / 8, mask = ip->at[e] % 8;
+      const std::int32_t at = ip->at[e] >> 3, mask = ip->at[e] & 7;  // at[e] >= 0
       const PetscScalar* src = at < ip->nc ? u + at : g + (at - ip->nc);
       const double w = ip->weights[ip->which[e]];
+      if (mask == 7) {  // a wholly free coarse node (nearly every one): the loop below without its tests
+        acc[0] += w * src[0], acc[1] += w * src[1], acc[2] += w * src[2];
+        continue;
+      }
       for (int k = 0, m = 0; k < 3; ++k)
         if (mask >> k & 1) acc[k] += w * src[m++];
     }
@@ -91,9 +95,13 @@ PetscErrorCode mult_transpose(Mat P, Vec f, Vec c) {
     double v[3];
     for (int k = 0; k < 3; ++k) v[k] = held >> k & 1 ? 0.0 : r[3 * i + k];
     for (int q = 0; q < n; ++q, ++e) {
-      const std::int32_t at = ip->at[e] / 8, mask = ip->at[e] % 8;
+      const std::int32_t at = ip->at[e] >> 3, mask = ip->at[e] & 7;
       PetscScalar* to = at < ip->nc ? u + at : g + (at - ip->nc);
       const double w = ip->weights[ip->which[e]];
+      if (mask == 7) {
+        to[0] += w * v[0], to[1] += w * v[1], to[2] += w * v[2];
+        continue;
+      }
       for (int k = 0, m = 0; k < 3; ++k)
         if (mask >> k & 1) to[m++] += w * v[k];
     }

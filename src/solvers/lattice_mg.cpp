@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <climits>
 #include <numeric>
 
 #include "partition/exchange.hpp"
@@ -173,42 +174,78 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
 
   const std::int64_t total = shape.molecules();
   std::vector<Mat> interp(L - 1, nullptr);
+  std::vector<std::size_t> named(L, 0);
   PetscBool empty_column = PETSC_FALSE;
   for (int l = 0; l + 1 < L; ++l) {
     const auto& rows = owned_nodes[l];
     const auto& cols = owned_nodes[l + 1];
     // Trilinear weights: per axis the enclosing planes of level l+1 and their weights, then all products.
     struct Entry {
-      std::int64_t g;
+      std::int64_t node;  // the coarse node: its index among the distinct ones (asked)
       double w;
     };
     std::vector<int> start(rows.size() + 1, 0);
     std::vector<Entry> entries;
     entries.reserve(8 * rows.size());
+    // Each coarse node is asked of the directory once: a fine row's coarse nodes are also its neighbours' (at
+    // level 0 each is named by about 27 rows). Distinct ones are found on a dense box, per body, of the coarse
+    // planes this rank's rows name (a compact block of the lattice: from the rows' lowest and highest planes).
+    std::vector<std::array<long, 6>> extent(nb, {LONG_MAX, LONG_MAX, LONG_MAX, -1, -1, -1});
+    for (int i : rows) {
+      const std::int64_t g = model.id[i];
+      const int b = shape.body_of(g);
+      const auto ijk = shape.body(b).index(g);
+      for (int a = 0; a < 3; ++a)
+        extent[b][a] = std::min(extent[b][a], ijk[a]), extent[b][3 + a] = std::max(extent[b][3 + a], ijk[a]);
+    }
+    std::vector<std::array<int, 6>> span(nb);  // per body the coarse planes named: lowest, highest per axis
+    std::vector<std::vector<int>> distinct(nb);
+    for (int b = 0; b < nb; ++b) {
+      if (extent[b][3] < 0) continue;
+      for (int a = 0; a < 3; ++a) {
+        span[b][a] = plane_weights(planes[l + 1][b][a], extent[b][a]).at[0];
+        const PlaneWeights hi = plane_weights(planes[l + 1][b][a], extent[b][3 + a]);
+        span[b][3 + a] = hi.at[hi.n - 1];
+      }
+      distinct[b].assign(static_cast<std::size_t>(span[b][3] - span[b][0] + 1) * (span[b][4] - span[b][1] + 1) *
+                             (span[b][5] - span[b][2] + 1),
+                         -1);
+    }
+    std::vector<std::int64_t> asked;  // asked[u]: the u-th distinct node's id
+    std::vector<char> by_free;        // whether a row with a free component names it (a held row sums nothing)
     for (std::size_t r = 0; r < rows.size(); ++r) {
+      const bool free_row = free_mask(rows[r]) != 0;
       const std::int64_t g = model.id[rows[r]];
       const int b = shape.body_of(g);
       const BoxGeometry& box = shape.body(b);
       const auto ijk = box.index(g);
-      std::array<std::array<long, 2>, 3> at{};  // the enclosing planes, as molecule indices
       std::array<PlaneWeights, 3> w;
-      for (int a = 0; a < 3; ++a) {
-        const auto& s = planes[l + 1][b][a];
-        w[a] = plane_weights(s, ijk[a]);
-        for (int k = 0; k < w[a].n; ++k) at[a][k] = s[w[a].at[k]];
-      }
+      for (int a = 0; a < 3; ++a) w[a] = plane_weights(planes[l + 1][b][a], ijk[a]);
+      const auto& sp = span[b];
+      const long ny = sp[4] - sp[1] + 1, nz = sp[5] - sp[2] + 1;
       for (int x = 0; x < w[0].n; ++x)
         for (int y = 0; y < w[1].n; ++y)
-          for (int z = 0; z < w[2].n; ++z)
-            entries.push_back({box.id(at[0][x], at[1][y], at[2][z]), w[0].w[x] * w[1].w[y] * w[2].w[z]});
+          for (int z = 0; z < w[2].n; ++z) {
+            const int I[3] = {w[0].at[x], w[1].at[y], w[2].at[z]};
+            int& u = distinct[b][((I[0] - sp[0]) * ny + (I[1] - sp[1])) * nz + (I[2] - sp[2])];
+            if (u < 0) {
+              u = static_cast<int>(asked.size());
+              asked.push_back(box.id(planes[l + 1][b][0][I[0]], planes[l + 1][b][1][I[1]], planes[l + 1][b][2][I[2]]));
+              by_free.push_back(0);
+            }
+            if (free_row && !by_free[u]) by_free[u] = 1, named[l + 1]++;
+            entries.push_back({u, w[0].w[x] * w[1].w[y] * w[2].w[z]});
+          }
       start[r + 1] = static_cast<int>(entries.size());
     }
+    std::vector<std::vector<int>>().swap(distinct);
     // The directory carries each coarse node's first unknown and free-component mask, packed as 8 base + mask.
-    std::vector<std::int64_t> mine(cols.size()), asked(entries.size());
-    std::vector<PetscInt> packed(cols.size()), answers;
+    std::vector<std::int64_t> mine(cols.size());
+    std::vector<PetscInt> packed(cols.size()), answers, distinct_answers;
     for (std::size_t c = 0; c < cols.size(); ++c) mine[c] = model.id[cols[c]], packed[c] = 8 * base[l + 1][c] + free_mask(cols[c]);
-    for (std::size_t e = 0; e < entries.size(); ++e) asked[e] = entries[e].g;
-    PetscCall(lattice_lookup(model.comm, total, mine, packed, asked, answers));
+    PetscCall(lattice_lookup(model.comm, total, mine, packed, asked, distinct_answers));
+    answers.resize(entries.size());
+    for (std::size_t e = 0; e < entries.size(); ++e) answers[e] = distinct_answers[entries[e].node];
     // Column of component k of a coarse node, or -1 when that component is held.
     auto column = [](PetscInt packed, int k) -> PetscInt {
       const int mask = static_cast<int>(packed % 8);
@@ -285,7 +322,8 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
     PetscFunctionReturn(0);
   }
 
-  if (hierarchy) *hierarchy = LatticeLevels{std::move(planes), std::move(owned_nodes), std::move(base), first, count};
+  if (hierarchy) *hierarchy = LatticeLevels{std::move(planes), std::move(owned_nodes), std::move(base), first, count,
+                                            std::move(named)};
   PetscCall(PCSetType(pc, PCMG));
   PetscCall(PCMGSetLevels(pc, L, nullptr));
   PetscCall(PCMGSetType(pc, PC_MG_MULTIPLICATIVE));

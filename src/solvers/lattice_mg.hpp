@@ -24,6 +24,10 @@ struct LatticeLevels {
   std::vector<std::vector<int>> owned_nodes;  // this rank's nodes (local molecule indices, owned order)
   std::vector<std::vector<PetscInt>> base;    // the global number of each node's first unknown
   std::vector<PetscInt> first, count;         // this rank's first unknown and number of unknowns
+  // named[l] (l >= 1): how many distinct level-l nodes this rank's level l-1 nodes with a free component
+  // interpolate from (the rows the structured Galerkin product sums into here, before the rows of other ranks'
+  // nodes go to their owners).
+  std::vector<std::size_t> named;
 };
 
 // Where lattice plane x sits among a coarser level's planes (sorted, containing the first and last plane): on

@@ -67,6 +67,16 @@ struct RingStreams {
   }
 };
 
+// Streams of one double a row that the FinalRows callback reads (the kicks' velocities and masses): the stencil
+// kernel asks for each block's rows of them as it computes that block, so that they come from memory while it
+// computes, not when the callback reads them (hints only: nothing changes but when the memory is read).
+struct ReadAhead {
+  static constexpr int kStreams = 4;
+  const double* rows[kStreams] = {};
+  int streams = 0;
+  int end = 0;  // each stream has rows [0, end)
+};
+
 // A stencil segment's molecule that lacks some of the pattern's directions.
 struct StencilException {
   int molecule;
@@ -85,11 +95,13 @@ public:
   void forces(const double* x, double* f) const { forces(x, f, nullptr, nullptr); }
   void forces(const double* x, double* f, FinalRows final_rows, void* context) const;
   // The same forces, bit for bit, with x and f as three streams each (Streams: x[d * stride + i]).
-  void forces_streams(const double* x, double* f, std::size_t stride, FinalRows final_rows, void* context) const;
+  void forces_streams(const double* x, double* f, std::size_t stride, FinalRows final_rows, void* context,
+                      const ReadAhead* ahead = nullptr) const;
   // The same forces into a ring (RingStreams: 3 * ring_rows() values, then 3 * (local - owned) for the ghosts'
   // rows), with final_rows (required): each run it hands over lies within one turn of the ring (f's row begin
   // at ring[d * ring_rows() + begin % ring_rows()]); a row's forces are there until the call returns.
-  void forces_ring(const double* x, double* ring, std::size_t stride, FinalRows final_rows, void* context) const;
+  void forces_ring(const double* x, double* ring, std::size_t stride, FinalRows final_rows, void* context,
+                   const ReadAhead* ahead = nullptr) const;
   // The ring's rows: a power of two that holds every row between the lowest one not yet handed over and the
   // highest zeroed at any point of the sweep; 0 when no small ring does (forces_ring unusable).
   int ring_rows() const { return ring_rows_; }
@@ -113,7 +125,8 @@ private:
     int later;                        // the lowest row a connection after it touches
   };
   template <class Layout>
-  void sweep(const double* x, double* f, Layout at, FinalRows final_rows, void* context) const;
+  void sweep(const double* x, double* f, Layout at, FinalRows final_rows, void* context,
+             const ReadAhead* ahead = nullptr) const;
   // Zeroes f's owned rows [zeroed, reach) (reach clamped to the owned molecules) and advances `zeroed`.
   template <class Layout>
   void zero_ahead(double* f, Layout at, int& zeroed, int reach) const;

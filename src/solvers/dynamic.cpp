@@ -341,13 +341,16 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
       const std::size_t sl = local, sn = n;
       FusedStreams step{dt, m, {{f, f + sl, f + 2 * sl}, {v, v + sn, v + 2 * sn}, {x, x + sl, x + 2 * sl}}, 0.0,
                         guard.enabled(), next_unobserved};
+      ReadAhead ahead;  // what the kicks read besides f (x: the kernel read it)
+      ahead.rows[0] = m, ahead.rows[1] = v, ahead.rows[2] = v + sn, ahead.rows[3] = v + 2 * sn;
+      ahead.streams = 4, ahead.end = n;
       if (ring_rows && next_unobserved) {
         double* r = ring.data();
         step.at.f[0] = r, step.at.f[1] = r + ring_rows, step.at.f[2] = r + 2 * ring_rows;
         step.ring = ring_rows;
-        forces.kernel().forces_ring(x, r, sl, fused_rows_streams, &step);
+        forces.kernel().forces_ring(x, r, sl, fused_rows_streams, &step, &ahead);
       } else {
-        forces.kernel().forces_streams(x, f, sl, fused_rows_streams, &step);
+        forces.kernel().forces_streams(x, f, sl, fused_rows_streams, &step, &ahead);
       }
       kinetic = step.kinetic;
       drifted = next_unobserved;

@@ -257,24 +257,24 @@ void cell_block_forces(int n, const int* __restrict base, const int* __restrict 
   }
 }
 
-// stress()'s derivative along d for plain moduli (no fibres, no history) at F, with s = mu J^(-2/3) given:
-// d(cof) is bilinear in F and d; dJ = cof : d; s moves by -2/3 s dJ / J, I1 / (3J) by (2/3 F : d - I1 / (3J) dJ) / J;
-// the volumetric factor kappa/2 (J - 1/J) by kappa/2 (1 + 1/J^2) dJ; a face diagonal's c Fn by dc Fn + c dFn.
-inline void plain_stress_direction(const double F[9], double s, const Moduli& m, const double d[9], double P[9]) {
-  const double half = 0.5 * m.kappa;
-  double cof[9], dcof[9];
-  cof[0] = F[4] * F[8] - F[5] * F[7], cof[1] = F[5] * F[6] - F[3] * F[8], cof[2] = F[3] * F[7] - F[4] * F[6];
-  cof[3] = F[2] * F[7] - F[1] * F[8], cof[4] = F[0] * F[8] - F[2] * F[6], cof[5] = F[1] * F[6] - F[0] * F[7];
-  cof[6] = F[1] * F[5] - F[2] * F[4], cof[7] = F[2] * F[3] - F[0] * F[5], cof[8] = F[0] * F[4] - F[1] * F[3];
-  dcof[0] = (d[4] * F[8] + F[4] * d[8]) - (d[5] * F[7] + F[5] * d[7]);
-  dcof[1] = (d[5] * F[6] + F[5] * d[6]) - (d[3] * F[8] + F[3] * d[8]);
-  dcof[2] = (d[3] * F[7] + F[3] * d[7]) - (d[4] * F[6] + F[4] * d[6]);
-  dcof[3] = (d[2] * F[7] + F[2] * d[7]) - (d[1] * F[8] + F[1] * d[8]);
-  dcof[4] = (d[0] * F[8] + F[0] * d[8]) - (d[2] * F[6] + F[2] * d[6]);
-  dcof[5] = (d[1] * F[6] + F[1] * d[6]) - (d[0] * F[7] + F[0] * d[7]);
-  dcof[6] = (d[1] * F[5] + F[1] * d[5]) - (d[2] * F[4] + F[2] * d[4]);
-  dcof[7] = (d[2] * F[3] + F[2] * d[3]) - (d[0] * F[5] + F[0] * d[5]);
-  dcof[8] = (d[0] * F[4] + F[0] * d[4]) - (d[1] * F[3] + F[1] * d[3]);
+// stress()'s derivative along d for plain moduli (no fibres, no history) at F, with s = mu J^(-2/3) given, one
+// cell (a vector lane of cell_block_tangent, or one cell of the diagonal): d(cof) is bilinear in F and d;
+// dJ = cof : d; s moves by -2/3 s dJ / J, I1 / (3J) by (2/3 F : d - I1 / (3J) dJ) / J; the volumetric factor
+// kappa/2 (J - 1/J) by kappa/2 (1 + 1/J^2) dJ (half = kappa/2). P is set.
+__attribute__((always_inline)) inline void isotropic_stress_direction(const double F[9], double s, double half,
+                                                                      const double d[9], double P[9]) {
+  const double cof[9] = {F[4] * F[8] - F[5] * F[7], F[5] * F[6] - F[3] * F[8], F[3] * F[7] - F[4] * F[6],
+                         F[2] * F[7] - F[1] * F[8], F[0] * F[8] - F[2] * F[6], F[1] * F[6] - F[0] * F[7],
+                         F[1] * F[5] - F[2] * F[4], F[2] * F[3] - F[0] * F[5], F[0] * F[4] - F[1] * F[3]};
+  const double dcof[9] = {(d[4] * F[8] + F[4] * d[8]) - (d[5] * F[7] + F[5] * d[7]),
+                          (d[5] * F[6] + F[5] * d[6]) - (d[3] * F[8] + F[3] * d[8]),
+                          (d[3] * F[7] + F[3] * d[7]) - (d[4] * F[6] + F[4] * d[6]),
+                          (d[2] * F[7] + F[2] * d[7]) - (d[1] * F[8] + F[1] * d[8]),
+                          (d[0] * F[8] + F[0] * d[8]) - (d[2] * F[6] + F[2] * d[6]),
+                          (d[1] * F[6] + F[1] * d[6]) - (d[0] * F[7] + F[0] * d[7]),
+                          (d[1] * F[5] + F[1] * d[5]) - (d[2] * F[4] + F[2] * d[4]),
+                          (d[2] * F[3] + F[2] * d[3]) - (d[0] * F[5] + F[0] * d[5]),
+                          (d[0] * F[4] + F[0] * d[4]) - (d[1] * F[3] + F[1] * d[3])};
   const double J = F[0] * cof[0] + F[1] * cof[1] + F[2] * cof[2];
   double dJ = 0, I1 = 0, dI1 = 0;
   for (int q = 0; q < 9; ++q) dJ += cof[q] * d[q], I1 += F[q] * F[q], dI1 += F[q] * d[q];
@@ -284,21 +284,35 @@ inline void plain_stress_direction(const double F[9], double s, const Moduli& m,
   for (int q = 0; q < 9; ++q)
     P[q] = ds * (F[q] - third * cof[q]) + s * (d[q] - dthird * cof[q] - third * dcof[q]) + dvol * cof[q] +
            vol * dcof[q];
+}
+
+// The derivative of one face diagonal's stress (face plane (a, b), n = (e_a + sign e_b) / sqrt 2) along d, from
+// F's and d's columns a and b (Fa[r] = F[3r + a], ...): c Fn's derivative t = dc Fn + c dFn with c = alpha
+// stretch scale (alpha = the plane's alpha_w, scale = 1/sqrt 2; the blocks pass alpha_w / sqrt 2 and 1, the
+// rounding each path always had), which adds t to P's column a and sign t to its column b.
+__attribute__((always_inline)) inline void face_diagonal_stress_direction(const double Fa[3], const double Fb[3],
+                                                                          const double da[3], const double db[3],
+                                                                          double sign, double alpha, double scale,
+                                                                          double t[3]) {
+  double Fn[3], dFn[3];
+  for (int r = 0; r < 3; ++r) Fn[r] = (Fa[r] + sign * Fb[r]) * M_SQRT1_2, dFn[r] = (da[r] + sign * db[r]) * M_SQRT1_2;
+  const double stretch = Fn[0] * Fn[0] + Fn[1] * Fn[1] + Fn[2] * Fn[2] - 1.0;
+  const double dstretch = 2.0 * (Fn[0] * dFn[0] + Fn[1] * dFn[1] + Fn[2] * dFn[2]);
+  const double c = alpha * stretch * scale, dc = alpha * dstretch * scale;
+  for (int r = 0; r < 3; ++r) t[r] = dc * Fn[r] + c * dFn[r];
+}
+
+// stress()'s derivative along d for plain moduli at F, one cell (the diagonal's directions).
+inline void plain_stress_direction(const double F[9], double s, const Moduli& m, const double d[9], double P[9]) {
+  isotropic_stress_direction(F, s, 0.5 * m.kappa, d, P);
   for (int w = 0; w < 3; ++w) {
     if (m.alpha[w] == 0) continue;
     const int a = (w + 1) % 3, b = (w + 2) % 3;
     for (const double sign : {1.0, -1.0}) {
-      double Fn[3], dFn[3];
-      for (int r = 0; r < 3; ++r)
-        Fn[r] = (F[3 * r + a] + sign * F[3 * r + b]) * M_SQRT1_2,
-        dFn[r] = (d[3 * r + a] + sign * d[3 * r + b]) * M_SQRT1_2;
-      const double stretch = Fn[0] * Fn[0] + Fn[1] * Fn[1] + Fn[2] * Fn[2] - 1.0;
-      const double dstretch = 2.0 * (Fn[0] * dFn[0] + Fn[1] * dFn[1] + Fn[2] * dFn[2]);
-      const double c = m.alpha[w] * stretch * M_SQRT1_2, dc = m.alpha[w] * dstretch * M_SQRT1_2;
-      for (int r = 0; r < 3; ++r) {
-        const double t = dc * Fn[r] + c * dFn[r];
-        P[3 * r + a] += t, P[3 * r + b] += sign * t;
-      }
+      double Fa[3], Fb[3], da[3], db[3], t[3];
+      for (int r = 0; r < 3; ++r) Fa[r] = F[3 * r + a], Fb[r] = F[3 * r + b], da[r] = d[3 * r + a], db[r] = d[3 * r + b];
+      face_diagonal_stress_direction(Fa, Fb, da, db, sign, m.alpha[w], M_SQRT1_2, t);
+      for (int r = 0; r < 3; ++r) P[3 * r + a] += t[r], P[3 * r + b] += sign * t[r];
     }
   }
 }
@@ -330,35 +344,16 @@ void cell_block_tangent(int n, const int* __restrict base, const int* __restrict
       }
   }
   if (m) {
-    // plain_stress_direction's arithmetic with the cells as vector lanes: the isotropic parts, then each face
-    // diagonal in its own loop (as cell_block_forces).
+    // plain_stress_direction with the cells as vector lanes: the isotropic parts, then each face diagonal in its
+    // own loop (as cell_block_forces).
     const std::size_t sn = static_cast<std::size_t>(n);
     const double* __restrict Fs = D;
     const double half = 0.5 * m->kappa;
     for (int i = 0; i < n; ++i) {
-      const double F0 = Fs[i], F1 = Fs[sn + i], F2 = Fs[2 * sn + i], F3 = Fs[3 * sn + i], F4 = Fs[4 * sn + i],
-                   F5 = Fs[5 * sn + i], F6 = Fs[6 * sn + i], F7 = Fs[7 * sn + i], F8 = Fs[8 * sn + i];
-      const double s = Fs[9 * sn + i];
-      const double d0 = dF[0][i], d1 = dF[1][i], d2 = dF[2][i], d3 = dF[3][i], d4 = dF[4][i], d5 = dF[5][i],
-                   d6 = dF[6][i], d7 = dF[7][i], d8 = dF[8][i];
-      const double F[9] = {F0, F1, F2, F3, F4, F5, F6, F7, F8}, d[9] = {d0, d1, d2, d3, d4, d5, d6, d7, d8};
-      const double cof[9] = {F4 * F8 - F5 * F7, F5 * F6 - F3 * F8, F3 * F7 - F4 * F6,
-                             F2 * F7 - F1 * F8, F0 * F8 - F2 * F6, F1 * F6 - F0 * F7,
-                             F1 * F5 - F2 * F4, F2 * F3 - F0 * F5, F0 * F4 - F1 * F3};
-      const double dcof[9] = {(d4 * F8 + F4 * d8) - (d5 * F7 + F5 * d7), (d5 * F6 + F5 * d6) - (d3 * F8 + F3 * d8),
-                              (d3 * F7 + F3 * d7) - (d4 * F6 + F4 * d6), (d2 * F7 + F2 * d7) - (d1 * F8 + F1 * d8),
-                              (d0 * F8 + F0 * d8) - (d2 * F6 + F2 * d6), (d1 * F6 + F1 * d6) - (d0 * F7 + F0 * d7),
-                              (d1 * F5 + F1 * d5) - (d2 * F4 + F2 * d4), (d2 * F3 + F2 * d3) - (d0 * F5 + F0 * d5),
-                              (d0 * F4 + F0 * d4) - (d1 * F3 + F1 * d3)};
-      const double J = F0 * cof[0] + F1 * cof[1] + F2 * cof[2];
-      double dJ = 0, I1 = 0, dI1 = 0;
-      for (int q = 0; q < 9; ++q) dJ += cof[q] * d[q], I1 += F[q] * F[q], dI1 += F[q] * d[q];
-      const double rJ = 1.0 / J, third = I1 * rJ / 3.0;
-      const double ds = -2.0 / 3.0 * s * dJ * rJ, dthird = (2.0 * dI1 / 3.0 - third * dJ) * rJ;
-      const double vol = half * (J - rJ), dvol = half * (1.0 + rJ * rJ) * dJ;
-      for (int q = 0; q < 9; ++q)
-        dP[q][i] = ds * (F[q] - third * cof[q]) + s * (d[q] - dthird * cof[q] - third * dcof[q]) + dvol * cof[q] +
-                   vol * dcof[q];
+      double F[9], d[9], P[9];
+      for (int q = 0; q < 9; ++q) F[q] = Fs[q * sn + i], d[q] = dF[q][i];
+      isotropic_stress_direction(F, Fs[9 * sn + i], half, d, P);
+      for (int q = 0; q < 9; ++q) dP[q][i] = P[q];
     }
     for (int w = 0; w < 3; ++w) {
       if (m->alpha[w] == 0) continue;
@@ -367,17 +362,12 @@ void cell_block_tangent(int n, const int* __restrict base, const int* __restrict
       for (int k = 0; k < 2; ++k) {
         const double sign = k == 0 ? 1.0 : -1.0;
         for (int i = 0; i < n; ++i) {
-          double Fn[3], dFn[3];
+          double Fa[3], Fb[3], da[3], db[3], t[3];
           for (int r = 0; r < 3; ++r)
-            Fn[r] = (Fs[(3 * r + a) * sn + i] + sign * Fs[(3 * r + b) * sn + i]) * M_SQRT1_2,
-            dFn[r] = (dF[3 * r + a][i] + sign * dF[3 * r + b][i]) * M_SQRT1_2;
-          const double stretch = Fn[0] * Fn[0] + Fn[1] * Fn[1] + Fn[2] * Fn[2] - 1.0;
-          const double dstretch = 2.0 * (Fn[0] * dFn[0] + Fn[1] * dFn[1] + Fn[2] * dFn[2]);
-          const double c = alpha * stretch, dc = alpha * dstretch;
-          for (int r = 0; r < 3; ++r) {
-            const double t = dc * Fn[r] + c * dFn[r];
-            dP[3 * r + a][i] += t, dP[3 * r + b][i] += sign * t;
-          }
+            Fa[r] = Fs[(3 * r + a) * sn + i], Fb[r] = Fs[(3 * r + b) * sn + i], da[r] = dF[3 * r + a][i],
+            db[r] = dF[3 * r + b][i];
+          face_diagonal_stress_direction(Fa, Fb, da, db, sign, alpha, 1.0, t);
+          for (int r = 0; r < 3; ++r) dP[3 * r + a][i] += t[r], dP[3 * r + b][i] += sign * t[r];
         }
       }
     }

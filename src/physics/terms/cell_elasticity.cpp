@@ -572,6 +572,10 @@ public:
         for (int d = 0; d < 3; ++d) geo.g[c][d] = (((c >> d) & 1) ? 1.0 : -1.0) / (4.0 * box.h[d]);
       geometry_.push_back(geo);
     }
+    for (int b = 0; b < model.shape.bodies(); ++b)
+      ring_ = std::max<std::size_t>(ring_, 2 + static_cast<std::size_t>(model.shape.body(b).n[0]) *
+                                                   (1 + static_cast<std::size_t>(model.shape.body(b).n[1])));
+    ring_ = std::min<std::size_t>(ring_, std::max(cells_, 1));
     if (fibre_begin_.empty()) make_blocks();
   }
 
@@ -611,33 +615,93 @@ public:
   }
 
   bool tangent_worth_caching() const override { return true; }
+  bool tangent_within_cells() const override { return true; }
 
+  // The blocks row by row: a molecule's row (its up to 8 cells' blocks, summed per neighbour: at most 27) once its
+  // last cell (the highest id) is computed, each cell's dP/dF kept in a ring of the last cells while its
+  // corners' rows are open (one plane of cells and a row: the lattice's cell order). A consumer that sums a row
+  // at a time (LatticeGalerkin's stream) then sees one run a row instead of one per cell, and 27 blocks instead
+  // of 64; each block is the per-cell one summed over the row's cells in increasing cell order.
   PetscErrorCode add_tangent(const double* x, BlockAdd add, void* ctx) const override {
+    if (cells_ == 0) return 0;
+    const std::size_t R = ring_;
+    std::vector<double> ring(81 * R);
     for (int k = 0; k < cells_; ++k) {
+      if (!stress_tangent(k, x, &ring[81 * (static_cast<std::size_t>(k) % R)])) return 0;  // inverted: the
+                                                                                            // residual is NaN
+      const BoxGeometry& box = m_.shape.body(kinds_[kind_[k]].body);
+      const auto b = box.index(m_.id[base_[k]]);
       int corner[8];
       corners(k, corner);
+      // Corner c's last cell is this one when along each axis it is the cell's lower corner or the lattice ends.
+      for (int c = 0; c < 8; ++c) {
+        if (corner[c] >= m_.owned) continue;
+        bool last = true;
+        for (int d = 0; d < 3; ++d) last = last && (!(c >> d & 1) || b[d] == box.n[d] - 2);
+        if (!last) continue;
+        const PetscErrorCode ierr = add_row(corner[c], k, ring.data(), add, ctx);
+        if (ierr) return ierr;
+      }
+    }
+    return 0;
+  }
+
+  // Molecule m's row of the tangent from its cells (the last one is cell `last`; their dP/dF in the ring).
+  PetscErrorCode add_row(int m, int last, const double* ring, BlockAdd add, void* ctx) const {
+    const BoxGeometry& box = m_.shape.body(kinds_[kind_[last]].body);
+    const auto ijk = box.index(m_.id[m]);
+    double K[27][9];
+    int column[27];
+    std::uint32_t present = 0;
+    // m's cells in increasing id: the cell with m as corner a has its lowest corner at m - a's offsets.
+    for (int a = 7; a >= 0; --a) {
+      long q[3];
+      bool inside = true;
+      for (int d = 0; d < 3; ++d) q[d] = ijk[d] - (a >> d & 1), inside = inside && q[d] >= 0 && q[d] <= box.n[d] - 2;
+      if (!inside) continue;
+      const std::int64_t id = box.id(q[0], q[1], q[2]);
+      // Among the ring's cells (ids increasing with the index) up to `last`.
+      int lo = std::max(0, last - static_cast<int>(ring_) + 1), hi = last + 1;
+      while (lo < hi) {
+        const int mid = (lo + hi) / 2;
+        if (m_.id[base_[mid]] < id) lo = mid + 1;
+        else hi = mid;
+      }
+      const int k = lo;
+      PetscCheck(k <= last && m_.id[base_[k]] == id, PETSC_COMM_SELF, PETSC_ERR_PLIB,
+                 "cell term: a molecule's cell is not among the last cells kept");
+      const double* D = ring + 81 * (static_cast<std::size_t>(k) % ring_);
       const Geometry& geo = geometry_[kinds_[kind_[k]].body];
-      double D[9][9];
-      if (!stress_tangent(k, x, D[0])) return 0;  // inverted: the residual is NaN already
-      // Dg[kl][a][i] = sum_j D[kl][ij] g_a[j]
-      double Dg[9][8][3];
+      int corner[8];
+      corners(k, corner);
+      // Dg[kl][i] = sum_j D[kl][ij] g_a[j]; K_ab[i][k] = V0 sum_l Dg[kl][i] g_b[l]: -d f_a / d x_b
+      double Dg[9][3];
       for (int kl = 0; kl < 9; ++kl)
-        for (int a = 0; a < 8; ++a)
-          for (int i = 0; i < 3; ++i)
-            Dg[kl][a][i] = D[kl][3 * i] * geo.g[a][0] + D[kl][3 * i + 1] * geo.g[a][1] + D[kl][3 * i + 2] * geo.g[a][2];
-      for (int a = 0; a < 8; ++a) {
-        if (corner[a] >= m_.owned) continue;
-        for (int b = 0; b < 8; ++b) {
-          // K_ab[i][k] = V0 sum_l Dg[kl][a][i] g_b[l]: -d f_a / d x_b
-          double K[9];
-          for (int i = 0; i < 3; ++i)
-            for (int kk = 0; kk < 3; ++kk)
-              K[3 * i + kk] = geo.volume * (Dg[3 * kk][a][i] * geo.g[b][0] + Dg[3 * kk + 1][a][i] * geo.g[b][1] +
-                                            Dg[3 * kk + 2][a][i] * geo.g[b][2]);
-          const PetscErrorCode ierr = add(ctx, corner[a], corner[b], K);
-          if (ierr) return ierr;
+        for (int i = 0; i < 3; ++i)
+          Dg[kl][i] = D[9 * kl + 3 * i] * geo.g[a][0] + D[9 * kl + 3 * i + 1] * geo.g[a][1] +
+                      D[9 * kl + 3 * i + 2] * geo.g[a][2];
+      double Kb[8][9];
+      for (int b = 0; b < 8; ++b)
+        for (int i = 0; i < 3; ++i)
+          for (int kk = 0; kk < 3; ++kk)
+            Kb[b][3 * i + kk] = geo.volume * (Dg[3 * kk][i] * geo.g[b][0] + Dg[3 * kk + 1][i] * geo.g[b][1] +
+                                              Dg[3 * kk + 2][i] * geo.g[b][2]);
+      for (int b = 0; b < 8; ++b) {
+        // the neighbour's slot: (dx + 1) + 3 (dy + 1) + 9 (dz + 1), d = b's offsets - a's
+        const int slot = 13 + ((b & 1) - (a & 1)) + 3 * ((b >> 1 & 1) - (a >> 1 & 1)) + 9 * ((b >> 2 & 1) - (a >> 2 & 1));
+        double* to = K[slot];
+        if (present >> slot & 1) {
+          for (int e = 0; e < 9; ++e) to[e] += Kb[b][e];
+        } else {
+          for (int e = 0; e < 9; ++e) to[e] = Kb[b][e];
+          column[slot] = corner[b], present |= 1u << slot;
         }
       }
+    }
+    for (std::uint32_t rest = present; rest; rest &= rest - 1) {
+      const int slot = __builtin_ctz(rest);
+      const PetscErrorCode ierr = add(ctx, m, column[slot], K[slot]);
+      if (ierr) return ierr;
     }
     return 0;
   }
@@ -976,6 +1040,8 @@ private:
     bool rows;
   };
   std::vector<Block> blocks_;  // in cell order; empty with fibres (no block ever runs then)
+  // add_tangent's ring of dP/dF: the most cells between a molecule's first and last cell (ids x-fastest).
+  std::size_t ring_ = 1;
 
   // Greedy from each cell: up to kCellBlock cells that share their moduli and corner pattern; cells consecutive
   // along x (at least 8, their four corner rows apart) are a row block, the rest gathered.

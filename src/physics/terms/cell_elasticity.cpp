@@ -260,7 +260,8 @@ void cell_block_forces(int n, const int* __restrict base, const int* __restrict 
 // stress()'s derivative along d for plain moduli (no fibres, no history) at F, with s = mu J^(-2/3) given, one
 // cell (a vector lane of cell_block_tangent, or one cell of the diagonal): d(cof) is bilinear in F and d;
 // dJ = cof : d; s moves by -2/3 s dJ / J, I1 / (3J) by (2/3 F : d - I1 / (3J) dJ) / J; the volumetric factor
-// kappa/2 (J - 1/J) by kappa/2 (1 + 1/J^2) dJ (half = kappa/2). P is set.
+// kappa/2 (J - 1/J) by kappa/2 (1 + 1/J^2) dJ (half = kappa/2). P is set; then each face diagonal's part is
+// added (below).
 __attribute__((always_inline)) inline void isotropic_stress_direction(const double F[9], double s, double half,
                                                                       const double d[9], double P[9]) {
   const double cof[9] = {F[4] * F[8] - F[5] * F[7], F[5] * F[6] - F[3] * F[8], F[3] * F[7] - F[4] * F[6],
@@ -302,21 +303,6 @@ __attribute__((always_inline)) inline void face_diagonal_stress_direction(const 
   for (int r = 0; r < 3; ++r) t[r] = dc * Fn[r] + c * dFn[r];
 }
 
-// stress()'s derivative along d for plain moduli at F, one cell (the diagonal's directions).
-inline void plain_stress_direction(const double F[9], double s, const Moduli& m, const double d[9], double P[9]) {
-  isotropic_stress_direction(F, s, 0.5 * m.kappa, d, P);
-  for (int w = 0; w < 3; ++w) {
-    if (m.alpha[w] == 0) continue;
-    const int a = (w + 1) % 3, b = (w + 2) % 3;
-    for (const double sign : {1.0, -1.0}) {
-      double Fa[3], Fb[3], da[3], db[3], t[3];
-      for (int r = 0; r < 3; ++r) Fa[r] = F[3 * r + a], Fb[r] = F[3 * r + b], da[r] = d[3 * r + a], db[r] = d[3 * r + b];
-      face_diagonal_stress_direction(Fa, Fb, da, db, sign, m.alpha[w], M_SQRT1_2, t);
-      for (int r = 0; r < 3; ++r) P[3 * r + a] += t[r], P[3 * r + b] += sign * t[r];
-    }
-  }
-}
-
 // The tangent's product on the same blocks as cell_block_forces (the same corner patterns and row layout): per
 // cell dF = sum_a u_a (x) g_a from the corners' u, dP = dP/dF [dF], and K u = V0 dP g_a added to the owned
 // corners, each molecule summing its cells in increasing order. The block's cells are the vector lanes of its
@@ -344,8 +330,8 @@ void cell_block_tangent(int n, const int* __restrict base, const int* __restrict
       }
   }
   if (m) {
-    // plain_stress_direction with the cells as vector lanes: the isotropic parts, then each face diagonal in its
-    // own loop (as cell_block_forces).
+    // stress()'s derivative along dF with the cells as vector lanes: the isotropic parts, then each face diagonal
+    // in its own loop (as cell_block_forces).
     const std::size_t sn = static_cast<std::size_t>(n);
     const double* __restrict Fs = D;
     const double half = 0.5 * m->kappa;
@@ -394,6 +380,40 @@ void cell_block_tangent(int n, const int* __restrict base, const int* __restrict
     return;
   }
   for (int i = 0; i < n; ++i) add_cell_corners(q, i, base, offset, owned, out);
+}
+
+// The entries of dP/dF the tangent's diagonal reads, for a block's plain cells as vector lanes (the tangent
+// state's layout: F's and the scale mu J^(-2/3), Fs[q n + c]): Dd[3p + j][c] = dP_(3i + j) / dF_p with i = p / 3
+// (row i of P along direction p), the product's arithmetic (isotropic part, then the face diagonals) along e_p.
+TISSUE_CELL_CLONES
+void plain_block_diagonal_tangent(int n, const double* __restrict Fs, const Moduli* m,
+                                  double (*__restrict Dd)[kCellBlock]) {
+  const std::size_t sn = static_cast<std::size_t>(n);
+  const double half = 0.5 * m->kappa;
+  for (int p = 0; p < 9; ++p) {
+    const int i = p / 3;
+    for (int c = 0; c < n; ++c) {
+      double F[9], d[9], P[9];
+      for (int q = 0; q < 9; ++q) F[q] = Fs[q * sn + c], d[q] = q == p ? 1.0 : 0.0;
+      isotropic_stress_direction(F, Fs[9 * sn + c], half, d, P);
+      for (int j = 0; j < 3; ++j) Dd[3 * p + j][c] = P[3 * i + j];
+    }
+    for (int w = 0; w < 3; ++w) {
+      if (m->alpha[w] == 0) continue;
+      const int a = (w + 1) % 3, b = (w + 2) % 3;
+      for (int k = 0; k < 2; ++k) {
+        const double sign = k == 0 ? 1.0 : -1.0;
+        for (int c = 0; c < n; ++c) {
+          double Fa[3], Fb[3], da[3], db[3], t[3];
+          for (int r = 0; r < 3; ++r)
+            Fa[r] = Fs[(3 * r + a) * sn + c], Fb[r] = Fs[(3 * r + b) * sn + c], da[r] = 3 * r + a == p ? 1.0 : 0.0,
+            db[r] = 3 * r + b == p ? 1.0 : 0.0;
+          face_diagonal_stress_direction(Fa, Fb, da, db, sign, m->alpha[w], M_SQRT1_2, t);
+          Dd[3 * p + a][c] += t[i], Dd[3 * p + b][c] += sign * t[i];
+        }
+      }
+    }
+  }
 }
 
 class CellElasticity final : public Term {
@@ -767,24 +787,19 @@ public:
     const double* state = state_with_width + 1;
     for_each_state_block([&](int first, int n) {
       const double* block = state + w * static_cast<std::size_t>(first);
+      // The entries of dP/dF read below, Dd[3p + j] = dP_(3i + j) / dF_p (i = p / 3): from the closed form over
+      // the block's cells as lanes (plain cells; once per Newton iteration, not per product), else the state's.
+      alignas(64) double Dd[27][kCellBlock];
+      if (w == 10) plain_block_diagonal_tangent(n, block, &kinds_[kind_[first]].moduli, Dd);
       for (int k = first; k < first + n; ++k) {
         int corner[8];
         corners(k, corner);
         const Geometry& geo = geometry_[kinds_[kind_[k]].body];
-        double D[81];
-        if (w == 10) {
-          // dP/dF from the closed form, one direction at a time (once per Newton iteration, not per product).
-          double F[9];
-          for (int c = 0; c < 9; ++c) F[c] = block[static_cast<std::size_t>(c) * n + (k - first)];
-          const double scale = block[static_cast<std::size_t>(9) * n + (k - first)];
-          for (int p = 0; p < 9; ++p) {
-            double d[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
-            d[p] = 1.0;
-            plain_stress_direction(F, scale, kinds_[kind_[k]].moduli, d, D + 9 * p);
-          }
-        } else {
-          for (int c = 0; c < 81; ++c) D[c] = block[static_cast<std::size_t>(c) * n + (k - first)];
-        }
+        double D[27];
+        for (int p = 0; p < 9; ++p)
+          for (int j = 0; j < 3; ++j)
+            D[3 * p + j] = w == 10 ? Dd[3 * p + j][k - first]
+                                   : block[static_cast<std::size_t>(9 * p + 3 * (p / 3) + j) * n + (k - first)];
         for (int a = 0; a < 8; ++a) {
           if (corner[a] >= m_.owned) continue;
           const double* g = geo.g[a];
@@ -792,8 +807,7 @@ public:
             // K_aa[i][i] = V0 sum_jl dP_ij/dF_il g_a[j] g_a[l]
             double K = 0;
             for (int l = 0; l < 3; ++l)
-              K += (D[9 * (3 * i + l) + 3 * i] * g[0] + D[9 * (3 * i + l) + 3 * i + 1] * g[1] +
-                    D[9 * (3 * i + l) + 3 * i + 2] * g[2]) * g[l];
+              K += (D[3 * (3 * i + l)] * g[0] + D[3 * (3 * i + l) + 1] * g[1] + D[3 * (3 * i + l) + 2] * g[2]) * g[l];
             diag[3 * corner[a] + i] += geo.volume * K;
           }
         }

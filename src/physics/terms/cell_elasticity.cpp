@@ -644,6 +644,7 @@ public:
   // of 64; each block is the per-cell one summed over the row's cells in increasing cell order.
   PetscErrorCode add_tangent(const double* x, BlockAdd add, void* ctx) const override {
     if (cells_ == 0) return 0;
+    if (ring_ > kRingCells) return add_tangent_by_cell(x, add, ctx);
     const std::size_t R = ring_;
     std::vector<double> ring(81 * R);
     for (int k = 0; k < cells_; ++k) {
@@ -661,6 +662,39 @@ public:
         if (!last) continue;
         const PetscErrorCode ierr = add_row(corner[c], k, ring.data(), add, ctx);
         if (ierr) return ierr;
+      }
+    }
+    return 0;
+  }
+
+  // A plane of cells beyond kRingCells (a wide thin layer: its plane is most of its cells) would make the ring
+  // a copy of dP/dF for most cells: then the blocks go cell by cell (64 a cell, each row in a run per cell).
+  static constexpr std::size_t kRingCells = std::size_t(1) << 16;  // 42 MB of dP/dF
+  PetscErrorCode add_tangent_by_cell(const double* x, BlockAdd add, void* ctx) const {
+    for (int k = 0; k < cells_; ++k) {
+      int corner[8];
+      corners(k, corner);
+      const Geometry& geo = geometry_[kinds_[kind_[k]].body];
+      double D[9][9];
+      if (!stress_tangent(k, x, D[0])) return 0;  // inverted: the residual is NaN already
+      // Dg[kl][a][i] = sum_j D[kl][ij] g_a[j]
+      double Dg[9][8][3];
+      for (int kl = 0; kl < 9; ++kl)
+        for (int a = 0; a < 8; ++a)
+          for (int i = 0; i < 3; ++i)
+            Dg[kl][a][i] = D[kl][3 * i] * geo.g[a][0] + D[kl][3 * i + 1] * geo.g[a][1] + D[kl][3 * i + 2] * geo.g[a][2];
+      for (int a = 0; a < 8; ++a) {
+        if (corner[a] >= m_.owned) continue;
+        for (int b = 0; b < 8; ++b) {
+          // K_ab[i][k] = V0 sum_l Dg[kl][a][i] g_b[l]: -d f_a / d x_b
+          double K[9];
+          for (int i = 0; i < 3; ++i)
+            for (int kk = 0; kk < 3; ++kk)
+              K[3 * i + kk] = geo.volume * (Dg[3 * kk][a][i] * geo.g[b][0] + Dg[3 * kk + 1][a][i] * geo.g[b][1] +
+                                            Dg[3 * kk + 2][a][i] * geo.g[b][2]);
+          const PetscErrorCode ierr = add(ctx, corner[a], corner[b], K);
+          if (ierr) return ierr;
+        }
       }
     }
     return 0;

@@ -52,6 +52,11 @@ public:
   // cache holds a molecule's 27 blocks anyway), held components not masked; nothing when none is.
   bool has_cached_tangent() const;
   bool has_terms() const { return !terms_.empty(); }  // any term beyond the connections' springs
+  bool terms_within_cells() const {  // every term's blocks within a lattice cell (Term::tangent_within_cells)
+    for (const auto& t : terms_)
+      if (!t->tangent_within_cells()) return false;
+    return true;
+  }
   PetscErrorCode cached_tangent_blocks(const double* x, Term::BlockAdd add, void* ctx) const;
   // Collective. Gershgorin's bound on the largest eigenvalue of D^-1 J (D: J's diagonal; held rows the identity's):
   // max over rows of 1 + sum_j!=i |J_ij| / J_ii. exact = false (and the bound not computed) when a term adds

@@ -86,6 +86,9 @@ public:
   // Such terms whose product costs no more than the springs' (measured: docs/benchmarks.md): the static solve is
   // then matrix-free by default (the cell term without fibres).
   virtual bool tangent_state_fast() const { return false; }
+  // Terms whose tangent blocks join only corners of one lattice cell (one body, neighbours in the 27-point
+  // stencil): the lattice multigrid's check of the pattern (LatticeGalerkin::applies) computes none of them.
+  virtual bool tangent_within_cells() const { return false; }
   // Contact terms: the force totals of the last evaluation (this rank's owned molecules).
   virtual void add_totals(ContactTotals& t) const {}
   // Terms whose tangent couples molecules no connection joins: the local columns each owned row needs beyond its

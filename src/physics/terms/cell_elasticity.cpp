@@ -257,24 +257,25 @@ void cell_block_forces(int n, const int* __restrict base, const int* __restrict 
   }
 }
 
-// stress()'s derivative along d for plain moduli (no fibres, no history) at F, with s = mu J^(-2/3) given:
-// d(cof) is bilinear in F and d; dJ = cof : d; s moves by -2/3 s dJ / J, I1 / (3J) by (2/3 F : d - I1 / (3J) dJ) / J;
-// the volumetric factor kappa/2 (J - 1/J) by kappa/2 (1 + 1/J^2) dJ; a face diagonal's c Fn by dc Fn + c dFn.
-inline void plain_stress_direction(const double F[9], double s, const Moduli& m, const double d[9], double P[9]) {
-  const double half = 0.5 * m.kappa;
-  double cof[9], dcof[9];
-  cof[0] = F[4] * F[8] - F[5] * F[7], cof[1] = F[5] * F[6] - F[3] * F[8], cof[2] = F[3] * F[7] - F[4] * F[6];
-  cof[3] = F[2] * F[7] - F[1] * F[8], cof[4] = F[0] * F[8] - F[2] * F[6], cof[5] = F[1] * F[6] - F[0] * F[7];
-  cof[6] = F[1] * F[5] - F[2] * F[4], cof[7] = F[2] * F[3] - F[0] * F[5], cof[8] = F[0] * F[4] - F[1] * F[3];
-  dcof[0] = (d[4] * F[8] + F[4] * d[8]) - (d[5] * F[7] + F[5] * d[7]);
-  dcof[1] = (d[5] * F[6] + F[5] * d[6]) - (d[3] * F[8] + F[3] * d[8]);
-  dcof[2] = (d[3] * F[7] + F[3] * d[7]) - (d[4] * F[6] + F[4] * d[6]);
-  dcof[3] = (d[2] * F[7] + F[2] * d[7]) - (d[1] * F[8] + F[1] * d[8]);
-  dcof[4] = (d[0] * F[8] + F[0] * d[8]) - (d[2] * F[6] + F[2] * d[6]);
-  dcof[5] = (d[1] * F[6] + F[1] * d[6]) - (d[0] * F[7] + F[0] * d[7]);
-  dcof[6] = (d[1] * F[5] + F[1] * d[5]) - (d[2] * F[4] + F[2] * d[4]);
-  dcof[7] = (d[2] * F[3] + F[2] * d[3]) - (d[0] * F[5] + F[0] * d[5]);
-  dcof[8] = (d[0] * F[4] + F[0] * d[4]) - (d[1] * F[3] + F[1] * d[3]);
+// stress()'s derivative along d for plain moduli (no fibres, no history) at F, with s = mu J^(-2/3) given, one
+// cell (a vector lane of cell_block_tangent, or one cell of the diagonal): d(cof) is bilinear in F and d;
+// dJ = cof : d; s moves by -2/3 s dJ / J, I1 / (3J) by (2/3 F : d - I1 / (3J) dJ) / J; the volumetric factor
+// kappa/2 (J - 1/J) by kappa/2 (1 + 1/J^2) dJ (half = kappa/2). P is set; then each face diagonal's part is
+// added (below).
+__attribute__((always_inline)) inline void isotropic_stress_direction(const double F[9], double s, double half,
+                                                                      const double d[9], double P[9]) {
+  const double cof[9] = {F[4] * F[8] - F[5] * F[7], F[5] * F[6] - F[3] * F[8], F[3] * F[7] - F[4] * F[6],
+                         F[2] * F[7] - F[1] * F[8], F[0] * F[8] - F[2] * F[6], F[1] * F[6] - F[0] * F[7],
+                         F[1] * F[5] - F[2] * F[4], F[2] * F[3] - F[0] * F[5], F[0] * F[4] - F[1] * F[3]};
+  const double dcof[9] = {(d[4] * F[8] + F[4] * d[8]) - (d[5] * F[7] + F[5] * d[7]),
+                          (d[5] * F[6] + F[5] * d[6]) - (d[3] * F[8] + F[3] * d[8]),
+                          (d[3] * F[7] + F[3] * d[7]) - (d[4] * F[6] + F[4] * d[6]),
+                          (d[2] * F[7] + F[2] * d[7]) - (d[1] * F[8] + F[1] * d[8]),
+                          (d[0] * F[8] + F[0] * d[8]) - (d[2] * F[6] + F[2] * d[6]),
+                          (d[1] * F[6] + F[1] * d[6]) - (d[0] * F[7] + F[0] * d[7]),
+                          (d[1] * F[5] + F[1] * d[5]) - (d[2] * F[4] + F[2] * d[4]),
+                          (d[2] * F[3] + F[2] * d[3]) - (d[0] * F[5] + F[0] * d[5]),
+                          (d[0] * F[4] + F[0] * d[4]) - (d[1] * F[3] + F[1] * d[3])};
   const double J = F[0] * cof[0] + F[1] * cof[1] + F[2] * cof[2];
   double dJ = 0, I1 = 0, dI1 = 0;
   for (int q = 0; q < 9; ++q) dJ += cof[q] * d[q], I1 += F[q] * F[q], dI1 += F[q] * d[q];
@@ -284,23 +285,22 @@ inline void plain_stress_direction(const double F[9], double s, const Moduli& m,
   for (int q = 0; q < 9; ++q)
     P[q] = ds * (F[q] - third * cof[q]) + s * (d[q] - dthird * cof[q] - third * dcof[q]) + dvol * cof[q] +
            vol * dcof[q];
-  for (int w = 0; w < 3; ++w) {
-    if (m.alpha[w] == 0) continue;
-    const int a = (w + 1) % 3, b = (w + 2) % 3;
-    for (const double sign : {1.0, -1.0}) {
-      double Fn[3], dFn[3];
-      for (int r = 0; r < 3; ++r)
-        Fn[r] = (F[3 * r + a] + sign * F[3 * r + b]) * M_SQRT1_2,
-        dFn[r] = (d[3 * r + a] + sign * d[3 * r + b]) * M_SQRT1_2;
-      const double stretch = Fn[0] * Fn[0] + Fn[1] * Fn[1] + Fn[2] * Fn[2] - 1.0;
-      const double dstretch = 2.0 * (Fn[0] * dFn[0] + Fn[1] * dFn[1] + Fn[2] * dFn[2]);
-      const double c = m.alpha[w] * stretch * M_SQRT1_2, dc = m.alpha[w] * dstretch * M_SQRT1_2;
-      for (int r = 0; r < 3; ++r) {
-        const double t = dc * Fn[r] + c * dFn[r];
-        P[3 * r + a] += t, P[3 * r + b] += sign * t;
-      }
-    }
-  }
+}
+
+// The derivative of one face diagonal's stress (face plane (a, b), n = (e_a + sign e_b) / sqrt 2) along d, from
+// F's and d's columns a and b (Fa[r] = F[3r + a], ...): c Fn's derivative t = dc Fn + c dFn with c = alpha
+// stretch scale (alpha = the plane's alpha_w, scale = 1/sqrt 2; the blocks pass alpha_w / sqrt 2 and 1, the
+// rounding each path always had), which adds t to P's column a and sign t to its column b.
+__attribute__((always_inline)) inline void face_diagonal_stress_direction(const double Fa[3], const double Fb[3],
+                                                                          const double da[3], const double db[3],
+                                                                          double sign, double alpha, double scale,
+                                                                          double t[3]) {
+  double Fn[3], dFn[3];
+  for (int r = 0; r < 3; ++r) Fn[r] = (Fa[r] + sign * Fb[r]) * M_SQRT1_2, dFn[r] = (da[r] + sign * db[r]) * M_SQRT1_2;
+  const double stretch = Fn[0] * Fn[0] + Fn[1] * Fn[1] + Fn[2] * Fn[2] - 1.0;
+  const double dstretch = 2.0 * (Fn[0] * dFn[0] + Fn[1] * dFn[1] + Fn[2] * dFn[2]);
+  const double c = alpha * stretch * scale, dc = alpha * dstretch * scale;
+  for (int r = 0; r < 3; ++r) t[r] = dc * Fn[r] + c * dFn[r];
 }
 
 // The tangent's product on the same blocks as cell_block_forces (the same corner patterns and row layout): per
@@ -330,35 +330,16 @@ void cell_block_tangent(int n, const int* __restrict base, const int* __restrict
       }
   }
   if (m) {
-    // plain_stress_direction's arithmetic with the cells as vector lanes: the isotropic parts, then each face
-    // diagonal in its own loop (as cell_block_forces).
+    // stress()'s derivative along dF with the cells as vector lanes: the isotropic parts, then each face diagonal
+    // in its own loop (as cell_block_forces).
     const std::size_t sn = static_cast<std::size_t>(n);
     const double* __restrict Fs = D;
     const double half = 0.5 * m->kappa;
     for (int i = 0; i < n; ++i) {
-      const double F0 = Fs[i], F1 = Fs[sn + i], F2 = Fs[2 * sn + i], F3 = Fs[3 * sn + i], F4 = Fs[4 * sn + i],
-                   F5 = Fs[5 * sn + i], F6 = Fs[6 * sn + i], F7 = Fs[7 * sn + i], F8 = Fs[8 * sn + i];
-      const double s = Fs[9 * sn + i];
-      const double d0 = dF[0][i], d1 = dF[1][i], d2 = dF[2][i], d3 = dF[3][i], d4 = dF[4][i], d5 = dF[5][i],
-                   d6 = dF[6][i], d7 = dF[7][i], d8 = dF[8][i];
-      const double F[9] = {F0, F1, F2, F3, F4, F5, F6, F7, F8}, d[9] = {d0, d1, d2, d3, d4, d5, d6, d7, d8};
-      const double cof[9] = {F4 * F8 - F5 * F7, F5 * F6 - F3 * F8, F3 * F7 - F4 * F6,
-                             F2 * F7 - F1 * F8, F0 * F8 - F2 * F6, F1 * F6 - F0 * F7,
-                             F1 * F5 - F2 * F4, F2 * F3 - F0 * F5, F0 * F4 - F1 * F3};
-      const double dcof[9] = {(d4 * F8 + F4 * d8) - (d5 * F7 + F5 * d7), (d5 * F6 + F5 * d6) - (d3 * F8 + F3 * d8),
-                              (d3 * F7 + F3 * d7) - (d4 * F6 + F4 * d6), (d2 * F7 + F2 * d7) - (d1 * F8 + F1 * d8),
-                              (d0 * F8 + F0 * d8) - (d2 * F6 + F2 * d6), (d1 * F6 + F1 * d6) - (d0 * F7 + F0 * d7),
-                              (d1 * F5 + F1 * d5) - (d2 * F4 + F2 * d4), (d2 * F3 + F2 * d3) - (d0 * F5 + F0 * d5),
-                              (d0 * F4 + F0 * d4) - (d1 * F3 + F1 * d3)};
-      const double J = F0 * cof[0] + F1 * cof[1] + F2 * cof[2];
-      double dJ = 0, I1 = 0, dI1 = 0;
-      for (int q = 0; q < 9; ++q) dJ += cof[q] * d[q], I1 += F[q] * F[q], dI1 += F[q] * d[q];
-      const double rJ = 1.0 / J, third = I1 * rJ / 3.0;
-      const double ds = -2.0 / 3.0 * s * dJ * rJ, dthird = (2.0 * dI1 / 3.0 - third * dJ) * rJ;
-      const double vol = half * (J - rJ), dvol = half * (1.0 + rJ * rJ) * dJ;
-      for (int q = 0; q < 9; ++q)
-        dP[q][i] = ds * (F[q] - third * cof[q]) + s * (d[q] - dthird * cof[q] - third * dcof[q]) + dvol * cof[q] +
-                   vol * dcof[q];
+      double F[9], d[9], P[9];
+      for (int q = 0; q < 9; ++q) F[q] = Fs[q * sn + i], d[q] = dF[q][i];
+      isotropic_stress_direction(F, Fs[9 * sn + i], half, d, P);
+      for (int q = 0; q < 9; ++q) dP[q][i] = P[q];
     }
     for (int w = 0; w < 3; ++w) {
       if (m->alpha[w] == 0) continue;
@@ -367,17 +348,12 @@ void cell_block_tangent(int n, const int* __restrict base, const int* __restrict
       for (int k = 0; k < 2; ++k) {
         const double sign = k == 0 ? 1.0 : -1.0;
         for (int i = 0; i < n; ++i) {
-          double Fn[3], dFn[3];
+          double Fa[3], Fb[3], da[3], db[3], t[3];
           for (int r = 0; r < 3; ++r)
-            Fn[r] = (Fs[(3 * r + a) * sn + i] + sign * Fs[(3 * r + b) * sn + i]) * M_SQRT1_2,
-            dFn[r] = (dF[3 * r + a][i] + sign * dF[3 * r + b][i]) * M_SQRT1_2;
-          const double stretch = Fn[0] * Fn[0] + Fn[1] * Fn[1] + Fn[2] * Fn[2] - 1.0;
-          const double dstretch = 2.0 * (Fn[0] * dFn[0] + Fn[1] * dFn[1] + Fn[2] * dFn[2]);
-          const double c = alpha * stretch, dc = alpha * dstretch;
-          for (int r = 0; r < 3; ++r) {
-            const double t = dc * Fn[r] + c * dFn[r];
-            dP[3 * r + a][i] += t, dP[3 * r + b][i] += sign * t;
-          }
+            Fa[r] = Fs[(3 * r + a) * sn + i], Fb[r] = Fs[(3 * r + b) * sn + i], da[r] = dF[3 * r + a][i],
+            db[r] = dF[3 * r + b][i];
+          face_diagonal_stress_direction(Fa, Fb, da, db, sign, alpha, 1.0, t);
+          for (int r = 0; r < 3; ++r) dP[3 * r + a][i] += t[r], dP[3 * r + b][i] += sign * t[r];
         }
       }
     }
@@ -404,6 +380,40 @@ void cell_block_tangent(int n, const int* __restrict base, const int* __restrict
     return;
   }
   for (int i = 0; i < n; ++i) add_cell_corners(q, i, base, offset, owned, out);
+}
+
+// The entries of dP/dF the tangent's diagonal reads, for a block's plain cells as vector lanes (the tangent
+// state's layout: F's and the scale mu J^(-2/3), Fs[q n + c]): Dd[3p + j][c] = dP_(3i + j) / dF_p with i = p / 3
+// (row i of P along direction p), the product's arithmetic (isotropic part, then the face diagonals) along e_p.
+TISSUE_CELL_CLONES
+void plain_block_diagonal_tangent(int n, const double* __restrict Fs, const Moduli* m,
+                                  double (*__restrict Dd)[kCellBlock]) {
+  const std::size_t sn = static_cast<std::size_t>(n);
+  const double half = 0.5 * m->kappa;
+  for (int p = 0; p < 9; ++p) {
+    const int i = p / 3;
+    for (int c = 0; c < n; ++c) {
+      double F[9], d[9], P[9];
+      for (int q = 0; q < 9; ++q) F[q] = Fs[q * sn + c], d[q] = q == p ? 1.0 : 0.0;
+      isotropic_stress_direction(F, Fs[9 * sn + c], half, d, P);
+      for (int j = 0; j < 3; ++j) Dd[3 * p + j][c] = P[3 * i + j];
+    }
+    for (int w = 0; w < 3; ++w) {
+      if (m->alpha[w] == 0) continue;
+      const int a = (w + 1) % 3, b = (w + 2) % 3;
+      for (int k = 0; k < 2; ++k) {
+        const double sign = k == 0 ? 1.0 : -1.0;
+        for (int c = 0; c < n; ++c) {
+          double Fa[3], Fb[3], da[3], db[3], t[3];
+          for (int r = 0; r < 3; ++r)
+            Fa[r] = Fs[(3 * r + a) * sn + c], Fb[r] = Fs[(3 * r + b) * sn + c], da[r] = 3 * r + a == p ? 1.0 : 0.0,
+            db[r] = 3 * r + b == p ? 1.0 : 0.0;
+          face_diagonal_stress_direction(Fa, Fb, da, db, sign, m->alpha[w], M_SQRT1_2, t);
+          Dd[3 * p + a][c] += t[i], Dd[3 * p + b][c] += sign * t[i];
+        }
+      }
+    }
+  }
 }
 
 class CellElasticity final : public Term {
@@ -582,6 +592,10 @@ public:
         for (int d = 0; d < 3; ++d) geo.g[c][d] = (((c >> d) & 1) ? 1.0 : -1.0) / (4.0 * box.h[d]);
       geometry_.push_back(geo);
     }
+    for (int b = 0; b < model.shape.bodies(); ++b)
+      ring_ = std::max<std::size_t>(ring_, 2 + static_cast<std::size_t>(model.shape.body(b).n[0]) *
+                                                   (1 + static_cast<std::size_t>(model.shape.body(b).n[1])));
+    ring_ = std::min<std::size_t>(ring_, std::max(cells_, 1));
     if (fibre_begin_.empty()) make_blocks();
   }
 
@@ -621,8 +635,42 @@ public:
   }
 
   bool tangent_worth_caching() const override { return true; }
+  bool tangent_within_cells() const override { return true; }
 
+  // The blocks row by row: a molecule's row (its up to 8 cells' blocks, summed per neighbour: at most 27) once its
+  // last cell (the highest id) is computed, each cell's dP/dF kept in a ring of the last cells while its
+  // corners' rows are open (one plane of cells and a row: the lattice's cell order). A consumer that sums a row
+  // at a time (LatticeGalerkin's stream) then sees one run a row instead of one per cell, and 27 blocks instead
+  // of 64; each block is the per-cell one summed over the row's cells in increasing cell order.
   PetscErrorCode add_tangent(const double* x, BlockAdd add, void* ctx) const override {
+    if (cells_ == 0) return 0;
+    if (ring_ > kRingCells) return add_tangent_by_cell(x, add, ctx);
+    const std::size_t R = ring_;
+    std::vector<double> ring(81 * R);
+    for (int k = 0; k < cells_; ++k) {
+      if (!stress_tangent(k, x, &ring[81 * (static_cast<std::size_t>(k) % R)])) return 0;  // inverted: the
+                                                                                            // residual is NaN
+      const BoxGeometry& box = m_.shape.body(kinds_[kind_[k]].body);
+      const auto b = box.index(m_.id[base_[k]]);
+      int corner[8];
+      corners(k, corner);
+      // Corner c's last cell is this one when along each axis it is the cell's lower corner or the lattice ends.
+      for (int c = 0; c < 8; ++c) {
+        if (corner[c] >= m_.owned) continue;
+        bool last = true;
+        for (int d = 0; d < 3; ++d) last = last && (!(c >> d & 1) || b[d] == box.n[d] - 2);
+        if (!last) continue;
+        const PetscErrorCode ierr = add_row(corner[c], k, ring.data(), add, ctx);
+        if (ierr) return ierr;
+      }
+    }
+    return 0;
+  }
+
+  // A plane of cells beyond kRingCells (a wide thin layer: its plane is most of its cells) would make the ring
+  // a copy of dP/dF for most cells: then the blocks go cell by cell (64 a cell, each row in a run per cell).
+  static constexpr std::size_t kRingCells = std::size_t(1) << 16;  // 42 MB of dP/dF
+  PetscErrorCode add_tangent_by_cell(const double* x, BlockAdd add, void* ctx) const {
     for (int k = 0; k < cells_; ++k) {
       int corner[8];
       corners(k, corner);
@@ -648,6 +696,66 @@ public:
           if (ierr) return ierr;
         }
       }
+    }
+    return 0;
+  }
+
+  // Molecule m's row of the tangent from its cells (the last one is cell `last`; their dP/dF in the ring).
+  PetscErrorCode add_row(int m, int last, const double* ring, BlockAdd add, void* ctx) const {
+    const BoxGeometry& box = m_.shape.body(kinds_[kind_[last]].body);
+    const auto ijk = box.index(m_.id[m]);
+    double K[27][9];
+    int column[27];
+    std::uint32_t present = 0;
+    // m's cells in increasing id: the cell with m as corner a has its lowest corner at m - a's offsets.
+    for (int a = 7; a >= 0; --a) {
+      long q[3];
+      bool inside = true;
+      for (int d = 0; d < 3; ++d) q[d] = ijk[d] - (a >> d & 1), inside = inside && q[d] >= 0 && q[d] <= box.n[d] - 2;
+      if (!inside) continue;
+      const std::int64_t id = box.id(q[0], q[1], q[2]);
+      // Among the ring's cells (ids increasing with the index) up to `last`.
+      int lo = std::max(0, last - static_cast<int>(ring_) + 1), hi = last + 1;
+      while (lo < hi) {
+        const int mid = (lo + hi) / 2;
+        if (m_.id[base_[mid]] < id) lo = mid + 1;
+        else hi = mid;
+      }
+      const int k = lo;
+      PetscCheck(k <= last && m_.id[base_[k]] == id, PETSC_COMM_SELF, PETSC_ERR_PLIB,
+                 "cell term: a molecule's cell is not among the last cells kept");
+      const double* D = ring + 81 * (static_cast<std::size_t>(k) % ring_);
+      const Geometry& geo = geometry_[kinds_[kind_[k]].body];
+      int corner[8];
+      corners(k, corner);
+      // Dg[kl][i] = sum_j D[kl][ij] g_a[j]; K_ab[i][k] = V0 sum_l Dg[kl][i] g_b[l]: -d f_a / d x_b
+      double Dg[9][3];
+      for (int kl = 0; kl < 9; ++kl)
+        for (int i = 0; i < 3; ++i)
+          Dg[kl][i] = D[9 * kl + 3 * i] * geo.g[a][0] + D[9 * kl + 3 * i + 1] * geo.g[a][1] +
+                      D[9 * kl + 3 * i + 2] * geo.g[a][2];
+      double Kb[8][9];
+      for (int b = 0; b < 8; ++b)
+        for (int i = 0; i < 3; ++i)
+          for (int kk = 0; kk < 3; ++kk)
+            Kb[b][3 * i + kk] = geo.volume * (Dg[3 * kk][i] * geo.g[b][0] + Dg[3 * kk + 1][i] * geo.g[b][1] +
+                                              Dg[3 * kk + 2][i] * geo.g[b][2]);
+      for (int b = 0; b < 8; ++b) {
+        // the neighbour's slot: (dx + 1) + 3 (dy + 1) + 9 (dz + 1), d = b's offsets - a's
+        const int slot = 13 + ((b & 1) - (a & 1)) + 3 * ((b >> 1 & 1) - (a >> 1 & 1)) + 9 * ((b >> 2 & 1) - (a >> 2 & 1));
+        double* to = K[slot];
+        if (present >> slot & 1) {
+          for (int e = 0; e < 9; ++e) to[e] += Kb[b][e];
+        } else {
+          for (int e = 0; e < 9; ++e) to[e] = Kb[b][e];
+          column[slot] = corner[b], present |= 1u << slot;
+        }
+      }
+    }
+    for (std::uint32_t rest = present; rest; rest &= rest - 1) {
+      const int slot = __builtin_ctz(rest);
+      const PetscErrorCode ierr = add(ctx, m, column[slot], K[slot]);
+      if (ierr) return ierr;
     }
     return 0;
   }
@@ -713,24 +821,19 @@ public:
     const double* state = state_with_width + 1;
     for_each_state_block([&](int first, int n) {
       const double* block = state + w * static_cast<std::size_t>(first);
+      // The entries of dP/dF read below, Dd[3p + j] = dP_(3i + j) / dF_p (i = p / 3): from the closed form over
+      // the block's cells as lanes (plain cells; once per Newton iteration, not per product), else the state's.
+      alignas(64) double Dd[27][kCellBlock];
+      if (w == 10) plain_block_diagonal_tangent(n, block, &kinds_[kind_[first]].moduli, Dd);
       for (int k = first; k < first + n; ++k) {
         int corner[8];
         corners(k, corner);
         const Geometry& geo = geometry_[kinds_[kind_[k]].body];
-        double D[81];
-        if (w == 10) {
-          // dP/dF from the closed form, one direction at a time (once per Newton iteration, not per product).
-          double F[9];
-          for (int c = 0; c < 9; ++c) F[c] = block[static_cast<std::size_t>(c) * n + (k - first)];
-          const double scale = block[static_cast<std::size_t>(9) * n + (k - first)];
-          for (int p = 0; p < 9; ++p) {
-            double d[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
-            d[p] = 1.0;
-            plain_stress_direction(F, scale, kinds_[kind_[k]].moduli, d, D + 9 * p);
-          }
-        } else {
-          for (int c = 0; c < 81; ++c) D[c] = block[static_cast<std::size_t>(c) * n + (k - first)];
-        }
+        double D[27];
+        for (int p = 0; p < 9; ++p)
+          for (int j = 0; j < 3; ++j)
+            D[3 * p + j] = w == 10 ? Dd[3 * p + j][k - first]
+                                   : block[static_cast<std::size_t>(9 * p + 3 * (p / 3) + j) * n + (k - first)];
         for (int a = 0; a < 8; ++a) {
           if (corner[a] >= m_.owned) continue;
           const double* g = geo.g[a];
@@ -738,8 +841,7 @@ public:
             // K_aa[i][i] = V0 sum_jl dP_ij/dF_il g_a[j] g_a[l]
             double K = 0;
             for (int l = 0; l < 3; ++l)
-              K += (D[9 * (3 * i + l) + 3 * i] * g[0] + D[9 * (3 * i + l) + 3 * i + 1] * g[1] +
-                    D[9 * (3 * i + l) + 3 * i + 2] * g[2]) * g[l];
+              K += (D[3 * (3 * i + l)] * g[0] + D[3 * (3 * i + l) + 1] * g[1] + D[3 * (3 * i + l) + 2] * g[2]) * g[l];
             diag[3 * corner[a] + i] += geo.volume * K;
           }
         }
@@ -986,6 +1088,8 @@ private:
     bool rows;
   };
   std::vector<Block> blocks_;  // in cell order; empty with fibres (no block ever runs then)
+  // add_tangent's ring of dP/dF: the most cells between a molecule's first and last cell (ids x-fastest).
+  std::size_t ring_ = 1;
 
   // Greedy from each cell: up to kCellBlock cells that share their moduli and corner pattern; cells consecutive
   // along x (at least 8, their four corner rows apart) are a row block, the rest gathered.

@@ -85,6 +85,8 @@ public:
   // [offset, offset + rows) of piece p (rows * width values, valid until the next call; null when rows == 0).
   // `integer`: int64 values, otherwise double. `independent`: piece() makes no MPI call (each rank's rows its own:
   // io/row_stream.hpp), so each rank writes all its pieces on its own and the ranks agree once, after the last.
+  // Without `independent`, piece() may make collective calls (every rank calls it for every piece) and throw on
+  // its rank after them: the ranks agree on that in the piece's one reduction.
   // `placed`, if given, is called on every rank once the dataset exists, before the first piece, with the file
   // offset of its first row (the same on every rank; -1 if HDF5 does not say): a caller may then choose its pieces'
   // rows so that they cover whole seal blocks (io/row_stream.cpp). It may make collective calls.

@@ -3,12 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
-#include <numeric>
 #include <memory>
 #include <stdexcept>
 #include <type_traits>
 
-#include "io/file_seal.hpp"
 #include "partition/agreement.hpp"
 #include "partition/natural_order.hpp"
 
@@ -184,7 +182,15 @@ void RowStream::plan(bool shared) {
     }
   }
   // What each rank receives in each piece: one all-to-all of every piece's counts.
-  exchange_counts(send_, recv_, pieces_);
+  std::vector<int> out(parts), in(parts);
+  for (int r = 0; r < size_; ++r)
+    for (std::int64_t p = 0; p < pieces_; ++p) out[r * pieces_ + p] = send_[p * size_ + r];
+  check_mpi(MPI_Alltoall(out.data(), static_cast<int>(pieces_), MPI_INT, in.data(), static_cast<int>(pieces_), MPI_INT,
+                         comm_),
+            "MPI_Alltoall");
+  recv_.assign(parts, 0);
+  for (int r = 0; r < size_; ++r)
+    for (std::int64_t p = 0; p < pieces_; ++p) recv_[p * size_ + r] = in[r * pieces_ + p];
   // Every part must receive exactly its rows' count (duplicates are caught as each piece is written).
   for (std::int64_t p = 0; p < pieces_ && !bad && !shared; ++p) {
     std::int64_t got = 0;
@@ -198,70 +204,6 @@ void RowStream::plan(bool shared) {
     throw std::invalid_argument(std::string("RowStream: the ranks' ids are not ") +
                                 (shared ? "increasing ids in " : "an increasing permutation of ") + "0.." +
                                 std::to_string(global_rows_ - 1));
-}
-
-void RowStream::exchange_counts(const std::vector<int>& send, std::vector<int>& recv, std::int64_t pieces) const {
-  const std::size_t parts = static_cast<std::size_t>(pieces) * size_;
-  std::vector<int> out(parts), in(parts);
-  for (int r = 0; r < size_; ++r)
-    for (std::int64_t p = 0; p < pieces; ++p) out[r * pieces + p] = send[p * size_ + r];
-  check_mpi(MPI_Alltoall(out.data(), static_cast<int>(pieces), MPI_INT, in.data(), static_cast<int>(pieces), MPI_INT,
-                         comm_),
-            "MPI_Alltoall");
-  recv.assign(parts, 0);
-  for (int r = 0; r < size_; ++r)
-    for (std::int64_t p = 0; p < pieces; ++p) recv[p * size_ + r] = in[r * pieces + p];
-}
-
-RowStream::Split RowStream::aligned_split(std::int64_t base, std::int64_t row_bytes) const {
-  Split split;
-  if (size_ == 1 || own_parts() || base < 0 || row_bytes <= 0) return split;
-  // The rows x that begin a seal block: base + row_bytes x = kSealUserBlock (mod kSealBlock). With g the largest
-  // power of two dividing both, they exist iff g divides kSealUserBlock - base, and repeat every T = kSealBlock / g
-  // rows; m = row_bytes / g is odd, so x0 = (kSealUserBlock - base) / g times m's inverse, modulo T.
-  const std::int64_t block = static_cast<std::int64_t>(kSealBlock);
-  const std::int64_t g = std::gcd(row_bytes, block), period = block / g;
-  const std::int64_t c = ((static_cast<std::int64_t>(kSealUserBlock) - base) % block + block) % block;
-  if (c % g != 0 || period > piece_rows_) return split;
-  const std::uint64_t m = static_cast<std::uint64_t>(row_bytes / g);
-  std::uint64_t inverse = m;  // Newton's iteration: each step doubles the correct low bits (m m = 1 mod 8)
-  for (int i = 0; i < 5; ++i) inverse *= 2 - m * inverse;
-  const std::int64_t x0 =
-      static_cast<std::int64_t>((static_cast<std::uint64_t>(c / g) * inverse) & static_cast<std::uint64_t>(period - 1));
-  const std::int64_t parts = pieces_ * size_;
-  split.bounds.assign(parts + 1, global_rows_);
-  split.bounds[0] = 0;
-  for (std::int64_t q = 1; q < parts; ++q) {
-    const std::int64_t even = part_begin(q / size_, static_cast<int>(q % size_)), shift = even - x0 + period / 2;
-    const std::int64_t nearest = shift < 0 ? 0 : x0 + shift / period * period;
-    split.bounds[q] = std::clamp(nearest, split.bounds[q - 1], global_rows_);
-  }
-  // The items to the parts, as plan() does with the even split (the ids were checked there).
-  split.start.assign(parts + 1, slots_);
-  split.send.assign(parts, 0);
-  std::int64_t ids[kBatch], next_part = 0, part = 0;
-  for (std::int64_t k0 = 0; k0 < slots_; k0 += kBatch) {
-    const std::int64_t k1 = std::min(slots_, k0 + kBatch);
-    ids_(k0, k1, ids);
-    for (std::int64_t k = k0; k < k1; ++k) {
-      const std::int64_t i = ids[k - k0];
-      if (i < 0) continue;
-      while (part < parts - 1 && i >= split.bounds[part + 1]) ++part;
-      while (next_part <= part) split.start[next_part++] = k;
-      ++split.send[part];
-    }
-  }
-  exchange_counts(split.send, split.recv, pieces_);
-  int bad = 0;
-  for (std::int64_t p = 0; p < pieces_ && !bad; ++p) {
-    std::int64_t got = 0;
-    for (int r = 0; r < size_; ++r) got += split.recv[p * size_ + r];
-    bad = got != split.bounds[p * size_ + rank_ + 1] - split.bounds[p * size_ + rank_];
-  }
-  int any = 0;
-  check_mpi(MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, comm_), "MPI_Allreduce");
-  if (any) throw std::logic_error("RowStream: the parts aligned on the seal's blocks miss rows");
-  return split;
 }
 
 namespace {
@@ -320,26 +262,14 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
     return batch.get();
   };
   std::uint64_t hash = 0;
-  // The parts: the stream's plan, or the same moved onto the dataset's seal blocks once its place is known.
-  Split aligned;
-  const std::vector<std::int64_t>* start = &start_;
-  const std::vector<int>* send = &send_;
-  const std::vector<int>* recv = &recv_;
-  auto placed = [&](std::int64_t base) {
-    aligned = aligned_split(base, static_cast<std::int64_t>(sizeof(T)) * width);
-    if (aligned.bounds.empty()) return;
-    start = &aligned.start, send = &aligned.send, recv = &aligned.recv;
-  };
   auto piece = [&](std::int64_t p, std::int64_t* offset, std::int64_t* count) -> const void* {
-    const auto [first, end] = aligned.bounds.empty()
-                                  ? part_rows(p, rank_)
-                                  : std::pair{aligned.bounds[p * size_ + rank_], aligned.bounds[p * size_ + rank_ + 1]};
+    const auto [first, end] = part_rows(p, rank_);
     const std::int64_t length = end - first;
     T* rows = buffer.rows.at_least(static_cast<std::size_t>(length) * width);
     seen.assign(static_cast<std::size_t>(length), 0);
     // This rank's own items go straight to their rows (plan() checked their ids: increasing, inside this part);
     // only the other ranks' items travel, with their ids.
-    for (std::int64_t k0 = (*start)[p * size_ + rank_], end = (*start)[p * size_ + rank_ + 1]; k0 < end; k0 += kBatch) {
+    for (std::int64_t k0 = start_[p * size_ + rank_], end = start_[p * size_ + rank_ + 1]; k0 < end; k0 += kBatch) {
       const std::int64_t k1 = std::min(end, k0 + kBatch), n = k1 - k0;
       ids_(k0, k1, ids);
       bool consecutive = true;  // none skipped, each the one after the last
@@ -361,14 +291,14 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
     if (size_ > 1 && !own_parts()) {
       std::int64_t sent = 0, received = 0;
       for (int r = 0; r < size_; ++r)
-        if (r != rank_) sent += (*send)[p * size_ + r], received += (*recv)[p * size_ + r];
+        if (r != rank_) sent += send_[p * size_ + r], received += recv_[p * size_ + r];
       T* outgoing = buffer.outgoing.at_least(static_cast<std::size_t>(sent) * row);
       T* incoming = buffer.incoming.at_least(static_cast<std::size_t>(received) * row);
       std::size_t at = 0;
       for (int r = 0; r < size_; ++r) {
         send_displs[r] = static_cast<int>(at * sizeof(T));
         if (r != rank_)
-          for (std::int64_t k0 = (*start)[p * size_ + r], end = (*start)[p * size_ + r + 1]; k0 < end; k0 += kBatch) {
+          for (std::int64_t k0 = start_[p * size_ + r], end = start_[p * size_ + r + 1]; k0 < end; k0 += kBatch) {
             const std::int64_t k1 = std::min(end, k0 + kBatch);
             ids_(k0, k1, ids);
             T* b = batch_rows();
@@ -385,7 +315,7 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
       std::size_t in = 0;
       for (int r = 0; r < size_; ++r) {
         recv_displs[r] = static_cast<int>(in * sizeof(T));
-        const std::int64_t n = r == rank_ ? 0 : (*recv)[p * size_ + r];
+        const std::int64_t n = r == rank_ ? 0 : recv_[p * size_ + r];
         recv_bytes[r] = static_cast<int>(n * row * sizeof(T));
         in += static_cast<std::size_t>(n) * row;
       }
@@ -413,7 +343,7 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
     *offset = first, *count = length;
     return rows;
   };
-  file.write_pieces(dataset, global_rows_, width, std::is_same_v<T, std::int64_t>, pieces_, piece, own_parts(), placed);
+  file.write_pieces(dataset, global_rows_, width, std::is_same_v<T, std::int64_t>, pieces_, piece, own_parts());
   std::uint64_t total = 0;
   check_mpi(MPI_Allreduce(&hash, &total, 1, MPI_UINT64_T, MPI_SUM, comm_), "MPI_Allreduce");
   return total;

@@ -237,8 +237,8 @@ TEST(RowStream, SealIsTheBlockHashOfEveryByte) {
         },
         RowStream::Checksum::skip);
     EXPECT_EQ(hash, 0u);
-    // Rows of 8 and 16 bytes too: scrambled, each rank's parts are moved onto the seal's blocks of each dataset
-    // (RowStream::aligned_split: parts of 1 MiB at 2 ranks for 8-byte rows, none at 3 ranks for some pieces).
+    // Rows of 8 and 16 bytes too: scrambled, each rank's part of a piece is a MiB or less at 2 and 3 ranks, so
+    // most seal blocks lie across two ranks' parts and are hashed at close; in runs, nearly all as written.
     stream.write_int64(f, "/ids", 1, [&](std::int64_t k, std::int64_t* row) { row[0] = ids[static_cast<std::size_t>(k)]; },
                        RowStream::Checksum::skip);
     stream.write_int64(f, "/pairs", 2, [&](std::int64_t k, std::int64_t* row) {

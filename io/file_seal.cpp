@@ -119,6 +119,8 @@ void SealStream::hash_pending() {
     for (int i = 0; i < n; ++i) {
       sum_ += h[i];
       hashed_.push_back(pending_[i]);
+      if (mine_.size() <= pending_[i]) mine_.resize(pending_[i] + 1, 0);
+      mine_[pending_[i]] = 1;
       // Hashed: its pages may go to the disk now, in the background.
       ::sync_file_range(fd_, static_cast<off_t>(block_offset(pending_[i])), kSealBlock, SYNC_FILE_RANGE_WRITE);
       writing_.push_back(pending_[i]);
@@ -141,7 +143,11 @@ void SealStream::hash_pending() {
                             SYNC_FILE_RANGE_WAIT_BEFORE | SYNC_FILE_RANGE_WRITE | SYNC_FILE_RANGE_WAIT_AFTER) != 0) {
         if (!error_) error_ = errno ? errno : EIO;
       } else {
-        const std::uint64_t from = begin / (2 * kSealBlock) * (2 * kSealBlock);
+        // Only over blocks this rank hashed: another rank's block below may be written back but not hashed yet
+        // (ranks' parts alternate), and dropping it would make that rank read it back from the disk.
+        std::uint64_t from = begin / (2 * kSealBlock) * (2 * kSealBlock);
+        for (std::uint64_t b = writing_[i]; from < begin && b-- > 0 && block_offset(b + 1) > from;)
+          if (b >= mine_.size() || !mine_[b]) from = begin;
         ::posix_fadvise(fd_, static_cast<off_t>(from), static_cast<off_t>(end - from), POSIX_FADV_DONTNEED);
       }
       i = j;

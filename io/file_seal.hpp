@@ -55,6 +55,7 @@ private:
   std::uint64_t next_block_ = 0;  // the run's first block not yet taken
   std::vector<std::uint64_t> pending_, hashed_;
   std::vector<std::uint64_t> writing_;  // hashed blocks whose pages are being written back, oldest first
+  std::vector<char> mine_;              // by block: hashed here
   std::vector<unsigned char> buffer_;
   std::uint64_t sum_ = 0;
   int error_ = 0;

@@ -506,18 +506,15 @@ void Hdf5File::write_pieces(const std::string& dataset, int64_t global_rows, int
     // writes whole as it goes (io/file_seal.hpp).
     const haddr_t base = H5Dget_offset(dset.get());
     SealStream* seal = base != HADDR_UNDEF ? seal_.get() : nullptr;
-    // Each rank's rows of a piece are one block of the file's rows. One agreed step a piece (a rank's bad block
-    // stops every rank before anything is written), or, `independent`, one for all of them: no rank waits for
-    // another between its pieces.
-    auto write_piece = [&](int64_t p) {
-      int64_t offset = 0, rows = 0;
-      const void* data = piece(p, &offset, &rows);
-      const int bad = offset < 0 || rows < 0 || offset + rows > global_rows || (rows > 0 && !data);
-      int any_bad = bad;
-      if (!independent) check_mpi(MPI_Allreduce(&bad, &any_bad, 1, MPI_INT, MPI_MAX, comm_), path_, "MPI_Allreduce");
-      if (any_bad)
-        throw std::runtime_error(path_ + ": " + dataset + ": a rank's row block lies outside [0, " +
-                                 std::to_string(global_rows) + ") or has no data");
+    // Each rank's rows of a piece are one block of the file's rows.
+    auto bad_block = [&](int64_t offset, int64_t rows, const void* data) {
+      return offset < 0 || rows < 0 || offset + rows > global_rows || (rows > 0 && !data);
+    };
+    auto bad_block_error = [&] {
+      return std::runtime_error(path_ + ": " + dataset + ": a rank's row block lies outside [0, " +
+                                std::to_string(global_rows) + ") or has no data");
+    };
+    auto write_rows = [&](int64_t offset, int64_t rows, const void* data) {
       for (int64_t done = 0; done < rows; done += rows_a_write) {
         const int64_t n = std::min(rows_a_write, rows - done);
         Handle space(H5Scopy(file_space.get()), H5Sclose);
@@ -535,12 +532,45 @@ void Hdf5File::write_pieces(const std::string& dataset, int64_t global_rows, int
         if (seal) seal->wrote(base + static_cast<std::uint64_t>((offset + done) * width * 8), n * width * 8);
       }
     };
-    if (independent)
+    if (independent) {
+      // No rank waits for another between its pieces: one agreement after the last.
       agree(comm_, [&] {
-        for (int64_t p = 0; p < pieces; ++p) write_piece(p);
+        for (int64_t p = 0; p < pieces; ++p) {
+          int64_t offset = 0, rows = 0;
+          const void* data = piece(p, &offset, &rows);
+          if (bad_block(offset, rows, data)) throw bad_block_error();
+          write_rows(offset, rows, data);
+        }
       });
-    else
-      for (int64_t p = 0; p < pieces; ++p) agree(comm_, [&] { write_piece(p); });
+    } else {
+      // One reduction a piece, after the piece's own collectives: whether any rank's block is bad (every rank stops
+      // before writing it) and whether any rank failed since the last one (what piece() threw on this rank after
+      // its collectives, or a write of the previous piece): then every rank throws the first failing rank's
+      // error (agree_on). The last piece's writes are agreed after the loop. A rank that failed goes on taking
+      // part in the pieces' collectives until that reduction, so no rank is left waiting in one.
+      std::exception_ptr failed;
+      for (int64_t p = 0; p < pieces; ++p) {
+        int64_t offset = 0, rows = 0;
+        const void* data = nullptr;
+        try {
+          data = piece(p, &offset, &rows);
+        } catch (const Agreed&) {
+          throw;
+        } catch (...) {
+          if (!failed) failed = std::current_exception();
+        }
+        int flags[2] = {!failed && bad_block(offset, rows, data), failed ? 1 : 0}, any[2] = {0, 0};
+        check_mpi(MPI_Allreduce(flags, any, 2, MPI_INT, MPI_MAX, comm_), path_, "MPI_Allreduce");
+        if (any[1]) agree_on(comm_, failed);  // throws on every rank
+        if (any[0]) throw bad_block_error();
+        try {
+          write_rows(offset, rows, data);
+        } catch (...) {
+          failed = std::current_exception();
+        }
+      }
+      agree_on(comm_, failed);
+    }
   } catch (...) {
     abandon();
     throw;

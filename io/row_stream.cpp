@@ -336,10 +336,9 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
       }
     }
     // Each rank's own rows only (own_parts()): nothing received, nothing to check, no MPI call (the pieces are
-    // written without a collective between them).
-    int any = 0;
-    if (!own_parts()) check_mpi(MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, comm_), "MPI_Allreduce");
-    if (any) throw std::invalid_argument(file.path() + ": " + dataset + ": the ranks' rows repeat an id");
+    // written without a collective between them). A bad piece is thrown on this rank, after the exchange:
+    // Hdf5File::write_pieces agrees on it in its one reduction a piece.
+    if (bad) throw std::invalid_argument(file.path() + ": " + dataset + ": the ranks' rows repeat an id");
     if (checksum == Checksum::compute) hash += row_hash_sum(rows, width, length, first);
     *offset = first, *count = length;
     return rows;

@@ -6,8 +6,9 @@
 # clamped, 0.001 N^2 pulling the z- layer with the same force on every molecule) for N = 10 .. 100 (1,000 to
 # 1,000,000 molecules), on 2 MPI ranks, solved by
 #   - the static solver (SNES Newton) with five Krylov/preconditioner choices: CG + the lattice's geometric
-#     multigrid on the assembled tangent (the default, config "mg"), the same multigrid on the matrix-free tangent
-#     (--set solver.operator=matrix-free, config "mf": no fine-level matrix, Chebyshev-Jacobi smoothing), CG +
+#     multigrid on the assembled tangent (--set solver.operator=assembled, config "mg"), the same multigrid on the
+#     matrix-free tangent (--set solver.operator=matrix-free, config "mf", the default on springs-only lattices
+#     since branch setup18: no fine-level matrix, Chebyshev-Jacobi smoothing), CG +
 #     GAMG (-pc_type gamg), CG + BoomerAMG (-pc_type hypre, N <= HYPRE_MAX_N), CG + Jacobi (-pc_type jacobi,
 #     N <= JACOBI_MAX_N), at relative residual 1e-8,
 #   - the relaxation solver (FIRE) at relative residual 1e-4, 1e-6 and 1e-8,
@@ -219,7 +220,7 @@ for n in $NS; do
   [[ "${NO_REF:-0}" == 1 ]] || reference sweep "$n"
   for config in $STATIC_CONFIGS; do
     case $config in
-      mg) ours sweep static mg "$n" 1e-8 ;;
+      mg) SETS=(--set solver.operator=assembled); ours sweep static mg "$n" 1e-8; SETS=() ;;
       mf) SETS=(--set solver.operator=matrix-free); ours sweep static mf "$n" 1e-8; SETS=() ;;
       gamg) ours sweep static gamg "$n" 1e-8 -pc_type gamg ;;
       hypre) if (( n <= HYPRE_MAX_N )); then ours sweep static hypre "$n" 1e-8 -pc_type hypre; fi ;;

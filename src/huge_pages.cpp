@@ -67,7 +67,13 @@ void reexecute_with_huge_pages(int argc, char** argv, char** envp) {
     if (std::strncmp(envp[i], "GLIBC_TUNABLES=", 15) != 0) env[k++] = envp[i];
   env[k++] = entry;
   env[k] = nullptr;
-  ::execve("/proc/self/exe", argv, env);
+  // The binary's own path, not /proc/self/exe: the kernel names the process after the file executed, and "exe"
+  // would hide it from `pgrep tissue`, top and the job scripts that signal it by name.
+  static char path[4096];
+  const ssize_t length = ::readlink("/proc/self/exe", path, sizeof path - 1);
+  if (length <= 0) return;
+  path[length] = '\0';
+  ::execve(path, argv, env);
   // The re-execution failed (no /proc, say): carry on as started, on 4 kB pages.
 }
 

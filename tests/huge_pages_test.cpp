@@ -75,7 +75,7 @@ TEST(HugePages, NoReexecutionWhenAsked) {
 #ifdef TISSUE_BINARY
 // The running image's environment: `tissue run FIFO` blocks reading its scene from a named pipe, so its
 // /proc/PID/environ can be read before it finishes; then it gets an empty file (exit 2, bad input).
-std::string running_environment(const std::vector<std::string>& extra_env) {
+std::string running_environment(const std::vector<std::string>& extra_env, std::string* name = nullptr) {
   const std::string fifo = "huge_pages_test_" + std::to_string(::getpid()) + ".toml";
   ::unlink(fifo.c_str());
   if (::mkfifo(fifo.c_str(), 0600) != 0) return "<mkfifo failed>";
@@ -111,6 +111,7 @@ std::string running_environment(const std::vector<std::string>& extra_env) {
   if (writer >= 0) {
     std::ifstream in("/proc/" + std::to_string(pid) + "/environ");
     environ_text.assign((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (name != nullptr) std::getline(std::ifstream("/proc/" + std::to_string(pid) + "/comm"), *name);
     ::close(writer);
   } else {
     ::kill(pid, SIGKILL);
@@ -145,7 +146,10 @@ TEST(HugePages, TheRunningImageCarriesTheTunable) {
   std::ifstream mode("/sys/kernel/mm/transparent_hugepage/enabled");
   const std::string text((std::istreambuf_iterator<char>(mode)), std::istreambuf_iterator<char>());
   if (text.find("[madvise]") == std::string::npos) GTEST_SKIP() << "the kernel does not grant huge pages on request";
-  EXPECT_EQ(running_environment({}), "GLIBC_TUNABLES=glibc.malloc.hugetlb=1");
+  // The re-executed process keeps its name (pgrep, top and job scripts find it by name).
+  std::string name;
+  EXPECT_EQ(running_environment({}, &name), "GLIBC_TUNABLES=glibc.malloc.hugetlb=1");
+  EXPECT_EQ(name, "tissue");
   EXPECT_EQ(running_environment({"TISSUE_HUGE_PAGES=off"}), "<none>");
   EXPECT_EQ(running_environment({"GLIBC_TUNABLES=glibc.malloc.check=0"}),
             "GLIBC_TUNABLES=glibc.malloc.check=0:glibc.malloc.hugetlb=1");

@@ -266,17 +266,22 @@ void generic_tangent(int begin_c, int end_c, const int* a, const int* b, const s
 
 // One direction of a stencil block of the tangent: e_i = K_i (u_a - u_b) for the springs from molecules a0 .. a0 +
 // n - 1 to a0 + offset, into g (subtracted from end b's rows and summed into end a's by the caller). Masked as
-// stencil_direction: a missing spring gives +0.0.
+// stencil_direction: a missing spring gives +0.0. End a's positions and values come as three streams (the block's,
+// de-interleaved once for all its directions), end b's interlaced.
 template <bool kMasked>
-__attribute__((always_inline)) inline void tangent_direction(int n, const double* __restrict xa,
+__attribute__((always_inline)) inline void tangent_direction(int n, const double* __restrict xa0,
+                                                             const double* __restrict xa1,
+                                                             const double* __restrict xa2,
                                                              const double* __restrict xb,
-                                                             const double* __restrict ua,
+                                                             const double* __restrict ua0,
+                                                             const double* __restrict ua1,
+                                                             const double* __restrict ua2,
                                                              const double* __restrict ub, double ks, double ls,
                                                              const double* __restrict keep, double* __restrict g0,
                                                              double* __restrict g1, double* __restrict g2) {
   for (int i = 0; i < n; ++i) {
-    const double d0 = xb[3 * i] - xa[3 * i], d1 = xb[3 * i + 1] - xa[3 * i + 1], d2 = xb[3 * i + 2] - xa[3 * i + 2];
-    const double w0 = ua[3 * i] - ub[3 * i], w1 = ua[3 * i + 1] - ub[3 * i + 1], w2 = ua[3 * i + 2] - ub[3 * i + 2];
+    const double d0 = xb[3 * i] - xa0[i], d1 = xb[3 * i + 1] - xa1[i], d2 = xb[3 * i + 2] - xa2[i];
+    const double w0 = ua0[i] - ub[3 * i], w1 = ua1[i] - ub[3 * i + 1], w2 = ua2[i] - ub[3 * i + 2];
     const double len2 = d0 * d0 + d1 * d1 + d2 * d2, geo = 1.0 - ls / std::sqrt(len2);
     const double along = (1.0 - geo) * (d0 * w0 + d1 * w1 + d2 * w2) / len2;
     double e0 = ks * (geo * w0 + along * d0), e1 = ks * (geo * w1 + along * d1), e2 = ks * (geo * w2 + along * d2);
@@ -319,12 +324,17 @@ void stencil_tangent(int first, int count, int directions, const int* offset, co
                                              out, Interlaced{}, owned, max_offset, zeroed);
     const double* __restrict xa = x + 3 * a0;
     const double* __restrict ua = u + 3 * a0;
+    alignas(64) double xs[3][kStencilBlock], us[3][kStencilBlock];  // end a's, de-interleaved once for every direction
+    for (int i = 0; i < n; ++i)
+      for (int r = 0; r < 3; ++r) xs[r][i] = xa[3 * i + r], us[r][i] = ua[3 * i + r];
     for (int q = 0; q < directions; ++q) {
       const int s = scatter[q], b0 = a0 + offset[s];
       if (masked >> s & 1u)
-        tangent_direction<true>(n, xa, x + 3 * b0, ua, u + 3 * b0, k[s], l0[s], keep[s], g[s][0], g[s][1], g[s][2]);
+        tangent_direction<true>(n, xs[0], xs[1], xs[2], x + 3 * b0, us[0], us[1], us[2], u + 3 * b0, k[s], l0[s],
+                                keep[s], g[s][0], g[s][1], g[s][2]);
       else
-        tangent_direction<false>(n, xa, x + 3 * b0, ua, u + 3 * b0, k[s], l0[s], keep[s], g[s][0], g[s][1], g[s][2]);
+        tangent_direction<false>(n, xs[0], xs[1], xs[2], x + 3 * b0, us[0], us[1], us[2], u + 3 * b0, k[s], l0[s],
+                                 keep[s], g[s][0], g[s][1], g[s][2]);
       add_to_rows<-1>(b0, n, g[s][0], g[s][1], g[s][2], out, ghost, owned);
     }
     for (int e = e0; e < next_exception; ++e)

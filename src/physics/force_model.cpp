@@ -709,63 +709,28 @@ PetscErrorCode ForceModel::tangent_blocks(const double* x, Term::BlockAdd add, v
   PetscFunctionReturn(0);
 }
 
-namespace {
-// A row's connections at a time in connection_blocks (a face-diagonal lattice's rows have up to 18).
-constexpr int kRowBatch = 32;
-
-// The upper triangles of the blocks k [n n^T + g (I - n n^T)] of m connections from their separations d0, d1, d2
-// (m <= kRowBatch): the square roots and the 7 divisions a block costs, as vector instructions across the
-// connections (IEEE division and sqrt round alike at any width, and fused multiply-adds are off, so every clone
-// gives the bits of the scalar form). upper[t][q], t = (0,0) (0,1) (0,2) (1,1) (1,2) (2,2): the block's entry, not
-// yet negated.
-__attribute__((target_clones("avx512f", "avx2", "default"))) void batch_blocks(
-    int m, const double* __restrict d0, const double* __restrict d1, const double* __restrict d2,
-    const double* __restrict k, const double* __restrict l0, double (*__restrict upper)[kRowBatch]) {
-  for (int q = 0; q < m; ++q) {
-    const double d[3] = {d0[q], d1[q], d2[q]};
-    const double len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-    const double geo = 1.0 - l0[q] / std::sqrt(len2);
-    int t = 0;
-    for (int r = 0; r < 3; ++r)
-      for (int c = r; c < 3; ++c, ++t) {
-        const double nn = d[r] * d[c] / len2;
-        upper[t][q] = k[q] * (nn + geo * ((r == c ? 1.0 : 0.0) - nn));
-      }
-  }
-}
-}  // namespace
-
 PetscErrorCode ForceModel::connection_blocks(const double* x, Term::BlockAdd add, void* ctx) const {
   PetscFunctionBeginUser;
   const int n = model_.owned;
   if (static_cast<int>(tangent_.conn_start.size()) != n + 1) tangent_.create_rows(model_);
-  // A row's connections in batches: their separations and constants gathered, their blocks computed together
-  // (batch_blocks), then handed on one by one in the row's order, the diagonal block last, as before. Each block is
-  // symmetric to the bit (d[r] d[s] = d[s] d[r] exactly): its upper triangle only.
-  alignas(64) double d0[kRowBatch], d1[kRowBatch], d2[kRowBatch], k[kRowBatch], l0[kRowBatch];
-  alignas(64) double upper[6][kRowBatch];
-  int other[kRowBatch];
   for (int i = 0; i < n; ++i) {
     double self[9] = {};
-    const double* xi = x + 3 * i;
-    for (int p0 = tangent_.conn_start[i]; p0 < tangent_.conn_start[i + 1]; p0 += kRowBatch) {
-      const int m = std::min(kRowBatch, tangent_.conn_start[i + 1] - p0);
-      for (int q = 0; q < m; ++q) {
-        const int c = tangent_.row_conns[p0 + q];
-        const int j = model_.end_a[c] == i ? model_.end_b[c] : model_.end_a[c];
-        const double* xj = x + 3 * j;
-        other[q] = j;
-        d0[q] = xj[0] - xi[0], d1[q] = xj[1] - xi[1], d2[q] = xj[2] - xi[2];
-        k[q] = model_.k(c), l0[q] = model_.l0(c);
-      }
-      batch_blocks(m, d0, d1, d2, k, l0, upper);
-      for (int q = 0; q < m; ++q) {
-        double minus[9];
-        for (int r = 0, t = 0; r < 3; ++r)
-          for (int c = r; c < 3; ++c, ++t) minus[3 * r + c] = minus[3 * c + r] = -upper[t][q];
-        for (int e = 0; e < 9; ++e) self[e] -= minus[e];  // += K, exactly
-        PetscCall(add(ctx, i, other[q], minus));
-      }
+    for (int p = tangent_.conn_start[i]; p < tangent_.conn_start[i + 1]; ++p) {
+      const int c = tangent_.row_conns[p];
+      const int j = model_.end_a[c] == i ? model_.end_b[c] : model_.end_a[c];
+      const Stretch st(model_, x, i, j, c);
+      const double* d = st.d;
+      const double len2 = st.len2, k = st.k, geo = st.geo;
+      // The block is symmetric to the bit (d[r] d[s] = d[s] d[r] exactly): its upper triangle only, 6 divisions.
+      double minus[9];
+      for (int r = 0; r < 3; ++r)
+        for (int s = r; s < 3; ++s) {
+          const double nn = d[r] * d[s] / len2;
+          const double K = k * (nn + geo * ((r == s ? 1.0 : 0.0) - nn));
+          minus[3 * r + s] = minus[3 * s + r] = -K;
+        }
+      for (int e = 0; e < 9; ++e) self[e] -= minus[e];  // += K, exactly
+      PetscCall(add(ctx, i, j, minus));
     }
     PetscCall(add(ctx, i, i, self));
   }

@@ -34,6 +34,8 @@ ForceModel::ForceModel(const Scene& scene, const LocalModel& model)
     }
   for (int j = 0; j < 3 * model.owned; ++j)
     if (held_[j]) held_owned_.push_back(j), held_fix_.push_back(first_fix[j]);
+  for (int j = 3 * model.owned; j < 3 * model.local; ++j)
+    if (held_[j]) held_ghosts_.push_back(j);
   for (const auto& fix : scene.fixes) moves_held_ = moves_held_ || fix.displacement != Vec3{0.0, 0.0, 0.0};
 
   // Constant face loads; cyclic ones (period > 0) are a term of their own. Kept sparse: only loaded faces carry
@@ -544,10 +546,12 @@ PetscErrorCode ForceModel::apply_tangent(const double* x, double* in, double* ou
   PetscFunctionBeginUser;
   const int n = model_.owned, local = model_.local;
   // Held components: their rows are the identity's (out = in), their columns zero (in read as 0).
-  std::vector<double> held_in(held_owned_.size());
+  // By the lists of held components, not a pass over every component's flag (3 B a molecule each product).
+  std::vector<double>& held_in = tangent_held_in_;
+  held_in.resize(held_owned_.size());
   for (std::size_t h = 0; h < held_owned_.size(); ++h) held_in[h] = in[held_owned_[h]];
-  for (int q = 0; q < 3 * local; ++q)
-    if (held_[q]) in[q] = 0.0;
+  for (int q : held_owned_) in[q] = 0.0;
+  for (int q : held_ghosts_) in[q] = 0.0;
   // Each connection once (one square root), both ends; the ghosts' rows are dropped (their owners compute them).
   // The ghosts' rows go to scratch kept between products (24 B a ghost; a box's ghosts are a few planes).
   tangent_ghost_rows_.resize(3 * static_cast<std::size_t>(local - n));

@@ -146,6 +146,8 @@ private:
   SpringKernel kernel_;  // the connection forces (src/physics/spring_kernel.hpp)
   std::vector<std::uint8_t> held_;
   std::vector<int> held_owned_;
+  std::vector<int> held_ghosts_;  // the held components of ghosts (3 * owned .. 3 * local - 1)
+  mutable std::vector<double> tangent_held_in_;  // apply_tangent's copy of the held inputs, kept between products
   std::vector<AppliedForce> applied_;  // non-zero components only
   std::vector<std::unique_ptr<Term>> terms_;  // only what the scene lists, in the registry's order
   // The first term adds its forces in pieces inside the kernel's sweep (Term::adds_by_rows), with the loads

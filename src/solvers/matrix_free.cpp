@@ -83,15 +83,34 @@ PetscErrorCode MatrixFreeTangent::mult(Mat J, Vec in, Vec out) {
   PetscFunctionBeginUser;
   MatrixFreeTangent* self;
   PetscCall(MatShellGetContext(J, &self));
-  const PetscScalar* u;
-  PetscCall(VecGetArrayRead(in, &u));
-  std::memcpy(self->w_, u, sizeof(double) * 3 * self->model_.owned);
-  PetscCall(VecRestoreArrayRead(in, &u));
-  PetscCall(VecGhostUpdateBegin(self->in_, INSERT_VALUES, SCATTER_FORWARD));
-  PetscCall(VecGhostUpdateEnd(self->in_, INSERT_VALUES, SCATTER_FORWARD));
+  // The input with its ghosts: in itself when it has the state's ghost slots (the solve's vectors are duplicates of
+  // the state's ghosted positions, so every rank takes the same branch and the same scatter), else a copy into the
+  // scratch's (24 B a molecule read and written a product). apply_tangent zeroes the held components of its input:
+  // in's owned ones are put back at the end, to the bit, and its ghost slots are PETSc's scratch.
+  Vec local = nullptr;
+  PetscCall(VecGhostGetLocalForm(in, &local));
+  PetscInt local_size = -1;
+  if (local) PetscCall(VecGetLocalSize(local, &local_size));
+  const bool direct = local && local_size == 3 * static_cast<PetscInt>(self->model_.local);
+  double* w = self->w_;
+  const std::vector<int>& held_in = self->forces_.held_owned();
+  if (direct) {
+    PetscCall(VecGhostUpdateBegin(in, INSERT_VALUES, SCATTER_FORWARD));
+    PetscCall(VecGhostUpdateEnd(in, INSERT_VALUES, SCATTER_FORWARD));
+    PetscCall(VecGetArray(local, &w));
+    self->held_in_.resize(held_in.size());
+    for (std::size_t h = 0; h < held_in.size(); ++h) self->held_in_[h] = w[held_in[h]];
+  } else {
+    if (local) PetscCall(VecGhostRestoreLocalForm(in, &local));
+    const PetscScalar* u;
+    PetscCall(VecGetArrayRead(in, &u));
+    std::memcpy(self->w_, u, sizeof(double) * 3 * self->model_.owned);
+    PetscCall(VecRestoreArrayRead(in, &u));
+    PetscCall(VecGhostUpdateBegin(self->in_, INSERT_VALUES, SCATTER_FORWARD));
+    PetscCall(VecGhostUpdateEnd(self->in_, INSERT_VALUES, SCATTER_FORWARD));
+  }
   PetscScalar* y;
   PetscCall(VecGetArray(out, &y));
-  double* w = self->w_;
   PetscCall(self->forces_.apply_tangent(self->x_, w, y, self->cached_));
   if (self->by_state_) {
     // w's held components are zero now (apply_tangent); the held rows keep the identity's values it wrote.
@@ -116,6 +135,11 @@ PetscErrorCode MatrixFreeTangent::mult(Mat J, Vec in, Vec out) {
     }
   }
   PetscCall(VecRestoreArray(out, &y));
+  if (direct) {
+    for (std::size_t h = 0; h < held_in.size(); ++h) w[held_in[h]] = self->held_in_[h];
+    PetscCall(VecRestoreArray(local, &w));
+    PetscCall(VecGhostRestoreLocalForm(in, &local));
+  }
   PetscFunctionReturn(0);
 }
 

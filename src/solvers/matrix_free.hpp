@@ -56,6 +56,7 @@ private:
   const bool by_state_;
   std::vector<std::vector<double>> state_;
   std::vector<double> held_out_;  // mult's copy of the held rows' values while the terms add theirs
+  std::vector<double> held_in_;   // mult's copy of the input's owned held values (put back after the product)
   std::vector<int> cache_col_;
   std::vector<double> cache_K_;
 };

@@ -543,30 +543,21 @@ void Hdf5File::write_pieces(const std::string& dataset, int64_t global_rows, int
         }
       });
     } else {
-      // One reduction a piece, after the piece's own collectives: whether any rank's block is bad (every rank stops
-      // before writing it) and whether any rank failed since the last one (what piece() threw on this rank after
-      // its collectives, or a write of the previous piece): then every rank throws the first failing rank's
-      // error (agree_on). The last piece's writes are agreed after the loop. A rank that failed goes on taking
-      // part in the pieces' collectives until that reduction, so no rank is left waiting in one.
+      // piece() exchanges rows point to point with the other ranks' piece() calls: every rank calls it for every
+      // piece, whatever failed, so that no rank waits for a message that never comes, and the ranks agree once,
+      // after the last piece (no collective between pieces: a rank runs up to a piece ahead of another). A rank
+      // that failed (what piece() threw, a bad block, a write) writes nothing more and throws, on every rank, the
+      // first failing rank's error (agree_on).
       std::exception_ptr failed;
       for (int64_t p = 0; p < pieces; ++p) {
         int64_t offset = 0, rows = 0;
         const void* data = nullptr;
         try {
           data = piece(p, &offset, &rows);
-        } catch (const Agreed&) {
-          throw;
+          if (!failed && bad_block(offset, rows, data)) throw bad_block_error();
+          if (!failed) write_rows(offset, rows, data);
         } catch (...) {
           if (!failed) failed = std::current_exception();
-        }
-        int flags[2] = {!failed && bad_block(offset, rows, data), failed ? 1 : 0}, any[2] = {0, 0};
-        check_mpi(MPI_Allreduce(flags, any, 2, MPI_INT, MPI_MAX, comm_), path_, "MPI_Allreduce");
-        if (any[1]) agree_on(comm_, failed);  // throws on every rank
-        if (any[0]) throw bad_block_error();
-        try {
-          write_rows(offset, rows, data);
-        } catch (...) {
-          failed = std::current_exception();
         }
       }
       agree_on(comm_, failed);

@@ -85,8 +85,9 @@ public:
   // [offset, offset + rows) of piece p (rows * width values, valid until the next call; null when rows == 0).
   // `integer`: int64 values, otherwise double. `independent`: piece() makes no MPI call (each rank's rows its own:
   // io/row_stream.hpp), so each rank writes all its pieces on its own and the ranks agree once, after the last.
-  // Without `independent`, piece() may make collective calls (every rank calls it for every piece) and throw on
-  // its rank after them: the ranks agree on that in the piece's one reduction.
+  // Without `independent`, piece() may exchange rows point to point with the other ranks' piece() calls (no
+  // collective): every rank calls it for every piece, even after a failure on its rank (which then writes nothing
+  // more), and the ranks agree once, after the last piece.
   using Piece = std::function<const void*(int64_t piece, int64_t* offset, int64_t* rows)>;
   void write_pieces(const std::string& dataset, int64_t global_rows, int width, bool integer, int64_t pieces,
                     const Piece& piece, bool independent = false);

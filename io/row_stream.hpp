@@ -131,6 +131,8 @@ private:
   // the end: slots), how many items this rank sends there, and how many it receives from that rank for the piece.
   std::vector<std::int64_t> start_;
   std::vector<int> send_, recv_;
+  // The same for the runs of consecutive ids among those items (sent instead of each item's id).
+  std::vector<int> runs_, recv_runs_;
   // Parts aligned with the ranks' own rows (plan()): rank r's rows are [own_begin_[r], own_begin_[r + 1]); empty
   // for the even split.
   std::vector<std::int64_t> own_begin_;

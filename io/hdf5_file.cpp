@@ -460,13 +460,14 @@ void Hdf5File::write_block(const std::string& dataset, int64_t global_rows, int 
 }
 
 void Hdf5File::write_pieces(const std::string& dataset, int64_t global_rows, int width, bool integer, int64_t pieces,
-                            const Piece& piece, bool independent) {
+                            const Piece& piece, bool independent, const Placed& placed) {
   write_pieces(dataset, global_rows, width, integer ? H5T_STD_I64LE : H5T_IEEE_F64LE,
-               integer ? H5T_NATIVE_INT64 : H5T_NATIVE_DOUBLE, pieces, piece, independent);
+               integer ? H5T_NATIVE_INT64 : H5T_NATIVE_DOUBLE, pieces, piece, independent, placed);
 }
 
 void Hdf5File::write_pieces(const std::string& dataset, int64_t global_rows, int width, hid_t file_type,
-                            hid_t mem_type, int64_t pieces, const Piece& piece, bool independent) {
+                            hid_t mem_type, int64_t pieces, const Piece& piece, bool independent,
+                            const Placed& placed) {
   if (!writable_ || file_ < 0) fail(dataset, "file is not open for writing");
   long long mine[5] = {global_rows, -global_rows, width, -width, pieces}, all[5];
   check_mpi(MPI_Allreduce(mine, all, 5, MPI_LONG_LONG, MPI_MAX, comm_), path_, "MPI_Allreduce");
@@ -506,6 +507,7 @@ void Hdf5File::write_pieces(const std::string& dataset, int64_t global_rows, int
     // writes whole as it goes (io/file_seal.hpp).
     const haddr_t base = H5Dget_offset(dset.get());
     SealStream* seal = base != HADDR_UNDEF ? seal_.get() : nullptr;
+    if (placed) placed(base != HADDR_UNDEF ? static_cast<int64_t>(base) : -1);
     // Each rank's rows of a piece are one block of the file's rows.
     auto bad_block = [&](int64_t offset, int64_t rows, const void* data) {
       return offset < 0 || rows < 0 || offset + rows > global_rows || (rows > 0 && !data);

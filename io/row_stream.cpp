@@ -4,9 +4,11 @@
 #include <cmath>
 #include <cstring>
 #include <memory>
+#include <numeric>
 #include <stdexcept>
 #include <type_traits>
 
+#include "io/file_seal.hpp"
 #include "partition/agreement.hpp"
 #include "partition/natural_order.hpp"
 
@@ -187,22 +189,7 @@ void RowStream::plan(bool shared) {
     }
   }
   // What each rank receives in each piece, rows and runs: one all-to-all of every piece's counts.
-  std::vector<int> out(2 * parts), in(2 * parts);
-  for (int r = 0; r < size_; ++r)
-    for (std::int64_t p = 0; p < pieces_; ++p) {
-      out[2 * (r * pieces_ + p)] = send_[p * size_ + r];
-      out[2 * (r * pieces_ + p) + 1] = runs_[p * size_ + r];
-    }
-  check_mpi(MPI_Alltoall(out.data(), static_cast<int>(2 * pieces_), MPI_INT, in.data(), static_cast<int>(2 * pieces_),
-                         MPI_INT, comm_),
-            "MPI_Alltoall");
-  recv_.assign(parts, 0);
-  recv_runs_.assign(parts, 0);
-  for (int r = 0; r < size_; ++r)
-    for (std::int64_t p = 0; p < pieces_; ++p) {
-      recv_[p * size_ + r] = in[2 * (r * pieces_ + p)];
-      recv_runs_[p * size_ + r] = in[2 * (r * pieces_ + p) + 1];
-    }
+  exchange_counts(send_, runs_, recv_, recv_runs_);
   // Every part must receive exactly its rows' count (duplicates are caught as each piece is written).
   for (std::int64_t p = 0; p < pieces_ && !bad && !shared; ++p) {
     std::int64_t got = 0;
@@ -216,6 +203,82 @@ void RowStream::plan(bool shared) {
     throw std::invalid_argument(std::string("RowStream: the ranks' ids are not ") +
                                 (shared ? "increasing ids in " : "an increasing permutation of ") + "0.." +
                                 std::to_string(global_rows_ - 1));
+}
+
+void RowStream::exchange_counts(const std::vector<int>& send, const std::vector<int>& runs, std::vector<int>& recv,
+                                std::vector<int>& recv_runs) const {
+  const std::size_t parts = static_cast<std::size_t>(pieces_) * size_;
+  std::vector<int> out(2 * parts), in(2 * parts);
+  for (int r = 0; r < size_; ++r)
+    for (std::int64_t p = 0; p < pieces_; ++p) {
+      out[2 * (r * pieces_ + p)] = send[p * size_ + r];
+      out[2 * (r * pieces_ + p) + 1] = runs[p * size_ + r];
+    }
+  check_mpi(MPI_Alltoall(out.data(), static_cast<int>(2 * pieces_), MPI_INT, in.data(), static_cast<int>(2 * pieces_),
+                         MPI_INT, comm_),
+            "MPI_Alltoall");
+  recv.assign(parts, 0);
+  recv_runs.assign(parts, 0);
+  for (int r = 0; r < size_; ++r)
+    for (std::int64_t p = 0; p < pieces_; ++p) {
+      recv[p * size_ + r] = in[2 * (r * pieces_ + p)];
+      recv_runs[p * size_ + r] = in[2 * (r * pieces_ + p) + 1];
+    }
+}
+
+RowStream::Split RowStream::aligned_split(std::int64_t base, std::int64_t row_bytes) const {
+  Split split;
+  if (size_ == 1 || own_parts() || base < 0 || row_bytes <= 0) return split;
+  // The rows x that begin a seal block: base + row_bytes x = kSealUserBlock (mod kSealBlock). With g the largest
+  // power of two dividing both, they exist iff g divides kSealUserBlock - base, and repeat every T = kSealBlock / g
+  // rows; m = row_bytes / g is odd, so x0 = (kSealUserBlock - base) / g times m's inverse, modulo T.
+  const std::int64_t block = static_cast<std::int64_t>(kSealBlock);
+  const std::int64_t g = std::gcd(row_bytes, block), period = block / g;
+  const std::int64_t c = ((static_cast<std::int64_t>(kSealUserBlock) - base) % block + block) % block;
+  if (c % g != 0 || period > piece_rows_) return split;
+  const std::uint64_t m = static_cast<std::uint64_t>(row_bytes / g);
+  std::uint64_t inverse = m;  // Newton's iteration: each step doubles the correct low bits (m m = 1 mod 8)
+  for (int i = 0; i < 5; ++i) inverse *= 2 - m * inverse;
+  const std::int64_t x0 =
+      static_cast<std::int64_t>((static_cast<std::uint64_t>(c / g) * inverse) & static_cast<std::uint64_t>(period - 1));
+  const std::int64_t parts = pieces_ * size_;
+  split.bounds.assign(parts + 1, global_rows_);
+  split.bounds[0] = 0;
+  for (std::int64_t q = 1; q < parts; ++q) {
+    const std::int64_t even = part_begin(q / size_, static_cast<int>(q % size_)), shift = even - x0 + period / 2;
+    const std::int64_t nearest = shift < 0 ? 0 : x0 + shift / period * period;
+    split.bounds[q] = std::clamp(nearest, split.bounds[q - 1], global_rows_);
+  }
+  // The items to the parts, and their runs, as plan() does with the even split (the ids were checked there).
+  split.start.assign(parts + 1, slots_);
+  split.send.assign(parts, 0);
+  split.runs.assign(parts, 0);
+  std::int64_t ids[kBatch], next_part = 0, part = 0, last = -1, run_part = -1;
+  for (std::int64_t k0 = 0; k0 < slots_; k0 += kBatch) {
+    const std::int64_t k1 = std::min(slots_, k0 + kBatch);
+    ids_(k0, k1, ids);
+    for (std::int64_t k = k0; k < k1; ++k) {
+      const std::int64_t i = ids[k - k0];
+      if (i < 0) continue;
+      const bool joins = i == last + 1;
+      last = i;
+      while (part < parts - 1 && i >= split.bounds[part + 1]) ++part;
+      while (next_part <= part) split.start[next_part++] = k;
+      ++split.send[part];
+      if (!joins || part != run_part) ++split.runs[part], run_part = part;
+    }
+  }
+  exchange_counts(split.send, split.runs, split.recv, split.recv_runs);
+  int bad = 0;
+  for (std::int64_t p = 0; p < pieces_ && !bad; ++p) {
+    std::int64_t got = 0;
+    for (int r = 0; r < size_; ++r) got += split.recv[p * size_ + r];
+    bad = got != split.bounds[p * size_ + rank_ + 1] - split.bounds[p * size_ + rank_];
+  }
+  int any = 0;
+  check_mpi(MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, comm_), "MPI_Allreduce");
+  if (any) throw std::logic_error("RowStream: the parts aligned on the seal's blocks miss rows");
+  return split;
 }
 
 namespace {
@@ -272,6 +335,17 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
     return batch.get();
   };
   const bool exchange = size_ > 1 && !own_parts();
+  // The parts: the stream's plan, or the same moved onto the dataset's seal blocks once its place in the file is
+  // known (write_pieces calls `placed` before the first piece).
+  Split aligned;
+  const std::vector<std::int64_t>* start = &start_;
+  const std::vector<int>*send = &send_, *runs = &runs_, *recv = &recv_, *recv_runs = &recv_runs_;
+  auto placed = [&](std::int64_t base) {
+    aligned = aligned_split(base, static_cast<std::int64_t>(sizeof(T)) * width);
+    if (aligned.bounds.empty()) return;
+    start = &aligned.start, send = &aligned.send, runs = &aligned.runs, recv = &aligned.recv,
+    recv_runs = &aligned.recv_runs;
+  };
   // The exchange, a piece ahead of the write: piece p + 1's rows are filled and sent (point to point, nonblocking)
   // before piece p's are placed and written, so that a rank waits for another only until that rank has filled its
   // rows, never for its write, and no collective stands between the pieces. The message to a rank for a piece:
@@ -282,7 +356,7 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
     std::vector<MPI_Request> sends, receives;
     std::vector<int> from;  // the rank of each receive
   } exchanges[2];
-  auto message_size = [&](int rows, int runs) { return static_cast<std::size_t>(rows) * width + 2 * runs; };
+  auto message_size = [&](int rows, int n_runs) { return static_cast<std::size_t>(rows) * width + 2 * n_runs; };
   std::exception_ptr fill_failed;  // a fill that threw while the other ranks' messages were being made
   auto post = [&](std::int64_t q) {
     Exchange& x = exchanges[q & 1];
@@ -294,15 +368,15 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
     std::size_t out_size = 0, in_size = 0;
     for (int r = 0; r < size_; ++r)
       if (r != rank_) {
-        out_size += message_size(send_[q * size_ + r], runs_[q * size_ + r]);
-        in_size += message_size(recv_[q * size_ + r], recv_runs_[q * size_ + r]);
+        out_size += message_size((*send)[q * size_ + r], (*runs)[q * size_ + r]);
+        in_size += message_size((*recv)[q * size_ + r], (*recv_runs)[q * size_ + r]);
       }
     T* outgoing = buffer.outgoing[q & 1].at_least(out_size);
     T* incoming = buffer.incoming[q & 1].at_least(in_size);
     const int tag = 0x7e00 + static_cast<int>(q % 256);
     std::size_t in = 0;
     for (int r = 0; r < size_; ++r) {
-      const std::size_t n = r == rank_ ? 0 : message_size(recv_[q * size_ + r], recv_runs_[q * size_ + r]);
+      const std::size_t n = r == rank_ ? 0 : message_size((*recv)[q * size_ + r], (*recv_runs)[q * size_ + r]);
       if (n == 0) continue;
       x.receives.emplace_back();
       x.from.push_back(r);
@@ -313,15 +387,15 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
     }
     std::size_t at = 0;
     for (int r = 0; r < size_; ++r) {
-      const int rows_to_r = r == rank_ ? 0 : send_[q * size_ + r];
+      const int rows_to_r = r == rank_ ? 0 : (*send)[q * size_ + r];
       if (rows_to_r == 0) continue;
       T* message = outgoing + at;
       T* to = message;
-      std::vector<std::int64_t> runs;  // {first id, length}, as plan() counted them
+      std::vector<std::int64_t> message_runs;  // {first id, length}, as plan() counted them
       // A failed fill leaves its rows as they are: the message still goes (the other rank waits for it), and this
       // rank throws once its part of the piece is done.
       try {
-        for (std::int64_t k0 = start_[q * size_ + r], end = start_[q * size_ + r + 1]; k0 < end; k0 += kBatch) {
+        for (std::int64_t k0 = (*start)[q * size_ + r], end = (*start)[q * size_ + r + 1]; k0 < end; k0 += kBatch) {
           const std::int64_t k1 = std::min(end, k0 + kBatch), n = k1 - k0;
           ids_(k0, k1, ids);
           bool whole = true;  // no slot skipped: the rows go straight into the message
@@ -337,19 +411,20 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
           }
           for (std::int64_t j = 0; j < n; ++j)
             if (const std::int64_t i = ids[j]; i >= 0) {
-              if (!runs.empty() && runs[runs.size() - 2] + runs.back() == i)
-                ++runs.back();
+              if (!message_runs.empty() && message_runs[message_runs.size() - 2] + message_runs.back() == i)
+                ++message_runs.back();
               else
-                runs.push_back(i), runs.push_back(1);
+                message_runs.push_back(i), message_runs.push_back(1);
             }
         }
       } catch (...) {
         if (!fill_failed) fill_failed = std::current_exception();
       }
       // plan() counted the same runs from the same ids; a mismatch is a broken id function, not a size to trust.
-      runs.resize(2 * static_cast<std::size_t>(runs_[q * size_ + r]), -1);
-      std::memcpy(message + static_cast<std::size_t>(rows_to_r) * width, runs.data(), runs.size() * sizeof(T));
-      const std::size_t n = message_size(rows_to_r, runs_[q * size_ + r]);
+      message_runs.resize(2 * static_cast<std::size_t>((*runs)[q * size_ + r]), -1);
+      std::memcpy(message + static_cast<std::size_t>(rows_to_r) * width, message_runs.data(),
+                  message_runs.size() * sizeof(T));
+      const std::size_t n = message_size(rows_to_r, (*runs)[q * size_ + r]);
       x.sends.emplace_back();
       check_mpi(MPI_Isend(message, static_cast<int>(n * sizeof(T)), MPI_BYTE, r, tag, comm_, &x.sends.back()),
                 "MPI_Isend");
@@ -373,12 +448,14 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
       if (p == 0) post(0);
       if (p + 1 < pieces_) post(p + 1);
     }
-    const auto [first, end] = part_rows(p, rank_);
+    const auto [first, end] = aligned.bounds.empty()
+                                  ? part_rows(p, rank_)
+                                  : std::pair{aligned.bounds[p * size_ + rank_], aligned.bounds[p * size_ + rank_ + 1]};
     const std::int64_t length = end - first;
     T* rows = buffer.rows.at_least(static_cast<std::size_t>(length) * width);
     if (exchange) seen.assign(static_cast<std::size_t>(length), 0);
     // This rank's own items go straight to their rows (plan() checked their ids: increasing, inside this part).
-    for (std::int64_t k0 = start_[p * size_ + rank_], end = start_[p * size_ + rank_ + 1]; k0 < end; k0 += kBatch) {
+    for (std::int64_t k0 = (*start)[p * size_ + rank_], end = (*start)[p * size_ + rank_ + 1]; k0 < end; k0 += kBatch) {
       const std::int64_t k1 = std::min(end, k0 + kBatch), n = k1 - k0;
       ids_(k0, k1, ids);
       bool consecutive = true;  // none skipped, each the one after the last
@@ -405,7 +482,7 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
                 "MPI_Waitall");
       const T* message = buffer.incoming[p & 1].data.get();
       for (const int r : x.from) {
-        const std::int64_t n = recv_[p * size_ + r], n_runs = recv_runs_[p * size_ + r];
+        const std::int64_t n = (*recv)[p * size_ + r], n_runs = (*recv_runs)[p * size_ + r];
         const T* from = message;
         const T* run_at = message + n * width;
         std::int64_t placed = 0;
@@ -433,7 +510,8 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
     *offset = first, *count = length;
     return rows;
   };
-  file.write_pieces(dataset, global_rows_, width, std::is_same_v<T, std::int64_t>, pieces_, piece, own_parts());
+  file.write_pieces(dataset, global_rows_, width, std::is_same_v<T, std::int64_t>, pieces_, piece, own_parts(),
+                    placed);
   std::uint64_t total = 0;
   check_mpi(MPI_Allreduce(&hash, &total, 1, MPI_UINT64_T, MPI_SUM, comm_), "MPI_Allreduce");
   return total;

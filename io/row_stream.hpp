@@ -117,6 +117,21 @@ private:
   ReadCheck read(const Hdf5File& file, const std::string& dataset, int width,
                  const std::function<void(std::int64_t, const T*)>& take, const char* fault_stage) const;
   void plan(bool shared);
+  // A write's split of the pieces among the ranks (the even split's parts moved): each part's first row, and what
+  // goes where (as start_, send_, runs_, recv_, recv_runs_); empty bounds: the stream's own plan.
+  struct Split {
+    std::vector<std::int64_t> bounds, start;
+    std::vector<int> send, runs, recv, recv_runs;
+  };
+  // Collective. For a dataset whose first row lies at file offset `base`, rows of `row_bytes` bytes: the even split
+  // with every part boundary moved to the nearest row that begins a seal block (io/file_seal.hpp), so that each
+  // rank's part of a piece is whole seal blocks, which the seal hashes (and the page cache recycles) as they are
+  // written instead of re-reading them at close. Empty (the stream's own plan) at 1 rank, for own parts, and when
+  // no row begins a block or the blocks' rows are farther apart than a piece.
+  Split aligned_split(std::int64_t base, std::int64_t row_bytes) const;
+  // recv and recv_runs[p * size + r] from send and runs[p * size + r] over the ranks (one MPI_Alltoall).
+  void exchange_counts(const std::vector<int>& send, const std::vector<int>& runs, std::vector<int>& recv,
+                       std::vector<int>& recv_runs) const;
   // The first row of rank r's part of piece p in the even split (the file's rows of piece p shared evenly).
   std::int64_t part_begin(std::int64_t p, int r) const;
   // Rows [first, end) of piece p that rank r writes (or reads).

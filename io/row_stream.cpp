@@ -147,6 +147,10 @@ void RowStream::plan(bool shared) {
   // connections each rank writes, in every partition by slabs of ids), each rank's part of a piece is its own rows
   // there: nothing travels, and each rank writes its rows where they lie (a part then holds up to a piece's rows, at
   // most kPieceRows). The even split above becomes that by moving every item to its own rank's part of its piece.
+  // Every slot written, ids consecutive (every item at 1 rank): a write then counts the ids instead of asking
+  // for them (decoding a batch of connections' ids cost as much as filling its rows).
+  dense_ = !bad && count == slots_ && (count == 0 || last - first_id + 1 == count);
+  first_id_ = count > 0 ? first_id : 0;
   if (!shared && size_ > 1) {
     long long mine[3] = {bad, count, count > 0 && last - first_id + 1 == count ? first_id : -1};
     std::vector<long long> all(3 * static_cast<std::size_t>(size_));
@@ -334,6 +338,10 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
     if (!batch) batch.reset(new T[static_cast<std::size_t>(kBatch) * width]);
     return batch.get();
   };
+  auto slot_ids = [&](std::int64_t k0, std::int64_t k1, std::int64_t* to) {
+    if (dense_) std::iota(to, to + (k1 - k0), first_id_ + k0);
+    else ids_(k0, k1, to);
+  };
   const bool exchange = size_ > 1 && !own_parts();
   // The parts: the stream's plan, or the same moved onto the dataset's seal blocks once its place in the file is
   // known (write_pieces calls `placed` before the first piece).
@@ -397,7 +405,7 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
       try {
         for (std::int64_t k0 = (*start)[q * size_ + r], end = (*start)[q * size_ + r + 1]; k0 < end; k0 += kBatch) {
           const std::int64_t k1 = std::min(end, k0 + kBatch), n = k1 - k0;
-          ids_(k0, k1, ids);
+          slot_ids(k0, k1, ids);
           bool whole = true;  // no slot skipped: the rows go straight into the message
           for (std::int64_t j = 0; j < n; ++j) whole &= ids[j] >= 0;
           if (whole) {
@@ -457,7 +465,7 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
     // This rank's own items go straight to their rows (plan() checked their ids: increasing, inside this part).
     for (std::int64_t k0 = (*start)[p * size_ + rank_], end = (*start)[p * size_ + rank_ + 1]; k0 < end; k0 += kBatch) {
       const std::int64_t k1 = std::min(end, k0 + kBatch), n = k1 - k0;
-      ids_(k0, k1, ids);
+      slot_ids(k0, k1, ids);
       bool consecutive = true;  // none skipped, each the one after the last
       for (std::int64_t j = 0; j < n; ++j) consecutive &= ids[j] == ids[0] + j;
       if (consecutive && ids[0] >= 0) {

@@ -151,6 +151,9 @@ private:
   // Parts aligned with the ranks' own rows (plan()): rank r's rows are [own_begin_[r], own_begin_[r + 1]); empty
   // for the even split.
   std::vector<std::int64_t> own_begin_;
+  // Every slot of this rank written, slot k's id first_id_ + k (plan()): writes need not ask ids_.
+  bool dense_ = false;
+  std::int64_t first_id_ = 0;
 
 };
 

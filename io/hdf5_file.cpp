@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <thread>
 #include <vector>
 
 #include <cerrno>
@@ -208,7 +209,11 @@ Hdf5File Hdf5File::create(const std::string& path, MPI_Comm comm, int64_t reserv
       errno = 0;
       f.file_ = H5Fcreate((path + ".tmp").c_str(), H5F_ACC_TRUNC, fcpl.get(), fapl.get());
       if (f.file_ < 0) f.fail_io("", "cannot create " + path + ".tmp", errno);
-      f.seal_ = std::make_unique<SealStream>(path + ".tmp");
+      // The seal's hashing on a thread of its own when this rank has a core to spare (the ranks fewer than the
+      // cores: a rank a node, or fewer, is assumed; more ranks than cores would only take turns).
+      int ranks = 1;
+      MPI_Comm_size(comm, &ranks);
+      f.seal_ = std::make_unique<SealStream>(path + ".tmp", static_cast<unsigned>(ranks) < std::thread::hardware_concurrency());
     });
     if (reserve > 0)
       agree(comm, [&] {

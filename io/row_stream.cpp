@@ -368,8 +368,10 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
   std::exception_ptr fill_failed;  // a fill that threw while the other ranks' messages were being made
   auto post = [&](std::int64_t q) {
     Exchange& x = exchanges[q & 1];
-    // The sends of piece q - 2 used these buffers.
+    // The sends of piece q - 2 used these buffers (and its receives, waited for by piece(q - 2)).
     check_mpi(MPI_Waitall(static_cast<int>(x.sends.size()), x.sends.data(), MPI_STATUSES_IGNORE), "MPI_Waitall");
+    check_mpi(MPI_Waitall(static_cast<int>(x.receives.size()), x.receives.data(), MPI_STATUSES_IGNORE),
+              "MPI_Waitall");
     x.sends.clear();
     x.receives.clear();
     x.from.clear();
@@ -400,33 +402,34 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
       T* message = outgoing + at;
       T* to = message;
       std::vector<std::int64_t> message_runs;  // {first id, length}, as plan() counted them
-      // A failed fill leaves its rows as they are: the message still goes (the other rank waits for it), and this
-      // rank throws once its part of the piece is done.
-      try {
-        for (std::int64_t k0 = (*start)[q * size_ + r], end = (*start)[q * size_ + r + 1]; k0 < end; k0 += kBatch) {
-          const std::int64_t k1 = std::min(end, k0 + kBatch), n = k1 - k0;
-          slot_ids(k0, k1, ids);
-          bool whole = true;  // no slot skipped: the rows go straight into the message
-          for (std::int64_t j = 0; j < n; ++j) whole &= ids[j] >= 0;
-          if (whole) {
-            fill(k0, k1, ids, to);
-            to += n * width;
-          } else {
-            T* b = batch_rows();
-            fill(k0, k1, ids, b);
-            for (std::int64_t j = 0; j < n; ++j)
-              if (ids[j] >= 0) to = std::copy(b + j * width, b + (j + 1) * width, to);
-          }
-          for (std::int64_t j = 0; j < n; ++j)
-            if (const std::int64_t i = ids[j]; i >= 0) {
-              if (!message_runs.empty() && message_runs[message_runs.size() - 2] + message_runs.back() == i)
-                ++message_runs.back();
-              else
-                message_runs.push_back(i), message_runs.push_back(1);
+      // A failed fill leaves its rows as they are: the message still goes, whole (the other rank waits for it and
+      // places it), and this rank throws once its part of the piece is done.
+      for (std::int64_t k0 = (*start)[q * size_ + r], end = (*start)[q * size_ + r + 1]; k0 < end; k0 += kBatch) {
+        const std::int64_t k1 = std::min(end, k0 + kBatch), n = k1 - k0;
+        slot_ids(k0, k1, ids);
+        std::int64_t written = 0;
+        for (std::int64_t j = 0; j < n; ++j) written += ids[j] >= 0;
+        if (!fill_failed) try {
+            if (written == n) {  // no slot skipped: the rows go straight into the message
+              fill(k0, k1, ids, to);
+            } else {
+              T* b = batch_rows();
+              fill(k0, k1, ids, b);
+              T* row = to;
+              for (std::int64_t j = 0; j < n; ++j)
+                if (ids[j] >= 0) row = std::copy(b + j * width, b + (j + 1) * width, row);
             }
-        }
-      } catch (...) {
-        if (!fill_failed) fill_failed = std::current_exception();
+          } catch (...) {
+            fill_failed = std::current_exception();
+          }
+        to += written * width;
+        for (std::int64_t j = 0; j < n; ++j)
+          if (const std::int64_t i = ids[j]; i >= 0) {
+            if (!message_runs.empty() && message_runs[message_runs.size() - 2] + message_runs.back() == i)
+              ++message_runs.back();
+            else
+              message_runs.push_back(i), message_runs.push_back(1);
+          }
       }
       // plan() counted the same runs from the same ids; a mismatch is a broken id function, not a size to trust.
       message_runs.resize(2 * static_cast<std::size_t>((*runs)[q * size_ + r]), -1);
@@ -463,23 +466,28 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
     T* rows = buffer.rows.at_least(static_cast<std::size_t>(length) * width);
     if (exchange) seen.assign(static_cast<std::size_t>(length), 0);
     // This rank's own items go straight to their rows (plan() checked their ids: increasing, inside this part).
-    for (std::int64_t k0 = (*start)[p * size_ + rank_], end = (*start)[p * size_ + rank_ + 1]; k0 < end; k0 += kBatch) {
-      const std::int64_t k1 = std::min(end, k0 + kBatch), n = k1 - k0;
-      slot_ids(k0, k1, ids);
-      bool consecutive = true;  // none skipped, each the one after the last
-      for (std::int64_t j = 0; j < n; ++j) consecutive &= ids[j] == ids[0] + j;
-      if (consecutive && ids[0] >= 0) {
-        fill(k0, k1, ids, rows + (ids[0] - first) * width);
-        if (exchange) std::memset(seen.data() + (ids[0] - first), 1, static_cast<std::size_t>(n));
-        continue;
-      }
-      T* b = batch_rows();
-      fill(k0, k1, ids, b);
-      for (std::int64_t j = 0; j < n; ++j)
-        if (const std::int64_t i = ids[j]; i >= 0) {
-          std::copy(b + j * width, b + (j + 1) * width, rows + (i - first) * width);
-          if (exchange) seen[i - first] = 1;
+    // A fill that throws here is thrown below, once this piece's messages are received.
+    try {
+      for (std::int64_t k0 = (*start)[p * size_ + rank_], end = (*start)[p * size_ + rank_ + 1]; k0 < end; k0 += kBatch) {
+        const std::int64_t k1 = std::min(end, k0 + kBatch), n = k1 - k0;
+        slot_ids(k0, k1, ids);
+        bool consecutive = true;  // none skipped, each the one after the last
+        for (std::int64_t j = 0; j < n; ++j) consecutive &= ids[j] == ids[0] + j;
+        if (consecutive && ids[0] >= 0) {
+          fill(k0, k1, ids, rows + (ids[0] - first) * width);
+          if (exchange) std::memset(seen.data() + (ids[0] - first), 1, static_cast<std::size_t>(n));
+          continue;
         }
+        T* b = batch_rows();
+        fill(k0, k1, ids, b);
+        for (std::int64_t j = 0; j < n; ++j)
+          if (const std::int64_t i = ids[j]; i >= 0) {
+            std::copy(b + j * width, b + (j + 1) * width, rows + (i - first) * width);
+            if (exchange) seen[i - first] = 1;
+          }
+      }
+    } catch (...) {
+      if (!fill_failed) fill_failed = std::current_exception();
     }
     int bad = 0;
     if (exchange) {

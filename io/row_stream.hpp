@@ -6,9 +6,10 @@
 // cut into pieces of at most kPieceRows rows (in all, not a rank: at more ranks each rank's part, and its buffers,
 // shrink with its share of the sample; pieces of kPieceRows rows a rank were tried and gained no speed, 2 ranks
 // under load, but cost 1.116x instead of 1.080x the memory without output); each piece is split evenly among
-// the ranks; every rank sends each
-// item of the piece, with its id, to the rank whose part holds it (one MPI_Alltoallv), and each rank writes its
-// part (independently, in writes of at most 1 MiB: Hdf5File::write_pieces). When each rank's ids are one run and
+// the ranks (each part's ends moved onto the dataset's seal blocks, so that the seal hashes them as written);
+// every rank sends the items of the piece that another rank's part holds to that rank, as rows and the runs of
+// consecutive ids they cover (point to point, a piece ahead of the write: no collective between pieces), and each
+// rank writes its part (independently, in writes of at most 1 MiB: Hdf5File::write_pieces). When each rank's ids are one run and
 // the runs follow each other in rank order (a lattice's molecules and written connections), each rank writes its
 // own rows instead, in pieces of its own of at most kPieceRows rows, every rank at once, and nothing is exchanged.
 // Per rank and piece that is at most kPieceRows rows in and out, whatever

@@ -88,10 +88,39 @@ bool hash_seal_blocks(int fd, std::uint64_t size, const std::uint64_t* blocks, i
   return ok;
 }
 
-SealStream::SealStream(const std::string& path) : fd_(::open(path.c_str(), O_RDONLY | O_CLOEXEC)) {}
+SealStream::SealStream(const std::string& path, bool background)
+    : fd_(::open(path.c_str(), O_RDONLY | O_CLOEXEC)) {
+  if (background && fd_ >= 0)
+    worker_ = std::thread([this] {
+      std::unique_lock<std::mutex> lock(mutex_);
+      for (;;) {
+        changed_.wait(lock, [this] { return closing_ || !queue_.empty(); });
+        if (queue_.empty()) return;  // closing, nothing left
+        std::vector<std::uint64_t> blocks = std::move(queue_.front());
+        queue_.pop_front();
+        busy_ = true;
+        lock.unlock();
+        hash(blocks);
+        lock.lock();
+        busy_ = false;
+        changed_.notify_all();
+      }
+    });
+}
 
 SealStream::~SealStream() {
+  stop();
   if (fd_ >= 0) ::close(fd_);
+}
+
+void SealStream::stop() {
+  if (!worker_.joinable()) return;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    closing_ = true;
+  }
+  changed_.notify_all();
+  worker_.join();
 }
 
 void SealStream::wrote(std::uint64_t offset, std::uint64_t bytes) {
@@ -103,30 +132,42 @@ void SealStream::wrote(std::uint64_t offset, std::uint64_t bytes) {
   run_end_ = offset + bytes;
   while (block_offset(next_block_ + 1) <= run_end_) {
     pending_.push_back(next_block_++);
-    if (pending_.size() == static_cast<std::size_t>(kLanes)) hash_pending();
+    if (pending_.size() == static_cast<std::size_t>(kLanes)) hand_over();
   }
 }
 
 void SealStream::finish() {
-  if (!pending_.empty()) hash_pending();
+  if (!pending_.empty()) hand_over();
+  stop();
 }
 
-void SealStream::hash_pending() {
+void SealStream::hand_over() {
+  if (!worker_.joinable()) {
+    hash(pending_);
+  } else {
+    std::unique_lock<std::mutex> lock(mutex_);
+    changed_.wait(lock, [this] { return queue_.size() < 2; });
+    queue_.push_back(pending_);
+  }
+  changed_.notify_all();
+  pending_.clear();
+}
+
+void SealStream::hash(const std::vector<std::uint64_t>& blocks) {
   std::uint64_t h[kLanes];
-  const int n = static_cast<int>(pending_.size());
-  const std::uint64_t size = block_offset(*std::max_element(pending_.begin(), pending_.end()) + 1);
-  if (hash_seal_blocks(fd_, size, pending_.data(), n, h, buffer_)) {
+  const int n = static_cast<int>(blocks.size());
+  const std::uint64_t size = block_offset(*std::max_element(blocks.begin(), blocks.end()) + 1);
+  if (hash_seal_blocks(fd_, size, blocks.data(), n, h, buffer_)) {
     for (int i = 0; i < n; ++i) {
       sum_ += h[i];
-      hashed_.push_back(pending_[i]);
-      if (mine_.size() <= pending_[i]) mine_.resize(pending_[i] + 1, 0);
-      mine_[pending_[i]] = 1;
+      hashed_.push_back(blocks[i]);
+      if (mine_.size() <= blocks[i]) mine_.resize(blocks[i] + 1, 0);
+      mine_[blocks[i]] = 1;
       // Hashed: its pages may go to the disk now, in the background.
-      ::sync_file_range(fd_, static_cast<off_t>(block_offset(pending_[i])), kSealBlock, SYNC_FILE_RANGE_WRITE);
-      writing_.push_back(pending_[i]);
+      ::sync_file_range(fd_, static_cast<off_t>(block_offset(blocks[i])), kSealBlock, SYNC_FILE_RANGE_WRITE);
+      writing_.push_back(blocks[i]);
     }
   }
-  pending_.clear();
   // The older half of the blocks on their way to the disk: wait until written (by now, mostly), then drop their
   // pages, which the next writes reuse. A failed write-back is kept for close() to report: the file's later fsync
   // would not see an error this call has already collected.

@@ -9,9 +9,13 @@
 // taken fresh from the system (on this project's virtual machines a fresh page's first touch cost more than
 // writing it: docs/benchmarks.md, "Snapshot writes at the disk's pace").
 #pragma once
+#include <condition_variable>
 #include <cstddef>
 #include <cstdint>
+#include <deque>
+#include <mutex>
 #include <string>
+#include <thread>
 #include <vector>
 
 namespace tissue {
@@ -31,16 +35,20 @@ bool hash_seal_blocks(int fd, std::uint64_t size, const std::uint64_t* blocks, i
 
 // One rank's side of a file being written. Not collective; every call is a hint that may fail silently (the block
 // is then hashed when the file is closed), except a failed write-back, which error() reports (errno).
+// `background`: the blocks are hashed, written back and dropped by a thread of this stream's own (no MPI call), while
+// the caller goes on filling and writing rows; for a rank with a core to spare (Hdf5File::create: fewer ranks than
+// cores). At most two groups of sixteen blocks wait for it: a writer faster than the hashing waits.
 class SealStream {
 public:
-  explicit SealStream(const std::string& path);  // the file being written (opened read-only here)
+  explicit SealStream(const std::string& path, bool background = false);  // the file being written (opened here)
   ~SealStream();
   SealStream(const SealStream&) = delete;
   SealStream& operator=(const SealStream&) = delete;
 
   // This rank has written the file's bytes [offset, offset + bytes) (raw data: HDF5 writes nothing else there).
   void wrote(std::uint64_t offset, std::uint64_t bytes);
-  // Hashes the blocks still waiting for a group of sixteen; call before the file's metadata is written.
+  // Hashes the blocks still waiting for a group of sixteen (and waits for the thread); call before the file's
+  // metadata is written. hashed(), sum() and error() are this rank's whole part after it.
   void finish();
   // The blocks hashed here (each written whole by this rank) and the sum of their hashes.
   const std::vector<std::uint64_t>& hashed() const { return hashed_; }
@@ -48,7 +56,15 @@ public:
   int error() const { return error_; }
 
 private:
-  void hash_pending();
+  void hand_over();  // pending_ to the thread, or hashed here
+  void hash(const std::vector<std::uint64_t>& blocks);
+  void stop();
+
+  std::thread worker_;
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  std::deque<std::vector<std::uint64_t>> queue_;  // groups handed to the thread
+  bool busy_ = false, closing_ = false;
 
   int fd_ = -1;
   std::uint64_t run_end_ = 0;     // the end of the run of bytes this rank wrote last, without a gap

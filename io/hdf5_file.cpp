@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <thread>
 #include <vector>
 
 #include <cerrno>
@@ -208,7 +209,11 @@ Hdf5File Hdf5File::create(const std::string& path, MPI_Comm comm, int64_t reserv
       errno = 0;
       f.file_ = H5Fcreate((path + ".tmp").c_str(), H5F_ACC_TRUNC, fcpl.get(), fapl.get());
       if (f.file_ < 0) f.fail_io("", "cannot create " + path + ".tmp", errno);
-      f.seal_ = std::make_unique<SealStream>(path + ".tmp");
+      // The seal's hashing on a thread of its own when this rank has a core to spare (the ranks fewer than the
+      // cores: a rank a node, or fewer, is assumed; more ranks than cores would only take turns).
+      int ranks = 1;
+      MPI_Comm_size(comm, &ranks);
+      f.seal_ = std::make_unique<SealStream>(path + ".tmp", static_cast<unsigned>(ranks) < std::thread::hardware_concurrency());
     });
     if (reserve > 0)
       agree(comm, [&] {
@@ -460,13 +465,14 @@ void Hdf5File::write_block(const std::string& dataset, int64_t global_rows, int 
 }
 
 void Hdf5File::write_pieces(const std::string& dataset, int64_t global_rows, int width, bool integer, int64_t pieces,
-                            const Piece& piece, bool independent) {
+                            const Piece& piece, bool independent, const Placed& placed) {
   write_pieces(dataset, global_rows, width, integer ? H5T_STD_I64LE : H5T_IEEE_F64LE,
-               integer ? H5T_NATIVE_INT64 : H5T_NATIVE_DOUBLE, pieces, piece, independent);
+               integer ? H5T_NATIVE_INT64 : H5T_NATIVE_DOUBLE, pieces, piece, independent, placed);
 }
 
 void Hdf5File::write_pieces(const std::string& dataset, int64_t global_rows, int width, hid_t file_type,
-                            hid_t mem_type, int64_t pieces, const Piece& piece, bool independent) {
+                            hid_t mem_type, int64_t pieces, const Piece& piece, bool independent,
+                            const Placed& placed) {
   if (!writable_ || file_ < 0) fail(dataset, "file is not open for writing");
   long long mine[5] = {global_rows, -global_rows, width, -width, pieces}, all[5];
   check_mpi(MPI_Allreduce(mine, all, 5, MPI_LONG_LONG, MPI_MAX, comm_), path_, "MPI_Allreduce");
@@ -506,6 +512,7 @@ void Hdf5File::write_pieces(const std::string& dataset, int64_t global_rows, int
     // writes whole as it goes (io/file_seal.hpp).
     const haddr_t base = H5Dget_offset(dset.get());
     SealStream* seal = base != HADDR_UNDEF ? seal_.get() : nullptr;
+    if (placed) placed(base != HADDR_UNDEF ? static_cast<int64_t>(base) : -1);
     // Each rank's rows of a piece are one block of the file's rows.
     auto bad_block = [&](int64_t offset, int64_t rows, const void* data) {
       return offset < 0 || rows < 0 || offset + rows > global_rows || (rows > 0 && !data);
@@ -543,30 +550,21 @@ void Hdf5File::write_pieces(const std::string& dataset, int64_t global_rows, int
         }
       });
     } else {
-      // One reduction a piece, after the piece's own collectives: whether any rank's block is bad (every rank stops
-      // before writing it) and whether any rank failed since the last one (what piece() threw on this rank after
-      // its collectives, or a write of the previous piece): then every rank throws the first failing rank's
-      // error (agree_on). The last piece's writes are agreed after the loop. A rank that failed goes on taking
-      // part in the pieces' collectives until that reduction, so no rank is left waiting in one.
+      // piece() exchanges rows point to point with the other ranks' piece() calls: every rank calls it for every
+      // piece, whatever failed, so that no rank waits for a message that never comes, and the ranks agree once,
+      // after the last piece (no collective between pieces: a rank runs up to a piece ahead of another). A rank
+      // that failed (what piece() threw, a bad block, a write) writes nothing more and throws, on every rank, the
+      // first failing rank's error (agree_on).
       std::exception_ptr failed;
       for (int64_t p = 0; p < pieces; ++p) {
         int64_t offset = 0, rows = 0;
         const void* data = nullptr;
         try {
           data = piece(p, &offset, &rows);
-        } catch (const Agreed&) {
-          throw;
+          if (!failed && bad_block(offset, rows, data)) throw bad_block_error();
+          if (!failed) write_rows(offset, rows, data);
         } catch (...) {
           if (!failed) failed = std::current_exception();
-        }
-        int flags[2] = {!failed && bad_block(offset, rows, data), failed ? 1 : 0}, any[2] = {0, 0};
-        check_mpi(MPI_Allreduce(flags, any, 2, MPI_INT, MPI_MAX, comm_), path_, "MPI_Allreduce");
-        if (any[1]) agree_on(comm_, failed);  // throws on every rank
-        if (any[0]) throw bad_block_error();
-        try {
-          write_rows(offset, rows, data);
-        } catch (...) {
-          failed = std::current_exception();
         }
       }
       agree_on(comm_, failed);

@@ -85,11 +85,16 @@ public:
   // [offset, offset + rows) of piece p (rows * width values, valid until the next call; null when rows == 0).
   // `integer`: int64 values, otherwise double. `independent`: piece() makes no MPI call (each rank's rows its own:
   // io/row_stream.hpp), so each rank writes all its pieces on its own and the ranks agree once, after the last.
-  // Without `independent`, piece() may make collective calls (every rank calls it for every piece) and throw on
-  // its rank after them: the ranks agree on that in the piece's one reduction.
+  // Without `independent`, piece() may exchange rows point to point with the other ranks' piece() calls (no
+  // collective): every rank calls it for every piece, even after a failure on its rank (which then writes nothing
+  // more), and the ranks agree once, after the last piece.
+  // `placed`, if given, is called on every rank once the dataset exists, before the first piece, with the file
+  // offset of its first row (the same on every rank; -1 if HDF5 does not say): a caller may then choose its pieces'
+  // rows so that they cover whole seal blocks (io/row_stream.cpp). It may make collective calls.
   using Piece = std::function<const void*(int64_t piece, int64_t* offset, int64_t* rows)>;
+  using Placed = std::function<void(int64_t base)>;
   void write_pieces(const std::string& dataset, int64_t global_rows, int width, bool integer, int64_t pieces,
-                    const Piece& piece, bool independent = false);
+                    const Piece& piece, bool independent = false, const Placed& placed = nullptr);
 
   // The shape {rows, width} of a 2-D dataset (a 1-D dataset reads as width 1).
   std::vector<int64_t> shape(const std::string& dataset) const;
@@ -128,7 +133,8 @@ private:
   void write_block(const std::string& dataset, int64_t global_rows, int width, int64_t offset, int64_t rows,
                    const void* data, hid_t file_type, hid_t mem_type);
   void write_pieces(const std::string& dataset, int64_t global_rows, int width, hid_t file_type, hid_t mem_type,
-                    int64_t pieces, const Piece& piece, bool independent = false);
+                    int64_t pieces, const Piece& piece, bool independent = false,
+                    const Placed& placed = nullptr);
   void write_numeric_attribute(const std::string& object, const std::string& name, hid_t file_type,
                                hid_t mem_type, const void* value);
   void read_block(const std::string& dataset, int64_t offset, int64_t rows, void* data, hid_t mem_type,

@@ -1,12 +1,16 @@
 #include "io/row_stream.hpp"
 
+#include <time.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <memory>
+#include <numeric>
 #include <stdexcept>
 #include <type_traits>
 
+#include "io/file_seal.hpp"
 #include "partition/agreement.hpp"
 #include "partition/natural_order.hpp"
 
@@ -16,6 +20,22 @@ namespace {
 
 void check_mpi(int rc, const char* what) {
   if (rc != MPI_SUCCESS) throw std::runtime_error(std::string("RowStream: ") + what + " failed");
+}
+
+// Waits for every request, polling, with a pause between polls after the first few: a rank waiting for another's
+// rows leaves its core to that rank (two ranks on two cores of a busy machine; MPI's own wait spins), at a cost of
+// tens of microseconds a piece when the rows are late.
+void wait_all(std::vector<MPI_Request>& requests) {
+  for (int polls = 0;; ++polls) {
+    int done = 0;
+    check_mpi(MPI_Testall(static_cast<int>(requests.size()), requests.data(), &done, MPI_STATUSES_IGNORE),
+              "MPI_Testall");
+    if (done) return;
+    if (polls >= 32) {
+      const timespec pause{0, 50000};
+      nanosleep(&pause, nullptr);
+    }
+  }
 }
 
 }  // namespace
@@ -114,8 +134,9 @@ void RowStream::plan(bool shared) {
   send_.assign(parts, 0);
   // One pass over the slots, a batch of ids at a time: the items go to the parts in order, since their ids
   // increase (the part holding an id is found by moving past the parts that end before it: no division an item).
+  runs_.assign(parts, 0);
   int bad = global_rows_ < 0;
-  std::int64_t next_part = 0, last = -1, part = 0, part_end = parts > 0 ? part_begin(0, 1) : 0;
+  std::int64_t next_part = 0, last = -1, part = 0, part_end = parts > 0 ? part_begin(0, 1) : 0, run_part = -1;
   std::int64_t ids[kBatch], count = 0, first_id = -1;
   for (std::int64_t k0 = 0; k0 < slots_ && !bad; k0 += kBatch) {
     const std::int64_t k1 = std::min(slots_, k0 + kBatch);
@@ -128,6 +149,7 @@ void RowStream::plan(bool shared) {
         break;
       }
       if (count++ == 0) first_id = i;
+      const bool joins = i == last + 1;
       last = i;
       while (i >= part_end) {
         ++part;
@@ -135,12 +157,18 @@ void RowStream::plan(bool shared) {
       }
       while (next_part <= part) start_[next_part++] = k;
       ++send_[part];
+      // The runs of consecutive ids this rank sends to each part: they travel instead of the ids (write()).
+      if (!joins || part != run_part) ++runs_[part], run_part = part;
     }
   }
   // When each rank's ids are one run and the runs follow each other in rank order (a lattice's molecules, and the
   // connections each rank writes, in every partition by slabs of ids), each rank's part of a piece is its own rows
   // there: nothing travels, and each rank writes its rows where they lie (a part then holds up to a piece's rows, at
   // most kPieceRows). The even split above becomes that by moving every item to its own rank's part of its piece.
+  // Every slot written, ids consecutive (every item at 1 rank): a write then counts the ids instead of asking
+  // for them (decoding a batch of connections' ids cost as much as filling its rows).
+  dense_ = !bad && count == slots_ && (count == 0 || last - first_id + 1 == count);
+  first_id_ = count > 0 ? first_id : 0;
   if (!shared && size_ > 1) {
     long long mine[3] = {bad, count, count > 0 && last - first_id + 1 == count ? first_id : -1};
     std::vector<long long> all(3 * static_cast<std::size_t>(size_));
@@ -174,6 +202,7 @@ void RowStream::plan(bool shared) {
       }
       start_.assign(parts + 1, slots_);
       send_.assign(parts, 0);
+      runs_.assign(parts, 0);
       for (std::int64_t q = 0; q < pieces_; ++q)
         for (int r = 0; r < size_; ++r) {
           start_[q * size_ + r] = r <= rank_ ? piece_slot[q] : piece_slot[q + 1];
@@ -181,16 +210,8 @@ void RowStream::plan(bool shared) {
         }
     }
   }
-  // What each rank receives in each piece: one all-to-all of every piece's counts.
-  std::vector<int> out(parts), in(parts);
-  for (int r = 0; r < size_; ++r)
-    for (std::int64_t p = 0; p < pieces_; ++p) out[r * pieces_ + p] = send_[p * size_ + r];
-  check_mpi(MPI_Alltoall(out.data(), static_cast<int>(pieces_), MPI_INT, in.data(), static_cast<int>(pieces_), MPI_INT,
-                         comm_),
-            "MPI_Alltoall");
-  recv_.assign(parts, 0);
-  for (int r = 0; r < size_; ++r)
-    for (std::int64_t p = 0; p < pieces_; ++p) recv_[p * size_ + r] = in[r * pieces_ + p];
+  // What each rank receives in each piece, rows and runs: one all-to-all of every piece's counts.
+  exchange_counts(send_, runs_, recv_, recv_runs_);
   // Every part must receive exactly its rows' count (duplicates are caught as each piece is written).
   for (std::int64_t p = 0; p < pieces_ && !bad && !shared; ++p) {
     std::int64_t got = 0;
@@ -206,10 +227,86 @@ void RowStream::plan(bool shared) {
                                 std::to_string(global_rows_ - 1));
 }
 
+void RowStream::exchange_counts(const std::vector<int>& send, const std::vector<int>& runs, std::vector<int>& recv,
+                                std::vector<int>& recv_runs) const {
+  const std::size_t parts = static_cast<std::size_t>(pieces_) * size_;
+  std::vector<int> out(2 * parts), in(2 * parts);
+  for (int r = 0; r < size_; ++r)
+    for (std::int64_t p = 0; p < pieces_; ++p) {
+      out[2 * (r * pieces_ + p)] = send[p * size_ + r];
+      out[2 * (r * pieces_ + p) + 1] = runs[p * size_ + r];
+    }
+  check_mpi(MPI_Alltoall(out.data(), static_cast<int>(2 * pieces_), MPI_INT, in.data(), static_cast<int>(2 * pieces_),
+                         MPI_INT, comm_),
+            "MPI_Alltoall");
+  recv.assign(parts, 0);
+  recv_runs.assign(parts, 0);
+  for (int r = 0; r < size_; ++r)
+    for (std::int64_t p = 0; p < pieces_; ++p) {
+      recv[p * size_ + r] = in[2 * (r * pieces_ + p)];
+      recv_runs[p * size_ + r] = in[2 * (r * pieces_ + p) + 1];
+    }
+}
+
+RowStream::Split RowStream::aligned_split(std::int64_t base, std::int64_t row_bytes) const {
+  Split split;
+  if (size_ == 1 || own_parts() || base < 0 || row_bytes <= 0) return split;
+  // The rows x that begin a seal block: base + row_bytes x = kSealUserBlock (mod kSealBlock). With g the largest
+  // power of two dividing both, they exist iff g divides kSealUserBlock - base, and repeat every T = kSealBlock / g
+  // rows; m = row_bytes / g is odd, so x0 = (kSealUserBlock - base) / g times m's inverse, modulo T.
+  const std::int64_t block = static_cast<std::int64_t>(kSealBlock);
+  const std::int64_t g = std::gcd(row_bytes, block), period = block / g;
+  const std::int64_t c = ((static_cast<std::int64_t>(kSealUserBlock) - base) % block + block) % block;
+  if (c % g != 0 || period > piece_rows_) return split;
+  const std::uint64_t m = static_cast<std::uint64_t>(row_bytes / g);
+  std::uint64_t inverse = m;  // Newton's iteration: each step doubles the correct low bits (m m = 1 mod 8)
+  for (int i = 0; i < 5; ++i) inverse *= 2 - m * inverse;
+  const std::int64_t x0 =
+      static_cast<std::int64_t>((static_cast<std::uint64_t>(c / g) * inverse) & static_cast<std::uint64_t>(period - 1));
+  const std::int64_t parts = pieces_ * size_;
+  split.bounds.assign(parts + 1, global_rows_);
+  split.bounds[0] = 0;
+  for (std::int64_t q = 1; q < parts; ++q) {
+    const std::int64_t even = part_begin(q / size_, static_cast<int>(q % size_)), shift = even - x0 + period / 2;
+    const std::int64_t nearest = shift < 0 ? 0 : x0 + shift / period * period;
+    split.bounds[q] = std::clamp(nearest, split.bounds[q - 1], global_rows_);
+  }
+  // The items to the parts, and their runs, as plan() does with the even split (the ids were checked there).
+  split.start.assign(parts + 1, slots_);
+  split.send.assign(parts, 0);
+  split.runs.assign(parts, 0);
+  std::int64_t ids[kBatch], next_part = 0, part = 0, last = -1, run_part = -1;
+  for (std::int64_t k0 = 0; k0 < slots_; k0 += kBatch) {
+    const std::int64_t k1 = std::min(slots_, k0 + kBatch);
+    ids_(k0, k1, ids);
+    for (std::int64_t k = k0; k < k1; ++k) {
+      const std::int64_t i = ids[k - k0];
+      if (i < 0) continue;
+      const bool joins = i == last + 1;
+      last = i;
+      while (part < parts - 1 && i >= split.bounds[part + 1]) ++part;
+      while (next_part <= part) split.start[next_part++] = k;
+      ++split.send[part];
+      if (!joins || part != run_part) ++split.runs[part], run_part = part;
+    }
+  }
+  exchange_counts(split.send, split.runs, split.recv, split.recv_runs);
+  int bad = 0;
+  for (std::int64_t p = 0; p < pieces_ && !bad; ++p) {
+    std::int64_t got = 0;
+    for (int r = 0; r < size_; ++r) got += split.recv[p * size_ + r];
+    bad = got != split.bounds[p * size_ + rank_ + 1] - split.bounds[p * size_ + rank_];
+  }
+  int any = 0;
+  check_mpi(MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, comm_), "MPI_Allreduce");
+  if (any) throw std::logic_error("RowStream: the parts aligned on the seal's blocks miss rows");
+  return split;
+}
+
 namespace {
 
 // The piece buffers of writes, left uninitialized (every value is written before it is read): the rows of this
-// rank's part, and the rows (id first) sent to and received from other ranks. One set a process, of the type being
+// rank's part, and the messages sent to and received from other ranks, one set for even pieces and one for odd. One set a process, of the type being
 // written (the other type's is given back), kept until RowStream::release().
 template <typename T>
 struct Scratch {
@@ -222,7 +319,7 @@ struct Scratch {
 };
 template <typename T>
 struct Buffers {
-  Scratch<T> rows, outgoing, incoming;
+  Scratch<T> rows, outgoing[2], incoming[2];
   std::vector<char> seen;
 };
 Buffers<double> double_buffers;
@@ -250,10 +347,8 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
                                const std::function<void(std::int64_t, std::int64_t, const std::int64_t*, T*)>& fill,
                                Checksum checksum) const {
   if (shared_) throw std::logic_error("RowStream: a stream whose ids repeat across ranks writes no file");
-  const int row = width + 1;  // the id (its bytes), then the values
   Buffers<T>& buffer = buffers_for<T>();
   std::vector<char>& seen = buffer.seen;
-  std::vector<int> send_bytes(size_), send_displs(size_), recv_bytes(size_), recv_displs(size_);
   // A batch's ids and, when its rows cannot go straight to their place, its rows (a few hundred kB at most).
   std::int64_t ids[kBatch];
   std::unique_ptr<T[]> batch;
@@ -261,89 +356,194 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
     if (!batch) batch.reset(new T[static_cast<std::size_t>(kBatch) * width]);
     return batch.get();
   };
+  auto slot_ids = [&](std::int64_t k0, std::int64_t k1, std::int64_t* to) {
+    if (dense_) std::iota(to, to + (k1 - k0), first_id_ + k0);
+    else ids_(k0, k1, to);
+  };
+  const bool exchange = size_ > 1 && !own_parts();
+  // The parts: the stream's plan, or the same moved onto the dataset's seal blocks once its place in the file is
+  // known (write_pieces calls `placed` before the first piece).
+  Split aligned;
+  const std::vector<std::int64_t>* start = &start_;
+  const std::vector<int>*send = &send_, *runs = &runs_, *recv = &recv_, *recv_runs = &recv_runs_;
+  auto placed = [&](std::int64_t base) {
+    aligned = aligned_split(base, static_cast<std::int64_t>(sizeof(T)) * width);
+    if (aligned.bounds.empty()) return;
+    start = &aligned.start, send = &aligned.send, runs = &aligned.runs, recv = &aligned.recv,
+    recv_runs = &aligned.recv_runs;
+  };
+  // The exchange, a piece ahead of the write: piece p + 1's rows are filled and sent (point to point, nonblocking)
+  // before piece p's are placed and written, so that a rank waits for another only until that rank has filled its
+  // rows, never for its write, and no collective stands between the pieces. The message to a rank for a piece:
+  // the rows, in id order, then the runs of consecutive ids they hold ({first id, length}: a rank knows which ids
+  // it sends; a partition's runs are tens of rows or more, so the ids no longer travel with each row). Two sets
+  // of buffers (piece parity), each a part's rows at most.
+  struct Exchange {
+    std::vector<MPI_Request> sends, receives;
+    std::vector<int> from;  // the rank of each receive
+  } exchanges[2];
+  auto message_size = [&](int rows, int n_runs) { return static_cast<std::size_t>(rows) * width + 2 * n_runs; };
+  std::exception_ptr fill_failed;  // a fill that threw while the other ranks' messages were being made
+  auto post = [&](std::int64_t q) {
+    Exchange& x = exchanges[q & 1];
+    // The sends of piece q - 2 used these buffers (and its receives, waited for by piece(q - 2)).
+    wait_all(x.sends);
+    wait_all(x.receives);
+    x.sends.clear();
+    x.receives.clear();
+    x.from.clear();
+    std::size_t out_size = 0, in_size = 0;
+    for (int r = 0; r < size_; ++r)
+      if (r != rank_) {
+        out_size += message_size((*send)[q * size_ + r], (*runs)[q * size_ + r]);
+        in_size += message_size((*recv)[q * size_ + r], (*recv_runs)[q * size_ + r]);
+      }
+    T* outgoing = buffer.outgoing[q & 1].at_least(out_size);
+    T* incoming = buffer.incoming[q & 1].at_least(in_size);
+    const int tag = 0x7e00 + static_cast<int>(q % 256);
+    std::size_t in = 0;
+    for (int r = 0; r < size_; ++r) {
+      const std::size_t n = r == rank_ ? 0 : message_size((*recv)[q * size_ + r], (*recv_runs)[q * size_ + r]);
+      if (n == 0) continue;
+      x.receives.emplace_back();
+      x.from.push_back(r);
+      check_mpi(MPI_Irecv(incoming + in, static_cast<int>(n * sizeof(T)), MPI_BYTE, r, tag, comm_,
+                          &x.receives.back()),
+                "MPI_Irecv");
+      in += n;
+    }
+    std::size_t at = 0;
+    for (int r = 0; r < size_; ++r) {
+      const int rows_to_r = r == rank_ ? 0 : (*send)[q * size_ + r];
+      if (rows_to_r == 0) continue;
+      T* message = outgoing + at;
+      T* to = message;
+      std::vector<std::int64_t> message_runs;  // {first id, length}, as plan() counted them
+      // A failed fill leaves its rows as they are: the message still goes, whole (the other rank waits for it and
+      // places it), and this rank throws once its part of the piece is done.
+      for (std::int64_t k0 = (*start)[q * size_ + r], end = (*start)[q * size_ + r + 1]; k0 < end; k0 += kBatch) {
+        const std::int64_t k1 = std::min(end, k0 + kBatch), n = k1 - k0;
+        slot_ids(k0, k1, ids);
+        std::int64_t written = 0;
+        for (std::int64_t j = 0; j < n; ++j) written += ids[j] >= 0;
+        if (!fill_failed) try {
+            if (written == n) {  // no slot skipped: the rows go straight into the message
+              fill(k0, k1, ids, to);
+            } else {
+              T* b = batch_rows();
+              fill(k0, k1, ids, b);
+              T* row = to;
+              for (std::int64_t j = 0; j < n; ++j)
+                if (ids[j] >= 0) row = std::copy(b + j * width, b + (j + 1) * width, row);
+            }
+          } catch (...) {
+            fill_failed = std::current_exception();
+          }
+        to += written * width;
+        for (std::int64_t j = 0; j < n; ++j)
+          if (const std::int64_t i = ids[j]; i >= 0) {
+            if (!message_runs.empty() && message_runs[message_runs.size() - 2] + message_runs.back() == i)
+              ++message_runs.back();
+            else
+              message_runs.push_back(i), message_runs.push_back(1);
+          }
+      }
+      // plan() counted the same runs from the same ids; a mismatch is a broken id function, not a size to trust.
+      message_runs.resize(2 * static_cast<std::size_t>((*runs)[q * size_ + r]), -1);
+      std::memcpy(message + static_cast<std::size_t>(rows_to_r) * width, message_runs.data(),
+                  message_runs.size() * sizeof(T));
+      const std::size_t n = message_size(rows_to_r, (*runs)[q * size_ + r]);
+      x.sends.emplace_back();
+      check_mpi(MPI_Isend(message, static_cast<int>(n * sizeof(T)), MPI_BYTE, r, tag, comm_, &x.sends.back()),
+                "MPI_Isend");
+      at += n;
+    }
+  };
+  // Whatever happens, no request outlives this call (every rank calls piece() for every piece: every message
+  // posted is received).
+  struct Drain {
+    Exchange* x;
+    ~Drain() {
+      for (int s = 0; s < 2; ++s) {
+        MPI_Waitall(static_cast<int>(x[s].receives.size()), x[s].receives.data(), MPI_STATUSES_IGNORE);
+        MPI_Waitall(static_cast<int>(x[s].sends.size()), x[s].sends.data(), MPI_STATUSES_IGNORE);
+      }
+    }
+  } drain{exchanges};
   std::uint64_t hash = 0;
   auto piece = [&](std::int64_t p, std::int64_t* offset, std::int64_t* count) -> const void* {
-    const auto [first, end] = part_rows(p, rank_);
+    if (exchange) {
+      if (p == 0) post(0);
+      if (p + 1 < pieces_) post(p + 1);
+    }
+    const auto [first, end] = aligned.bounds.empty()
+                                  ? part_rows(p, rank_)
+                                  : std::pair{aligned.bounds[p * size_ + rank_], aligned.bounds[p * size_ + rank_ + 1]};
     const std::int64_t length = end - first;
     T* rows = buffer.rows.at_least(static_cast<std::size_t>(length) * width);
-    seen.assign(static_cast<std::size_t>(length), 0);
-    // This rank's own items go straight to their rows (plan() checked their ids: increasing, inside this part);
-    // only the other ranks' items travel, with their ids.
-    for (std::int64_t k0 = start_[p * size_ + rank_], end = start_[p * size_ + rank_ + 1]; k0 < end; k0 += kBatch) {
-      const std::int64_t k1 = std::min(end, k0 + kBatch), n = k1 - k0;
-      ids_(k0, k1, ids);
-      bool consecutive = true;  // none skipped, each the one after the last
-      for (std::int64_t j = 0; j < n; ++j) consecutive &= ids[j] == ids[0] + j;
-      if (consecutive && ids[0] >= 0) {
-        fill(k0, k1, ids, rows + (ids[0] - first) * width);
-        std::memset(seen.data() + (ids[0] - first), 1, static_cast<std::size_t>(n));
-        continue;
-      }
-      T* b = batch_rows();
-      fill(k0, k1, ids, b);
-      for (std::int64_t j = 0; j < n; ++j)
-        if (const std::int64_t i = ids[j]; i >= 0) {
-          std::copy(b + j * width, b + (j + 1) * width, rows + (i - first) * width);
-          seen[i - first] = 1;
+    if (exchange) seen.assign(static_cast<std::size_t>(length), 0);
+    // This rank's own items go straight to their rows (plan() checked their ids: increasing, inside this part).
+    // A fill that throws here is thrown below, once this piece's messages are received.
+    try {
+      for (std::int64_t k0 = (*start)[p * size_ + rank_], end = (*start)[p * size_ + rank_ + 1]; k0 < end; k0 += kBatch) {
+        const std::int64_t k1 = std::min(end, k0 + kBatch), n = k1 - k0;
+        slot_ids(k0, k1, ids);
+        bool consecutive = true;  // none skipped, each the one after the last
+        for (std::int64_t j = 0; j < n; ++j) consecutive &= ids[j] == ids[0] + j;
+        if (consecutive && ids[0] >= 0) {
+          fill(k0, k1, ids, rows + (ids[0] - first) * width);
+          if (exchange) std::memset(seen.data() + (ids[0] - first), 1, static_cast<std::size_t>(n));
+          continue;
         }
+        T* b = batch_rows();
+        fill(k0, k1, ids, b);
+        for (std::int64_t j = 0; j < n; ++j)
+          if (const std::int64_t i = ids[j]; i >= 0) {
+            std::copy(b + j * width, b + (j + 1) * width, rows + (i - first) * width);
+            if (exchange) seen[i - first] = 1;
+          }
+      }
+    } catch (...) {
+      if (!fill_failed) fill_failed = std::current_exception();
     }
     int bad = 0;
-    if (size_ > 1 && !own_parts()) {
-      std::int64_t sent = 0, received = 0;
-      for (int r = 0; r < size_; ++r)
-        if (r != rank_) sent += send_[p * size_ + r], received += recv_[p * size_ + r];
-      T* outgoing = buffer.outgoing.at_least(static_cast<std::size_t>(sent) * row);
-      T* incoming = buffer.incoming.at_least(static_cast<std::size_t>(received) * row);
-      std::size_t at = 0;
-      for (int r = 0; r < size_; ++r) {
-        send_displs[r] = static_cast<int>(at * sizeof(T));
-        if (r != rank_)
-          for (std::int64_t k0 = start_[p * size_ + r], end = start_[p * size_ + r + 1]; k0 < end; k0 += kBatch) {
-            const std::int64_t k1 = std::min(end, k0 + kBatch);
-            ids_(k0, k1, ids);
-            T* b = batch_rows();
-            fill(k0, k1, ids, b);
-            for (std::int64_t j = 0; j < k1 - k0; ++j)
-              if (const std::int64_t i = ids[j]; i >= 0) {
-                std::memcpy(outgoing + at, &i, sizeof i);
-                std::copy(b + j * width, b + (j + 1) * width, outgoing + at + 1);
-                at += row;
-              }
-          }
-        send_bytes[r] = static_cast<int>(at * sizeof(T)) - send_displs[r];
-      }
-      std::size_t in = 0;
-      for (int r = 0; r < size_; ++r) {
-        recv_displs[r] = static_cast<int>(in * sizeof(T));
-        const std::int64_t n = r == rank_ ? 0 : recv_[p * size_ + r];
-        recv_bytes[r] = static_cast<int>(n * row * sizeof(T));
-        in += static_cast<std::size_t>(n) * row;
-      }
-      check_mpi(MPI_Alltoallv(outgoing, send_bytes.data(), send_displs.data(), MPI_BYTE, incoming, recv_bytes.data(),
-                              recv_displs.data(), MPI_BYTE, comm_),
-                "MPI_Alltoallv");
-      // Each received row to its place in this rank's part; a row missing or arriving twice is a bad id set.
-      for (std::int64_t q = 0; q < received && !bad; ++q) {
-        std::int64_t i = 0;
-        std::memcpy(&i, incoming + q * row, sizeof i);
-        const std::int64_t r = i - first;
-        if (r < 0 || r >= length || seen[r]) {
-          bad = 1;
-          break;
+    if (exchange) {
+      // The other ranks' rows of this part, each run to its place; a run outside the part, or a row arriving twice,
+      // is a bad id set.
+      Exchange& x = exchanges[p & 1];
+      wait_all(x.receives);
+      const T* message = buffer.incoming[p & 1].data.get();
+      for (const int r : x.from) {
+        const std::int64_t n = (*recv)[p * size_ + r], n_runs = (*recv_runs)[p * size_ + r];
+        const T* from = message;
+        const T* run_at = message + n * width;
+        std::int64_t placed = 0;
+        for (std::int64_t k = 0; k < n_runs && !bad; ++k) {
+          std::int64_t run[2];
+          std::memcpy(run, run_at + 2 * k, sizeof run);
+          const std::int64_t at = run[0] - first;
+          bad = at < 0 || run[1] <= 0 || run[1] > length - at || run[1] > n - placed ||
+                std::memchr(seen.data() + at, 1, static_cast<std::size_t>(run[1])) != nullptr;
+          if (bad) break;
+          std::memset(seen.data() + at, 1, static_cast<std::size_t>(run[1]));
+          std::copy(from, from + run[1] * width, rows + at * width);
+          from += run[1] * width;
+          placed += run[1];
         }
-        seen[r] = 1;
-        std::copy(incoming + q * row + 1, incoming + q * row + 1 + width, rows + r * width);
+        bad |= placed != n;
+        message += message_size(static_cast<int>(n), static_cast<int>(n_runs));
       }
     }
-    // Each rank's own rows only (own_parts()): nothing received, nothing to check, no MPI call (the pieces are
-    // written without a collective between them). A bad piece is thrown on this rank, after the exchange:
-    // Hdf5File::write_pieces agrees on it in its one reduction a piece.
+    if (fill_failed) std::rethrow_exception(std::exchange(fill_failed, nullptr));
+    // Thrown on this rank once its messages for the next piece are posted: Hdf5File::write_pieces goes on calling
+    // piece() for every piece (the other ranks' messages are received) and agrees on it after the last.
     if (bad) throw std::invalid_argument(file.path() + ": " + dataset + ": the ranks' rows repeat an id");
     if (checksum == Checksum::compute) hash += row_hash_sum(rows, width, length, first);
     *offset = first, *count = length;
     return rows;
   };
-  file.write_pieces(dataset, global_rows_, width, std::is_same_v<T, std::int64_t>, pieces_, piece, own_parts());
+  file.write_pieces(dataset, global_rows_, width, std::is_same_v<T, std::int64_t>, pieces_, piece, own_parts(),
+                    placed);
   std::uint64_t total = 0;
   check_mpi(MPI_Allreduce(&hash, &total, 1, MPI_UINT64_T, MPI_SUM, comm_), "MPI_Allreduce");
   return total;

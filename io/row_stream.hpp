@@ -6,9 +6,10 @@
 // cut into pieces of at most kPieceRows rows (in all, not a rank: at more ranks each rank's part, and its buffers,
 // shrink with its share of the sample; pieces of kPieceRows rows a rank were tried and gained no speed, 2 ranks
 // under load, but cost 1.116x instead of 1.080x the memory without output); each piece is split evenly among
-// the ranks; every rank sends each
-// item of the piece, with its id, to the rank whose part holds it (one MPI_Alltoallv), and each rank writes its
-// part (independently, in writes of at most 1 MiB: Hdf5File::write_pieces). When each rank's ids are one run and
+// the ranks (each part's ends moved onto the dataset's seal blocks, so that the seal hashes them as written);
+// every rank sends the items of the piece that another rank's part holds to that rank, as rows and the runs of
+// consecutive ids they cover (point to point, a piece ahead of the write: no collective between pieces), and each
+// rank writes its part (independently, in writes of at most 1 MiB: Hdf5File::write_pieces). When each rank's ids are one run and
 // the runs follow each other in rank order (a lattice's molecules and written connections), each rank writes its
 // own rows instead, in pieces of its own of at most kPieceRows rows, every rank at once, and nothing is exchanged.
 // Per rank and piece that is at most kPieceRows rows in and out, whatever
@@ -117,6 +118,21 @@ private:
   ReadCheck read(const Hdf5File& file, const std::string& dataset, int width,
                  const std::function<void(std::int64_t, const T*)>& take, const char* fault_stage) const;
   void plan(bool shared);
+  // A write's split of the pieces among the ranks (the even split's parts moved): each part's first row, and what
+  // goes where (as start_, send_, runs_, recv_, recv_runs_); empty bounds: the stream's own plan.
+  struct Split {
+    std::vector<std::int64_t> bounds, start;
+    std::vector<int> send, runs, recv, recv_runs;
+  };
+  // Collective. For a dataset whose first row lies at file offset `base`, rows of `row_bytes` bytes: the even split
+  // with every part boundary moved to the nearest row that begins a seal block (io/file_seal.hpp), so that each
+  // rank's part of a piece is whole seal blocks, which the seal hashes (and the page cache recycles) as they are
+  // written instead of re-reading them at close. Empty (the stream's own plan) at 1 rank, for own parts, and when
+  // no row begins a block or the blocks' rows are farther apart than a piece.
+  Split aligned_split(std::int64_t base, std::int64_t row_bytes) const;
+  // recv and recv_runs[p * size + r] from send and runs[p * size + r] over the ranks (one MPI_Alltoall).
+  void exchange_counts(const std::vector<int>& send, const std::vector<int>& runs, std::vector<int>& recv,
+                       std::vector<int>& recv_runs) const;
   // The first row of rank r's part of piece p in the even split (the file's rows of piece p shared evenly).
   std::int64_t part_begin(std::int64_t p, int r) const;
   // Rows [first, end) of piece p that rank r writes (or reads).
@@ -131,9 +147,14 @@ private:
   // the end: slots), how many items this rank sends there, and how many it receives from that rank for the piece.
   std::vector<std::int64_t> start_;
   std::vector<int> send_, recv_;
+  // The same for the runs of consecutive ids among those items (sent instead of each item's id).
+  std::vector<int> runs_, recv_runs_;
   // Parts aligned with the ranks' own rows (plan()): rank r's rows are [own_begin_[r], own_begin_[r + 1]); empty
   // for the even split.
   std::vector<std::int64_t> own_begin_;
+  // Every slot of this rank written, slot k's id first_id_ + k (plan()): writes need not ask ids_.
+  bool dense_ = false;
+  std::int64_t first_id_ = 0;
 
 };
 

@@ -362,3 +362,46 @@ TEST(RowStream, BatchedRowsInBothLayouts) {
       if (rank == 0) std::filesystem::remove(file);
     }
 }
+
+TEST(RowStream, AFillThatThrowsOnOneRankStopsEveryRankAndTheStreamWritesOnAfter) {
+  // The pieces' rows go point to point a piece ahead of the write, with no collective between pieces: a fill that
+  // throws on the rank holding one id (in the first piece, in a middle one, in the last) must stop every rank with
+  // that error, leave no message behind (the same stream then writes a file whose every row is the closed form's),
+  // and remove the file.
+  const std::vector<std::int64_t> ids = slots();
+  const RowStream stream(MPI_COMM_WORLD, N, static_cast<std::int64_t>(ids.size()),
+                         [&](std::int64_t k) { return ids[k]; }, 7);
+  for (const std::int64_t bad_id : {std::int64_t{3}, N / 2, N - 2}) {
+    const std::string file = path() + ".throws" + std::to_string(bad_id);
+    std::string what;
+    {
+      Hdf5File f = Hdf5File::create(file, MPI_COMM_WORLD);  // abandoned by the failed write: nothing to close
+      try {
+        stream.write_double(f, "/values", 3, [&](std::int64_t k, double* row) {
+          if (ids[k] == bad_id) throw std::runtime_error("fill of " + std::to_string(bad_id));
+          for (int c = 0; c < 3; ++c) row[c] = value(ids[k], c);
+        }, RowStream::Checksum::skip);
+      } catch (const std::exception& e) {
+        what = e.what();
+      }
+    }
+    EXPECT_NE(what.find("fill of " + std::to_string(bad_id)), std::string::npos) << what;
+    MPI_Barrier(MPI_COMM_WORLD);
+    EXPECT_FALSE(std::filesystem::exists(file + ".tmp"));
+    EXPECT_FALSE(std::filesystem::exists(file));
+  }
+  const std::string file = path() + ".after";
+  Hdf5File f = Hdf5File::create(file, MPI_COMM_WORLD);
+  const std::uint64_t hash = stream.write_double(f, "/values", 3, [&](std::int64_t k, double* row) {
+    for (int c = 0; c < 3; ++c) row[c] = value(ids[k], c);
+  });
+  f.close();
+  RowStream::release();
+  const std::vector<double> expected = closed_form_values();
+  EXPECT_EQ(hash, row_hash_sum(expected.data(), 3, N, 0));
+  Hdf5File h = Hdf5File::open(file, MPI_COMM_WORLD, "file", nullptr);
+  EXPECT_EQ(h.read_double("/values", 0, N), expected);
+  h.close();
+  MPI_Barrier(MPI_COMM_WORLD);
+  if (comm_rank() == 0) std::filesystem::remove(file);
+}

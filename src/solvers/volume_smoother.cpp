@@ -45,18 +45,19 @@ public:
 private:
   int cells() const { return static_cast<int>(cells_.k.size()); }
 
-  // s_c = b_c . v on every cell (v local, ghosts up to date; held components 0 in v).
+  // s_c = b_c . v on every cell (v local, ghosts up to date; held components 0 in v): the axis differences of the
+  // corners' values (corner c's offsets along x, y, z are bits 0, 1, 2 of c), as the cell term's gradient.
   void divergence(const double* v, double* s) const {
     const int n = cells();
     for (int c = 0; c < n; ++c) {
       const int* k = cells_.corners.data() + 8 * static_cast<std::size_t>(c);
       const double* g = cells_.g.data() + 3 * static_cast<std::size_t>(c);
-      double acc[3] = {0, 0, 0};
-      for (int a = 0; a < 8; ++a) {
-        const double* va = v + 3 * k[a];
-        for (int d = 0; d < 3; ++d) acc[d] += ((a >> d) & 1) ? va[d] : -va[d];
-      }
-      s[c] = acc[0] * g[0] + acc[1] * g[1] + acc[2] * g[2];
+      const double *v0 = v + 3 * k[0], *v1 = v + 3 * k[1], *v2 = v + 3 * k[2], *v3 = v + 3 * k[3],
+                   *v4 = v + 3 * k[4], *v5 = v + 3 * k[5], *v6 = v + 3 * k[6], *v7 = v + 3 * k[7];
+      const double dx = (v1[0] - v0[0]) + (v3[0] - v2[0]) + (v5[0] - v4[0]) + (v7[0] - v6[0]);
+      const double dy = (v2[1] - v0[1]) + (v3[1] - v1[1]) + (v6[1] - v4[1]) + (v7[1] - v5[1]);
+      const double dz = (v4[2] - v0[2]) + (v5[2] - v1[2]) + (v6[2] - v2[2]) + (v7[2] - v3[2]);
+      s[c] = dx * g[0] + dy * g[1] + dz * g[2];
     }
   }
   // out_i += w_i (B^T q)_i on owned molecules (w = D^-1, held 0).
@@ -66,6 +67,15 @@ private:
       const int* k = cells_.corners.data() + 8 * static_cast<std::size_t>(c);
       const double* g = cells_.g.data() + 3 * static_cast<std::size_t>(c);
       const double t[3] = {q[c] * g[0], q[c] * g[1], q[c] * g[2]};
+      if (inner_[c]) {  // every corner owned
+        for (int a = 0; a < 8; ++a) {
+          const std::size_t m = 3 * static_cast<std::size_t>(k[a]);
+          out[m] += w[m] * ((a & 1) ? t[0] : -t[0]);
+          out[m + 1] += w[m + 1] * ((a & 2) ? t[1] : -t[1]);
+          out[m + 2] += w[m + 2] * ((a & 4) ? t[2] : -t[2]);
+        }
+        continue;
+      }
       for (int a = 0; a < 8; ++a) {
         if (k[a] >= owned) continue;
         for (int d = 0; d < 3; ++d) out[3 * k[a] + d] += w[3 * k[a] + d] * (((a >> d) & 1) ? t[d] : -t[d]);
@@ -102,6 +112,9 @@ private:
                                              &ghosted_));
       owned_.assign(3 * static_cast<std::size_t>(owned), 0.0);
       s_.assign(cells(), 0.0), q_.assign(cells(), 0.0), t_.assign(cells(), 0.0);
+      inner_.assign(cells(), 1);
+      for (int c = 0; c < cells(); ++c)
+        for (int a = 0; a < 8; ++a) inner_[c] = inner_[c] && cells_.corners[8 * static_cast<std::size_t>(c) + a] < owned;
     }
     Mat A, P;
     PetscCall(PCGetOperators(pc, &A, &P));
@@ -149,6 +162,9 @@ private:
       const std::uint64_t id = static_cast<std::uint64_t>(model_.id[cells_.corners[8 * static_cast<std::size_t>(c)]]);
       q_[c] = 0.5 + static_cast<double>((id * 2654435761u) % 1000) / 1000.0;
     }
+    // Once: the tangent's diagonal moves little between Newton iterations (strains of a static step), and a
+    // power iteration costs ~7 products of the tangent.
+    if (omega_ > 0) PetscFunctionReturn(0);
     double top = 1.0, size = 0.0;
     PetscCall(norm(q_, &size));
     for (int it = 0; it < kPower && size > 0; ++it) {
@@ -202,6 +218,7 @@ private:
   std::vector<double> owned_;  // 3 * owned scratch
   std::vector<double> dinv_;   // D^-1, local, held 0
   std::vector<double> tinv_, s_, q_, t_;  // per cell
+  std::vector<char> inner_;               // per cell: all 8 corners owned
 };
 
 }  // namespace

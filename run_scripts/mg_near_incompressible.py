@@ -407,8 +407,9 @@ def solve(method, a, b, pc, tick, count):
 # Measured costs of the C++ solver (docs/benchmarks.md, "The nu = 0.45 static solve: a smoother holding the cells'
 # volume coupling"; callgrind at N = 20), in instructions of one fine matrix-free product of the springs (1.0):
 CELL_PRODUCT = 0.99      # the cell term's share of a fine product at nu = 0.45 (6.75 M against 3.4 M instructions)
-OTHER = 6.7              # per CG iteration: coarse levels, transfers, Chebyshev's and CG's vector work (what makes
-                         # a nu = 0.45 iteration 1.30x a nu = 0.25 one, as measured, with 5 fine products each)
+OTHER = 7.8              # per CG iteration besides its 5 fine products: coarse levels, transfers, Chebyshev's and
+                         # CG's vector work ((43.5 M - 5 x 3.4 M) / 3.4 M at nu = 0.25; the model's iteration at
+                         # 0.45 is then 1.39x one at 0.25, against 1.30x measured: the cost is ~7 % high)
 WOODBURY = 0.71          # one application of the C++ volume smoother, one Neumann step (2.43 M instructions)
 SCHUR_STEP = 0.6         # each further Neumann step (a product of the cells' Schur complement, an exchange)
 PATCH = {"cell": 2.0, "star": 9.0}  # additive Schwarz: 24 x 24 / 81 x 81 dense blocks a cell / molecule, streamed

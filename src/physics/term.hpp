@@ -89,6 +89,16 @@ public:
   // Terms whose tangent blocks join only corners of one lattice cell (one body, neighbours in the 27-point
   // stencil): the lattice multigrid's check of the pattern (LatticeGalerkin::applies) computes none of them.
   virtual bool tangent_within_cells() const { return false; }
+  // Terms whose tangent holds one rank-one volume coupling per lattice cell, k (b . u)^2 with b the cell's one-point
+  // divergence on its 8 corners (b = +-g per axis, corner c's signs the bits of c): the cell term's volumetric part
+  // at rest. Fills the cells with an owned corner (8 local corners each, corner c = (c & 1, c >> 1 & 1, c >> 2 & 1)),
+  // k and g per cell; the lattice multigrid's volume smoother (src/solvers/volume_smoother.hpp) holds them exactly.
+  struct VolumeCoupling {
+    std::vector<int> corners;  // 8 per cell
+    std::vector<double> k;     // per cell: kappa_c V0
+    std::vector<double> g;     // 3 per cell: 1 / (4 h) per axis
+  };
+  virtual bool volume_coupling(VolumeCoupling& out) const { return false; }
   // Contact terms: the force totals of the last evaluation (this rank's owned molecules).
   virtual void add_totals(ContactTotals& t) const {}
   // Terms whose tangent couples molecules no connection joins: the local columns each owned row needs beyond its

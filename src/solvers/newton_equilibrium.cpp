@@ -20,6 +20,7 @@
 #include "src/solvers/lattice_galerkin.hpp"
 #include "src/solvers/lattice_mg.hpp"
 #include "src/solvers/matrix_free.hpp"
+#include "src/solvers/volume_smoother.hpp"
 #include "src/solvers/molecule_report.hpp"
 #include "src/solvers/newton_equilibrium.hpp"
 #include "src/solvers/solver.hpp"
@@ -414,6 +415,7 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
     PetscCall(setup_lattice_mg(model, forces.held(), pc, 1000, &mg_levels, &hierarchy, want_matrix_free));
   lattice_mg = mg_levels > 1;
   if (want_matrix_free) PetscCall(use_matrix_free(user_pc, user_lag, hierarchy));
+  if (lattice_mg) PetscCall(use_volume_smoother(model, forces, pc, false));  // the cells' volume coupling
   // The coarse operators from the lattice structure (lattice_galerkin.hpp) when the tangent is a lattice stencil
   // and the preconditioner's rebuilds are ours (Reuse): cheaper than hypre's triple product (docs/benchmarks.md).
   if (lattice_mg && !user_lag && !ctx.shell) {

@@ -636,6 +636,19 @@ public:
 
   bool tangent_worth_caching() const override { return true; }
   bool tangent_within_cells() const override { return true; }
+  bool volume_coupling(VolumeCoupling& out) const override {
+    out = VolumeCoupling{};
+    out.corners.resize(8 * static_cast<std::size_t>(cells_));
+    out.k.resize(cells_), out.g.resize(3 * static_cast<std::size_t>(cells_));
+    for (int k = 0; k < cells_; ++k) {
+      corners(k, out.corners.data() + 8 * static_cast<std::size_t>(k));
+      const Kind& kind = kinds_[kind_[k]];
+      const Geometry& geo = geometry_[kind.body];
+      out.k[k] = kind.moduli.kappa * geo.volume;  // W = kappa/4 (J^2 - 1 - 2 ln J): W''(1) = kappa
+      for (int d = 0; d < 3; ++d) out.g[3 * k + d] = geo.g[7][d];
+    }
+    return cells_ > 0;
+  }
 
   // The blocks row by row: a molecule's row (its up to 8 cells' blocks, summed per neighbour: at most 27) once its
   // last cell (the highest id) is computed, each cell's dP/dF kept in a ring of the last cells while its

@@ -4,6 +4,10 @@
 #include <cmath>
 #include <type_traits>
 
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#endif
+
 namespace tissue {
 
 namespace {
@@ -361,6 +365,405 @@ void stencil_forces_streams(int first, int count, int directions, const int* off
                max_offset, zeroed, ahead);
 }
 
+#if defined(__x86_64__) && defined(__GNUC__)
+// The stencil kernel register-blocked (AVX-512 only; picked at run time, as the clones): a group of 8 molecules at
+// a time, one vector a component, every direction's spring for them, each molecule's own sum kept in registers (no
+// partial sums written and read back), end b's rows updated once a group. The same additions in the same order as
+// stencil_body, so the same bits:
+//   - a row gets the forces it receives as end b by increasing end a: the groups go by increasing end a, and within
+//     a group two directions write one row only if their offsets differ by less than 8 (a "cluster" of close
+//     offsets, chained); a cluster's rows are loaded once as a window of whole vectors, its directions subtracted
+//     (each rotated into place, lanes masked) by decreasing offset (lower end a first), and stored once; clusters
+//     never share a row within a group, so their order does not matter;
+//   - a molecule's own sum runs over its directions in connection order (increasing offset), from +0.0, and is
+//     added to its row after every force it receives from the group; the directions within 8 of offset 0 form one
+//     cluster with the own sums (offset 0), written last; a later group's ends b lie beyond this group's rows;
+//   - a missing direction gives +0.0 (a select on the direction's bit), as in stencil_direction.
+// A window's vectors start 8 rows apart, so the next group loads what this one stored at the same address (the
+// store is forwarded); lanes no spring of the group touches are masked out of the arithmetic (kept to the bit).
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"  // _mm512_undefined_pd in GCC 12's _mm512_sqrt_pd
+#define TISSUE_AVX512 __attribute__((target("avx512f")))
+
+struct V3 {
+  __m512d v[3];
+};
+
+// Lanes [0, lanes) of rows r .. r + 7 of f (component d contiguous unless a ring turns or the owned rows end
+// within them: then row by row), minus e (plus e with kAdd); each row once, so the rows' order does not matter.
+template <bool kAdd, class Layout>
+TISSUE_AVX512 __attribute__((always_inline)) inline void update_rows(double* __restrict f, const Layout& at, int r,
+                                                                     int lanes, int local, const V3& e) {
+  if (lanes == 8 && r + 8 <= local && at.run(r, 8) == 8) {
+    for (int d = 0; d < 3; ++d) {
+      double* p = f + at.f(r, d);
+      const __m512d old = _mm512_loadu_pd(p);
+      _mm512_storeu_pd(p, kAdd ? _mm512_add_pd(old, e.v[d]) : _mm512_sub_pd(old, e.v[d]));
+    }
+    return;
+  }
+  alignas(64) double t[8];
+  for (int d = 0; d < 3; ++d) {
+    _mm512_store_pd(t, e.v[d]);
+    for (int l = 0; l < lanes; ++l) {
+      double& y = f[at.f(r + l, d)];
+      y = kAdd ? y + t[l] : y - t[l];
+    }
+  }
+}
+
+// The springs of direction (ks, ls) from the group (xa; lanes in `lane`) to rows b0 ..: e = k (l - l0) / l times the
+// separation, stencil_direction_streams's arithmetic (separate intrinsics: no fused multiply-add); keep: the lanes
+// that have the direction.
+template <class Layout>
+TISSUE_AVX512 __attribute__((always_inline)) inline V3 spring_lanes(const double* __restrict x, const Layout& at,
+                                                                    int b0, __mmask8 lane, const V3& xa, double ks,
+                                                                    double ls, __mmask8 keep, bool masked) {
+  __m512d d[3];
+  for (int c = 0; c < 3; ++c)
+    d[c] = _mm512_sub_pd(lane == 0xff ? _mm512_loadu_pd(x + at(b0, c)) : _mm512_maskz_loadu_pd(lane, x + at(b0, c)),
+                         xa.v[c]);
+  const __m512d len = _mm512_sqrt_pd(
+      _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(d[0], d[0]), _mm512_mul_pd(d[1], d[1])), _mm512_mul_pd(d[2], d[2])));
+  const __m512d sc = _mm512_div_pd(_mm512_mul_pd(_mm512_set1_pd(ks), _mm512_sub_pd(len, _mm512_set1_pd(ls))), len);
+  V3 e;
+  for (int c = 0; c < 3; ++c) e.v[c] = _mm512_mul_pd(sc, d[c]);
+  if (masked)
+    for (int c = 0; c < 3; ++c) e.v[c] = _mm512_maskz_mov_pd(keep, e.v[c]);
+  return e;
+}
+
+// A cluster as the blocked kernel writes it: directions [begin, end) (increasing offset), its window's rows from
+// group + base (base: the least offset, 0 for the own sums' cluster), `vectors` of them a component.
+struct Cluster {
+  int begin, end, base, vectors;
+};
+
+// Window of kK vectors a component at rows r0 .. r0 + 8 kK - 1: the cluster's kC springs e[] (offsets r0 + delta[j]
+// - group, delta[j] <= 8 (kK - 1)) subtracted by decreasing offset, then (kOwn) the own sums added to the first
+// vector. Where the window is not contiguous in f (a ring's turn, the owned rows' end), direction by direction.
+template <int kC, int kK, bool kOwn, class Layout>
+TISSUE_AVX512 __attribute__((always_inline)) inline void write_window(double* __restrict f, const Layout& at, int r0,
+                                                                      int local, const V3* e, const int* delta,
+                                                                      const V3& own) {
+  if (r0 + 8 * kK > local || at.run(r0, 8 * kK) != 8 * kK) {
+    for (int j = kC - 1; j >= 0; --j) update_rows<false>(f, at, r0 + delta[j], 8, local, e[j]);
+    if constexpr (kOwn) update_rows<true>(f, at, r0, 8, local, own);
+    return;
+  }
+  const __m512i iota = _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0);
+  for (int d = 0; d < 3; ++d) {
+    double* p = f + at.f(r0, d);
+    __m512d w[kK];
+#pragma GCC unroll 4
+    for (int k = 0; k < kK; ++k) w[k] = _mm512_loadu_pd(p + 8 * k);
+#pragma GCC unroll 8
+    for (int j = kC - 1; j >= 0; --j) {
+      const int k0 = delta[j] >> 3, sh = delta[j] & 7;
+      // lane l of e to lane l + sh (mod 8): the lanes below sh belong to the next vector
+      const __m512d rot =
+          sh ? _mm512_permutexvar_pd(_mm512_and_epi64(_mm512_sub_epi64(iota, _mm512_set1_epi64(sh)),
+                                                      _mm512_set1_epi64(7)),
+                                     e[j].v[d])
+             : e[j].v[d];
+      const __mmask8 up = static_cast<__mmask8>(0xff << sh), down = static_cast<__mmask8>((1u << sh) - 1);
+#pragma GCC unroll 4
+      for (int k = 0; k < kK; ++k) {
+        if (k == k0) w[k] = _mm512_mask_sub_pd(w[k], up, w[k], rot);
+        if (k == k0 + 1 && sh) w[k] = _mm512_mask_sub_pd(w[k], down, w[k], rot);
+      }
+    }
+    if constexpr (kOwn) w[0] = _mm512_add_pd(w[0], own.v[d]);
+#pragma GCC unroll 4
+    for (int k = 0; k < kK; ++k) _mm512_storeu_pd(p + 8 * k, w[k]);
+  }
+}
+
+// One full group (8 molecules from g) of a cluster of kC directions: its springs computed (into the own sums, in
+// order) and written; with kOwn the cluster's springs are kept in `kept` and written by finish_group.
+template <int kC, int kK, class Layout>
+TISSUE_AVX512 __attribute__((always_inline)) inline void cluster_group(
+    const Cluster& cl, const double* __restrict x, double* __restrict f, const Layout& at, int g, int local,
+    const V3& xa, const int* offset, const double* k, const double* l0, const std::uint64_t* keep, int i0,
+    std::uint32_t masked, V3& own) {
+  V3 e[kC];
+  int delta[kC];
+#pragma GCC unroll 8
+  for (int j = 0; j < kC; ++j) {
+    const int s = cl.begin + j;
+    e[j] = spring_lanes(x, at, g + offset[s], 0xff, xa, k[s], l0[s], static_cast<__mmask8>(keep[s] >> i0),
+                        masked >> s & 1u);
+    for (int c = 0; c < 3; ++c) own.v[c] = _mm512_add_pd(own.v[c], e[j].v[c]);
+    delta[j] = offset[s] - cl.base;
+  }
+  write_window<kC, kK, false>(f, at, g + cl.base, local, e, delta, own);
+}
+
+// The own sums' cluster of kC directions (offsets below 8, chained): computed first (they come first in the own
+// sum), written after every other cluster, with the own sums.
+template <int kC, class Layout>
+TISSUE_AVX512 __attribute__((always_inline)) inline void own_group(
+    int n_clusters, const Cluster* clusters, const double* __restrict x, double* __restrict f, const Layout& at,
+    int g, int local, const V3& xa, const int* offset, const double* k, const double* l0, const std::uint64_t* keep,
+    int i0, std::uint32_t masked) {
+  V3 own;
+  for (int c = 0; c < 3; ++c) own.v[c] = _mm512_setzero_pd();
+  V3 e[kC > 0 ? kC : 1];
+  int delta[kC > 0 ? kC : 1];
+#pragma GCC unroll 8
+  for (int s = 0; s < kC; ++s) {
+    e[s] = spring_lanes(x, at, g + offset[s], 0xff, xa, k[s], l0[s], static_cast<__mmask8>(keep[s] >> i0),
+                        masked >> s & 1u);
+    for (int c = 0; c < 3; ++c) own.v[c] = _mm512_add_pd(own.v[c], e[s].v[c]);
+    delta[s] = offset[s];
+  }
+  for (int q = 0; q < n_clusters; ++q) {
+    const Cluster& cl = clusters[q];
+    switch (10 * (cl.end - cl.begin) + cl.vectors) {
+      case 11: cluster_group<1, 1>(cl, x, f, at, g, local, xa, offset, k, l0, keep, i0, masked, own); break;
+      case 22: cluster_group<2, 2>(cl, x, f, at, g, local, xa, offset, k, l0, keep, i0, masked, own); break;
+      case 32: cluster_group<3, 2>(cl, x, f, at, g, local, xa, offset, k, l0, keep, i0, masked, own); break;
+      default: cluster_group<4, 2>(cl, x, f, at, g, local, xa, offset, k, l0, keep, i0, masked, own); break;
+    }
+  }
+  write_window<kC, 2, true>(f, at, g, local, e, delta, own);
+}
+
+// The same on a block whose windows all lie contiguous in f (no ring's turn, no owned rows' end within them: nearly
+// every block): the rows' addresses set once a block (x: xs[s][c] at the block's first end b of direction s; f:
+// fw[q][d] at the first row of window q, 0 the own sums' one), a group only adds its first molecule's index i0.
+template <int kC, int kK, bool kOwn>
+TISSUE_AVX512 __attribute__((always_inline)) inline void write_window_at(double* const* fw, int i0, const V3* e,
+                                                                         const int* delta, const V3& own) {
+  const __m512i iota = _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0);
+  for (int d = 0; d < 3; ++d) {
+    double* p = fw[d] + i0;
+    __m512d w[kK];
+#pragma GCC unroll 4
+    for (int k = 0; k < kK; ++k) w[k] = _mm512_loadu_pd(p + 8 * k);
+#pragma GCC unroll 8
+    for (int j = kC - 1; j >= 0; --j) {
+      const int k0 = delta[j] >> 3, sh = delta[j] & 7;
+      const __m512d rot =
+          sh ? _mm512_permutexvar_pd(_mm512_and_epi64(_mm512_sub_epi64(iota, _mm512_set1_epi64(sh)),
+                                                      _mm512_set1_epi64(7)),
+                                     e[j].v[d])
+             : e[j].v[d];
+      const __mmask8 up = static_cast<__mmask8>(0xff << sh), down = static_cast<__mmask8>((1u << sh) - 1);
+#pragma GCC unroll 4
+      for (int k = 0; k < kK; ++k) {
+        if (k == k0) w[k] = _mm512_mask_sub_pd(w[k], up, w[k], rot);
+        if (k == k0 + 1 && sh) w[k] = _mm512_mask_sub_pd(w[k], down, w[k], rot);
+      }
+    }
+    if constexpr (kOwn) w[0] = _mm512_add_pd(w[0], own.v[d]);
+#pragma GCC unroll 4
+    for (int k = 0; k < kK; ++k) _mm512_storeu_pd(p + 8 * k, w[k]);
+  }
+}
+
+TISSUE_AVX512 __attribute__((always_inline)) inline V3 spring_at(const double* const* xs, int i0, const V3& xa,
+                                                                 __m512d ks, __m512d ls, __mmask8 keep, bool masked) {
+  __m512d d[3];
+  for (int c = 0; c < 3; ++c) d[c] = _mm512_sub_pd(_mm512_loadu_pd(xs[c] + i0), xa.v[c]);
+  const __m512d len = _mm512_sqrt_pd(
+      _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(d[0], d[0]), _mm512_mul_pd(d[1], d[1])), _mm512_mul_pd(d[2], d[2])));
+  const __m512d sc = _mm512_div_pd(_mm512_mul_pd(ks, _mm512_sub_pd(len, ls)), len);
+  V3 e;
+  for (int c = 0; c < 3; ++c) e.v[c] = _mm512_mul_pd(sc, d[c]);
+  if (masked)
+    for (int c = 0; c < 3; ++c) e.v[c] = _mm512_maskz_mov_pd(keep, e.v[c]);
+  return e;
+}
+
+struct BlockRows {
+  const double* xs[kMaxDirections][3];
+  const double* xa[3];
+  double* fw[kMaxDirections + 1][3];
+  __m512d ks[kMaxDirections], ls[kMaxDirections];
+};
+
+template <int kC, int kK>
+TISSUE_AVX512 __attribute__((always_inline)) inline void cluster_group_at(const Cluster& cl, double* const* fw,
+                                                                          const BlockRows& b, int i0, const V3& xa,
+                                                                          const int* offset, const std::uint64_t* keep,
+                                                                          std::uint32_t masked, V3& own) {
+  V3 e[kC];
+  int delta[kC];
+#pragma GCC unroll 8
+  for (int j = 0; j < kC; ++j) {
+    const int s = cl.begin + j;
+    e[j] = spring_at(b.xs[s], i0, xa, b.ks[s], b.ls[s], static_cast<__mmask8>(keep[s] >> i0), masked >> s & 1u);
+    for (int c = 0; c < 3; ++c) own.v[c] = _mm512_add_pd(own.v[c], e[j].v[c]);
+    delta[j] = offset[s] - cl.base;
+  }
+  write_window_at<kC, kK, false>(fw, i0, e, delta, own);
+}
+
+template <int kC>
+TISSUE_AVX512 __attribute__((always_inline)) inline void own_group_at(int n_clusters, const Cluster* clusters,
+                                                                      const BlockRows& b, int i0, const int* offset,
+                                                                      const std::uint64_t* keep,
+                                                                      std::uint32_t masked) {
+  V3 xa, own;
+  for (int c = 0; c < 3; ++c) xa.v[c] = _mm512_loadu_pd(b.xa[c] + i0), own.v[c] = _mm512_setzero_pd();
+  V3 e[kC > 0 ? kC : 1];
+  int delta[kC > 0 ? kC : 1];
+#pragma GCC unroll 8
+  for (int s = 0; s < kC; ++s) {
+    e[s] = spring_at(b.xs[s], i0, xa, b.ks[s], b.ls[s], static_cast<__mmask8>(keep[s] >> i0), masked >> s & 1u);
+    for (int c = 0; c < 3; ++c) own.v[c] = _mm512_add_pd(own.v[c], e[s].v[c]);
+    delta[s] = offset[s];
+  }
+  for (int q = 0; q < n_clusters; ++q) {
+    const Cluster& cl = clusters[q];
+    double* const* fw = b.fw[q + 1];
+    switch (10 * (cl.end - cl.begin) + cl.vectors) {
+      case 11: cluster_group_at<1, 1>(cl, fw, b, i0, xa, offset, keep, masked, own); break;
+      case 22: cluster_group_at<2, 2>(cl, fw, b, i0, xa, offset, keep, masked, own); break;
+      case 32: cluster_group_at<3, 2>(cl, fw, b, i0, xa, offset, keep, masked, own); break;
+      default: cluster_group_at<4, 2>(cl, fw, b, i0, xa, offset, keep, masked, own); break;
+    }
+  }
+  write_window_at<kC, 2, true>(b.fw[0], i0, e, delta, own);
+}
+
+// A group of `lanes` < 8 molecules (a segment's last), or every group where the clusters are wider than the
+// windows hold: the springs through memory, written direction by direction by decreasing offset, then the own sums.
+template <class Layout>
+TISSUE_AVX512 __attribute__((always_inline)) inline void group_by_direction(
+    int directions, const int* scatter, const double* __restrict x, double* __restrict f, const Layout& at, int g,
+    int lanes, int local, const V3& xa, const int* offset, const double* k, const double* l0,
+    const std::uint64_t* keep, int i0, std::uint32_t masked) {
+  const __mmask8 lane = static_cast<__mmask8>((1u << lanes) - 1);
+  V3 own, e[kMaxDirections];
+  for (int c = 0; c < 3; ++c) own.v[c] = _mm512_setzero_pd();
+  for (int s = 0; s < directions; ++s) {
+    e[s] = spring_lanes(x, at, g + offset[s], lane, xa, k[s], l0[s], static_cast<__mmask8>(keep[s] >> i0),
+                        masked >> s & 1u);
+    for (int c = 0; c < 3; ++c) own.v[c] = _mm512_add_pd(own.v[c], e[s].v[c]);
+  }
+  for (int q = 0; q < directions; ++q) update_rows<false>(f, at, g + offset[scatter[q]], lanes, local, e[scatter[q]]);
+  update_rows<true>(f, at, g, lanes, local, own);
+}
+
+template <class Layout>
+TISSUE_AVX512 __attribute__((always_inline)) inline void stencil_body_blocked(
+    int first, int count, int directions, const int* offset, const int* scatter, const double* k, const double* l0,
+    const StencilException* exceptions, int n_exceptions, const double* __restrict x, double* __restrict f,
+    Layout at, int owned, int local, int max_offset, int* zeroed, const ReadAhead* ahead) {
+  // The clusters: the directions within 8 of offset 0 (chained) go with the own sums; the others in maximal runs
+  // whose consecutive offsets differ by less than 8. Windows of up to 2 vectors (a cluster's offsets within 8):
+  // wider ones, or more than 4 directions (no lattice's), go direction by direction.
+  int own_directions = 0;
+  while (own_directions < directions && offset[own_directions] - (own_directions ? offset[own_directions - 1] : 0) < 8)
+    ++own_directions;
+  Cluster clusters[kMaxDirections];
+  int n_clusters = 0;
+  bool windows = own_directions <= 3 && (own_directions == 0 || offset[own_directions - 1] <= 8);
+  for (int s = own_directions; s < directions;) {
+    int e = s + 1;
+    while (e < directions && offset[e] - offset[e - 1] < 8) ++e;
+    const int span = offset[e - 1] - offset[s];
+    clusters[n_clusters++] = {s, e, offset[s], e - s == 1 ? 1 : 2};
+    windows = windows && e - s <= 4 && span <= 8;
+    s = e;
+  }
+  BlockRows rows;
+  for (int s = 0; s < directions; ++s) rows.ks[s] = _mm512_set1_pd(k[s]), rows.ls[s] = _mm512_set1_pd(l0[s]);
+  // keep[s] bit i: molecule a0 + i of the block has direction s.
+  std::uint64_t keep[kMaxDirections];
+  for (int s = 0; s < directions; ++s) keep[s] = ~std::uint64_t{0};
+  int next_exception = 0;
+  for (int a0 = first; a0 < first + count; a0 += kStencilBlock) {
+    const int n = std::min(kStencilBlock, first + count - a0);
+    const int reach = std::min(owned, a0 + n + max_offset);
+    if (reach > *zeroed) {
+      at.zero(f, *zeroed, reach);
+      *zeroed = reach;
+    }
+    const int e0 = next_exception;
+    std::uint32_t masked = 0;  // directions some molecule of the block lacks
+    while (next_exception < n_exceptions && exceptions[next_exception].molecule < a0 + n) ++next_exception;
+    for (int e = e0; e < next_exception; ++e) {
+      masked |= ~exceptions[e].present;
+      for (int s = 0; s < directions; ++s)
+        if (!(exceptions[e].present >> s & 1u)) keep[s] &= ~(std::uint64_t{1} << (exceptions[e].molecule - a0));
+    }
+    if (ahead) {  // a cache line (8 rows) at a time
+      const int end = std::min(a0 + n, ahead->end);
+      for (int r = 0; r < ahead->streams; ++r)
+        for (int i = a0; i < end; i += 8) __builtin_prefetch(ahead->rows[r] + i, 0, 2);
+    }
+    // Every window of the block's full groups contiguous in f: rows [a0 + base, a0 + full + base + 8 kK).
+    const int full = n & ~7;
+    bool at_once = windows && full > 0 && a0 + full + 16 <= local && at.run(a0, full + 16) == full + 16;
+    for (int q = 0; at_once && q < n_clusters; ++q) {
+      const int r0 = a0 + clusters[q].base, len = full + 8 * clusters[q].vectors;
+      at_once = r0 + len <= local && at.run(r0, len) == len;
+    }
+    if (at_once) {
+      for (int c = 0; c < 3; ++c) {
+        rows.xa[c] = x + at(a0, c);
+        rows.fw[0][c] = f + at.f(a0, c);
+        for (int s = 0; s < directions; ++s) rows.xs[s][c] = x + at(a0 + offset[s], c);
+        for (int q = 0; q < n_clusters; ++q) rows.fw[q + 1][c] = f + at.f(a0 + clusters[q].base, c);
+      }
+      for (int i0 = 0; i0 < full; i0 += 8) switch (own_directions) {
+          case 0: own_group_at<0>(n_clusters, clusters, rows, i0, offset, keep, masked); break;
+          case 1: own_group_at<1>(n_clusters, clusters, rows, i0, offset, keep, masked); break;
+          case 2: own_group_at<2>(n_clusters, clusters, rows, i0, offset, keep, masked); break;
+          default: own_group_at<3>(n_clusters, clusters, rows, i0, offset, keep, masked); break;
+        }
+    }
+    for (int i0 = at_once ? full : 0; i0 < n; i0 += 8) {
+      const int g = a0 + i0, lanes = std::min(8, n - i0);
+      const __mmask8 lane = static_cast<__mmask8>((1u << lanes) - 1);
+      V3 xa;
+      for (int c = 0; c < 3; ++c)
+        xa.v[c] = lane == 0xff ? _mm512_loadu_pd(x + at(g, c)) : _mm512_maskz_loadu_pd(lane, x + at(g, c));
+      if (lanes < 8 || !windows) {
+        group_by_direction(directions, scatter, x, f, at, g, lanes, local, xa, offset, k, l0, keep, i0, masked);
+        continue;
+      }
+      switch (own_directions) {
+        case 0: own_group<0>(n_clusters, clusters, x, f, at, g, local, xa, offset, k, l0, keep, i0, masked); break;
+        case 1: own_group<1>(n_clusters, clusters, x, f, at, g, local, xa, offset, k, l0, keep, i0, masked); break;
+        case 2: own_group<2>(n_clusters, clusters, x, f, at, g, local, xa, offset, k, l0, keep, i0, masked); break;
+        default: own_group<3>(n_clusters, clusters, x, f, at, g, local, xa, offset, k, l0, keep, i0, masked); break;
+      }
+    }
+    for (int s = 0; s < directions; ++s) keep[s] = ~std::uint64_t{0};
+  }
+}
+
+TISSUE_AVX512
+void stencil_forces_ring_blocked(int first, int count, int directions, const int* offset, const int* scatter,
+                                 const double* k, const double* l0, const StencilException* exceptions,
+                                 int n_exceptions, const double* x, double* f, RingStreams at, int owned, int local,
+                                 int max_offset, int* zeroed, const ReadAhead* ahead) {
+  stencil_body_blocked(first, count, directions, offset, scatter, k, l0, exceptions, n_exceptions, x, f, at, owned,
+                       local, max_offset, zeroed, ahead);
+}
+TISSUE_AVX512
+void stencil_forces_streams_blocked(int first, int count, int directions, const int* offset, const int* scatter,
+                                    const double* k, const double* l0, const StencilException* exceptions,
+                                    int n_exceptions, const double* x, double* f, Streams at, int owned, int local,
+                                    int max_offset, int* zeroed, const ReadAhead* ahead) {
+  stencil_body_blocked(first, count, directions, offset, scatter, k, l0, exceptions, n_exceptions, x, f, at, owned,
+                       local, max_offset, zeroed, ahead);
+}
+#pragma GCC diagnostic pop
+bool cpu_has_avx512() {
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("avx512f");
+}
+#else
+bool cpu_has_avx512() { return false; }
+#endif
+// Off: the clones' form (stencil_body) on every layout (SpringKernel::set_register_blocked).
+bool register_blocked = cpu_has_avx512();
+
 // The two layouts' entry points, overloaded for SpringKernel::sweep.
 void generic_forces(int begin_c, int end_c, const int* a, const int* b, const std::uint16_t* ktype,
                     const std::uint16_t* ltype, const double* ks, const double* ls, const double* x, double* f,
@@ -380,6 +783,11 @@ void generic_forces(int begin_c, int end_c, const int* a, const int* b, const st
 void stencil_forces(int first, int count, int directions, const int* offset, const int* scatter, const double* k,
                     const double* l0, const StencilException* exceptions, int n_exceptions, const double* x,
                     double* f, RingStreams at, int owned, int max_offset, int* zeroed, const ReadAhead* ahead) {
+#if defined(__x86_64__) && defined(__GNUC__)
+  if (register_blocked)
+    return stencil_forces_ring_blocked(first, count, directions, offset, scatter, k, l0, exceptions, n_exceptions, x,
+                                       f, at, owned, static_cast<int>(at.owned + at.ghosts), max_offset, zeroed, ahead);
+#endif
   stencil_forces_ring(first, count, directions, offset, scatter, k, l0, exceptions, n_exceptions, x, f, at, owned,
                       max_offset, zeroed, ahead);
 }
@@ -392,6 +800,11 @@ void stencil_forces(int first, int count, int directions, const int* offset, con
 void stencil_forces(int first, int count, int directions, const int* offset, const int* scatter, const double* k,
                     const double* l0, const StencilException* exceptions, int n_exceptions, const double* x,
                     double* f, Streams at, int owned, int max_offset, int* zeroed, const ReadAhead* ahead) {
+#if defined(__x86_64__) && defined(__GNUC__)
+  if (register_blocked)
+    return stencil_forces_streams_blocked(first, count, directions, offset, scatter, k, l0, exceptions, n_exceptions,
+                                          x, f, at, owned, static_cast<int>(at.stride), max_offset, zeroed, ahead);
+#endif
   stencil_forces_streams(first, count, directions, offset, scatter, k, l0, exceptions, n_exceptions, x, f, at,
                          owned, max_offset, zeroed, ahead);
 }
@@ -629,6 +1042,12 @@ void SpringKernel::zero_ahead(double* f, Layout at, int& zeroed, int reach) cons
   if (reach <= zeroed) return;
   at.zero(f, zeroed, reach);
   zeroed = reach;
+}
+
+bool SpringKernel::set_register_blocked(bool on) {
+  const bool was = register_blocked;
+  register_blocked = on && cpu_has_avx512();
+  return was;
 }
 
 void SpringKernel::forces(const double* x, double* f, FinalRows final_rows, void* context) const {

@@ -105,10 +105,6 @@ public:
   // The ring's rows: a power of two that holds every row between the lowest one not yet handed over and the
   // highest zeroed at any point of the sweep; 0 when no small ring does (forces_ring unusable).
   int ring_rows() const { return ring_rows_; }
-  // The stencil segments of forces_streams / forces_ring register-blocked (8 molecules a vector, every direction
-  // in registers; the same bits) where the CPU has AVX-512, which is the default; off: the vectorized per-direction
-  // form everywhere (tests compare the two). Process-wide; returns the previous setting.
-  static bool set_register_blocked(bool on);
   // Connections handled by stencil segments (the rest go through the generic form).
   long structured_connections() const { return structured_; }
   // The connections' tangent applied to u (the matrix-free Newton tangent's springs, ForceModel::apply_tangent):

@@ -11,7 +11,6 @@
 #include <vector>
 
 #include <mpi.h>
-#include <petscsys.h>
 
 #include "partition/ghosted_vector.hpp"
 #include "src/solvers/guards.hpp"
@@ -289,12 +288,6 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
   int here[2] = {forces.springs_only() ? 1 : 0, model.local == model.owned ? 1 : 0}, everywhere[2] = {0, 0};
   MPI_Allreduce(here, everywhere, 2, MPI_INT, MPI_MIN, model.comm);
   const bool fuse = everywhere[0] == 1;
-  // -tissue_register_blocked false: the fused steps' stencil kernel in its per-direction form instead of the
-  // register-blocked one (the same bits; to compare the two). PETSc's options are the same on every rank.
-  PetscBool blocked = PETSC_TRUE;
-  if (PetscOptionsGetBool(nullptr, nullptr, "-tissue_register_blocked", &blocked, nullptr))
-    throw InputError("PETSc options", "-tissue_register_blocked", "expects true or false");
-  SpringKernel::set_register_blocked(blocked == PETSC_TRUE);
   const int local = model.local;
   std::optional<StreamGhosts> stream_ghosts;
   if (fuse && everywhere[1] == 0) stream_ghosts.emplace(model);

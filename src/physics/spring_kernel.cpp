@@ -571,9 +571,12 @@ SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
       }
       exceptions_.push_back({first_molecule + i, bits});
     }
+    int owned_reach = 0;
+    for (int t = c; t < next; ++t)
+      if (b[t] < owned) owned_reach = std::max(owned_reach, b[t] - a[t]);
     segments_.push_back({c, next - c, first_molecule, molecules, id, reach_of(generic_begin, c),
                          keep_generic(generic_begin, c), first_exception,
-                         static_cast<int>(exceptions_.size()) - first_exception, 0});
+                         static_cast<int>(exceptions_.size()) - first_exception, 0, owned_reach});
     structured_ += next - c;
     c = next;
     generic_begin = c;
@@ -610,7 +613,7 @@ SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
     }
     for (int m0 = 0; m0 < seg.molecules; m0 += kChunk) {
       const long end = seg.first_molecule + m0 + std::min(kChunk, seg.molecules - m0);
-      zero_to(end + reach_[seg.pattern]);  // the chunk's last block zeroes up to here
+      zero_to(end + seg.owned_reach);  // the chunk's last block zeroes up to here
       finish(std::min<long>(end, seg.later));
     }
     c = seg.first_connection + seg.connections;
@@ -699,7 +702,7 @@ void SpringKernel::sweep(const double* x, double* f, Layout at, FinalRows final_
       int e1 = e0;
       while (e1 < seg.exceptions && exceptions[e1].molecule < end) ++e1;
       stencil_forces(seg.first_molecule + m0, count, directions_[p], offsets_.data() + start, scatter_.data() + start,
-                     k_.data() + start, l0_.data() + start, exceptions + e0, e1 - e0, x, f, at, m.owned, reach_[p],
+                     k_.data() + start, l0_.data() + start, exceptions + e0, e1 - e0, x, f, at, m.owned, seg.owned_reach,
                      &zeroed, ahead);
       e0 = e1;
       finish(std::min(end, seg.later));

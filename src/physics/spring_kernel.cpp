@@ -166,7 +166,9 @@ __attribute__((always_inline)) inline void stencil_direction_streams(
 //
 // f's owned rows are zeroed just ahead of the block that first writes them (`zeroed`: rows below it are zeroed;
 // a block writes rows up to a0 + n - 1 + max_offset): a row then comes to the kernel from the cache, written
-// back once, instead of a separate pass over memory before the kernel (docs/benchmarks.md).
+// back once, instead of a separate pass over memory before the kernel (docs/benchmarks.md). max_offset is the
+// segment's largest offset to an owned row (Segment::owned_reach): a direction into the ghosts' rows reaches an owned
+// row only where a molecule lacks it, and subtracts +0.0 there, which changes no bit, zeroed or not.
 template <class Layout>
 __attribute__((always_inline)) inline void stencil_body(int first, int count, int directions, const int* offset,
                                                         const int* scatter, const double* k, const double* l0,

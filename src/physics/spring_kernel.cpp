@@ -166,7 +166,9 @@ __attribute__((always_inline)) inline void stencil_direction_streams(
 //
 // f's owned rows are zeroed just ahead of the block that first writes them (`zeroed`: rows below it are zeroed;
 // a block writes rows up to a0 + n - 1 + max_offset): a row then comes to the kernel from the cache, written
-// back once, instead of a separate pass over memory before the kernel (docs/benchmarks.md).
+// back once, instead of a separate pass over memory before the kernel (docs/benchmarks.md). max_offset is the
+// segment's largest offset to an owned row (Segment::owned_reach): a direction into the ghosts' rows reaches an owned
+// row only where a molecule lacks it, and subtracts +0.0 there, which changes no bit, zeroed or not.
 template <class Layout>
 __attribute__((always_inline)) inline void stencil_body(int first, int count, int directions, const int* offset,
                                                         const int* scatter, const double* k, const double* l0,
@@ -581,9 +583,12 @@ SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
       }
       exceptions_.push_back({first_molecule + i, bits});
     }
+    int owned_reach = 0;
+    for (int t = c; t < next; ++t)
+      if (b[t] < owned) owned_reach = std::max(owned_reach, b[t] - a[t]);
     segments_.push_back({c, next - c, first_molecule, molecules, id, reach_of(generic_begin, c),
                          keep_generic(generic_begin, c), first_exception,
-                         static_cast<int>(exceptions_.size()) - first_exception, 0});
+                         static_cast<int>(exceptions_.size()) - first_exception, 0, owned_reach});
     structured_ += next - c;
     c = next;
     generic_begin = c;
@@ -620,7 +625,7 @@ SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
     }
     for (int m0 = 0; m0 < seg.molecules; m0 += kChunk) {
       const long end = seg.first_molecule + m0 + std::min(kChunk, seg.molecules - m0);
-      zero_to(end + reach_[seg.pattern]);  // the chunk's last block zeroes up to here
+      zero_to(end + seg.owned_reach);  // the chunk's last block zeroes up to here
       finish(std::min<long>(end, seg.later));
     }
     c = seg.first_connection + seg.connections;
@@ -709,7 +714,7 @@ void SpringKernel::sweep(const double* x, double* f, Layout at, FinalRows final_
       int e1 = e0;
       while (e1 < seg.exceptions && exceptions[e1].molecule < end) ++e1;
       stencil_forces(seg.first_molecule + m0, count, directions_[p], offsets_.data() + start, scatter_.data() + start,
-                     k_.data() + start, l0_.data() + start, exceptions + e0, e1 - e0, x, f, at, m.owned, reach_[p],
+                     k_.data() + start, l0_.data() + start, exceptions + e0, e1 - e0, x, f, at, m.owned, seg.owned_reach,
                      &zeroed, ahead);
       e0 = e1;
       finish(std::min(end, seg.later));

@@ -123,6 +123,12 @@ private:
     int generic_at;     // ends stored as runs (ConnectionEnd): where those connections' ends start in generic_a_
     int first_exception, exceptions;  // its molecules that lack directions: exceptions_[first, + exceptions)
     int later;                        // the lowest row a connection after it touches
+    // Its largest offset to an owned row (the owned rows of f a block writes: up to its last molecule + this).
+    // A direction into the ghosts' rows (the partition's cut: an offset of about the owned count) writes owned
+    // rows only where a molecule lacks it (+0.0, which leaves any value's bits as they are), so the sweep need not
+    // zero that far ahead: zeroing to the pattern's largest offset would keep every owned row live at once and
+    // leave the rank without a ring (ring_rows).
+    int owned_reach;
   };
   template <class Layout>
   void sweep(const double* x, double* f, Layout at, FinalRows final_rows, void* context,

@@ -52,7 +52,9 @@ bool huge_pages_on_request() {
   return std::strstr(text, "[madvise]") != nullptr;
 }
 
-void reexecute_with_huge_pages(int argc, char** argv, char** envp) {
+}  // namespace
+
+void tissue::reexecute_with_huge_pages(int argc, char** argv, char** envp) {
   static char entry[4096];
   // Cheap checks first: the kernel's mode is a file read.
   if (!tissue::huge_pages_entry(argc, argv, envp, /*granted_on_request=*/true, RUNNING_ON_VALGRIND != 0, entry,
@@ -77,10 +79,23 @@ void reexecute_with_huge_pages(int argc, char** argv, char** envp) {
   // The re-execution failed (no /proc, say): carry on as started, on 4 kB pages.
 }
 
+namespace {
+
+// `restart` and `fit` re-execute here, before any library initializer; `run` later, from main, once the scene
+// says it is large enough to pay for the second start (kHugePagesFromMolecules).
+void reexecute_before_initializers(int argc, char** argv, char** envp) {
+  if (argc >= 2 && argv != nullptr && argv[1] != nullptr && std::strcmp(argv[1], "run") == 0) return;
+  tissue::reexecute_with_huge_pages(argc, argv, envp);
+}
+
 }  // namespace
 
 // glibc calls the executable's .preinit_array functions with (argc, argv, envp) before any initializer.
 __attribute__((section(".preinit_array"), used)) static void (*const tissue_huge_pages)(int, char**, char**) =
-    reexecute_with_huge_pages;
+    reexecute_before_initializers;
+
+#else
+
+void tissue::reexecute_with_huge_pages(int, char**, char**) {}
 
 #endif

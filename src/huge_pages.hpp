@@ -10,6 +10,16 @@
 
 namespace tissue {
 
+// `tissue run` re-executes only for scenes of at least this many molecules (src/main.cpp reads the scene first):
+// the second start costs each rank 60-110 ms of CPU (the loader's relocations of ~107 libraries, measured by
+// branch static18g), and the huge pages save about 2.6 us a 4 kB page first touched, ~20 ms a rank at 64,000
+// molecules on 2 ranks: they pay from about 2-4 x 10^5 molecules (docs/benchmarks.md, branch part18).
+constexpr long long kHugePagesFromMolecules = 250000;
+
+// Re-executes the program with the huge-page tunable (the preinit function's work, from main for `tissue run`
+// once the scene's size is known), unless huge_pages_entry() or the kernel says no; returns only when it does not.
+void reexecute_with_huge_pages(int argc, char** argv, char** envp);
+
 inline bool huge_pages_opted_out(const char* value) {
   for (const char* off : {"off", "0", "no", "false"})
     if (std::strcmp(value, off) == 0) return true;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -69,6 +70,24 @@ std::vector<IndexBox> bisect_box(const std::array<long, 3>& n, int parts) {
 }
 
 bool box_bisection_applies(const Body& shape) { return shape.bodies() == 1 && !shape.body(0).unstructured(); }
+
+double box_bisection_imbalance(const Body& shape, int parts) {
+  const std::int64_t n = shape.molecules();
+  if (!box_bisection_applies(shape) || n < parts) return std::numeric_limits<double>::infinity();
+  try {
+    std::int64_t largest = 0;
+    for (const IndexBox& b : bisect_box(shape.body(0).n, parts)) largest = std::max(largest, b.molecules());
+    return static_cast<double>(largest) * parts / static_cast<double>(n);
+  } catch (const std::runtime_error&) {
+    return std::numeric_limits<double>::infinity();
+  }
+}
+
+bool box_bisection_chosen(const Body& shape, PartitionSpec::Method method, int parts) {
+  if (method == PartitionSpec::Method::blocks) return true;
+  return method == PartitionSpec::Method::automatic && box_bisection_applies(shape) &&
+         box_bisection_imbalance(shape, parts) <= kBisectionImbalance;
+}
 
 std::vector<int> partition_box_bisection(const Body& shape, MPI_Comm comm, int parts, PartitionStats& stats) {
   int rank, size;

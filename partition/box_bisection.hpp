@@ -32,6 +32,17 @@ std::vector<IndexBox> bisect_box(const std::array<long, 3>& n, int parts);
 // Whether partition.method = "blocks" applies: one body, a box lattice.
 bool box_bisection_applies(const Body& shape);
 
+// "auto" takes the bisection where its largest part is within this of the mean (planes that do not divide evenly:
+// 33 planes in 2 parts is 1.03), METIS elsewhere (its tolerance is 1.001, kMetisImbalance).
+constexpr double kBisectionImbalance = 1.01;
+
+// The bisection's largest part over the mean part (+infinity where the box cannot be cut into `parts`).
+double box_bisection_imbalance(const Body& shape, int parts);
+
+// Whether `method` partitions `shape` into `parts` by the bisection: "blocks", or "auto" on one box lattice whose
+// bisection is within kBisectionImbalance.
+bool box_bisection_chosen(const Body& shape, PartitionSpec::Method method, int parts);
+
 // Collective over comm (only to count the statistics). The parts (0 .. parts - 1) of this rank's block of the
 // natural order (NaturalOrder::block_begin over comm's size). stats: edge cut (connections between parts, each
 // once) and imbalance (largest part / mean), on every rank.

@@ -89,11 +89,11 @@ std::vector<int> partition_lattice(const Body& shape, MPI_Comm comm, PartitionSt
         },
         comm, stats);  // the edge cut: counted by build_local_model from the connections
   }
-  // blocks, and auto on one box lattice: the bisection of the index box, from the box alone (box_bisection.hpp).
-  if (method == PartitionSpec::Method::blocks ||
-      (method == PartitionSpec::Method::automatic && box_bisection_applies(shape))) {
-    int size;
-    MPI_Comm_size(comm, &size);
+  // blocks, and auto on one box lattice that it balances: the bisection of the index box, from the box alone
+  // (box_bisection.hpp). Every rank decides alike from the box.
+  int size;
+  MPI_Comm_size(comm, &size);
+  if (box_bisection_chosen(shape, method, size)) {
     if (shape.molecules() < size) throw std::runtime_error("the body has fewer molecules than ranks");
     return partition_box_bisection(shape, comm, size, stats);
   }

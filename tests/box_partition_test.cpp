@@ -108,11 +108,13 @@ TEST(BoxBisection, SlabCutClosedForm) {
   }
 }
 
-// The model build keeps the bisection: on this lattice every molecule sits on the rank of its box.
+// The model build keeps the bisection: on this lattice (12 planes: even parts at 1, 2 and 3 ranks) every molecule
+// sits on the rank of its box. Where the bisection is out of balance (7 planes in 2 parts: 4/3.5), "auto" is METIS.
 TEST(BoxBisection, AutoIsBlocksOnOneBoxAndMetisElsewhere) {
-  const std::string text = box_scene(6, 5, 8, "face-diagonals");
+  const std::string text = box_scene(6, 5, 12, "face-diagonals");
   auto automatic = run(text, PETSC_COMM_WORLD, {}, /*do_solve=*/false);
-  const std::vector<IndexBox> boxes = bisect_box({6, 5, 8}, world_size());
+  EXPECT_DOUBLE_EQ(automatic->model.partition.imbalance, 1.0);
+  const std::vector<IndexBox> boxes = bisect_box({6, 5, 12}, world_size());
   int rank;
   MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
   const IndexBox& b = boxes[rank];
@@ -121,6 +123,13 @@ TEST(BoxBisection, AutoIsBlocksOnOneBoxAndMetisElsewhere) {
     const auto ijk = automatic->model.shape.body(0).index(automatic->model.id[i]);
     for (int d = 0; d < 3; ++d) ASSERT_TRUE(ijk[d] >= b.lo[d] && ijk[d] < b.hi[d]);
   }
+  const std::string odd = box_scene(5, 4, 7, "face-diagonals");
+  auto odd_auto = run(odd, PETSC_COMM_WORLD, {}, false), odd_metis = run(odd, PETSC_COMM_WORLD, {"partition.method=metis"}, false);
+  const Body odd_shape = scene_shape(parse_scene(odd, "odd.toml"));
+  EXPECT_EQ(box_bisection_chosen(odd_shape, PartitionSpec::Method::automatic, world_size()), world_size() == 1);
+  if (world_size() == 2) EXPECT_DOUBLE_EQ(box_bisection_imbalance(odd_shape, 2), 4.0 / 3.5);
+  EXPECT_EQ(odd_auto->model.partition.edge_cut, odd_metis->model.partition.edge_cut);
+  EXPECT_EQ(odd_auto->model.owned, odd_metis->model.owned);
   EXPECT_THROW(parse_scene(text + "[[body]]\nmolecules = [2, 2, 2]\n[partition]\nmethod = \"blocks\"\n", "two.toml"),
                InputError);
 }

@@ -40,7 +40,7 @@ Built explicit_path(const Scene& scene, MPI_Comm comm) {
   const PartitionSpec::Method method = scene.partition.method;
   int size;
   MPI_Comm_size(comm, &size);
-  if ((method == PartitionSpec::Method::automatic || method == PartitionSpec::Method::blocks) && box_bisection_applies(body) && size > 1)
+  if (size > 1 && box_bisection_chosen(body, method, size))
     part = partition_box_bisection(body, PETSC_COMM_SELF, size, stats);
   else
     part = partition_molecules(body, comm, stats);

@@ -11,10 +11,10 @@
 namespace tissue {
 
 // `tissue run` re-executes only for scenes of at least this many molecules (src/main.cpp reads the scene first):
-// the second start costs each rank 60-110 ms of CPU (the loader's relocations of ~107 libraries, measured by
-// branch static18g), and the huge pages save about 2.6 us a 4 kB page first touched, ~20 ms a rank at 64,000
-// molecules on 2 ranks: they pay from about 2-4 x 10^5 molecules (docs/benchmarks.md, branch part18).
-constexpr long long kHugePagesFromMolecules = 250000;
+// the second start costs each rank 60-110 ms of CPU (the loader's relocations of ~107 libraries), and at 64,000
+// molecules on 2 ranks the huge pages already cut the set-up by about 0.1 s a rank; below about 32^3 the whole
+// set-up is shorter than the second start (docs/benchmarks.md, branch part18).
+constexpr long long kHugePagesFromMolecules = 32768;
 
 // Re-executes the program with the huge-page tunable (the preinit function's work, from main for `tissue run`
 // once the scene's size is known), unless huge_pages_entry() or the kernel says no; returns only when it does not.

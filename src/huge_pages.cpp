@@ -12,6 +12,7 @@
 
 #include <alloca.h>
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>  // defines __GLIBC__ on glibc
 
 #include <cstring>
@@ -81,10 +82,36 @@ void tissue::reexecute_with_huge_pages(int argc, char** argv, char** envp) {
 
 namespace {
 
-// `restart` and `fit` re-execute here, before any library initializer; `run` later, from main, once the scene
-// says it is large enough to pay for the second start (kHugePagesFromMolecules).
+// `tissue run`'s scene file (the first argument that is not an option or an option's value) read whole into
+// text when it is a plain file of at most size - 1 bytes; false otherwise (a pipe is not opened: it is read once).
+bool read_run_scene(int argc, char** argv, char* text, std::size_t size) {
+  const char* path = nullptr;
+  for (int i = 2; i < argc && argv[i] != nullptr && path == nullptr; ++i) {
+    const char* a = argv[i];
+    if (std::strcmp(a, "--") == 0) return false;
+    if (std::strcmp(a, "--set") == 0 || std::strcmp(a, "--output") == 0) ++i;
+    else if (a[0] != '-') path = a;
+  }
+  struct stat st;
+  if (path == nullptr || ::stat(path, &st) != 0 || !S_ISREG(st.st_mode) || static_cast<std::size_t>(st.st_size) >= size)
+    return false;
+  const int fd = ::open(path, O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return false;
+  std::size_t got = 0;
+  for (ssize_t n; got < size - 1 && (n = ::read(fd, text + got, size - 1 - got)) > 0;) got += static_cast<std::size_t>(n);
+  ::close(fd);
+  text[got] = '\0';
+  return true;
+}
+
+// Before any library initializer: `restart` and `fit` re-execute; `run` only when its scene is not known to be
+// smaller than kHugePagesFromMolecules (the second start costs more than the huge pages save on a small scene).
 void reexecute_before_initializers(int argc, char** argv, char** envp) {
-  if (argc >= 2 && argv != nullptr && argv[1] != nullptr && std::strcmp(argv[1], "run") == 0) return;
+  if (argc >= 2 && argv != nullptr && argv[1] != nullptr && std::strcmp(argv[1], "run") == 0) {
+    static char text[1 << 16];
+    const long long n = tissue::scanned_molecules(argc, argv, read_run_scene(argc, argv, text, sizeof text) ? text : nullptr);
+    if (n >= 0 && n < tissue::kHugePagesFromMolecules) return;
+  }
   tissue::reexecute_with_huge_pages(argc, argv, envp);
 }
 

@@ -18,7 +18,6 @@
 // failed or a file could not be written (one line naming the file and the system error).
 
 #include <malloc.h>
-#include <unistd.h>  // environ
 #include <petscsys.h>
 
 #include <CLI/CLI.hpp>
@@ -45,7 +44,6 @@
 #include "partition/agreement.hpp"
 #include "src/driver/fit.hpp"
 #include "src/driver/simulation.hpp"
-#include "src/huge_pages.hpp"
 #include "src/model/cell_law.hpp"
 
 using namespace tissue;
@@ -329,24 +327,6 @@ void warn_unused_petsc_options(int code) {
   PetscOptionsLeftRestore(nullptr, &n, &names, &values);
 }
 
-// Whether `tissue run`'s scene has at least kHugePagesFromMolecules molecules (or an explicit body, whose count
-// is known only from its mesh), read before MPI starts. A scene the run will refuse: false (exit 2 follows).
-bool large_scene(const std::string& path, const std::vector<std::string>& overrides) {
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) return true;
-  try {
-    const Scene scene = read_scene(path, overrides);
-    long long molecules = 0;
-    for (const BodySpec& b : scene.bodies.empty() ? std::vector<BodySpec>{scene.body} : scene.bodies) {
-      if (b.unstructured()) return true;
-      molecules += static_cast<long long>(b.molecules[0]) * b.molecules[1] * b.molecules[2];
-    }
-    return molecules >= kHugePagesFromMolecules;
-  } catch (const std::exception&) {
-    return false;
-  }
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -393,10 +373,6 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "tissue: command line: %s (see tissue --help)\n", e.what());
     return 2;
   }
-
-  // Huge pages for `tissue run` (src/huge_pages.hpp): the re-execution only where the scene is large enough to pay
-  // for it; a scene that is not a plain file (a pipe is read once) or not readable keeps the default.
-  if (*run_cmd && large_scene(scene_path, overrides)) reexecute_with_huge_pages(argc, argv, environ);
 
   // argv ends in a null pointer, as main's does: MPI walks it to the end (Open MPI's MPI_Init crashed without).
   int petsc_argc = static_cast<int>(petsc.size());

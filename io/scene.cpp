@@ -668,8 +668,16 @@ Scene build_scene(const Value& root, const std::string& file) {
   if (top.has("partition")) {
     Section p = top.table("partition");
     p.allow({"method"});
-    if (p.choice("method", {"metis", "ptscotch"}).value_or("metis") == "ptscotch")
-      scene.partition.method = PartitionSpec::Method::ptscotch;
+    const std::string method = p.choice("method", {"auto", "metis", "ptscotch", "blocks"}).value_or("auto");
+    if (method == "metis") scene.partition.method = PartitionSpec::Method::metis;
+    if (method == "ptscotch") scene.partition.method = PartitionSpec::Method::ptscotch;
+    if (method == "blocks") {
+      const bool one_box = scene.bodies.size() <= 1 && !scene.body.unstructured();
+      if (!one_box)
+        throw InputError(file, "partition.method", "\"blocks\" cuts one box lattice; meshes, clouds and several bodies "
+                                                   "take \"metis\" or \"ptscotch\"");
+      scene.partition.method = PartitionSpec::Method::blocks;
+    }
   }
   return scene;
 }

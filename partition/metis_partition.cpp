@@ -3,6 +3,7 @@
 #include <metis.h>
 
 #include "partition/agreement.hpp"
+#include "partition/box_bisection.hpp"
 #include "partition/lattice_blocks.hpp"
 #include "partition/natural_order.hpp"
 #include "src/model/topology.hpp"
@@ -87,6 +88,14 @@ std::vector<int> partition_lattice(const Body& shape, MPI_Comm comm, PartitionSt
           for (const auto& x : nb) out.push_back(x.id);
         },
         comm, stats);  // the edge cut: counted by build_local_model from the connections
+  }
+  // blocks, and auto on one box lattice that it balances: the bisection of the index box, from the box alone
+  // (box_bisection.hpp). Every rank decides alike from the box.
+  int size;
+  MPI_Comm_size(comm, &size);
+  if (box_bisection_chosen(shape, method, size)) {
+    if (shape.molecules() < size) throw std::runtime_error("the body has fewer molecules than ranks");
+    return partition_box_bisection(shape, comm, size, stats);
   }
   return partition_lattice(shape, comm, stats);
 }

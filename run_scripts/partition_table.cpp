@@ -1,11 +1,12 @@
 // partition_table: how a box lattice splits into P parts, as the ghost exchange of the explicit solver sees it.
 // For each P given, partitions the N^3 face-diagonal lattice exactly as `tissue` does on P ranks (METIS on
 // blocks of b^3 molecules past 65,536 molecules, partition/lattice_blocks.hpp; `fine` as a last argument: METIS
-// on the molecule graph itself, as before; `block=B`: blocks of B^3) on this one process, and prints one CSV row
+// on the molecule graph itself, as before; `block=B`: blocks of B^3; `blocks`: partition.method = "blocks", the
+// bisection of the index box, partition/box_bisection.hpp) on this one process; N may be NXxNYxNZ, and prints one CSV row
 // per P: the block edge, the edge cut, the imbalance, and over the parts the largest owned count, ghost count (molecules owned
 // elsewhere that share a connection with an owned one: what the ghost update brings in each step), ghosts /
 // owned, local connections (those with an owned end: what the kernel computes), and neighbour parts (messages).
-//   usage: partition_table N P [P ...] [fine | block=B]     (run_scripts/scaling_model.py runs it)
+//   usage: partition_table N|NXxNYxNZ P [P ...] [fine | block=B | blocks]     (run_scripts/scaling_model.py runs it)
 #include <mpi.h>
 
 #include <algorithm>
@@ -15,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "partition/box_bisection.hpp"
 #include "partition/lattice_blocks.hpp"
 #include "partition/metis_partition.hpp"
 #include "src/model/topology.hpp"
@@ -28,11 +30,14 @@ int main(int argc, char** argv) {
     return 2;
   }
   const std::string last = argv[argc - 1];
+  const bool bisection = last == "blocks";
   const int forced = last == "fine" ? 1 : last.rfind("block=", 0) == 0 ? std::atoi(last.c_str() + 6) : 0;
   const bool fine = forced > 0;
   Body shape;
   const long n1 = std::atol(argv[1]);
   shape.n = {n1, n1, n1};
+  if (const std::string dims = argv[1]; dims.find('x') != std::string::npos)
+    std::sscanf(dims.c_str(), "%ldx%ldx%ld", &shape.n[0], &shape.n[1], &shape.n[2]);
   shape.h = {1.0, 1.0, 1.0};
   shape.topology = "face-diagonals";
   const std::int64_t n = shape.molecules();
@@ -40,12 +45,13 @@ int main(int argc, char** argv) {
   std::printf("N,molecules,parts,block,edge_cut,imbalance,max_owned,max_ghosts,max_ghosts_per_owned,"
               "mean_ghosts_per_owned,max_local_connections,max_neighbour_parts,mean_neighbour_parts,seconds\n");
   std::vector<Neighbour> nb;
-  for (int a = 2; a < argc - (fine ? 1 : 0); ++a) {
+  for (int a = 2; a < argc - (fine || bisection ? 1 : 0); ++a) {
     const int parts = std::atoi(argv[a]);
     const auto t0 = std::chrono::steady_clock::now();
     PartitionStats stats;
-    const int block = fine ? forced : lattice_block_size(shape, parts);
-    std::vector<int> part = partition_lattice_blocks(shape, MPI_COMM_SELF, parts, block, stats);
+    const int block = bisection ? 0 : fine ? forced : lattice_block_size(shape, parts);
+    std::vector<int> part = bisection ? partition_box_bisection(shape, MPI_COMM_SELF, parts, stats)
+                                      : partition_lattice_blocks(shape, MPI_COMM_SELF, parts, block, stats);
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::vector<long> owned(parts, 0), ghosts(parts, 0), local_connections(parts, 0);
     std::vector<std::vector<int>> neighbours(parts);
@@ -77,7 +83,7 @@ int main(int argc, char** argv) {
       most_nb = std::max(most_nb, neighbours[p].size());
       mean_nb += static_cast<double>(neighbours[p].size()) / parts;
     }
-    std::printf("%ld,%lld,%d,%d,%ld,%.4f,%ld,%ld,%.5f,%.5f,%ld,%zu,%.2f,%.2f\n", n1, static_cast<long long>(n), parts,
+    std::printf("%s,%lld,%d,%d,%ld,%.4f,%ld,%ld,%.5f,%.5f,%ld,%zu,%.2f,%.2f\n", argv[1], static_cast<long long>(n), parts,
                 block, stats.edge_cut, stats.imbalance, *std::max_element(owned.begin(), owned.end()),
                 *std::max_element(ghosts.begin(), ghosts.end()), worst, mean,
                 *std::max_element(local_connections.begin(), local_connections.end()), most_nb, mean_nb, seconds);

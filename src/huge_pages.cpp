@@ -12,6 +12,7 @@
 
 #include <alloca.h>
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>  // defines __GLIBC__ on glibc
 
 #include <cstring>
@@ -52,7 +53,9 @@ bool huge_pages_on_request() {
   return std::strstr(text, "[madvise]") != nullptr;
 }
 
-void reexecute_with_huge_pages(int argc, char** argv, char** envp) {
+}  // namespace
+
+void tissue::reexecute_with_huge_pages(int argc, char** argv, char** envp) {
   static char entry[4096];
   // Cheap checks first: the kernel's mode is a file read.
   if (!tissue::huge_pages_entry(argc, argv, envp, /*granted_on_request=*/true, RUNNING_ON_VALGRIND != 0, entry,
@@ -77,10 +80,49 @@ void reexecute_with_huge_pages(int argc, char** argv, char** envp) {
   // The re-execution failed (no /proc, say): carry on as started, on 4 kB pages.
 }
 
+namespace {
+
+// `tissue run`'s scene file (the first argument that is not an option or an option's value) read whole into
+// text when it is a plain file of at most size - 1 bytes; false otherwise (a pipe is not opened: it is read once).
+bool read_run_scene(int argc, char** argv, char* text, std::size_t size) {
+  const char* path = nullptr;
+  for (int i = 2; i < argc && argv[i] != nullptr && path == nullptr; ++i) {
+    const char* a = argv[i];
+    if (std::strcmp(a, "--") == 0) return false;
+    if (std::strcmp(a, "--set") == 0 || std::strcmp(a, "--output") == 0) ++i;
+    else if (a[0] != '-') path = a;
+  }
+  struct stat st;
+  if (path == nullptr || ::stat(path, &st) != 0 || !S_ISREG(st.st_mode) || static_cast<std::size_t>(st.st_size) >= size)
+    return false;
+  const int fd = ::open(path, O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return false;
+  std::size_t got = 0;
+  for (ssize_t n; got < size - 1 && (n = ::read(fd, text + got, size - 1 - got)) > 0;) got += static_cast<std::size_t>(n);
+  ::close(fd);
+  text[got] = '\0';
+  return true;
+}
+
+// Before any library initializer: `restart` and `fit` re-execute; `run` only when its scene is not known to be
+// smaller than kHugePagesFromMolecules (the second start costs more than the huge pages save on a small scene).
+void reexecute_before_initializers(int argc, char** argv, char** envp) {
+  if (argc >= 2 && argv != nullptr && argv[1] != nullptr && std::strcmp(argv[1], "run") == 0) {
+    static char text[1 << 16];
+    const long long n = tissue::scanned_molecules(argc, argv, read_run_scene(argc, argv, text, sizeof text) ? text : nullptr);
+    if (n >= 0 && n < tissue::kHugePagesFromMolecules) return;
+  }
+  tissue::reexecute_with_huge_pages(argc, argv, envp);
+}
+
 }  // namespace
 
 // glibc calls the executable's .preinit_array functions with (argc, argv, envp) before any initializer.
 __attribute__((section(".preinit_array"), used)) static void (*const tissue_huge_pages)(int, char**, char**) =
-    reexecute_with_huge_pages;
+    reexecute_before_initializers;
+
+#else
+
+void tissue::reexecute_with_huge_pages(int, char**, char**) {}
 
 #endif

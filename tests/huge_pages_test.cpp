@@ -55,6 +55,31 @@ TEST(HugePages, OtherTunablesAreKept) {
   EXPECT_EQ(entry_for({"tissue", "run", "s.toml"}, {"GLIBC_TUNABLES="}), "GLIBC_TUNABLES=glibc.malloc.hugetlb=1");
 }
 
+// `tissue run`'s size from its command line and scene text (src/huge_pages.hpp): products of the molecules lines,
+// the first body's replaced by --set body.molecules; unsure (-1, the program re-executes) on anything else.
+long long scanned(std::vector<std::string> argv, const char* text) {
+  Args a(std::move(argv));
+  return tissue::scanned_molecules(a.count(), a.get(), text);
+}
+
+TEST(HugePages, TheRunsSizeFromItsScene) {
+  const char* box = "title = \"t\"\n[body]\n  molecules = [20, 30, 4]  # a comment\nspacing = [1, 1, 1]\n";
+  EXPECT_EQ(scanned({"tissue", "run", "s.toml"}, box), 2400);
+  EXPECT_EQ(scanned({"tissue", "run", "s.toml", "--set", "body.molecules=[100,100,100]"}, box), 1000000);
+  EXPECT_EQ(scanned({"tissue", "run", "--set=body.molecules=[ 3 , 4 , 5 ]", "s.toml"}, box), 60);
+  EXPECT_EQ(scanned({"tissue", "run", "s.toml", "--", "--set", "body.molecules=[100,100,100]"}, box), 2400);
+  const char* two = "[[body]]\nmolecules = [2, 2, 2]\n[[body]]\nmolecules=[3,3,3]\n";
+  EXPECT_EQ(scanned({"tissue", "run", "s.toml"}, two), 35);
+  EXPECT_EQ(scanned({"tissue", "run", "s.toml", "--set", "body.molecules=[9,9,9]"}, two), -1);
+  EXPECT_EQ(scanned({"tissue", "run", "s.toml"}, "[body]\nshape = \"mesh\"\nmolecules = [2, 2, 2]\n"), -1);
+  EXPECT_EQ(scanned({"tissue", "run", "s.toml"}, "[body]\ntopology = \"random\"\nmolecules = [2, 2, 2]\n"), -1);
+  EXPECT_EQ(scanned({"tissue", "run", "s.toml"}, "[body]\nsize = [1, 1, 1]\n"), -1);         // no molecules line
+  EXPECT_EQ(scanned({"tissue", "run", "s.toml"}, "[body]\nmolecules = [2, 2]\n"), -1);       // not three numbers
+  EXPECT_EQ(scanned({"tissue", "run", "s.toml"}, nullptr), -1);                             // no plain file
+  EXPECT_EQ(scanned({"tissue", "run", "s.toml", "--set", "body.molecules=[a]"}, box), -1);
+  EXPECT_EQ(scanned({"tissue", "run", "s.toml"}, "# molecules = [1000, 1000, 1000]\n[body]\nmolecules = [2, 3, 4]\n"), 24);
+}
+
 TEST(HugePages, NoReexecutionWhenAsked) {
   const std::vector<std::string> run{"tissue", "run", "s.toml"};
   for (const char* off : {"off", "0", "no", "false"})

@@ -192,8 +192,9 @@ struct OutputSpec {
 };
 
 struct PartitionSpec {
-  // metis (rank 0 alone) | ptscotch (every rank, PETSc MatPartitioning); read from the scene's name
-  enum class Method { metis, ptscotch } method = Method::metis;
+  // automatic ("auto", the default: blocks on one box lattice, metis otherwise) | metis (rank 0 alone) |
+  // ptscotch (every rank, PETSc MatPartitioning) | blocks (partition/box_bisection.hpp: one box lattice only)
+  enum class Method { automatic, metis, ptscotch, blocks } method = Method::automatic;
 };
 
 struct Scene {

@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "partition/agreement.hpp"
 #include "partition/natural_order.hpp"
 #include "src/model/topology.hpp"
 
@@ -104,57 +105,63 @@ std::vector<int> partition_box_bisection(const Body& shape, MPI_Comm comm, int p
   whole.hi = box.n;
   bisect(whole, 0, parts, leaves, tree);
 
-  // Each part's rows (runs of x) that lie in this rank's block of ids.
-  std::vector<int> part(end - begin, -1);
-  const std::int64_t plane = static_cast<std::int64_t>(box.n[0]) * box.n[1];
-  const long z_first = static_cast<long>((begin - box.first) / plane);
-  const long z_last = end > begin ? static_cast<long>((end - 1 - box.first) / plane) : z_first - 1;
-  for (int p = 0; p < parts; ++p) {
-    const IndexBox& b = leaves[p];
-    for (long z = std::max(b.lo[2], z_first); z < std::min(b.hi[2], z_last + 1); ++z)
-      for (long y = b.lo[1]; y < b.hi[1]; ++y) {
-        const std::int64_t row = box.id(b.lo[0], y, z);
-        const std::int64_t lo = std::max(row, begin), hi = std::min(row + (b.hi[0] - b.lo[0]), end);
-        if (lo < hi) std::fill(part.begin() + (lo - begin), part.begin() + (hi - begin), p);
-      }
-  }
-
-  // The edge cut: each connection once, from its lower end, checked only for molecules within the stencil's
-  // reach of an inner face of their box (no other molecule has a neighbour in another part).
-  std::vector<std::array<int, 3>> forward;
-  long reach = 0;
-  for (const auto& o : find_topology(box.topology)->stencil) {
-    if (o.d[0] + box.n[0] * (o.d[1] + static_cast<std::int64_t>(box.n[1]) * o.d[2]) <= 0) continue;
-    forward.push_back({o.d[0], o.d[1], o.d[2]});
-    for (int d = 0; d < 3; ++d) reach = std::max<long>(reach, std::abs(o.d[d]));
-  }
+  // This rank's local work (its parts and its share of the edge cut) is agreed before the reduction
+  // (partition/agreement.hpp): a failure here (memory) stops every rank instead of leaving the others in it.
+  std::vector<int> part;
   long cut = 0;
-  auto count = [&](const std::array<long, 3>& ijk, int p) {
-    for (const auto& o : forward) {
-      const std::array<long, 3> q{ijk[0] + o[0], ijk[1] + o[1], ijk[2] + o[2]};
-      bool inside = true;
-      for (int d = 0; d < 3; ++d) inside = inside && q[d] >= 0 && q[d] < box.n[d];
-      if (inside && part_of(tree, q) != p) ++cut;
-    }
-  };
-  auto near = [&](const IndexBox& b, int d, long i) {
-    return (b.lo[d] > 0 && i - b.lo[d] < reach) || (b.hi[d] < box.n[d] && b.hi[d] - 1 - i < reach);
-  };
-  for (int p = 0; p < parts; ++p) {
-    const IndexBox& b = leaves[p];
-    for (long z = std::max(b.lo[2], z_first); z < std::min(b.hi[2], z_last + 1); ++z)
-      for (long y = b.lo[1]; y < b.hi[1]; ++y) {
-        const bool whole_row = near(b, 2, z) || near(b, 1, y);
-        for (long x = b.lo[0]; x < b.hi[0]; ++x) {
-          if (!whole_row && !near(b, 0, x)) {
-            x = std::max(x, b.hi[0] - reach - 1);  // skip to the row's last molecules within reach of its end
-            if (!near(b, 0, x)) continue;
-          }
-          const std::int64_t g = box.id(x, y, z);
-          if (g >= begin && g < end) count({x, y, z}, p);
+  agree(comm, [&] {
+    fault_point("partition", comm);
+    // Each part's rows (runs of x) that lie in this rank's block of ids.
+    part.assign(end - begin, -1);
+    const std::int64_t plane = static_cast<std::int64_t>(box.n[0]) * box.n[1];
+    const long z_first = static_cast<long>((begin - box.first) / plane);
+    const long z_last = end > begin ? static_cast<long>((end - 1 - box.first) / plane) : z_first - 1;
+    for (int p = 0; p < parts; ++p) {
+      const IndexBox& b = leaves[p];
+      for (long z = std::max(b.lo[2], z_first); z < std::min(b.hi[2], z_last + 1); ++z)
+        for (long y = b.lo[1]; y < b.hi[1]; ++y) {
+          const std::int64_t row = box.id(b.lo[0], y, z);
+          const std::int64_t lo = std::max(row, begin), hi = std::min(row + (b.hi[0] - b.lo[0]), end);
+          if (lo < hi) std::fill(part.begin() + (lo - begin), part.begin() + (hi - begin), p);
         }
+    }
+
+    // The edge cut: each connection once, from its lower end, checked only for molecules within the stencil's
+    // reach of an inner face of their box (no other molecule has a neighbour in another part).
+    std::vector<std::array<int, 3>> forward;
+    long reach = 0;
+    for (const auto& o : find_topology(box.topology)->stencil) {
+      if (o.d[0] + box.n[0] * (o.d[1] + static_cast<std::int64_t>(box.n[1]) * o.d[2]) <= 0) continue;
+      forward.push_back({o.d[0], o.d[1], o.d[2]});
+      for (int d = 0; d < 3; ++d) reach = std::max<long>(reach, std::abs(o.d[d]));
+    }
+    auto count = [&](const std::array<long, 3>& ijk, int p) {
+      for (const auto& o : forward) {
+        const std::array<long, 3> q{ijk[0] + o[0], ijk[1] + o[1], ijk[2] + o[2]};
+        bool inside = true;
+        for (int d = 0; d < 3; ++d) inside = inside && q[d] >= 0 && q[d] < box.n[d];
+        if (inside && part_of(tree, q) != p) ++cut;
       }
-  }
+    };
+    auto near = [&](const IndexBox& b, int d, long i) {
+      return (b.lo[d] > 0 && i - b.lo[d] < reach) || (b.hi[d] < box.n[d] && b.hi[d] - 1 - i < reach);
+    };
+    for (int p = 0; p < parts; ++p) {
+      const IndexBox& b = leaves[p];
+      for (long z = std::max(b.lo[2], z_first); z < std::min(b.hi[2], z_last + 1); ++z)
+        for (long y = b.lo[1]; y < b.hi[1]; ++y) {
+          const bool whole_row = near(b, 2, z) || near(b, 1, y);
+          for (long x = b.lo[0]; x < b.hi[0]; ++x) {
+            if (!whole_row && !near(b, 0, x)) {
+              x = std::max(x, b.hi[0] - reach - 1);  // skip to the row's last molecules within reach of its end
+              if (!near(b, 0, x)) continue;
+            }
+            const std::int64_t g = box.id(x, y, z);
+            if (g >= begin && g < end) count({x, y, z}, p);
+          }
+        }
+    }
+  });
   stats = PartitionStats{};
   MPI_Allreduce(&cut, &stats.edge_cut, 1, MPI_LONG, MPI_SUM, comm);
   std::int64_t largest = 0;

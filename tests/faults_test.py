@@ -303,7 +303,8 @@ def main():
     checkpoint_np = {np_: os.path.join(reference[np_], "checkpoint_0000000015.h5") for np_ in (1, 2, 3)}
     # name: (stage, faulted rank, calls let through, extra --set, restart?, expected exit)
     stages = {
-        "partition (METIS on rank 0)": ("partition", "0", 0, [], False, 3),
+        "partition (METIS on rank 0)": ("partition", "0", 0, ["partition.method=metis"], False, 3),
+        "partition (box bisection)": ("partition", "1", 0, ["partition.method=blocks"], False, 3),
         "model build": ("build", "1", 0, [], False, 3),
         "calibration": ("calibration", "1", 0, [], False, 3),
         "guard reduction, dynamic": ("guard", "1", 1, [], False, 3),

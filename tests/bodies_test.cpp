@@ -19,25 +19,16 @@
 
 using namespace tissue;
 using tissue::test_pipeline::RunResult;
+using tissue::test_pipeline::gather_positions;
 using tissue::test_pipeline::run;
 
 namespace {
-
 
 // Every connection's k by global connection id, on every rank.
 std::vector<double> gather_stiffness(const LocalModel& m) {
   std::vector<double> mine(m.global_connections, 0.0), all(mine.size());
   for (int c : m.written_here()) mine[m.connection_id(c)] = m.k(c);
   MPI_Allreduce(mine.data(), all.data(), static_cast<int>(mine.size()), MPI_DOUBLE, MPI_SUM, m.comm);
-  return all;
-}
-
-// Every molecule's final position by global id, on every rank.
-std::vector<double> gather_positions(const RunResult& r) {
-  std::vector<double> mine(3 * r.model.global_molecules, 0.0), all(mine.size());
-  for (int i = 0; i < r.model.owned; ++i)
-    for (int d = 0; d < 3; ++d) mine[3 * r.model.id[i] + d] = r.state->x.array()[3 * i + d];
-  MPI_Allreduce(mine.data(), all.data(), static_cast<int>(mine.size()), MPI_DOUBLE, MPI_SUM, r.model.comm);
   return all;
 }
 

@@ -16,6 +16,7 @@
 #include "tests/whole_body.hpp"
 
 using namespace tissue;
+using tissue::test_pipeline::gather_positions;
 using tissue::test_pipeline::run;
 
 namespace {
@@ -148,16 +149,6 @@ face = "z-"
 force = [0.0, 0.0, -20.0]
 )";
 
-// Positions by global id, on every rank.
-std::vector<double> positions_by_id(const test_pipeline::RunResult& r) {
-  std::vector<double> x(3 * r.model.global_molecules, 0.0), all(x.size());
-  const double* xs = r.state->x.array();
-  for (int i = 0; i < r.model.owned; ++i)
-    for (int d = 0; d < 3; ++d) x[3 * r.model.id[i] + d] = xs[3 * i + d];
-  MPI_Allreduce(x.data(), all.data(), static_cast<int>(x.size()), MPI_DOUBLE, MPI_SUM, PETSC_COMM_WORLD);
-  return all;
-}
-
 // Another partition, the same answer: static (to 1e-12) and dynamic (20 steps) runs, blocks against METIS.
 TEST(BoxBisection, SameResultsAsMetis) {
   for (const std::vector<std::string> kind :
@@ -168,7 +159,7 @@ TEST(BoxBisection, SameResultsAsMetis) {
     metis.push_back("partition.method=metis");
     auto a = run(tension, PETSC_COMM_WORLD, blocks), b = run(tension, PETSC_COMM_WORLD, metis);
     ASSERT_TRUE(a->report.converged && b->report.converged) << kind[0];
-    const std::vector<double> xa = positions_by_id(*a), xb = positions_by_id(*b);
+    const std::vector<double> xa = gather_positions(*a), xb = gather_positions(*b);
     double worst = 0, scale = 0;
     for (std::size_t k = 0; k < xa.size(); ++k) worst = std::max(worst, std::fabs(xa[k] - xb[k])), scale = std::max(scale, std::fabs(xb[k]));
     EXPECT_LT(worst, 1e-12 * scale) << kind[0];

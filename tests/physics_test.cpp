@@ -19,19 +19,10 @@
 
 using namespace tissue;
 using tissue::test_pipeline::RunResult;
+using tissue::test_pipeline::gather_positions;
 using tissue::test_pipeline::run;
 
 namespace {
-
-
-// Every molecule's final position, in original order, gathered on every rank.
-std::vector<double> gather_positions(const RunResult& r) {
-  std::vector<double> mine(3 * r.model.global_molecules, 0.0), all(mine.size());
-  for (int i = 0; i < r.model.owned; ++i)
-    for (int d = 0; d < 3; ++d) mine[3 * r.model.id[i] + d] = r.state->x.array()[3 * i + d];
-  MPI_Allreduce(mine.data(), all.data(), static_cast<int>(mine.size()), MPI_DOUBLE, MPI_SUM, r.model.comm);
-  return all;
-}
 
 double max_difference(const std::vector<double>& a, const std::vector<double>& b) {
   double worst = 0;

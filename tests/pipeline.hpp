@@ -1,6 +1,8 @@
 // The pipeline of src/main.cpp (stages 1-7 of src/driver/simulation.hpp) in process, for tests: scene text -> body
 // -> partition -> calibration -> force model -> solve -> measure, with everything kept for the test to look at.
 #pragma once
+#include <mpi.h>
+
 #include <functional>
 #include <memory>
 #include <string>
@@ -48,6 +50,16 @@ inline std::unique_ptr<RunResult> run(const std::string& text, MPI_Comm comm, co
   }
   r->sim->measure();
   return r;
+}
+
+// Every molecule's final position by global id (3 a molecule), gathered on every rank: what tests compare across
+// rank counts, partitions and solvers.
+inline std::vector<double> gather_positions(const RunResult& r) {
+  std::vector<double> mine(3 * r.model.global_molecules, 0.0), all(mine.size());
+  for (int i = 0; i < r.model.owned; ++i)
+    for (int d = 0; d < 3; ++d) mine[3 * r.model.id[i] + d] = r.state->x.array()[3 * i + d];
+  MPI_Allreduce(mine.data(), all.data(), static_cast<int>(mine.size()), MPI_DOUBLE, MPI_SUM, r.model.comm);
+  return all;
 }
 
 }  // namespace tissue::test_pipeline

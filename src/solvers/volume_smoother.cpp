@@ -239,25 +239,37 @@ PetscErrorCode make_volume_smoother(const LocalModel& model, const std::vector<s
 PetscErrorCode use_volume_smoother(const LocalModel& model, const ForceModel& forces, PC pc, bool by_default) {
   PetscFunctionBeginUser;
   PetscBool on = by_default ? PETSC_TRUE : PETSC_FALSE;
-  PetscInt steps = 1;
+  PetscInt steps = 1, coarse_steps = kCellCoarseSteps;
   PetscCall(PetscOptionsGetBool(nullptr, nullptr, "-static_volume_smoother", &on, nullptr));
   PetscCall(PetscOptionsGetInt(nullptr, nullptr, "-static_volume_smoother_steps", &steps, nullptr));
-  if (!on) PetscFunctionReturn(0);
+  PetscCall(PetscOptionsGetInt(nullptr, nullptr, "-static_cell_coarse_steps", &coarse_steps, nullptr));
   Term::VolumeCoupling cells;
-  int mine = 0;
+  int mine[2] = {0, 0};  // this rank has cells; some cell has a volumetric part
   for (const auto& t : forces.terms())
     if (t->volume_coupling(cells)) {
-      mine = 1;
+      mine[0] = 1;
+      mine[1] = std::any_of(cells.k.begin(), cells.k.end(), [](double k) { return k > 0; }) ? 1 : 0;
       break;
     }
   // A rank without cells still takes part in the smoother's collectives: installed where any rank has cells.
-  int any = 0;
-  PetscCallMPI(MPI_Allreduce(&mine, &any, 1, MPI_INT, MPI_MAX, model.comm));
-  if (!any) PetscFunctionReturn(0);
+  int any[2] = {0, 0};
+  PetscCallMPI(MPI_Allreduce(mine, any, 2, MPI_INT, MPI_MAX, model.comm));
+  if (!any[0]) PetscFunctionReturn(0);
   PetscInt levels;
+  PetscCall(PCMGGetLevels(pc, &levels));
+  // The coarse levels' operators hold the cells' volume coupling per coarse cell (Galerkin), and their point
+  // smoother leaves the same slow, nearly volume-preserving errors as the finest's (docs/benchmarks.md, "The
+  // nu = 0.45 static solve: the coarse levels' smoothing"); their products cost about a quarter of a fine one.
+  // Set before SNESSetFromOptions: -mg_levels_ksp_max_it and -mg_levels_N_ksp_max_it still win.
+  if (any[1] && coarse_steps > 0)
+    for (PetscInt l = 1; l + 1 < levels; ++l) {
+      KSP smoother;
+      PetscCall(PCMGGetSmoother(pc, l, &smoother));
+      PetscCall(KSPSetTolerances(smoother, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, coarse_steps));
+    }
+  if (!on) PetscFunctionReturn(0);
   KSP smoother;
   PC spc;
-  PetscCall(PCMGGetLevels(pc, &levels));
   PetscCall(PCMGGetSmoother(pc, levels - 1, &smoother));
   PetscCall(KSPGetPC(smoother, &spc));
   PetscCall(make_volume_smoother(model, forces.held(), std::move(cells), static_cast<int>(steps), spc));

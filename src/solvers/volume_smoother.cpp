@@ -244,11 +244,15 @@ PetscErrorCode use_volume_smoother(const LocalModel& model, const ForceModel& fo
   PetscCall(PetscOptionsGetInt(nullptr, nullptr, "-static_volume_smoother_steps", &steps, nullptr));
   PetscCall(PetscOptionsGetInt(nullptr, nullptr, "-static_cell_coarse_steps", &coarse_steps, nullptr));
   Term::VolumeCoupling cells;
-  int mine[2] = {0, 0};  // this rank has cells; some cell has a volumetric part
+  int mine[2] = {0, 0};  // this rank has cells; some cell is near cubic and has a volumetric part
   for (const auto& t : forces.terms())
     if (t->volume_coupling(cells)) {
       mine[0] = 1;
-      mine[1] = std::any_of(cells.k.begin(), cells.k.end(), [](double k) { return k > 0; }) ? 1 : 0;
+      for (std::size_t c = 0; c < cells.k.size() && !mine[1]; ++c) {
+        const double* g = &cells.g[3 * c];
+        const double lo = std::min({g[0], g[1], g[2]}), hi = std::max({g[0], g[1], g[2]});
+        mine[1] = cells.k[c] > 0 && hi <= kCellCoarseAspect * lo;
+      }
       break;
     }
   // A rank without cells still takes part in the smoother's collectives: installed where any rank has cells.
@@ -258,8 +262,9 @@ PetscErrorCode use_volume_smoother(const LocalModel& model, const ForceModel& fo
   PetscInt levels;
   PetscCall(PCMGGetLevels(pc, &levels));
   // The coarse levels' operators hold the cells' volume coupling per coarse cell (Galerkin), and their point
-  // smoother leaves the same slow, nearly volume-preserving errors as the finest's (docs/benchmarks.md, "The
-  // nu = 0.45 static solve: the coarse levels' smoothing"); their products cost about a quarter of a fine one.
+  // smoother leaves the same slow, nearly volume-preserving errors as the finest's; their products cost about a
+  // third of a fine one. Flatter or taller cells gain few iterations (their counts are the cells' anisotropy's):
+  // docs/benchmarks.md, "The nu = 0.45 static solve: macro-cells modelled, the coarse levels' smoothing".
   // Set before SNESSetFromOptions: -mg_levels_ksp_max_it and -mg_levels_N_ksp_max_it still win.
   if (any[1] && coarse_steps > 0)
     for (PetscInt l = 1; l + 1 < levels; ++l) {

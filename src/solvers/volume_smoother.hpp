@@ -19,8 +19,10 @@
 namespace tissue {
 
 // Chebyshev steps on the lattice multigrid's coarse levels (all but the finest and the coarsest) when some cell
-// has a volumetric part (k > 0): -static_cell_coarse_steps S overrides (0: the levels' default, 2).
+// has a volumetric part (k > 0) and is near cubic (its edges within kCellCoarseAspect of each other):
+// -static_cell_coarse_steps S overrides (0: the levels' default, 2).
 inline constexpr int kCellCoarseSteps = 4;
+inline constexpr double kCellCoarseAspect = 1.25;
 
 // Collective. When the force model has a term with a volume coupling (the cell term) on some rank: sets the coarse
 // levels' Chebyshev steps (above); when the option -static_volume_smoother is on too (or, absent, `by_default`),

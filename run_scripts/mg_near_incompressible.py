@@ -33,9 +33,16 @@ reversed after it (each colour step costs a product for its residual).
 Coarse operators: galerkin (P^T A P, what src/solvers/lattice_galerkin.cpp computes) or redisc (springs by
 Galerkin, the cell term rediscretized on the coarse cells, same lambda_c, one-point).
 
---mixed instead solves the mixed form with one pressure per cell, p = lambda_c V div u (the volumetric part kept
-out of the multigrid): MINRES preconditioned by diag(one V-cycle of the springs-only, nu = 1/4, operator with the
-smoother above, the cell-diagonal Schur complement V (1 / w + 1 / lambda_c)), w = --schur (lambda_s + 2 mu_s = 1.5).
+--macro M: the volumetric part per macro-cell of M x M x M cells instead of per cell (one volume constraint per
+macro-cell, of its mean divergence, i.e. the mean of its cells' one-point divergences; macro-cells aligned with the
+coarse levels' cells for M = 2, whose Galerkin operator is then the per-coarse-cell term: --coarse macro instead
+rediscretizes the coarse levels per macro-cell of theirs). --coarse-steps S: Chebyshev steps on the coarse levels.
+
+--mixed [minres|gmres] instead solves the mixed form with one pressure per cell (per macro-cell with --macro),
+p = lambda_c div u (the volumetric part kept out of the multigrid): MINRES preconditioned by diag(one V-cycle of the
+springs-only, nu = 1/4, operator with the smoother above, the diagonal Schur complement V (1 / w + 1 / lambda_c)),
+w = --schur (lambda_s + 2 mu_s = 1.5), or GMRES (right-preconditioned) with the block upper-triangular
+[[V-cycle^-1, B^T], [0, -S]]^-1.
 
 Prints, for nu = 0.25 / 0.45 / 0.49, the Krylov iterations to a relative residual of 1e-8, and with --cost the
 time-relevant work of the solve in the C++ code's measured costs (work()): the static target of issue 15 is the
@@ -44,7 +51,8 @@ Needs numpy and scipy (Debian: python3-numpy python3-scipy). About a minute at N
   /usr/bin/python3 run_scripts/mg_near_incompressible.py [N] [--smoother jacobi|cell|star|cellsm|bs]
       [--coarse galerkin|redisc] [--steps S] [--fraction F] [--mixed [--schur W]] [--weight pou|count|X]
       [--theta T] [--schur-steps M] [--schur-block B] [--sm-levels all|finest|coarse] [--pre S1] [--post S2]
-      [--w-levels K] [--colours C,C,...]
+      [--w-levels K] [--colours C,C,...] [--macro M] [--coarse-steps S] [--mixed minres|gmres] [--cost
+      [--macro-product X]]
 """
 import argparse
 
@@ -462,8 +470,10 @@ MACRO_PRODUCT = CELL_PRODUCT / 8  # --macro 2: the volumetric part's product per
                                   # a macro-cell's product does about one cell's work, a 27- instead of 8-corner
                                   # gather for a rank-one-plus-geometric dP/dF; on cubic cells at nu > 1/4 the
                                   # cell term is only its volumetric part); --macro-product overrides it
-LEVEL1 = 0.27            # (levels 2, 3, .. add 1/8, 1/64, ..: x 8/7) a level-1 (assembled, 27 blocks a row) product in fine springs products (perf samples
-                         # at 10^6, docs/benchmarks.md "quiet pass ... morning": 5.2 % against 19.6 % for the fine)
+LEVEL1 = 0.55            # one more Chebyshev step on level 1 (its product, 0.34 of a fine one, and its vectors' work),
+                         # in fine springs products: callgrind at N = 20 (3 levels), KSPSolve 51.5 -> 59.1 M
+                         # instructions an iteration with 4 instead of 2 steps on level 1 (docs/benchmarks.md "The
+                         # nu = 0.45 static solve: macro-cells modelled"); levels 2, 3, .. add 1/8, 1/64, ..: x 8/7
 ORTHO = 0.025            # one GMRES basis vector's dot + axpy over 3N doubles, in fine springs products
 PRESSURE_OPS = 0.1       # --mixed: B and B^T on the (macro-)cells and the pressure block's vector work
 

@@ -33,9 +33,16 @@ reversed after it (each colour step costs a product for its residual).
 Coarse operators: galerkin (P^T A P, what src/solvers/lattice_galerkin.cpp computes) or redisc (springs by
 Galerkin, the cell term rediscretized on the coarse cells, same lambda_c, one-point).
 
---mixed instead solves the mixed form with one pressure per cell, p = lambda_c V div u (the volumetric part kept
-out of the multigrid): MINRES preconditioned by diag(one V-cycle of the springs-only, nu = 1/4, operator with the
-smoother above, the cell-diagonal Schur complement V (1 / w + 1 / lambda_c)), w = --schur (lambda_s + 2 mu_s = 1.5).
+--macro M: the volumetric part per macro-cell of M x M x M cells instead of per cell (one volume constraint per
+macro-cell, of its mean divergence, i.e. the mean of its cells' one-point divergences; macro-cells aligned with the
+coarse levels' cells for M = 2, whose Galerkin operator is then the per-coarse-cell term: --coarse macro instead
+rediscretizes the coarse levels per macro-cell of theirs). --coarse-steps S: Chebyshev steps on the coarse levels.
+
+--mixed [minres|gmres] instead solves the mixed form with one pressure per cell (per macro-cell with --macro),
+p = lambda_c div u (the volumetric part kept out of the multigrid): MINRES preconditioned by diag(one V-cycle of the
+springs-only, nu = 1/4, operator with the smoother above, the diagonal Schur complement V (1 / w + 1 / lambda_c)),
+w = --schur (lambda_s + 2 mu_s = 1.5), or GMRES (right-preconditioned) with the block upper-triangular
+[[V-cycle^-1, B^T], [0, -S]]^-1.
 
 Prints, for nu = 0.25 / 0.45 / 0.49, the Krylov iterations to a relative residual of 1e-8, and with --cost the
 time-relevant work of the solve in the C++ code's measured costs (work()): the static target of issue 15 is the
@@ -44,13 +51,16 @@ Needs numpy and scipy (Debian: python3-numpy python3-scipy). About a minute at N
   /usr/bin/python3 run_scripts/mg_near_incompressible.py [N] [--smoother jacobi|cell|star|cellsm|bs]
       [--coarse galerkin|redisc] [--steps S] [--fraction F] [--mixed [--schur W]] [--weight pou|count|X]
       [--theta T] [--schur-steps M] [--schur-block B] [--sm-levels all|finest|coarse] [--pre S1] [--post S2]
-      [--w-levels K] [--colours C,C,...]
+      [--w-levels K] [--colours C,C,...] [--macro M] [--coarse-steps S] [--mixed minres|gmres] [--cost
+      [--macro-product X]]
 """
 import argparse
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+
+MACRO = [0]  # --macro M: the volumetric part per macro-cell of M^3 cells (0: per cell)
 
 
 def node(n, i, j, k):
@@ -97,6 +107,22 @@ def cells(n, h, lam):
     return coo(rows, cols, vals, 3 * n**3)
 
 
+def macro_divergence(n, h, m=2):
+    """Each macro-cell's mean div u (rows: macro-cells of m x m x m cells, fewer at the far faces when the cell
+    count is not a multiple of m): the mean of its cells' one-point div, i.e. its boundary flux over its volume;
+    returns the rows and each macro-cell's volume (cells x h^3)."""
+    nc = n - 1
+    nm = (nc + m - 1) // m
+    d = divergence(n, h).tocoo()
+    i = np.arange(nc ** 3) % nc
+    j = (np.arange(nc ** 3) // nc) % nc
+    k = np.arange(nc ** 3) // nc ** 2
+    macro = i // m + nm * (j // m + nm * (k // m))
+    count = np.bincount(macro, minlength=nm ** 3).astype(float)
+    out = sp.csr_matrix((d.data / count[macro[d.row]], (macro[d.row], d.col)), shape=(nm ** 3, 3 * n ** 3))
+    return out, count * h ** 3
+
+
 def divergence(n, h):
     """Each cell's one-point div u (rows: cells)."""
     signs = [(sx, sy, sz) for sz in (-1, 1) for sy in (-1, 1) for sx in (-1, 1)]
@@ -141,7 +167,12 @@ def hierarchy(n, lam, coarse, levels):
     for _ in range(levels - 1):
         sizes.append((sizes[-1] + 1) // 2)
     fr = [free(m) for m in sizes]
-    s, c = springs(n, 1.0), cells(n, 1.0, lam)
+    s = springs(n, 1.0)
+    if MACRO[0]:  # the volumetric part per macro-cell of MACRO^3 cells: lambda V_M (div_M u)^2 / 2
+        dm, vm = macro_divergence(n, 1.0, MACRO[0])
+        c = (dm.T @ sp.diags(lam * vm) @ dm).tocsr()
+    else:
+        c = cells(n, 1.0, lam)
     ops, interps = [(s + c)[fr[0]][:, fr[0]].tocsr()], []
     for l in range(levels - 1):
         p = interpolation(sizes[l])
@@ -149,6 +180,10 @@ def hierarchy(n, lam, coarse, levels):
         interps.append(pf)
         if coarse == "galerkin":
             ops.append((pf.T @ ops[-1] @ pf).tocsr())
+        elif coarse == "macro":  # springs by Galerkin, the volumetric part rediscretized per coarse macro-cell
+            s = (p.T @ s @ p).tocsr()
+            dm, vm = macro_divergence(sizes[l + 1], 2.0 ** (l + 1), max(MACRO[0], 2))
+            ops.append((s + dm.T @ sp.diags(lam * vm) @ dm)[fr[l + 1]][:, fr[l + 1]].tocsr())
         else:
             s = (p.T @ s @ p).tocsr()
             ops.append((s + cells(sizes[l + 1], 2.0 ** (l + 1), lam))[fr[l + 1]][:, fr[l + 1]].tocsr())
@@ -362,17 +397,18 @@ def krylov(n, nu, args):
         smoothers = [ColourSweep(a, CellShermanMorrison(sizes[l], 2.0 ** l, fr[l], lam, sprdiag[l], 1.0), order)
                      for l, a in enumerate(ops[:-1])]
     else:
-        smoothers = [Chebyshev(a, preconditioner(l, a), args.fraction, args.steps) for l, a in enumerate(ops[:-1])]
+        smoothers = [Chebyshev(a, preconditioner(l, a), args.fraction, args.steps if l == 0 else args.coarse_steps)
+                     for l, a in enumerate(ops[:-1])]
     coarsest = spla.splu(ops[-1].tocsc())
 
     def vcycle(l, b):
         if l == len(ops) - 1:
             return coarsest.solve(b)
-        x = smoothers[l](b, np.zeros_like(b), args.pre)
+        x = smoothers[l](b, np.zeros_like(b), args.pre if l == 0 else None)
         x = x + interps[l] @ vcycle(l + 1, interps[l].T @ (b - ops[l] @ x))
         if l < args.w_levels:  # a W-cycle here: a second coarse correction
             x = x + interps[l] @ vcycle(l + 1, interps[l].T @ (b - ops[l] @ x))
-        return smoothers[l](b, x, args.post, post=True) if args.colours else smoothers[l](b, x, args.post)
+        return smoothers[l](b, x, args.post, post=True) if args.colours else smoothers[l](b, x, args.post if l == 0 else None)
 
     b = np.zeros(3 * n**3)
     for j in range(n):
@@ -387,13 +423,26 @@ def krylov(n, nu, args):
     if not args.mixed:
         pc = spla.LinearOperator(ops[0].shape, matvec=lambda r: vcycle(0, r))
         return solve(spla.cg, ops[0], b, pc, tick, count)
-    div = divergence(n, 1.0)[:, fr[0]].tocsr()
+    if MACRO[0]:
+        div, vol = macro_divergence(n, 1.0, MACRO[0])
+        div = div[:, fr[0]].tocsr()
+    else:
+        div, vol = divergence(n, 1.0)[:, fr[0]].tocsr(), np.ones((n - 1) ** 3)
     nu_, nc = ops[0].shape[0], div.shape[0]
     lam = max(lam, 1e-12)  # nu = 1/4: no cell term, the pressures vanish
-    k = sp.bmat([[ops[0], div.T], [div, -sp.identity(nc) / lam]]).tocsr()  # V = 1
-    schur = 1.0 / args.schur + 1.0 / lam
-    pc = spla.LinearOperator(k.shape, matvec=lambda r: np.concatenate([vcycle(0, r[:nu_]), r[nu_:] / schur]))
-    return solve(spla.minres, k, np.concatenate([b, np.zeros(nc)]), pc, tick, count)
+    # p = lambda div_M u per (macro-)cell, scaled by V: rows V div, pressure block -V / lambda
+    k = sp.bmat([[ops[0], (sp.diags(vol) @ div).T], [sp.diags(vol) @ div, -sp.diags(vol) / lam]]).tocsr()
+    schur = vol * (1.0 / args.schur + 1.0 / lam)
+    if args.mixed == "minres":
+        pc = spla.LinearOperator(k.shape, matvec=lambda r: np.concatenate([vcycle(0, r[:nu_]), r[nu_:] / schur]))
+        return solve(spla.minres, k, np.concatenate([b, np.zeros(nc)]), pc, tick, count)
+    bd = sp.diags(vol) @ div  # block upper-triangular [[A, B^T], [0, -S]]^-1 under GMRES (right-preconditioned)
+    def tri(r):
+        p = -r[nu_:] / schur
+        return np.concatenate([vcycle(0, r[:nu_] - bd.T @ p), p])
+    pc = spla.LinearOperator(k.shape, matvec=tri)
+    return solve(lambda *a, **kw: spla.gmres(*a, restart=200, callback_type="legacy", **kw), k,
+                 np.concatenate([b, np.zeros(nc)]), pc, tick, count)
 
 
 def solve(method, a, b, pc, tick, count):
@@ -417,18 +466,39 @@ PATCH = {"cell": 2.0, "star": 9.0}  # additive Schwarz: 24 x 24 / 81 x 81 dense 
 # 1.0 GB now), so bounded below by the bytes, ~2x / ~9x a product
 
 
+MACRO_PRODUCT = CELL_PRODUCT / 8  # --macro 2: the volumetric part's product per macro-cell (an estimate, not built:
+                                  # a macro-cell's product does about one cell's work, a 27- instead of 8-corner
+                                  # gather for a rank-one-plus-geometric dP/dF; on cubic cells at nu > 1/4 the
+                                  # cell term is only its volumetric part); --macro-product overrides it
+LEVEL1 = 0.55            # one more Chebyshev step on level 1 (its product, 0.34 of a fine one, and its vectors' work),
+                         # in fine springs products: callgrind at N = 20 (3 levels), KSPSolve 51.5 -> 59.1 M
+                         # instructions an iteration with 4 instead of 2 steps on level 1 (docs/benchmarks.md "The
+                         # nu = 0.45 static solve: macro-cells modelled"); levels 2, 3, .. add 1/8, 1/64, ..: x 8/7
+ORTHO = 0.025            # one GMRES basis vector's dot + axpy over 3N doubles, in fine springs products
+PRESSURE_OPS = 0.1       # --mixed: B and B^T on the (macro-)cells and the pressure block's vector work
+
+
 def work(args, nu, krylov_count):
     """The solve's work in fine springs products: Krylov x (finest-level products (2 s + 1 with Chebyshev s steps;
-    each 1 + CELL_PRODUCT with the cell term) + OTHER + 2 s smoother applications)."""
+    each 1 + CELL_PRODUCT (or MACRO_PRODUCT) with the cell term) + OTHER + extra level-1 smoothing steps
+    + 2 s smoother applications); --mixed: the springs-only V-cycle, the pressures' operators and GMRES's
+    orthogonalization (j basis vectors at iteration j)."""
     cells = nu > 0.25
-    product = 1.0 + (CELL_PRODUCT if cells else 0.0)
     s = args.steps
+    if args.mixed:
+        per = (2 * s + 1) + OTHER + (PRESSURE_OPS if cells else 0.0) + 2 * (args.coarse_steps - 2) * LEVEL1 * 8 / 7
+        orth = ORTHO * (krylov_count + 1) / 2 if args.mixed == "gmres" else 0.0
+        return krylov_count * (per + orth), per + orth
+    cell_product = (args.macro_product if args.macro_product is not None else MACRO_PRODUCT) if args.macro \
+        else CELL_PRODUCT
+    product = 1.0 + (cell_product if cells else 0.0)
     apply = 0.0
+    coarse = 2 * (args.coarse_steps - 2) * LEVEL1 * 8 / 7  # every coarse level's extra steps (OTHER has 2)
     if cells and args.smoother == "bs" and args.sm_levels != "coarse":
         apply = WOODBURY + SCHUR_STEP * max(args.schur_steps - 1, 0) if args.schur_steps >= 0 else float("nan")
     elif args.smoother in PATCH:
         apply = PATCH[args.smoother] * product
-    per_iteration = (2 * s + 1) * product + OTHER + 2 * s * apply
+    per_iteration = (2 * s + 1) * product + OTHER + coarse + 2 * s * apply
     return krylov_count * per_iteration, per_iteration
 
 
@@ -447,18 +517,25 @@ def main():
     ap.add_argument("--pre", type=int, default=None, help="Chebyshev steps before the coarse correction (default --steps)")
     ap.add_argument("--post", type=int, default=None, help="Chebyshev steps after it (default --steps)")
     ap.add_argument("--w-levels", type=int, default=0, help="W-cycle on the finest K levels (0: V-cycle)")
-    ap.add_argument("--coarse", choices=("galerkin", "redisc"), default="galerkin")
+    ap.add_argument("--coarse", choices=("galerkin", "redisc", "macro"), default="galerkin")
     ap.add_argument("--steps", type=int, default=2)
+    ap.add_argument("--coarse-steps", type=int, default=None, help="Chebyshev steps on the coarse levels (default --steps)")
     ap.add_argument("--fraction", type=float, default=0.1, help="Chebyshev's lower bound / largest eigenvalue")
-    ap.add_argument("--mixed", action="store_true", help="pressures per cell, MINRES with a block preconditioner")
+    ap.add_argument("--mixed", nargs="?", const="minres", default=None, choices=("minres", "gmres"),
+                    help="pressures per cell (or macro-cell), MINRES with a block-diagonal or GMRES with a "
+                         "block-triangular preconditioner")
+    ap.add_argument("--macro", type=int, default=0, help="the volumetric part per macro-cell of M^3 cells")
+    ap.add_argument("--macro-product", type=float, default=None, help="--cost: the macro-cells' product (fine springs products)")
     ap.add_argument("--schur", type=float, default=1.5, help="--mixed: w in the Schur complement V (1/w + 1/lambda_c)")
     ap.add_argument("--cost", action="store_true", help="print the work of the solves in the C++ code's costs")
     args = ap.parse_args()
+    MACRO[0] = args.macro
+    args.coarse_steps = args.steps if args.coarse_steps is None else args.coarse_steps
     args.pre = args.steps if args.pre is None else args.pre
     args.post = args.steps if args.post is None else args.post
     counts = [krylov(args.n, nu, args) for nu in (0.25, 0.45, 0.49)]
     print(f"N={args.n} levels={args.levels} smoother={args.smoother} coarse={args.coarse} steps={args.steps} "
-          f"fraction={args.fraction}{' colours=' + args.colours if args.colours else ''} pre/post={args.pre}/{args.post} w_levels={args.w_levels}{' weight=%s theta=%g schur_steps=%d schur_block=%d sm_levels=%s' % (args.weight, args.theta, args.schur_steps, args.schur_block, args.sm_levels) if args.smoother in ('cellsm', 'bs') else ''}{' mixed schur=%g' % args.schur if args.mixed else ''}: Krylov iterations at nu = 0.25 / 0.45 / 0.49: {counts[0]} / {counts[1]} / {counts[2]}")
+          f"fraction={args.fraction}{' colours=' + args.colours if args.colours else ''} pre/post={args.pre}/{args.post} w_levels={args.w_levels}{' weight=%s theta=%g schur_steps=%d schur_block=%d sm_levels=%s' % (args.weight, args.theta, args.schur_steps, args.schur_block, args.sm_levels) if args.smoother in ('cellsm', 'bs') else ''}{' mixed=%s schur=%g' % (args.mixed, args.schur) if args.mixed else ''}{' macro=%d' % args.macro if args.macro else ''}: Krylov iterations at nu = 0.25 / 0.45 / 0.49: {counts[0]} / {counts[1]} / {counts[2]}")
     if args.cost:
         default = 8 * (5 + OTHER)  # the default's work at nu = 0.25 (8 Krylov iterations at N = 17)
         w = [work(args, nu, k) for nu, k in zip((0.25, 0.45, 0.49), counts)]

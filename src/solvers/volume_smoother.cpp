@@ -239,25 +239,42 @@ PetscErrorCode make_volume_smoother(const LocalModel& model, const std::vector<s
 PetscErrorCode use_volume_smoother(const LocalModel& model, const ForceModel& forces, PC pc, bool by_default) {
   PetscFunctionBeginUser;
   PetscBool on = by_default ? PETSC_TRUE : PETSC_FALSE;
-  PetscInt steps = 1;
+  PetscInt steps = 1, coarse_steps = kCellCoarseSteps;
   PetscCall(PetscOptionsGetBool(nullptr, nullptr, "-static_volume_smoother", &on, nullptr));
   PetscCall(PetscOptionsGetInt(nullptr, nullptr, "-static_volume_smoother_steps", &steps, nullptr));
-  if (!on) PetscFunctionReturn(0);
+  PetscCall(PetscOptionsGetInt(nullptr, nullptr, "-static_cell_coarse_steps", &coarse_steps, nullptr));
   Term::VolumeCoupling cells;
-  int mine = 0;
+  int mine[2] = {0, 0};  // this rank has cells; some cell is near cubic and has a volumetric part
   for (const auto& t : forces.terms())
     if (t->volume_coupling(cells)) {
-      mine = 1;
+      mine[0] = 1;
+      for (std::size_t c = 0; c < cells.k.size() && !mine[1]; ++c) {
+        const double* g = &cells.g[3 * c];
+        const double lo = std::min({g[0], g[1], g[2]}), hi = std::max({g[0], g[1], g[2]});
+        mine[1] = cells.k[c] > 0 && hi <= kCellCoarseAspect * lo;
+      }
       break;
     }
   // A rank without cells still takes part in the smoother's collectives: installed where any rank has cells.
-  int any = 0;
-  PetscCallMPI(MPI_Allreduce(&mine, &any, 1, MPI_INT, MPI_MAX, model.comm));
-  if (!any) PetscFunctionReturn(0);
+  int any[2] = {0, 0};
+  PetscCallMPI(MPI_Allreduce(mine, any, 2, MPI_INT, MPI_MAX, model.comm));
+  if (!any[0]) PetscFunctionReturn(0);
   PetscInt levels;
+  PetscCall(PCMGGetLevels(pc, &levels));
+  // The coarse levels' operators hold the cells' volume coupling per coarse cell (Galerkin), and their point
+  // smoother leaves the same slow, nearly volume-preserving errors as the finest's; their products cost about a
+  // third of a fine one. Flatter or taller cells gain few iterations (their counts are the cells' anisotropy's):
+  // docs/benchmarks.md, "The nu = 0.45 static solve: macro-cells modelled, the coarse levels' smoothing".
+  // Set before SNESSetFromOptions: -mg_levels_ksp_max_it and -mg_levels_N_ksp_max_it still win.
+  if (any[1] && coarse_steps > 0)
+    for (PetscInt l = 1; l + 1 < levels; ++l) {
+      KSP smoother;
+      PetscCall(PCMGGetSmoother(pc, l, &smoother));
+      PetscCall(KSPSetTolerances(smoother, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, coarse_steps));
+    }
+  if (!on) PetscFunctionReturn(0);
   KSP smoother;
   PC spc;
-  PetscCall(PCMGGetLevels(pc, &levels));
   PetscCall(PCMGGetSmoother(pc, levels - 1, &smoother));
   PetscCall(KSPGetPC(smoother, &spc));
   PetscCall(make_volume_smoother(model, forces.held(), std::move(cells), static_cast<int>(steps), spc));

@@ -18,10 +18,17 @@
 
 namespace tissue {
 
-// Collective. When the force model has a term with a volume coupling (the cell term) on some rank and the
-// option -static_volume_smoother is on (or, absent, `by_default`), makes the PC of pc's finest level (a PCMG)
-// a PCSHELL applying the Woodbury smoother above; -static_volume_smoother_steps m (default 1) sets Q's steps.
-// The level's KSP (Chebyshev) and its -mg_levels_* options stay; -mg_levels_pc_type replaces the shell.
+// Chebyshev steps on the lattice multigrid's coarse levels (all but the finest and the coarsest) when some cell
+// has a volumetric part (k > 0) and is near cubic (its edges within kCellCoarseAspect of each other):
+// -static_cell_coarse_steps S overrides (0: the levels' default, 2).
+inline constexpr int kCellCoarseSteps = 4;
+inline constexpr double kCellCoarseAspect = 1.25;
+
+// Collective. When the force model has a term with a volume coupling (the cell term) on some rank: sets the coarse
+// levels' Chebyshev steps (above); when the option -static_volume_smoother is on too (or, absent, `by_default`),
+// makes the PC of pc's finest level (a PCMG) a PCSHELL applying the Woodbury smoother above;
+// -static_volume_smoother_steps m (default 1) sets Q's steps. The level's KSP (Chebyshev) and its -mg_levels_*
+// options stay; -mg_levels_pc_type replaces the shell.
 PetscErrorCode use_volume_smoother(const LocalModel& model, const ForceModel& forces, PC pc, bool by_default);
 
 // For the test: the smoother as a PCSHELL on A (a matrix with A's diagonal from MatGetDiagonal, 3 unknowns a

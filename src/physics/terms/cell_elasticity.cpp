@@ -661,8 +661,9 @@ public:
     const std::size_t R = ring_;
     std::vector<double> ring(81 * R);
     for (int k = 0; k < cells_; ++k) {
-      if (!stress_tangent(k, x, &ring[81 * (static_cast<std::size_t>(k) % R)])) return 0;  // inverted: the
-                                                                                            // residual is NaN
+      double* slot = &ring[81 * (static_cast<std::size_t>(k) % R)];
+      if (!(volumetric_only(k) ? volumetric_state(k, x, slot) : stress_tangent(k, x, slot)))
+        return 0;  // inverted: the residual is NaN
       const BoxGeometry& box = m_.shape.body(kinds_[kind_[k]].body);
       const auto b = box.index(m_.id[base_[k]]);
       int corner[8];
@@ -741,18 +742,41 @@ public:
       const Geometry& geo = geometry_[kinds_[kind_[k]].body];
       int corner[8];
       corners(k, corner);
-      // Dg[kl][i] = sum_j D[kl][ij] g_a[j]; K_ab[i][k] = V0 sum_l Dg[kl][i] g_b[l]: -d f_a / d x_b
-      double Dg[9][3];
-      for (int kl = 0; kl < 9; ++kl)
-        for (int i = 0; i < 3; ++i)
-          Dg[kl][i] = D[9 * kl + 3 * i] * geo.g[a][0] + D[9 * kl + 3 * i + 1] * geo.g[a][1] +
-                      D[9 * kl + 3 * i + 2] * geo.g[a][2];
       double Kb[8][9];
-      for (int b = 0; b < 8; ++b)
-        for (int i = 0; i < 3; ++i)
-          for (int kk = 0; kk < 3; ++kk)
-            Kb[b][3 * i + kk] = geo.volume * (Dg[3 * kk][i] * geo.g[b][0] + Dg[3 * kk + 1][i] * geo.g[b][1] +
-                                              Dg[3 * kk + 2][i] * geo.g[b][2]);
+      if (volumetric_only(k)) {
+        // K_ab = V0 (W'' (cof g_a) (x) (cof g_b) + W' [F (g_a x g_b)]_x): d cof_ij / dF_kl = e_ikm e_jln F_mn
+        // contracted with g_a's j and g_b's l is the skew matrix e_ikm w_m, w = F (g_a x g_b).
+        const double *F = D, *cof = D + 9, w1 = D[18], w2 = D[19];
+        const double* ga = geo.g[a];
+        double ca[3];
+        for (int i = 0; i < 3; ++i) ca[i] = cof[3 * i] * ga[0] + cof[3 * i + 1] * ga[1] + cof[3 * i + 2] * ga[2];
+        for (int b = 0; b < 8; ++b) {
+          const double* gb = geo.g[b];
+          const double cross[3] = {ga[1] * gb[2] - ga[2] * gb[1], ga[2] * gb[0] - ga[0] * gb[2],
+                                   ga[0] * gb[1] - ga[1] * gb[0]};
+          double cb[3], w[3];
+          for (int i = 0; i < 3; ++i) {
+            cb[i] = cof[3 * i] * gb[0] + cof[3 * i + 1] * gb[1] + cof[3 * i + 2] * gb[2];
+            w[i] = w1 * (F[3 * i] * cross[0] + F[3 * i + 1] * cross[1] + F[3 * i + 2] * cross[2]);
+          }
+          const double skew[9] = {0, w[2], -w[1], -w[2], 0, w[0], w[1], -w[0], 0};
+          for (int i = 0; i < 3; ++i)
+            for (int kk = 0; kk < 3; ++kk)
+              Kb[b][3 * i + kk] = geo.volume * (w2 * ca[i] * cb[kk] + skew[3 * i + kk]);
+        }
+      } else {
+        // Dg[kl][i] = sum_j D[kl][ij] g_a[j]; K_ab[i][k] = V0 sum_l Dg[kl][i] g_b[l]: -d f_a / d x_b
+        double Dg[9][3];
+        for (int kl = 0; kl < 9; ++kl)
+          for (int i = 0; i < 3; ++i)
+            Dg[kl][i] = D[9 * kl + 3 * i] * geo.g[a][0] + D[9 * kl + 3 * i + 1] * geo.g[a][1] +
+                        D[9 * kl + 3 * i + 2] * geo.g[a][2];
+        for (int b = 0; b < 8; ++b)
+          for (int i = 0; i < 3; ++i)
+            for (int kk = 0; kk < 3; ++kk)
+              Kb[b][3 * i + kk] = geo.volume * (Dg[3 * kk][i] * geo.g[b][0] + Dg[3 * kk + 1][i] * geo.g[b][1] +
+                                                Dg[3 * kk + 2][i] * geo.g[b][2]);
+      }
       for (int b = 0; b < 8; ++b) {
         // the neighbour's slot: (dx + 1) + 3 (dy + 1) + 9 (dz + 1), d = b's offsets - a's
         const int slot = 13 + ((b & 1) - (a & 1)) + 3 * ((b >> 1 & 1) - (a >> 1 & 1)) + 9 * ((b >> 2 & 1) - (a >> 2 & 1));
@@ -1145,6 +1169,30 @@ private:
 
   // Cell k's dP/dF at x, D[9 kl + ij] = dP_ij / dF_kl, one direction kl at a time (dual numbers through stress()
   // and the history); false when the cell is inverted.
+  // Cells whose law is its volumetric part alone, W = kappa/4 (J^2 - 1 - 2 ln J) (mu_c = 0, no virtual diagonals,
+  // no fibres, no history running: cubic cells at nu > 1/4): their tangent blocks in closed form from F, cof F,
+  // W' = kappa/2 (J - 1/J) and W'' = kappa/2 (1 + 1/J^2) (add_row) instead of dP/dF by nine dual-number stresses.
+  bool volumetric_only(int k) const {
+    const Moduli& m = kinds_[kind_[k]].moduli;
+    return plain() && m.mu == 0 && m.alpha[0] == 0 && m.alpha[1] == 0 && m.alpha[2] == 0;
+  }
+  // Fills s[0..8] = F, s[9..17] = cof F, s[18] = W', s[19] = W''; false when the cell is inverted.
+  bool volumetric_state(int k, const double* x, double* s) const {
+    int corner[8];
+    corners(k, corner);
+    double* F = s;
+    gradient(x, corner, geometry_[kinds_[kind_[k]].body], F);
+    double* cof = s + 9;
+    cof[0] = F[4] * F[8] - F[5] * F[7], cof[1] = F[5] * F[6] - F[3] * F[8], cof[2] = F[3] * F[7] - F[4] * F[6];
+    cof[3] = F[2] * F[7] - F[1] * F[8], cof[4] = F[0] * F[8] - F[2] * F[6], cof[5] = F[1] * F[6] - F[0] * F[7];
+    cof[6] = F[1] * F[5] - F[2] * F[4], cof[7] = F[2] * F[3] - F[0] * F[5], cof[8] = F[0] * F[4] - F[1] * F[3];
+    const double J = F[0] * cof[0] + F[1] * cof[1] + F[2] * cof[2];
+    if (!(J > 0)) return false;
+    const double half = 0.5 * kinds_[kind_[k]].moduli.kappa, rJ = 1.0 / J;
+    s[18] = half * (J - rJ), s[19] = half * (1.0 + rJ * rJ);
+    return true;
+  }
+
   bool stress_tangent(int k, const double* x, double* D) const {
     int corner[8];
     corners(k, corner);

@@ -514,6 +514,9 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
   // on a tiny lattice can gain 8 decades in one iteration, so the loose step itself met the tolerance and ended
   // Newton with an answer only as exact as the tolerance (a calibration test at strain 1e-7 then missed E by
   // 1.0e-6 on 2 ranks). -static_first_rtol R sets it (0: off), -ksp_rtol or -snes_ksp_ew end it.
+  // The later steps' solves also end once the residual they leave is far below what Newton tests
+  // (converged_or_enough: 0.1 of the Newton tolerance; -static_enough_fraction F, 0: off): 13 -> 10 Krylov
+  // iterations on the peer problem at 64,000 molecules, 14 -> 11 at 10^6, the same Newton count.
   PetscCall(KSPSetTolerances(ksp, ctx.rtol, PETSC_DEFAULT, PETSC_DEFAULT, 10000));
   {
     PetscBool user_rtol = PETSC_FALSE, user_ew = PETSC_FALSE;

@@ -262,11 +262,16 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
   m.rest.resize(3 * m.local), m.mass.resize(m.local);
   inputs.youngs_modulus.resize(m.local), inputs.degree.resize(m.local);
   std::vector<std::int64_t> first(m.local);
+  // The connection arrays below are reserved once for every local molecule's forward connections (no doubling at
+  // the peak): a bound, not the count (a ghost's connections to other ghosts are not kept), counted here from the
+  // stencil alone, without the owner searches of the walk; the pages of the unused rest are never touched.
+  std::size_t count = 0;
   for (int i = 0; i < m.local; ++i) {
     first[i] = i < m.owned ? owned_first[i] : ghost_first[i - m.owned];
     const std::int64_t g = ids[i];
     block[i] = i < m.owned ? m.first_block + i : ghost_block[i - m.owned];
     const int b = neighbours(g);
+    for (const auto& x : nb) count += x.id > g;
     const BoxGeometry& box = m.shape.body(b);
     const Vec3 x = box.rest_position(g);
     for (int d = 0; d < 3; ++d) m.rest[3 * i + d] = x[d];
@@ -313,15 +318,6 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
     recent[forward] = {bits, static_cast<int>(it->second)};
     return it->second;
   };
-  // The arrays are reserved once for every local molecule's forward connections (no doubling at the peak): a
-  // bound, not the count (a ghost's connections to other ghosts are not kept), counted from the stencil alone,
-  // without the owner searches of the walk; the pages of the unused rest are never touched.
-  std::size_t count = 0;
-  for (int i = 0; i < m.local; ++i) {
-    const std::int64_t a = ids[i];
-    neighbours(a);
-    for (const auto& x : nb) count += x.id > a;
-  }
   std::vector<int> end_a, end_b;
   auto walk = [&]() {
     long owned_before = 0;  // owned molecules with ids below a: where a sits among them

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <type_traits>
 
 namespace tissue {
@@ -14,29 +13,6 @@ namespace {
 // division round the same at any width, and fused multiply-adds are off (CMakeLists.txt), so every clone gives
 // the same bits.
 #define TISSUE_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
-
-// Measured and dropped (docs/benchmarks.md, kern18g): 1 / sqrt(q) for a squared length q (a normal double) from
-// multiplications and additions only, within 2 ulp of 1.0 / std::sqrt(q) (1.23 ulp of the exact value). The first
-// guess comes from q's bits (half its exponent, negated; integer arithmetic), Newton's steps y (3 - q y^2) / 2 square
-// its relative error (3.4e-2, 1.8e-3, 4.6e-6, 3.2e-11); the last step adds y (1/2 - q y^2 / 2), rounded once. Every
-// operation is a correctly rounded IEEE one and fused multiply-adds are off, so every clone gives the same bits.
-__attribute__((always_inline)) inline double inverse_length(double q) {
-  std::uint64_t bits;
-  std::memcpy(&bits, &q, sizeof bits);
-  bits = 0x5fe6eb50c7b537a9ull - (bits >> 1);
-  double y;
-  std::memcpy(&y, &bits, sizeof y);
-  const double h = 0.5 * q;
-  y = y * (1.5 - (h * y) * y);
-  y = y * (1.5 - (h * y) * y);
-  y = y * (1.5 - (h * y) * y);
-  return y + y * (0.5 - (h * y) * y);
-}
-// k (l - l0) / l from q = d.d, l = q / sqrt(q): no square root, no division.
-__attribute__((always_inline)) inline double spring_scale(double q, double k, double l0) {
-  const double inv = inverse_length(q);
-  return k * (q * inv - l0) * inv;
-}
 
 // Generic: connections [begin, end) of any list, sorted by end a. k comes through the type table ks when
 // `ktype` is given, else per connection; l0 likewise through `ltype` and ls.
@@ -66,7 +42,8 @@ __attribute__((always_inline)) inline void generic_body(int begin_c, int end_c, 
     }
     // Geometrically exact: the force acts along the current direction, k times the change of length.
     for (int i = 0; i < n; ++i) {
-      s[i] = spring_scale(d0[i] * d0[i] + d1[i] * d1[i] + d2[i] * d2[i], k[i], l0[i]);
+      const double len = std::sqrt(d0[i] * d0[i] + d1[i] * d1[i] + d2[i] * d2[i]);
+      s[i] = k[i] * (len - l0[i]) / len;
     }
     int i = 0;
     while (i < n) {
@@ -122,7 +99,8 @@ __attribute__((always_inline)) inline void stencil_direction(int n, const double
                                                              double* __restrict g2) {
   for (int i = 0; i < n; ++i) {
     const double d0 = xb[3 * i] - xa[3 * i], d1 = xb[3 * i + 1] - xa[3 * i + 1], d2 = xb[3 * i + 2] - xa[3 * i + 2];
-    const double sc = spring_scale(d0 * d0 + d1 * d1 + d2 * d2, ks, ls);
+    const double len = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
+    const double sc = ks * (len - ls) / len;
     double e0 = sc * d0, e1 = sc * d1, e2 = sc * d2;
     if constexpr (kMasked) {
       const bool on = keep[i] != 0.0;
@@ -171,7 +149,8 @@ __attribute__((always_inline)) inline void stencil_direction_streams(
     const double* __restrict keep, double* __restrict g0, double* __restrict g1, double* __restrict g2) {
   for (int i = 0; i < n; ++i) {
     const double d0 = xb0[i] - xa0[i], d1 = xb1[i] - xa1[i], d2 = xb2[i] - xa2[i];
-    double sc = spring_scale(d0 * d0 + d1 * d1 + d2 * d2, ks, ls);
+    const double len = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
+    double sc = ks * (len - ls) / len;
     if constexpr (kMasked) sc = keep[i] != 0.0 ? sc : 0.0;
     const double e0 = sc * d0, e1 = sc * d1, e2 = sc * d2;
     fb0[i] -= e0, fb1[i] -= e1, fb2[i] -= e2;

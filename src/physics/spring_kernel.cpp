@@ -80,9 +80,12 @@ void generic_forces_streams(int begin_c, int end_c, const int* a, const int* b, 
 }
 
 constexpr int kMaxDirections = 32, kStencilBlock = 64;
+// The forces' blocks (stencil_body): each direction's loop runs over this many molecules, and the block's forces
+// (g, 3 x 8 B a direction and molecule) stay in L1 for the own sums (docs/benchmarks.md: 128 against 64).
+constexpr int kForceBlock = 128;
 // With final_rows, the sweep goes in chunks of molecules so that a chunk's rows are handed over while still in
 // cache (sweep()); the largest ring forces_ring uses (rows: 1.5 MB).
-constexpr int kChunk = 16 * kStencilBlock, kLargestRing = 1 << 16;
+constexpr int kChunk = 8 * kForceBlock, kLargestRing = 1 << 16;
 
 // One direction of a stencil block: the springs from molecules a0 .. a0 + n - 1 to a0 + offset; their forces go
 // into end b's rows at once and into g for end a's sum. Masked: a spring whose keep[i] is 0 gives +0.0 (a select,
@@ -112,10 +115,10 @@ __attribute__((always_inline)) inline void stencil_direction(int n, const double
 // max_offset; `zeroed`: rows below it are zeroed), and the missing directions of the block's exceptions marked in
 // keep (next_exception moves past them); returns the directions some exception of the block lacks (bit s:
 // direction s is masked; a row end lacks 2-3 of a face-diagonal lattice's 9, the other directions run unmasked).
-template <class Layout>
+template <int kBlock, class Layout>
 __attribute__((always_inline)) inline std::uint32_t begin_block(int a0, int n, int directions,
                                                        const StencilException* exceptions, int n_exceptions,
-                                                       int& next_exception, double (*keep)[kStencilBlock], double* f,
+                                                       int& next_exception, double (*keep)[kBlock], double* f,
                                                        Layout at, int owned, int max_offset, int* zeroed) {
   const int reach = std::min(owned, a0 + n + max_offset);
   if (reach > *zeroed) {
@@ -134,7 +137,10 @@ __attribute__((always_inline)) inline std::uint32_t begin_block(int a0, int n, i
 }
 
 // The same arithmetic on three streams (x, y, z each contiguous): every load and store is a plain vector one,
-// where the interlaced form spends most of its instructions de-interleaving (docs/benchmarks.md).
+// where the interlaced form spends most of its instructions de-interleaving (docs/benchmarks.md). Masked with one
+// select, on k (l - l0) / l: a missing spring's forces are then +0.0 or -0.0, and f - (-0.0) = f + 0.0 = f, s + (-0.0)
+// = s bit for bit unless f or s is -0.0, which neither ever is (both start at +0.0, and a sum of doubles is -0.0
+// only when both terms are), so the same bits as three selects, with the rest of the loop unmasked.
 template <bool kMasked>
 __attribute__((always_inline)) inline void stencil_direction_streams(
     int n, const double* __restrict xa0, const double* __restrict xa1, const double* __restrict xa2,
@@ -144,12 +150,9 @@ __attribute__((always_inline)) inline void stencil_direction_streams(
   for (int i = 0; i < n; ++i) {
     const double d0 = xb0[i] - xa0[i], d1 = xb1[i] - xa1[i], d2 = xb2[i] - xa2[i];
     const double len = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
-    const double sc = ks * (len - ls) / len;
-    double e0 = sc * d0, e1 = sc * d1, e2 = sc * d2;
-    if constexpr (kMasked) {
-      const bool on = keep[i] != 0.0;
-      e0 = on ? e0 : 0.0, e1 = on ? e1 : 0.0, e2 = on ? e2 : 0.0;
-    }
+    double sc = ks * (len - ls) / len;
+    if constexpr (kMasked) sc = keep[i] != 0.0 ? sc : 0.0;
+    const double e0 = sc * d0, e1 = sc * d1, e2 = sc * d2;
     fb0[i] -= e0, fb1[i] -= e1, fb2[i] -= e2;
     g0[i] = e0, g1[i] = e1, g2[i] = e2;
   }
@@ -176,13 +179,13 @@ __attribute__((always_inline)) inline void stencil_body(int first, int count, in
                                                         const double* __restrict x, double* __restrict f,
                                                         Layout at, int owned, int max_offset, int* zeroed,
                                                         const ReadAhead* ahead = nullptr) {
-  alignas(64) double g[kMaxDirections][3][kStencilBlock];
+  alignas(64) double g[kMaxDirections][3][kForceBlock];
   // keep[s][i]: 1 where molecule a0 + i has direction s; 0 only for the exceptions of the current block.
-  alignas(64) double keep[kMaxDirections][kStencilBlock];
-  for (int s = 0; s < directions; ++s) std::fill(keep[s], keep[s] + kStencilBlock, 1.0);
+  alignas(64) double keep[kMaxDirections][kForceBlock];
+  for (int s = 0; s < directions; ++s) std::fill(keep[s], keep[s] + kForceBlock, 1.0);
   int next_exception = 0;
-  for (int a0 = first; a0 < first + count; a0 += kStencilBlock) {
-    const int n = std::min(kStencilBlock, first + count - a0);
+  for (int a0 = first; a0 < first + count; a0 += kForceBlock) {
+    const int n = std::min(kForceBlock, first + count - a0);
     const int e0 = next_exception;
     const std::uint32_t masked = begin_block(a0, n, directions, exceptions, n_exceptions, next_exception, keep, f,
                                              at, owned, max_offset, zeroed);
@@ -222,7 +225,7 @@ __attribute__((always_inline)) inline void stencil_body(int first, int count, in
       for (int s = 0; s < directions; ++s) keep[s][exceptions[e].molecule - a0] = 1.0;
     // Each molecule's sum over its directions in order, vectorized across molecules; three directions a pass (the
     // same additions in the same order: a third of the partial sums' loads and stores).
-    alignas(64) double s0[kStencilBlock] = {}, s1[kStencilBlock] = {}, s2[kStencilBlock] = {};
+    alignas(64) double s0[kForceBlock] = {}, s1[kForceBlock] = {}, s2[kForceBlock] = {};
     int s = 0;
     for (; s + 3 <= directions; s += 3)
       for (int i = 0; i < n; ++i) {
@@ -698,7 +701,7 @@ void SpringKernel::sweep(const double* x, double* f, Layout at, FinalRows final_
   };
   // With final_rows, a segment goes in chunks so that a chunk's rows are handed over while still in cache (a
   // row is final once the sweep passed it as end a: it is end b only of lower ends a). The chunks keep the
-  // blocks of kStencilBlock molecules, and no block boundary changes a bit anyway.
+  // blocks of kForceBlock molecules, and no block boundary changes a bit anyway.
   int c = 0;
   for (const Segment& seg : segments_) {
     if (c < seg.first_connection) {

@@ -175,8 +175,7 @@ PetscErrorCode before_newton_step(SNES snes, PetscInt step) {
 // norm), and in the Newton steps after the first also a stop once CG's residual r = F + J dx is below
 // Context::enough in the force norm. Solving further is wasted: the next residual SNES sees is r plus the
 // nonlinear remainder of the step, and the 1e-10 relative tolerance on the preconditioned norm took that linear
-// residual ~1000x below the remainder (peer problem at 64,000 molecules: 2.6e-14 N against a next residual of
-// 1.6e-11 N, Newton tolerance 4e-10 N). The bound keeps the next residual within the Newton tolerance whenever
+// residual ~1000x below the remainder (docs/benchmarks.md, static18j). The bound keeps the next residual within the Newton tolerance whenever
 // the remainder is below 0.9 of it, so the Newton count does not change. r is CG's own recursive residual
 // (KSPSolve_CG's work[0]): one norm, no product; every rank decides on the same global norm.
 struct KrylovTest {
@@ -515,8 +514,8 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
   // Newton with an answer only as exact as the tolerance (a calibration test at strain 1e-7 then missed E by
   // 1.0e-6 on 2 ranks). -static_first_rtol R sets it (0: off), -ksp_rtol or -snes_ksp_ew end it.
   // The later steps' solves also end once the residual they leave is far below what Newton tests
-  // (converged_or_enough: 0.1 of the Newton tolerance; -static_enough_fraction F, 0: off): 13 -> 10 Krylov
-  // iterations on the peer problem at 64,000 molecules, 14 -> 11 at 10^6, the same Newton count.
+  // (converged_or_enough: 0.1 of the Newton tolerance; -static_enough_fraction F, 0: off), with the same Newton
+  // count.
   PetscCall(KSPSetTolerances(ksp, ctx.rtol, PETSC_DEFAULT, PETSC_DEFAULT, 10000));
   {
     PetscBool user_rtol = PETSC_FALSE, user_ew = PETSC_FALSE;

@@ -93,6 +93,11 @@ double Output::stage_bytes() const {
 }
 
 const RowStream& Output::molecule_rows() {
+  // Owned molecules are in increasing id order: when the first and last ids span exactly their count, every id
+  // between is one of them (a lattice's slabs, and every molecule at 1 rank), and the stream needs no id list.
+  const LocalModel& m = model_;
+  if (!molecule_rows_ && m.owned > 0 && m.id[m.owned - 1] - m.id[0] + 1 == m.owned)
+    molecule_rows_ = std::make_unique<RowStream>(m.comm, m.global_molecules, m.owned, RowStream::Consecutive{m.id[0]});
   if (!molecule_rows_)
     molecule_rows_ = std::make_unique<RowStream>(
         model_.comm, model_.global_molecules, model_.owned,
@@ -104,6 +109,14 @@ const RowStream& Output::molecule_rows() {
 }
 
 const RowStream& Output::connection_rows() {
+  // The same for connections, when this rank writes every one it holds (no end a a ghost: every connection at 1
+  // rank) and their ids, increasing, span exactly their count.
+  const LocalModel& m = model_;
+  const int n = m.connections();
+  if (!connection_rows_ && n > 0 && m.written_count == static_cast<std::size_t>(n) &&
+      m.connection_id(n - 1) - m.connection_id(0) + 1 == n)
+    connection_rows_ = std::make_unique<RowStream>(m.comm, m.global_connections, n,
+                                                   RowStream::Consecutive{m.connection_id(0)});
   if (!connection_rows_)
     connection_rows_ = std::make_unique<RowStream>(
         model_.comm, model_.global_connections, model_.connections(),
@@ -202,7 +215,11 @@ void Output::write_snapshot_stage(const SolverState& state, const ForceModel& fo
         molecule_rows().write_double_rows(file, dataset, width, copy3(f.data()), kSkip);
         break;
       }
-      case kEndpoints:  // original molecule ids
+      case kEndpoints: {  // original molecule ids
+        // Where the owned molecules' ids are consecutive (every molecule at 1 rank, a lattice's slab), an owned
+        // end's id is an addition instead of a lookup in the ids' runs (two a connection: most of this field's CPU).
+        const int direct = m.owned > 0 && m.id[m.owned - 1] - m.id[0] + 1 == m.owned ? m.owned : 0;
+        const std::int64_t id0 = direct > 0 ? m.id[0] : 0;
         connection_rows().write_int64_rows(file, dataset, width,
                                            [&](std::int64_t first, std::int64_t end, const std::int64_t*,
                                                std::int64_t* rows) {
@@ -210,9 +227,13 @@ void Output::write_snapshot_stage(const SolverState& state, const ForceModel& fo
           const int c0 = static_cast<int>(first), n = static_cast<int>(end - first);
           m.end_a.decode(c0, c0 + n, a);
           m.end_b.decode(c0, c0 + n, b);
-          for (int j = 0; j < n; ++j) rows[2 * j] = m.id[a[j]], rows[2 * j + 1] = m.id[b[j]];
+          for (int j = 0; j < n; ++j) {
+            rows[2 * j] = a[j] < direct ? id0 + a[j] : m.id[a[j]];
+            rows[2 * j + 1] = b[j] < direct ? id0 + b[j] : m.id[b[j]];
+          }
         }, kSkip);
         break;
+      }
       case kConnectionStrain:
         connection_rows().write_double_rows(
             file, dataset, width,

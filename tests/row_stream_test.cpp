@@ -363,6 +363,74 @@ TEST(RowStream, BatchedRowsInBothLayouts) {
     }
 }
 
+// A rank whose slots are consecutive ids, every one written, may say so (RowStream::Consecutive) instead of listing
+// them: the file, its row hash and the rows read back are the closed form's, whatever the other ranks do (their
+// ids listed, or consecutive too), with the ranks' ranges in rank order (each rank writes its own rows) or not
+// (rows exchanged), in pieces of several sizes; a range outside the dataset is refused on every rank.
+TEST(RowStream, ConsecutiveIdsWriteAsTheirList) {
+  constexpr std::int64_t rows = 10000;
+  const int size = comm_size(), rank = comm_rank();
+  for (const std::int64_t piece : {std::int64_t{9000}, std::int64_t{1234}, std::int64_t{7}})
+    for (const bool reversed : {false, true})
+      for (const bool listed_elsewhere : {false, true}) {
+        // Rank r holds the balanced block of rank r, or of rank size - 1 - r (the blocks out of rank order).
+        const int block = reversed ? size - 1 - rank : rank;
+        const std::int64_t first = NaturalOrder::block_begin(rows, size, block),
+                           end = NaturalOrder::block_begin(rows, size, block + 1);
+        std::vector<std::int64_t> ids;
+        for (std::int64_t id = first; id < end; ++id) ids.push_back(id);
+        const bool consecutive = !listed_elsewhere || rank == 0;
+        const RowStream stream =
+            consecutive ? RowStream(MPI_COMM_WORLD, rows, end - first, RowStream::Consecutive{first}, piece)
+                        : RowStream(MPI_COMM_WORLD, rows, end - first,
+                                    [&](std::int64_t k0, std::int64_t k1, std::int64_t* out) {
+                                      std::copy(ids.begin() + k0, ids.begin() + k1, out);
+                                    },
+                                    RowStream::Batched{}, piece);
+        EXPECT_EQ(stream.own_parts(), size > 1 && !reversed);
+        const std::string file = path() + ".consecutive" + (reversed ? ".reversed" : "") +
+                                 (listed_elsewhere ? ".listed" : "") + ".piece" + std::to_string(piece);
+        Hdf5File f = Hdf5File::create(file, MPI_COMM_WORLD);
+        const std::uint64_t hash = stream.write_double_rows(
+            f, "/values", 3, [&](std::int64_t k0, std::int64_t k1, const std::int64_t* batch_ids, double* out) {
+              for (std::int64_t k = k0; k < k1; ++k) {
+                EXPECT_EQ(batch_ids[k - k0], ids[k]);
+                for (int c = 0; c < 3; ++c) out[3 * (k - k0) + c] = value(ids[k], c);
+              }
+            });
+        const std::uint64_t hash_ids = stream.write_int64_rows(
+            f, "/ids", 2, [&](std::int64_t k0, std::int64_t k1, const std::int64_t*, std::int64_t* out) {
+              for (std::int64_t k = k0; k < k1; ++k) out[2 * (k - k0)] = ids[k], out[2 * (k - k0) + 1] = -ids[k];
+            });
+        f.close();
+        RowStream::release();
+        std::vector<double> expected;
+        std::vector<std::int64_t> expected_ids;
+        for (std::int64_t id = 0; id < rows; ++id) {
+          for (int c = 0; c < 3; ++c) expected.push_back(value(id, c));
+          expected_ids.push_back(id), expected_ids.push_back(-id);
+        }
+        EXPECT_EQ(hash, row_hash_sum(expected.data(), 3, rows, 0)) << file;
+        EXPECT_EQ(hash_ids, row_hash_sum(expected_ids.data(), 2, rows, 0)) << file;
+        Hdf5File h = Hdf5File::open(file, MPI_COMM_WORLD, "file", nullptr);
+        EXPECT_EQ(h.read_double("/values", 0, rows), expected) << file;
+        EXPECT_EQ(h.read_int64("/ids", 0, rows), expected_ids) << file;
+        int wrong = 0;
+        const RowStream::ReadCheck check = stream.read_double(h, "/values", 3, [&](std::int64_t k, const double* row) {
+          for (int c = 0; c < 3; ++c) wrong += row[c] != value(ids[k], c);
+        });
+        EXPECT_EQ(wrong, 0) << file;
+        EXPECT_EQ(check.hash, hash) << file;
+        h.close();
+        MPI_Barrier(MPI_COMM_WORLD);
+        if (rank == 0) std::filesystem::remove(file);
+      }
+  // The last rank's range one past the end (at 1 rank: the only one): every rank throws.
+  const std::int64_t first = NaturalOrder::block_begin(rows, size, rank),
+                     end = NaturalOrder::block_begin(rows, size, rank + 1) + (rank == size - 1);
+  EXPECT_THROW(RowStream(MPI_COMM_WORLD, rows, end - first, RowStream::Consecutive{first}), std::invalid_argument);
+}
+
 TEST(RowStream, AFillThatThrowsOnOneRankStopsEveryRankAndTheStreamWritesOnAfter) {
   // The pieces' rows go point to point a piece ahead of the write, with no collective between pieces: a fill that
   // throws on the rank holding one id (in the first piece, in a middle one, in the last) must stop every rank with

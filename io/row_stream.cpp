@@ -364,6 +364,7 @@ struct Scratch {
 };
 struct Buffers {
   Scratch rows, outgoing[2], incoming[2];
+  std::vector<Scratch> columns;  // write_columns: a piece's rows of each dataset but the first (that one: rows)
   std::vector<char> seen;
 };
 Buffers write_buffers;
@@ -577,6 +578,63 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
   std::uint64_t total = 0;
   check_mpi(MPI_Allreduce(&hash, &total, 1, MPI_UINT64_T, MPI_SUM, comm_), "MPI_Allreduce");
   return total;
+}
+
+void RowStream::write_columns(Hdf5File& file, const std::vector<Column>& columns, const FillColumns& fill) const {
+  if (shared_) throw std::logic_error("RowStream: a stream whose ids repeat across ranks writes no file");
+  const std::size_t n = columns.size();
+  if (size_ > 1 && !own_parts()) {
+    // Rows travel between ranks (write()'s exchange): one dataset after the other.
+    for (std::size_t i = 0; i < n; ++i) {
+      auto one = [&](std::int64_t k0, std::int64_t k1, const std::int64_t* ids, auto* out) {
+        std::vector<void*> rows(n, nullptr);
+        rows[i] = out;
+        fill(k0, k1, ids, rows.data());
+      };
+      if (columns[i].integer)
+        write<std::int64_t>(file, columns[i].dataset, columns[i].width, one, Checksum::skip);
+      else
+        write<double>(file, columns[i].dataset, columns[i].width, one, Checksum::skip);
+    }
+    return;
+  }
+  Buffers& buffer = write_buffers;
+  buffer.columns.resize(n);
+  std::vector<std::unique_ptr<std::int64_t[]>> batch(n);  // a batch's rows, when they cannot go to their place
+  std::vector<void*> at(n);
+  std::int64_t ids[kBatch];
+  auto piece = [&](std::int64_t p, const void** data, std::int64_t* offset, std::int64_t* count) {
+    const auto [first, end] = part_rows(p, rank_);
+    std::vector<std::int64_t*> rows(n);
+    for (std::size_t i = 0; i < n; ++i)
+      rows[i] = (i == 0 ? buffer.rows : buffer.columns[i]).at_least<std::int64_t>(
+          static_cast<std::size_t>(end - first) * columns[i].width);
+    for (std::int64_t k0 = start_[p * size_ + rank_], k_end = start_[p * size_ + rank_ + 1]; k0 < k_end; k0 += kBatch) {
+      const std::int64_t k1 = std::min(k_end, k0 + kBatch), m = k1 - k0;
+      if (dense_) std::iota(ids, ids + m, first_id_ + k0);
+      else ids_(k0, k1, ids);
+      bool consecutive = dense_;  // none skipped, each the one after the last
+      for (std::int64_t j = 0; j < m && !dense_; ++j) consecutive &= ids[j] == ids[0] + j;
+      if (consecutive && ids[0] >= 0) {
+        for (std::size_t i = 0; i < n; ++i) at[i] = rows[i] + (ids[0] - first) * columns[i].width;
+        fill(k0, k1, ids, at.data());
+        continue;
+      }
+      for (std::size_t i = 0; i < n; ++i) {
+        if (!batch[i]) batch[i].reset(new std::int64_t[static_cast<std::size_t>(kBatch) * columns[i].width]);
+        at[i] = batch[i].get();
+      }
+      fill(k0, k1, ids, at.data());
+      for (std::size_t i = 0; i < n; ++i) {
+        const int w = columns[i].width;
+        for (std::int64_t j = 0; j < m; ++j)
+          if (ids[j] >= 0) std::memcpy(rows[i] + (ids[j] - first) * w, batch[i].get() + j * w, 8 * static_cast<std::size_t>(w));
+      }
+    }
+    for (std::size_t i = 0; i < n; ++i) data[i] = rows[i];
+    *offset = first, *count = end - first;
+  };
+  file.write_pieces_together(columns, global_rows_, pieces_, piece);
 }
 
 template <typename T>

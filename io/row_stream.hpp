@@ -97,6 +97,17 @@ public:
                                   Checksum checksum = Checksum::compute) const;
   std::uint64_t write_int64_rows(Hdf5File& file, const std::string& dataset, int width, const FillInts& fill,
                                  Checksum checksum = Checksum::compute) const;
+  // Several datasets of the same rows at once: fill(first, end, ids, rows) writes the rows of slots [first, end)
+  // (at most kBatch, ids as above) of each column i into rows[i], columns[i].width values a row, 8-byte integers or
+  // doubles as the column says; rows[i] null: that column is not wanted in this call. Where no rows travel (1
+  // rank, or each rank's ids one run: own_parts()) the datasets are written a piece of each at a time
+  // (Hdf5File::write_pieces_together) and one fill a batch gives every column (a connection's ends decoded once
+  // for its endpoints, strain and force); otherwise one dataset after the other, one column asked for at a time.
+  // No row hash (snapshots carry none).
+  using Column = Hdf5File::Column;
+  using FillColumns = std::function<void(std::int64_t first_slot, std::int64_t end_slot, const std::int64_t* ids,
+                                         void* const* rows)>;
+  void write_columns(Hdf5File& file, const std::vector<Column>& columns, const FillColumns& fill) const;
   static void release();
 
   // Collective: reads the dataset [global_rows x width] of `file` (its shape checked by the caller) and calls

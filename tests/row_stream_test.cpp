@@ -431,6 +431,87 @@ TEST(RowStream, ConsecutiveIdsWriteAsTheirList) {
   EXPECT_THROW(RowStream(MPI_COMM_WORLD, rows, end - first, RowStream::Consecutive{first}), std::invalid_argument);
 }
 
+// Several datasets written together (RowStream::write_columns): three columns of 24, 16 and 8 bytes a row over
+// 2^19 + 77 rows (several pieces, each dataset many seal blocks), every row the closed form's, and the seal the
+// block hash of every byte (the seal follows a run a dataset when they are written a piece of each at a time). At
+// 1 rank and with each rank's ids one run (with skipped slots too) every fill gives all three columns (written
+// together); with ids scrambled among the ranks one column a call (one dataset after the other).
+TEST(RowStream, ColumnsWrittenTogether) {
+  const std::int64_t rows = (std::int64_t{1} << 19) + 77;
+  const int size = comm_size(), rank = comm_rank();
+  for (const int layout : {0, 1, 2}) {  // runs, runs with skipped slots, scrambled
+    std::vector<std::int64_t> ids;
+    for (std::int64_t id = 0; id < rows; ++id)
+      if ((layout < 2 ? NaturalOrder::block_owner(rows, size, id) : rank_of(id, size)) == rank) {
+        ids.push_back(id);
+        if (layout == 1 && ids.size() % 1000 == 0) ids.push_back(-1);
+      }
+    const RowStream stream(
+        MPI_COMM_WORLD, rows, static_cast<std::int64_t>(ids.size()),
+        [&](std::int64_t k0, std::int64_t k1, std::int64_t* out) { std::copy(ids.begin() + k0, ids.begin() + k1, out); },
+        RowStream::Batched{});
+    const bool together = size == 1 || layout < 2;
+    EXPECT_EQ(stream.own_parts(), size > 1 && layout < 2);
+    const std::string file = std::string(TISSUE_TEST_OUT_DIR) + "/row_stream_columns_np" + std::to_string(size) +
+                             "_" + std::to_string(layout) + ".h5";
+    Hdf5File f = Hdf5File::create(file, MPI_COMM_WORLD);
+    long long calls = 0, all_three = 0;
+    stream.write_columns(f, {{"/a/values", 3, false}, {"/a/pairs", 2, true}, {"/a/roots", 1, false}},
+                         [&](std::int64_t k0, std::int64_t k1, const std::int64_t* batch_ids, void* const* out) {
+                           ++calls;
+                           all_three += out[0] && out[1] && out[2];
+                           for (std::int64_t k = k0; k < k1; ++k) {
+                             const std::int64_t id = ids[static_cast<std::size_t>(k)], j = k - k0;
+                             EXPECT_EQ(batch_ids[j], id);
+                             if (id < 0) continue;  // a skipped slot: its rows are dropped
+                             if (out[0])
+                               for (int c = 0; c < 3; ++c) static_cast<double*>(out[0])[3 * j + c] = value(id, c);
+                             if (out[1])
+                               static_cast<std::int64_t*>(out[1])[2 * j] = id,
+                                                           static_cast<std::int64_t*>(out[1])[2 * j + 1] = -7 * id;
+                             if (out[2]) static_cast<double*>(out[2])[j] = std::sqrt(static_cast<double>(id));
+                           }
+                         });
+    f.close();
+    RowStream::release();
+    EXPECT_GT(calls, 0);
+    EXPECT_EQ(all_three, together ? calls : 0) << layout;
+    if (rank == 0) {
+      std::ifstream in(file, std::ios::binary);
+      const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+      ASSERT_GT(bytes.size(), std::size_t{24} << 20);
+      const std::size_t user_block = 512, block = std::size_t{1} << 20;
+      std::uint64_t sum = 0;
+      for (std::size_t offset = user_block; offset < bytes.size(); offset += block) {
+        const std::uint64_t at = offset;
+        unsigned char le[8];
+        for (int i = 0; i < 8; ++i) le[i] = static_cast<unsigned char>((at >> (8 * i)) & 0xff);
+        sum += fnv1a(fnv1a(kFnvBasis, le, 8), &bytes[offset], std::min(block, bytes.size() - offset));
+      }
+      char header[128];
+      std::snprintf(header, sizeof header, "TISSUE-HDF5-SEAL 1 %zu %016llx\n", bytes.size(),
+                    static_cast<unsigned long long>(sum));
+      EXPECT_EQ(std::string(bytes.begin(), bytes.begin() + static_cast<long>(std::strlen(header))), header) << layout;
+    }
+    Hdf5File h = Hdf5File::open(file, MPI_COMM_WORLD, "file", nullptr);  // the seal checked by the reader too
+    const std::int64_t first = NaturalOrder::block_begin(rows, size, rank), end = NaturalOrder::block_begin(rows, size, rank + 1);
+    const std::vector<double> values = h.read_double("/a/values", first, end - first),
+                              roots = h.read_double("/a/roots", first, end - first);
+    const std::vector<std::int64_t> pairs = h.read_int64("/a/pairs", first, end - first);
+    std::int64_t wrong = 0;
+    for (std::int64_t i = 0; i < end - first; ++i) {
+      const std::int64_t id = first + i;
+      for (int c = 0; c < 3; ++c) wrong += values[3 * i + c] != value(id, c);
+      wrong += pairs[2 * i] != id || pairs[2 * i + 1] != -7 * id;
+      wrong += roots[i] != std::sqrt(static_cast<double>(id));
+    }
+    EXPECT_EQ(wrong, 0) << layout;
+    h.close();
+    MPI_Barrier(MPI_COMM_WORLD);
+    if (rank == 0) std::filesystem::remove(file);
+  }
+}
+
 TEST(RowStream, AFillThatThrowsOnOneRankStopsEveryRankAndTheStreamWritesOnAfter) {
   // The pieces' rows go point to point a piece ahead of the write, with no collective between pieces: a fill that
   // throws on the rank holding one id (in the first piece, in a middle one, in the last) must stop every rank with

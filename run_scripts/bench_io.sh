@@ -12,8 +12,8 @@
 #                tissue run`. A watcher (one Python process, polling every 2 ms: no process started per poll, which
 #                took CPU from the ranks on a 2-core machine) times the write from the moment final.h5.tmp appears
 #                (H5Fcreate, after the rows have been put in original order) to the moment it is renamed to final.h5
-#                (H5Fclose, the seal and its fsync done, on every rank); then `sync -f` flushes it to the disk and
-#                the flushed time is reported too. The reference, in the same sample right after it: dd of the same
+#                (H5Fclose, the seal and its fsync done, on every rank); then an fsync of the file (nothing left to
+#                flush: the seal's fsync came before the rename) and the flushed time is reported too. The reference, in the same sample right after it: dd of the same
 #                number of bytes of zeros, `bs=1M conv=fdatasync` (1 MiB writes, timed to the end of its flush, as
 #                ours ends with fsync), into the same directory. REPEAT samples (default 3), each ours then dd,
 #                alternating, so that both see the same minutes of a shared machine and the same page-cache state
@@ -68,7 +68,11 @@ with open(os.path.join(d, "log"), "w") as log:
         sys.exit(1)
     if t_done is None:
         t_done = time.monotonic()
-    subprocess.run(["sync", "-f", done], check=True)
+    # The file alone, as dd's fdatasync flushes its file alone (`sync -f` flushed the whole file system: other
+    # processes' dirty pages too, and a process start).
+    fd = os.open(done, os.O_RDONLY)
+    os.fsync(fd)
+    os.close(fd)
     print(t_tmp - t0, t_done - t0, time.monotonic() - t0)
 PY
 }

@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <iterator>
 #include <cerrno>
 #include <cstring>
 
@@ -126,12 +127,22 @@ void SealStream::stop() {
 void SealStream::wrote(std::uint64_t offset, std::uint64_t bytes) {
   if (fd_ < 0 || bytes == 0) return;
   // A block is taken once this rank has written every byte of it in one run (its writes of a dataset follow each
-  // other); a block begun by another rank or by HDF5's metadata is left for the re-read at close.
-  if (offset != run_end_)
-    next_block_ = offset <= kSealUserBlock ? 0 : (offset - kSealUserBlock + kSealBlock - 1) / kSealBlock;
-  run_end_ = offset + bytes;
-  while (block_offset(next_block_ + 1) <= run_end_) {
-    pending_.push_back(next_block_++);
+  // other; datasets written a piece of each at a time are as many runs, side by side); a block begun by another
+  // rank or by HDF5's metadata is left for the re-read at close. A write that continues no run starts one in
+  // place of the one extended longest ago.
+  Run* run = nullptr;
+  for (Run& r : runs_)
+    if (r.end == offset) run = &r;
+  if (!run) {
+    Run& oldest = *std::min_element(std::begin(runs_), std::end(runs_),
+                                    [](const Run& x, const Run& y) { return x.used < y.used; });
+    oldest.next_block = offset <= kSealUserBlock ? 0 : (offset - kSealUserBlock + kSealBlock - 1) / kSealBlock;
+    run = &oldest;
+  }
+  run->end = offset + bytes;
+  run->used = ++writes_;
+  while (block_offset(run->next_block + 1) <= run->end) {
+    pending_.push_back(run->next_block++);
     if (pending_.size() == static_cast<std::size_t>(kLanes)) hand_over();
   }
 }
@@ -157,14 +168,21 @@ void SealStream::hash(const std::vector<std::uint64_t>& blocks) {
   std::uint64_t h[kLanes];
   const int n = static_cast<int>(blocks.size());
   const std::uint64_t size = block_offset(*std::max_element(blocks.begin(), blocks.end()) + 1);
+  // The blocks are written: their pages go to the disk now, in the background (one call a run of consecutive
+  // blocks), while they are hashed from the page cache (a page being written back reads as any other).
+  for (int i = 0; i < n;) {
+    int j = i + 1;
+    while (j < n && blocks[j] == blocks[j - 1] + 1) ++j;
+    ::sync_file_range(fd_, static_cast<off_t>(block_offset(blocks[i])),
+                      static_cast<off_t>((blocks[j - 1] - blocks[i] + 1) * kSealBlock), SYNC_FILE_RANGE_WRITE);
+    i = j;
+  }
   if (hash_seal_blocks(fd_, size, blocks.data(), n, h, buffer_)) {
     for (int i = 0; i < n; ++i) {
       sum_ += h[i];
       hashed_.push_back(blocks[i]);
       if (mine_.size() <= blocks[i]) mine_.resize(blocks[i] + 1, 0);
       mine_[blocks[i]] = 1;
-      // Hashed: its pages may go to the disk now, in the background.
-      ::sync_file_range(fd_, static_cast<off_t>(block_offset(blocks[i])), kSealBlock, SYNC_FILE_RANGE_WRITE);
       writing_.push_back(blocks[i]);
     }
   }

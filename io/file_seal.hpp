@@ -67,8 +67,13 @@ private:
   bool busy_ = false, closing_ = false;
 
   int fd_ = -1;
-  std::uint64_t run_end_ = 0;     // the end of the run of bytes this rank wrote last, without a gap
-  std::uint64_t next_block_ = 0;  // the run's first block not yet taken
+  // Runs of bytes this rank wrote without a gap: where each ends, its first block not yet taken, and when it was
+  // last extended (a count of writes). A run per dataset being written (Hdf5File::write_pieces_together: three).
+  struct Run {
+    std::uint64_t end = ~std::uint64_t{0}, next_block = 0, used = 0;
+  };
+  Run runs_[4] = {{0, 0, 0}};
+  std::uint64_t writes_ = 0;
   std::vector<std::uint64_t> pending_, hashed_;
   std::vector<std::uint64_t> writing_;  // hashed blocks whose pages are being written back, oldest first
   std::vector<char> mine_;              // by block: hashed here

@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <deque>
 #include <cstdint>
 #include <thread>
 #include <vector>
@@ -473,80 +474,118 @@ void Hdf5File::write_pieces(const std::string& dataset, int64_t global_rows, int
 void Hdf5File::write_pieces(const std::string& dataset, int64_t global_rows, int width, hid_t file_type,
                             hid_t mem_type, int64_t pieces, const Piece& piece, bool independent,
                             const Placed& placed) {
-  if (!writable_ || file_ < 0) fail(dataset, "file is not open for writing");
-  long long mine[5] = {global_rows, -global_rows, width, -width, pieces}, all[5];
-  check_mpi(MPI_Allreduce(mine, all, 5, MPI_LONG_LONG, MPI_MAX, comm_), path_, "MPI_Allreduce");
-  if (all[0] != -all[1] || all[2] != -all[3] || all[4] != pieces || width <= 0)
-    throw std::runtime_error(path_ + ": " + dataset + ": ranks disagree on the dataset's shape");
+  write_columns({{dataset, width, file_type, mem_type}}, global_rows, pieces,
+                [&](int64_t p, const void** data, int64_t* offset, int64_t* rows) { data[0] = piece(p, offset, rows); },
+                independent, placed);
+}
 
-  const hsize_t dims[2] = {static_cast<hsize_t>(global_rows), static_cast<hsize_t>(width)};
-  Handle file_space(H5Screate_simple(2, dims, nullptr), H5Sclose);
-  if (!file_space.ok()) fail(dataset, "cannot create dataspace");
+void Hdf5File::write_pieces_together(const std::vector<Column>& columns, int64_t global_rows, int64_t pieces,
+                                     const Pieces& piece) {
+  std::vector<TypedColumn> typed;
+  for (const Column& c : columns)
+    typed.push_back({c.dataset, c.width, c.integer ? H5T_STD_I64LE : H5T_IEEE_F64LE,
+                     c.integer ? H5T_NATIVE_INT64 : H5T_NATIVE_DOUBLE});
+  write_columns(typed, global_rows, pieces, piece, true, nullptr);
+}
+
+void Hdf5File::write_columns(const std::vector<TypedColumn>& columns, int64_t global_rows, int64_t pieces,
+                             const Pieces& piece, bool independent, const Placed& placed) {
+  const std::size_t n_columns = columns.size();
+  const std::string& first_name = n_columns > 0 ? columns[0].dataset : std::string();
+  if (!writable_ || file_ < 0) fail(first_name, "file is not open for writing");
+  std::vector<long long> mine, all(3 + 2 * n_columns);
+  mine = {global_rows, -global_rows, pieces};
+  for (const TypedColumn& c : columns) mine.push_back(c.width), mine.push_back(-c.width);
+  check_mpi(MPI_Allreduce(mine.data(), all.data(), static_cast<int>(mine.size()), MPI_LONG_LONG, MPI_MAX, comm_),
+            path_, "MPI_Allreduce");
+  bool disagree = all[0] != -all[1] || all[2] != pieces;
+  for (std::size_t i = 0; i < n_columns; ++i)
+    disagree = disagree || all[3 + 2 * i] != -all[4 + 2 * i] || columns[i].width <= 0;
+  if (disagree || n_columns == 0)
+    throw std::runtime_error(path_ + ": " + first_name + ": ranks disagree on the dataset's shape");
+
+  std::deque<Handle> file_spaces;  // Handle does not move: a deque builds each in place
+  for (const TypedColumn& c : columns) {
+    const hsize_t dims[2] = {static_cast<hsize_t>(global_rows), static_cast<hsize_t>(c.width)};
+    file_spaces.emplace_back(H5Screate_simple(2, dims, nullptr), H5Sclose);
+    if (!file_spaces.back().ok()) fail(c.dataset, "cannot create dataspace");
+  }
   Handle lcpl(H5Pcreate(H5P_LINK_CREATE), H5Pclose);
-  if (!lcpl.ok() || H5Pset_create_intermediate_group(lcpl.get(), 1) < 0) fail(dataset, "cannot set up creation");
+  if (!lcpl.ok() || H5Pset_create_intermediate_group(lcpl.get(), 1) < 0) fail(first_name, "cannot set up creation");
   // Every row is written: skip the fill pass that would otherwise write the whole dataset twice.
   Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
   if (!dcpl.ok() || H5Pset_fill_time(dcpl.get(), H5D_FILL_TIME_NEVER) < 0 ||
       H5Pset_alloc_time(dcpl.get(), H5D_ALLOC_TIME_EARLY) < 0)
-    fail(dataset, "cannot set up creation");
+    fail(first_name, "cannot set up creation");
   // Each rank writes its rows alone (independent MPI-IO), in writes of at most kWriteBytes: a rank's rows of a
   // piece are one contiguous run of the file, so a collective write would only add the aggregators' copy, and the
   // kernel takes several times the system time for one write of a few MB as for the same bytes in writes of 1 MiB
   // (docs/benchmarks.md, "Snapshot writes at half of dd"; dd writes 1 MiB blocks too).
   constexpr int64_t kWriteBytes = int64_t{1} << 20;
-  const int64_t rows_a_write = std::max<int64_t>(1, kWriteBytes / (8 * static_cast<int64_t>(width)));
   Handle dxpl(H5Pcreate(H5P_DATASET_XFER), H5Pclose);
-  if (!dxpl.ok() || H5Pset_dxpl_mpio(dxpl.get(), H5FD_MPIO_INDEPENDENT) < 0) fail(dataset, "cannot set up transfer");
+  if (!dxpl.ok() || H5Pset_dxpl_mpio(dxpl.get(), H5FD_MPIO_INDEPENDENT) < 0)
+    fail(first_name, "cannot set up transfer");
   // From here the work is agreed: a rank whose write fails (a full disk, a quota, an I/O error) stops every rank
   // with its line instead of leaving them in the file's next collective. The file is then abandoned, not closed:
   // after a failed write HDF5's ranks no longer agree on what closing it takes (one flushes its metadata in a
   // collective, another has given up and truncates in another: a hang, seen with the fault tests).
   try {
-    Handle dset(-1, H5Dclose);
+    std::deque<Handle> dsets;
+    for (std::size_t i = 0; i < n_columns; ++i) dsets.emplace_back(-1, H5Dclose);
     agree(comm_, [&] {
-      errno = 0;
-      dset.reset(H5Dcreate2(file_, dataset.c_str(), file_type, file_space.get(), lcpl.get(), dcpl.get(), H5P_DEFAULT));
-      if (!dset.ok()) fail_io(dataset, "cannot create dataset", errno);
+      for (std::size_t i = 0; i < n_columns; ++i) {
+        errno = 0;
+        dsets[i].reset(H5Dcreate2(file_, columns[i].dataset.c_str(), columns[i].file_type, file_spaces[i].get(),
+                                  lcpl.get(), dcpl.get(), H5P_DEFAULT));
+        if (!dsets[i].ok()) fail_io(columns[i].dataset, "cannot create dataset", errno);
+      }
     });
     // Where the rows lie in the file (contiguous, allocated at creation): the seal hashes the blocks this rank
     // writes whole as it goes (io/file_seal.hpp).
-    const haddr_t base = H5Dget_offset(dset.get());
-    SealStream* seal = base != HADDR_UNDEF ? seal_.get() : nullptr;
-    if (placed) placed(base != HADDR_UNDEF ? static_cast<int64_t>(base) : -1);
+    std::vector<haddr_t> bases(n_columns);
+    for (std::size_t i = 0; i < n_columns; ++i) bases[i] = H5Dget_offset(dsets[i].get());
+    if (placed) placed(bases[0] != HADDR_UNDEF ? static_cast<int64_t>(bases[0]) : -1);
     // Each rank's rows of a piece are one block of the file's rows.
-    auto bad_block = [&](int64_t offset, int64_t rows, const void* data) {
-      return offset < 0 || rows < 0 || offset + rows > global_rows || (rows > 0 && !data);
+    auto bad_block = [&](int64_t offset, int64_t rows, const void* const* data) {
+      bool bad = offset < 0 || rows < 0 || offset + rows > global_rows;
+      for (std::size_t i = 0; i < n_columns; ++i) bad = bad || (rows > 0 && !data[i]);
+      return bad;
     };
     auto bad_block_error = [&] {
-      return std::runtime_error(path_ + ": " + dataset + ": a rank's row block lies outside [0, " +
+      return std::runtime_error(path_ + ": " + first_name + ": a rank's row block lies outside [0, " +
                                 std::to_string(global_rows) + ") or has no data");
     };
-    auto write_rows = [&](int64_t offset, int64_t rows, const void* data) {
+    auto write_rows = [&](std::size_t i, int64_t offset, int64_t rows, const void* data) {
+      const TypedColumn& c = columns[i];
+      const int64_t rows_a_write = std::max<int64_t>(1, kWriteBytes / (8 * static_cast<int64_t>(c.width)));
+      SealStream* seal = bases[i] != HADDR_UNDEF ? seal_.get() : nullptr;
       for (int64_t done = 0; done < rows; done += rows_a_write) {
         const int64_t n = std::min(rows_a_write, rows - done);
-        Handle space(H5Scopy(file_space.get()), H5Sclose);
+        Handle space(H5Scopy(file_spaces[i].get()), H5Sclose);
         const hsize_t start[2] = {static_cast<hsize_t>(offset + done), 0};
-        const hsize_t count[2] = {static_cast<hsize_t>(n), static_cast<hsize_t>(width)};
+        const hsize_t count[2] = {static_cast<hsize_t>(n), static_cast<hsize_t>(c.width)};
         Handle mem_space(H5Screate_simple(2, count, nullptr), H5Sclose);
-        if (!space.ok() || !mem_space.ok()) fail(dataset, "cannot create dataspace");
+        if (!space.ok() || !mem_space.ok()) fail(c.dataset, "cannot create dataspace");
         if (H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr) < 0)
-          fail(dataset, "cannot select rows");
+          fail(c.dataset, "cannot select rows");
         errno = 0;
-        const char* from = static_cast<const char*>(data) + done * width * 8;
-        if (H5Dwrite(dset.get(), mem_type, mem_space.get(), space.get(), dxpl.get(), from) < 0)
-          fail_io(dataset, "cannot write rows [" + std::to_string(offset + done) + ", " +
-                           std::to_string(offset + done + n) + ")", errno);
-        if (seal) seal->wrote(base + static_cast<std::uint64_t>((offset + done) * width * 8), n * width * 8);
+        const char* from = static_cast<const char*>(data) + done * c.width * 8;
+        if (H5Dwrite(dsets[i].get(), c.mem_type, mem_space.get(), space.get(), dxpl.get(), from) < 0)
+          fail_io(c.dataset, "cannot write rows [" + std::to_string(offset + done) + ", " +
+                             std::to_string(offset + done + n) + ")", errno);
+        if (seal) seal->wrote(bases[i] + static_cast<std::uint64_t>((offset + done) * c.width * 8), n * c.width * 8);
       }
     };
+    std::vector<const void*> data(n_columns, nullptr);
     if (independent) {
       // No rank waits for another between its pieces: one agreement after the last.
       agree(comm_, [&] {
         for (int64_t p = 0; p < pieces; ++p) {
           int64_t offset = 0, rows = 0;
-          const void* data = piece(p, &offset, &rows);
-          if (bad_block(offset, rows, data)) throw bad_block_error();
-          write_rows(offset, rows, data);
+          std::fill(data.begin(), data.end(), nullptr);
+          piece(p, data.data(), &offset, &rows);
+          if (bad_block(offset, rows, data.data())) throw bad_block_error();
+          for (std::size_t i = 0; i < n_columns; ++i) write_rows(i, offset, rows, data[i]);
         }
       });
     } else {
@@ -558,11 +597,12 @@ void Hdf5File::write_pieces(const std::string& dataset, int64_t global_rows, int
       std::exception_ptr failed;
       for (int64_t p = 0; p < pieces; ++p) {
         int64_t offset = 0, rows = 0;
-        const void* data = nullptr;
         try {
-          data = piece(p, &offset, &rows);
-          if (!failed && bad_block(offset, rows, data)) throw bad_block_error();
-          if (!failed) write_rows(offset, rows, data);
+          std::fill(data.begin(), data.end(), nullptr);
+          piece(p, data.data(), &offset, &rows);
+          if (!failed && bad_block(offset, rows, data.data())) throw bad_block_error();
+          if (!failed)
+            for (std::size_t i = 0; i < n_columns; ++i) write_rows(i, offset, rows, data[i]);
         } catch (...) {
           if (!failed) failed = std::current_exception();
         }

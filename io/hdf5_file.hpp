@@ -96,6 +96,20 @@ public:
   void write_pieces(const std::string& dataset, int64_t global_rows, int width, bool integer, int64_t pieces,
                     const Piece& piece, bool independent = false, const Placed& placed = nullptr);
 
+  // Collective, as write_pieces with `independent`, for several new datasets of the same rows (each its own
+  // width and type), created in the given order and written a piece of each at a time: piece p of every dataset,
+  // then piece p + 1, so that one pass over a piece's items fills the rows of all (a lattice's connections: their
+  // ends decoded once for the endpoints, strains and forces). piece(p, data, &offset, &rows) sets data[i] to this
+  // rank's rows [offset, offset + rows) of dataset i (valid until the next call) and makes no MPI call.
+  struct Column {
+    std::string dataset;
+    int width;
+    bool integer;
+  };
+  using Pieces = std::function<void(int64_t piece, const void** data, int64_t* offset, int64_t* rows)>;
+  void write_pieces_together(const std::vector<Column>& columns, int64_t global_rows, int64_t pieces,
+                             const Pieces& piece);
+
   // The shape {rows, width} of a 2-D dataset (a 1-D dataset reads as width 1).
   std::vector<int64_t> shape(const std::string& dataset) const;
   // Throws unless the dataset is stored as tissue writes it: contiguous, unfiltered, of 8-byte floats (or 8-byte
@@ -135,6 +149,14 @@ private:
   void write_pieces(const std::string& dataset, int64_t global_rows, int width, hid_t file_type, hid_t mem_type,
                     int64_t pieces, const Piece& piece, bool independent = false,
                     const Placed& placed = nullptr);
+  struct TypedColumn {
+    std::string dataset;
+    int width;
+    hid_t file_type, mem_type;
+  };
+  // write_pieces and write_pieces_together: `placed` sees the first column's offset.
+  void write_columns(const std::vector<TypedColumn>& columns, int64_t global_rows, int64_t pieces,
+                     const Pieces& piece, bool independent, const Placed& placed);
   void write_numeric_attribute(const std::string& object, const std::string& name, hid_t file_type,
                                hid_t mem_type, const void* value);
   void read_block(const std::string& dataset, int64_t offset, int64_t rows, void* data, hid_t mem_type,

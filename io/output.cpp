@@ -93,6 +93,11 @@ double Output::stage_bytes() const {
 }
 
 const RowStream& Output::molecule_rows() {
+  // Owned molecules are in increasing id order: when the first and last ids span exactly their count, every id
+  // between is one of them (a lattice's slabs, and every molecule at 1 rank), and the stream needs no id list.
+  const LocalModel& m = model_;
+  if (!molecule_rows_ && m.owned > 0 && m.id[m.owned - 1] - m.id[0] + 1 == m.owned)
+    molecule_rows_ = std::make_unique<RowStream>(m.comm, m.global_molecules, m.owned, RowStream::Consecutive{m.id[0]});
   if (!molecule_rows_)
     molecule_rows_ = std::make_unique<RowStream>(
         model_.comm, model_.global_molecules, model_.owned,
@@ -104,6 +109,14 @@ const RowStream& Output::molecule_rows() {
 }
 
 const RowStream& Output::connection_rows() {
+  // The same for connections, when this rank writes every one it holds (no end a a ghost: every connection at 1
+  // rank) and their ids, increasing, span exactly their count.
+  const LocalModel& m = model_;
+  const int n = m.connections();
+  if (!connection_rows_ && n > 0 && m.written_count == static_cast<std::size_t>(n) &&
+      m.connection_id(n - 1) - m.connection_id(0) + 1 == n)
+    connection_rows_ = std::make_unique<RowStream>(m.comm, m.global_connections, n,
+                                                   RowStream::Consecutive{m.connection_id(0)});
   if (!connection_rows_)
     connection_rows_ = std::make_unique<RowStream>(
         model_.comm, model_.global_connections, model_.connections(),
@@ -168,21 +181,45 @@ void Output::write_snapshot_stage(const SolverState& state, const ForceModel& fo
       std::copy(from + 3 * first, from + 3 * end, rows);
     };
   };
-  auto connection_rows_of = [&](auto row_of) {
-    return [&m, x, row_of](std::int64_t first, std::int64_t end, const std::int64_t*, double* rows) {
+  // The connections' fields at once (RowStream::write_columns): a batch's ends are decoded once for its endpoints,
+  // strains and forces, and each connection's length computed once for both of the last two.
+  auto write_connections = [&](Hdf5File& file, const std::vector<SnapshotField>& fields,
+                               const std::vector<const char*>& datasets, std::int64_t, const std::vector<int>& widths) {
+    std::vector<RowStream::Column> columns;
+    int endpoints = -1, strain = -1, force = -1;
+    for (std::size_t i = 0; i < fields.size(); ++i) {
+      columns.push_back({datasets[i], widths[i], fields[i] == kEndpoints});
+      (fields[i] == kEndpoints ? endpoints : fields[i] == kConnectionStrain ? strain : force) = static_cast<int>(i);
+    }
+    // Where the owned molecules' ids are consecutive (every molecule at 1 rank, a lattice's slab), an owned end's
+    // id is an addition instead of a lookup in the ids' runs (two a connection: most of the endpoints' CPU).
+    const int direct = m.owned > 0 && m.id[m.owned - 1] - m.id[0] + 1 == m.owned ? m.owned : 0;
+    const std::int64_t id0 = direct > 0 ? m.id[0] : 0;
+    const ConnectionColumn l0 = m.table.rest_length_column(), k = m.table.stiffness_column();
+    connection_rows().write_columns(file, columns, [&](std::int64_t first, std::int64_t end, const std::int64_t*,
+                                                       void* const* rows) {
       int a[RowStream::kBatch], b[RowStream::kBatch];
       const int c0 = static_cast<int>(first), n = static_cast<int>(end - first);
       m.end_a.decode(c0, c0 + n, a);
       m.end_b.decode(c0, c0 + n, b);
-      const ConnectionColumn l0 = m.table.rest_length_column(), k = m.table.stiffness_column();
+      if (std::int64_t* e = endpoints >= 0 ? static_cast<std::int64_t*>(rows[endpoints]) : nullptr)  // molecule ids
+        for (int j = 0; j < n; ++j) {
+          e[2 * j] = a[j] < direct ? id0 + a[j] : m.id[a[j]];
+          e[2 * j + 1] = b[j] < direct ? id0 + b[j] : m.id[b[j]];
+        }
+      double* strains = strain >= 0 ? static_cast<double*>(rows[strain]) : nullptr;
+      double* spring_forces = force >= 0 ? static_cast<double*>(rows[force]) : nullptr;
+      if (!strains && !spring_forces) return;
       for (int j = 0; j < n; ++j) {
         const double* xa = x + 3 * a[j];
         const double* xb = x + 3 * b[j];
         const double len = std::sqrt((xb[0] - xa[0]) * (xb[0] - xa[0]) + (xb[1] - xa[1]) * (xb[1] - xa[1]) +
                                      (xb[2] - xa[2]) * (xb[2] - xa[2]));
-        rows[j] = row_of(len - l0[c0 + j], l0[c0 + j], k[c0 + j]);
+        const double rest = l0[c0 + j], stretch = len - rest;
+        if (strains) strains[j] = stretch / rest;
+        if (spring_forces) spring_forces[j] = k[c0 + j] * stretch;
       }
-    };
+    });
   };
   auto write_field = [&](Hdf5File& file, SnapshotField field, const char* dataset, std::int64_t, int width) {
     switch (field) {
@@ -202,27 +239,10 @@ void Output::write_snapshot_stage(const SolverState& state, const ForceModel& fo
         molecule_rows().write_double_rows(file, dataset, width, copy3(f.data()), kSkip);
         break;
       }
-      case kEndpoints:  // original molecule ids
-        connection_rows().write_int64_rows(file, dataset, width,
-                                           [&](std::int64_t first, std::int64_t end, const std::int64_t*,
-                                               std::int64_t* rows) {
-          int a[RowStream::kBatch], b[RowStream::kBatch];
-          const int c0 = static_cast<int>(first), n = static_cast<int>(end - first);
-          m.end_a.decode(c0, c0 + n, a);
-          m.end_b.decode(c0, c0 + n, b);
-          for (int j = 0; j < n; ++j) rows[2 * j] = m.id[a[j]], rows[2 * j + 1] = m.id[b[j]];
-        }, kSkip);
-        break;
+      case kEndpoints:
       case kConnectionStrain:
-        connection_rows().write_double_rows(
-            file, dataset, width,
-            connection_rows_of([](double stretch, double l0, double) { return stretch / l0; }), kSkip);
-        break;
-      case kConnectionForce:
-        connection_rows().write_double_rows(
-            file, dataset, width, connection_rows_of([](double stretch, double, double k) { return k * stretch; }),
-            kSkip);
-        break;
+      case kConnectionForce:  // the connections' block: write_connections, all at once
+        throw std::logic_error(std::string(dataset) + ": a connection field is written with the others");
       case kCellCorners: {
         const std::vector<std::int64_t> rows = cells_->to_natural_ids(cells.corners.data(), cells.nodes);
         file.write(dataset, cells.global_count, width, cells_->begin(), cells_->count(), rows.data());
@@ -256,7 +276,7 @@ void Output::write_snapshot_stage(const SolverState& state, const ForceModel& fo
   };
   const std::string name = file_name ? file_name : final ? "final.h5" : snapshot_name(state.step);
   const std::string dir = scene_.output.directory + "/";
-  frames_.push_back(write_snapshot(dir + name, m.comm, header, present, write_field));
+  frames_.push_back(write_snapshot(dir + name, m.comm, header, present, write_field, write_connections));
   RowStream::release();
   // A single box lattice is also a structured grid: lattice.xdmf, the same series without the connection list.
   const bool box = m.shape.bodies() == 1 && !m.shape.unstructured() &&

@@ -117,6 +117,16 @@ RowStream::RowStream(MPI_Comm comm, std::int64_t global_rows, std::int64_t slots
   plan(false);
 }
 
+RowStream::RowStream(MPI_Comm comm, std::int64_t global_rows, std::int64_t slots, Consecutive ids,
+                     std::int64_t piece_rows)
+    : comm_(comm), global_rows_(global_rows), slots_(slots), piece_rows_(piece_rows),
+      ids_([first = ids.first_id](std::int64_t k0, std::int64_t k1, std::int64_t* out) {
+        std::iota(out, out + (k1 - k0), first + k0);
+      }),
+      first_id_(ids.first_id), consecutive_(true) {
+  plan(false);
+}
+
 RowStream::RowStream(MPI_Comm comm, std::int64_t global_rows, std::int64_t slots, Id id, Shared,
                      std::int64_t piece_rows)
     : comm_(comm), global_rows_(global_rows), slots_(slots), piece_rows_(piece_rows), shared_(true),
@@ -130,37 +140,9 @@ void RowStream::plan(bool shared) {
   if (piece_rows_ <= 0) throw std::invalid_argument("RowStream: pieces of no rows");
   pieces_ = std::max<std::int64_t>(1, (global_rows_ + piece_rows_ - 1) / piece_rows_);
   std::int64_t parts = pieces_ * size_;
-  start_.assign(parts + 1, slots_);
-  send_.assign(parts, 0);
-  // One pass over the slots, a batch of ids at a time: the items go to the parts in order, since their ids
-  // increase (the part holding an id is found by moving past the parts that end before it: no division an item).
-  runs_.assign(parts, 0);
-  int bad = global_rows_ < 0;
-  std::int64_t next_part = 0, last = -1, part = 0, part_end = parts > 0 ? part_begin(0, 1) : 0, run_part = -1;
-  std::int64_t ids[kBatch], count = 0, first_id = -1;
-  for (std::int64_t k0 = 0; k0 < slots_ && !bad; k0 += kBatch) {
-    const std::int64_t k1 = std::min(slots_, k0 + kBatch);
-    ids_(k0, k1, ids);
-    for (std::int64_t k = k0; k < k1; ++k) {
-      const std::int64_t i = ids[k - k0];
-      if (i < 0) continue;
-      if (i <= last || i >= global_rows_) {
-        bad = 1;
-        break;
-      }
-      if (count++ == 0) first_id = i;
-      const bool joins = i == last + 1;
-      last = i;
-      while (i >= part_end) {
-        ++part;
-        part_end = part_begin(part / size_, part % size_ + 1);
-      }
-      while (next_part <= part) start_[next_part++] = k;
-      ++send_[part];
-      // The runs of consecutive ids this rank sends to each part: they travel instead of the ids (write()).
-      if (!joins || part != run_part) ++runs_[part], run_part = part;
-    }
-  }
+  int bad = 0;
+  std::int64_t count = 0, first_id = -1, last = -1, ids[kBatch];
+  count_parts(bad, count, first_id, last);
   // When each rank's ids are one run and the runs follow each other in rank order (a lattice's molecules, and the
   // connections each rank writes, in every partition by slabs of ids), each rank's part of a piece is its own rows
   // there: nothing travels, and each rank writes its rows where they lie (a part then holds up to a piece's rows, at
@@ -194,6 +176,8 @@ void RowStream::plan(bool shared) {
       // The slot of this rank's item p x piece_rows_, for each piece (slots_ past its last item).
       std::vector<std::int64_t> piece_slot(pieces_ + 1, slots_);
       std::int64_t item = 0, p = 0;
+      if (consecutive_)  // item i is slot i
+        for (; p < pieces_; ++p) piece_slot[p] = std::min(slots_, p * piece_rows_);
       for (std::int64_t k0 = 0; k0 < slots_ && p < pieces_; k0 += kBatch) {
         const std::int64_t k1 = std::min(slots_, k0 + kBatch);
         ids_(k0, k1, ids);
@@ -225,6 +209,57 @@ void RowStream::plan(bool shared) {
     throw std::invalid_argument(std::string("RowStream: the ranks' ids are not ") +
                                 (shared ? "increasing ids in " : "an increasing permutation of ") + "0.." +
                                 std::to_string(global_rows_ - 1));
+}
+
+void RowStream::count_parts(int& bad, std::int64_t& count, std::int64_t& first_id, std::int64_t& last) {
+  const std::int64_t parts = pieces_ * size_;
+  start_.assign(parts + 1, slots_);
+  send_.assign(parts, 0);
+  runs_.assign(parts, 0);
+  bad = global_rows_ < 0;
+  count = 0, first_id = -1, last = -1;
+  if (consecutive_) {
+    // Slots [0, slots) hold ids [first_id_, first_id_ + slots): each part takes the ids of its range, as one run.
+    bad = bad || first_id_ < 0 || slots_ < 0 || first_id_ + slots_ > global_rows_;
+    if (bad) return;
+    for (std::int64_t q = 0; q < parts; ++q) {
+      const int r = static_cast<int>(q % size_);
+      const std::int64_t begin = part_begin(q / size_, r), end = part_begin(q / size_, r + 1);
+      start_[q] = std::clamp(begin - first_id_, std::int64_t{0}, slots_);
+      send_[q] = static_cast<int>(std::max<std::int64_t>(0, std::min(end, first_id_ + slots_) - std::max(begin, first_id_)));
+      runs_[q] = send_[q] > 0;
+    }
+    count = slots_;
+    if (count > 0) first_id = first_id_, last = first_id_ + slots_ - 1;
+    return;
+  }
+  // One pass over the slots, a batch of ids at a time: the items go to the parts in order, since their ids
+  // increase (the part holding an id is found by moving past the parts that end before it: no division an item).
+  std::int64_t next_part = 0, part = 0, part_end = parts > 0 ? part_begin(0, 1) : 0, run_part = -1;
+  std::int64_t ids[kBatch];
+  for (std::int64_t k0 = 0; k0 < slots_ && !bad; k0 += kBatch) {
+    const std::int64_t k1 = std::min(slots_, k0 + kBatch);
+    ids_(k0, k1, ids);
+    for (std::int64_t k = k0; k < k1; ++k) {
+      const std::int64_t i = ids[k - k0];
+      if (i < 0) continue;
+      if (i <= last || i >= global_rows_) {
+        bad = 1;
+        break;
+      }
+      if (count++ == 0) first_id = i;
+      const bool joins = i == last + 1;
+      last = i;
+      while (i >= part_end) {
+        ++part;
+        part_end = part_begin(part / size_, part % size_ + 1);
+      }
+      while (next_part <= part) start_[next_part++] = k;
+      ++send_[part];
+      // The runs of consecutive ids this rank sends to each part: they travel instead of the ids (write()).
+      if (!joins || part != run_part) ++runs_[part], run_part = part;
+    }
+  }
 }
 
 void RowStream::exchange_counts(const std::vector<int>& send, const std::vector<int>& runs, std::vector<int>& recv,
@@ -306,48 +341,44 @@ RowStream::Split RowStream::aligned_split(std::int64_t base, std::int64_t row_by
 namespace {
 
 // The piece buffers of writes, left uninitialized (every value is written before it is read): the rows of this
-// rank's part, and the messages sent to and received from other ranks, one set for even pieces and one for odd. One set a process, of the type being
-// written (the other type's is given back), kept until RowStream::release().
-template <typename T>
+// rank's part, and the messages sent to and received from other ranks, one set for even pieces and one for odd. One
+// set a process, of 8-byte values of either type (doubles and int64 datasets take turns in a file, and a buffer
+// given back and taken again is page faults again: tens of microseconds a fault on this project's virtual
+// machines), kept until RowStream::release().
+static_assert(sizeof(double) == sizeof(std::int64_t), "one buffer holds either type's values");
 struct Scratch {
-  std::unique_ptr<T[]> data;
-  std::size_t size = 0;
+  struct Free {
+    void operator()(void* p) const { ::operator delete(p); }
+  };
+  std::unique_ptr<void, Free> data;
+  std::size_t size = 0;  // values
+  template <typename T>
   T* at_least(std::size_t n) {
-    if (n > size) data.reset(), data.reset(new T[n]), size = n;
-    return data.get();
+    if (n > size) data.reset(), data.reset(::operator new(n * sizeof(T))), size = n;
+    return static_cast<T*>(data.get());
+  }
+  template <typename T>
+  const T* get() const {
+    return static_cast<const T*>(data.get());
   }
 };
-template <typename T>
 struct Buffers {
-  Scratch<T> rows, outgoing[2], incoming[2];
+  Scratch rows, outgoing[2], incoming[2];
+  std::vector<Scratch> columns;  // write_columns: a piece's rows of each dataset but the first (that one: rows)
   std::vector<char> seen;
 };
-Buffers<double> double_buffers;
-Buffers<std::int64_t> int_buffers;
-template <typename T>
-Buffers<T>& buffers_for() {
-  if constexpr (std::is_same_v<T, double>) {
-    int_buffers = {};
-    return double_buffers;
-  } else {
-    double_buffers = {};
-    return int_buffers;
-  }
-}
+Buffers write_buffers;
 
 }  // namespace
 
-void RowStream::release() {
-  double_buffers = {};
-  int_buffers = {};
-}
+void RowStream::release() { write_buffers = {}; }
 
 template <typename T>
 std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int width,
                                const std::function<void(std::int64_t, std::int64_t, const std::int64_t*, T*)>& fill,
                                Checksum checksum) const {
   if (shared_) throw std::logic_error("RowStream: a stream whose ids repeat across ranks writes no file");
-  Buffers<T>& buffer = buffers_for<T>();
+  Buffers& buffer = write_buffers;
   std::vector<char>& seen = buffer.seen;
   // A batch's ids and, when its rows cannot go straight to their place, its rows (a few hundred kB at most).
   std::int64_t ids[kBatch];
@@ -398,8 +429,8 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
         out_size += message_size((*send)[q * size_ + r], (*runs)[q * size_ + r]);
         in_size += message_size((*recv)[q * size_ + r], (*recv_runs)[q * size_ + r]);
       }
-    T* outgoing = buffer.outgoing[q & 1].at_least(out_size);
-    T* incoming = buffer.incoming[q & 1].at_least(in_size);
+    T* outgoing = buffer.outgoing[q & 1].at_least<T>(out_size);
+    T* incoming = buffer.incoming[q & 1].at_least<T>(in_size);
     const int tag = 0x7e00 + static_cast<int>(q % 256);
     std::size_t in = 0;
     for (int r = 0; r < size_; ++r) {
@@ -480,7 +511,7 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
                                   ? part_rows(p, rank_)
                                   : std::pair{aligned.bounds[p * size_ + rank_], aligned.bounds[p * size_ + rank_ + 1]};
     const std::int64_t length = end - first;
-    T* rows = buffer.rows.at_least(static_cast<std::size_t>(length) * width);
+    T* rows = buffer.rows.at_least<T>(static_cast<std::size_t>(length) * width);
     if (exchange) seen.assign(static_cast<std::size_t>(length), 0);
     // This rank's own items go straight to their rows (plan() checked their ids: increasing, inside this part).
     // A fill that throws here is thrown below, once this piece's messages are received.
@@ -488,8 +519,8 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
       for (std::int64_t k0 = (*start)[p * size_ + rank_], end = (*start)[p * size_ + rank_ + 1]; k0 < end; k0 += kBatch) {
         const std::int64_t k1 = std::min(end, k0 + kBatch), n = k1 - k0;
         slot_ids(k0, k1, ids);
-        bool consecutive = true;  // none skipped, each the one after the last
-        for (std::int64_t j = 0; j < n; ++j) consecutive &= ids[j] == ids[0] + j;
+        bool consecutive = dense_;  // none skipped, each the one after the last
+        for (std::int64_t j = 0; j < n && !dense_; ++j) consecutive &= ids[j] == ids[0] + j;
         if (consecutive && ids[0] >= 0) {
           fill(k0, k1, ids, rows + (ids[0] - first) * width);
           if (exchange) std::memset(seen.data() + (ids[0] - first), 1, static_cast<std::size_t>(n));
@@ -512,7 +543,7 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
       // is a bad id set.
       Exchange& x = exchanges[p & 1];
       wait_all(x.receives);
-      const T* message = buffer.incoming[p & 1].data.get();
+      const T* message = buffer.incoming[p & 1].get<T>();
       for (const int r : x.from) {
         const std::int64_t n = (*recv)[p * size_ + r], n_runs = (*recv_runs)[p * size_ + r];
         const T* from = message;
@@ -547,6 +578,63 @@ std::uint64_t RowStream::write(Hdf5File& file, const std::string& dataset, int w
   std::uint64_t total = 0;
   check_mpi(MPI_Allreduce(&hash, &total, 1, MPI_UINT64_T, MPI_SUM, comm_), "MPI_Allreduce");
   return total;
+}
+
+void RowStream::write_columns(Hdf5File& file, const std::vector<Column>& columns, const FillColumns& fill) const {
+  if (shared_) throw std::logic_error("RowStream: a stream whose ids repeat across ranks writes no file");
+  const std::size_t n = columns.size();
+  if (size_ > 1 && !own_parts()) {
+    // Rows travel between ranks (write()'s exchange): one dataset after the other.
+    for (std::size_t i = 0; i < n; ++i) {
+      auto one = [&](std::int64_t k0, std::int64_t k1, const std::int64_t* ids, auto* out) {
+        std::vector<void*> rows(n, nullptr);
+        rows[i] = out;
+        fill(k0, k1, ids, rows.data());
+      };
+      if (columns[i].integer)
+        write<std::int64_t>(file, columns[i].dataset, columns[i].width, one, Checksum::skip);
+      else
+        write<double>(file, columns[i].dataset, columns[i].width, one, Checksum::skip);
+    }
+    return;
+  }
+  Buffers& buffer = write_buffers;
+  buffer.columns.resize(n);
+  std::vector<std::unique_ptr<std::int64_t[]>> batch(n);  // a batch's rows, when they cannot go to their place
+  std::vector<void*> at(n);
+  std::int64_t ids[kBatch];
+  auto piece = [&](std::int64_t p, const void** data, std::int64_t* offset, std::int64_t* count) {
+    const auto [first, end] = part_rows(p, rank_);
+    std::vector<std::int64_t*> rows(n);
+    for (std::size_t i = 0; i < n; ++i)
+      rows[i] = (i == 0 ? buffer.rows : buffer.columns[i]).at_least<std::int64_t>(
+          static_cast<std::size_t>(end - first) * columns[i].width);
+    for (std::int64_t k0 = start_[p * size_ + rank_], k_end = start_[p * size_ + rank_ + 1]; k0 < k_end; k0 += kBatch) {
+      const std::int64_t k1 = std::min(k_end, k0 + kBatch), m = k1 - k0;
+      if (dense_) std::iota(ids, ids + m, first_id_ + k0);
+      else ids_(k0, k1, ids);
+      bool consecutive = dense_;  // none skipped, each the one after the last
+      for (std::int64_t j = 0; j < m && !dense_; ++j) consecutive &= ids[j] == ids[0] + j;
+      if (consecutive && ids[0] >= 0) {
+        for (std::size_t i = 0; i < n; ++i) at[i] = rows[i] + (ids[0] - first) * columns[i].width;
+        fill(k0, k1, ids, at.data());
+        continue;
+      }
+      for (std::size_t i = 0; i < n; ++i) {
+        if (!batch[i]) batch[i].reset(new std::int64_t[static_cast<std::size_t>(kBatch) * columns[i].width]);
+        at[i] = batch[i].get();
+      }
+      fill(k0, k1, ids, at.data());
+      for (std::size_t i = 0; i < n; ++i) {
+        const int w = columns[i].width;
+        for (std::int64_t j = 0; j < m; ++j)
+          if (ids[j] >= 0) std::memcpy(rows[i] + (ids[j] - first) * w, batch[i].get() + j * w, 8 * static_cast<std::size_t>(w));
+      }
+    }
+    for (std::size_t i = 0; i < n; ++i) data[i] = rows[i];
+    *offset = first, *count = end - first;
+  };
+  file.write_pieces_together(columns, global_rows_, pieces_, piece);
 }
 
 template <typename T>

@@ -90,7 +90,8 @@ XdmfEntry write_snapshot(const std::string& path, MPI_Comm comm, const SnapshotF
 }
 
 XdmfEntry write_snapshot(const std::string& path, MPI_Comm comm, const SnapshotHeader& h,
-                         const bool (&present)[kSnapshotFields], const SnapshotFieldWriter& write_field) {
+                         const bool (&present)[kSnapshotFields], const SnapshotFieldWriter& write_field,
+                         const SnapshotFieldsWriter& write_connections) {
   struct Dataset {
     const char* name;
     const char* units;
@@ -128,6 +129,20 @@ XdmfEntry write_snapshot(const std::string& path, MPI_Comm comm, const SnapshotH
   for (int i = 0; i < kSnapshotFields; ++i) {
     if (!present[i]) continue;
     const Dataset& d = datasets[i];
+    if (write_connections && d.block == 1) {
+      // Every present field of the connections' block (they follow each other in SnapshotField order), at once.
+      std::vector<SnapshotField> fields;
+      std::vector<const char*> names;
+      std::vector<int> widths;
+      for (int j = i; j < kSnapshotFields && datasets[j].block == 1; ++j)
+        if (present[j]) fields.push_back(static_cast<SnapshotField>(j)), names.push_back(datasets[j].name),
+                        widths.push_back(datasets[j].width);
+      write_connections(file, fields, names, counts[1], widths);
+      for (const SnapshotField f : fields)
+        if (*datasets[f].units) file.set_attribute(datasets[f].name, "units", datasets[f].units);
+      i = fields.back();
+      continue;
+    }
     write_field(file, static_cast<SnapshotField>(i), d.name, counts[d.block], d.width);
     if (*d.units) file.set_attribute(d.name, "units", d.units);
   }

@@ -72,11 +72,19 @@ class Hdf5File;
 using SnapshotFieldWriter =
     std::function<void(Hdf5File& file, SnapshotField field, const char* dataset, int64_t global_rows, int width)>;
 
+// Collective: writes the fields of one row block (in SnapshotField order, datasets[i] of widths[i] for fields[i])
+// into the open file at once (RowStream::write_columns), so that what their rows share is computed once.
+using SnapshotFieldsWriter =
+    std::function<void(Hdf5File& file, const std::vector<SnapshotField>& fields,
+                       const std::vector<const char*>& datasets, int64_t global_rows, const std::vector<int>& widths)>;
+
 // Collective over comm. Writes path atomically (path.tmp, renamed when complete) with the header's attributes and
-// the fields `present` marks (the same on every rank), each by `write_field`; the files are those of the
-// SnapshotFrame overload below. Returns the frame's XDMF entry (file name without directory).
+// the fields `present` marks (the same on every rank), each by `write_field`, or, given `write_connections`, the
+// connections' fields (endpoints, strain, force) by one call of it; the files are those of the SnapshotFrame
+// overload below. Returns the frame's XDMF entry (file name without directory).
 XdmfEntry write_snapshot(const std::string& path, MPI_Comm comm, const SnapshotHeader& header,
-                         const bool (&present)[kSnapshotFields], const SnapshotFieldWriter& write_field);
+                         const bool (&present)[kSnapshotFields], const SnapshotFieldWriter& write_field,
+                         const SnapshotFieldsWriter& write_connections = nullptr);
 
 // Collective over comm. Writes path atomically (path.tmp, renamed when complete). Throws std::invalid_argument
 // (on every rank) when the blocks do not tile 0..N-1 / 0..C-1 or a field has the wrong length, and

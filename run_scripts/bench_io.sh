@@ -12,8 +12,9 @@
 #                tissue run`. A watcher (one Python process, polling every 2 ms: no process started per poll, which
 #                took CPU from the ranks on a 2-core machine) times the write from the moment final.h5.tmp appears
 #                (H5Fcreate, after the rows have been put in original order) to the moment it is renamed to final.h5
-#                (H5Fclose, the seal and its fsync done, on every rank); then `sync -f` flushes it to the disk and
-#                the flushed time is reported too. The reference, in the same sample right after it: dd of the same
+#                (H5Fclose, the seal and its fsync done, on every rank); then, at once, an fsync of that file alone
+#                (as dd's: nothing should be left to flush, the seal's fsync came before the rename) and the flushed
+#                time is reported too. The reference, in the same sample right after it: dd of the same
 #                number of bytes of zeros, `bs=1M conv=fdatasync` (1 MiB writes, timed to the end of its flush, as
 #                ours ends with fsync), into the same directory. REPEAT samples (default 3), each ours then dd,
 #                alternating, so that both see the same minutes of a shared machine and the same page-cache state
@@ -56,20 +57,29 @@ with open(os.path.join(d, "log"), "w") as log:
     p = subprocess.Popen(["mpirun", "--oversubscribe", "-np", ranks, tissue, "run", os.path.join(d, "scene.toml")],
                          stdout=log, stderr=subprocess.STDOUT)
     t0 = time.monotonic()
-    t_tmp = t_done = None
+    t_tmp = t_done = t_sync = None
+    # The flush of the file alone, as soon as it has its name (as dd's fdatasync flushes its file alone): it was
+    # `sync -f` (the whole file system: other processes' dirty pages too) after the process had exited (its
+    # teardown counted as flushing).
+    def flush():
+        fd = os.open(done, os.O_RDONLY)
+        os.fsync(fd)
+        os.close(fd)
+        return time.monotonic()
     while p.poll() is None:
         if t_tmp is None and os.path.exists(tmp):
             t_tmp = time.monotonic()
         if t_tmp is not None and t_done is None and os.path.exists(done):
             t_done = time.monotonic()
+            t_sync = flush()
             break
         time.sleep(0.002)
     if p.wait() != 0 or t_tmp is None:
         sys.exit(1)
     if t_done is None:
         t_done = time.monotonic()
-    subprocess.run(["sync", "-f", done], check=True)
-    print(t_tmp - t0, t_done - t0, time.monotonic() - t0)
+        t_sync = flush()
+    print(t_tmp - t0, t_done - t0, t_sync - t0)
 PY
 }
 timed_dd() {  # FILE COUNT: seconds

@@ -363,6 +363,155 @@ TEST(RowStream, BatchedRowsInBothLayouts) {
     }
 }
 
+// A rank whose slots are consecutive ids, every one written, may say so (RowStream::Consecutive) instead of listing
+// them: the file, its row hash and the rows read back are the closed form's, whatever the other ranks do (their
+// ids listed, or consecutive too), with the ranks' ranges in rank order (each rank writes its own rows) or not
+// (rows exchanged), in pieces of several sizes; a range outside the dataset is refused on every rank.
+TEST(RowStream, ConsecutiveIdsWriteAsTheirList) {
+  constexpr std::int64_t rows = 10000;
+  const int size = comm_size(), rank = comm_rank();
+  for (const std::int64_t piece : {std::int64_t{9000}, std::int64_t{1234}, std::int64_t{7}})
+    for (const bool reversed : {false, true})
+      for (const bool listed_elsewhere : {false, true}) {
+        // Rank r holds the balanced block of rank r, or of rank size - 1 - r (the blocks out of rank order).
+        const int block = reversed ? size - 1 - rank : rank;
+        const std::int64_t first = NaturalOrder::block_begin(rows, size, block),
+                           end = NaturalOrder::block_begin(rows, size, block + 1);
+        std::vector<std::int64_t> ids;
+        for (std::int64_t id = first; id < end; ++id) ids.push_back(id);
+        const bool consecutive = !listed_elsewhere || rank == 0;
+        const RowStream stream =
+            consecutive ? RowStream(MPI_COMM_WORLD, rows, end - first, RowStream::Consecutive{first}, piece)
+                        : RowStream(MPI_COMM_WORLD, rows, end - first,
+                                    [&](std::int64_t k0, std::int64_t k1, std::int64_t* out) {
+                                      std::copy(ids.begin() + k0, ids.begin() + k1, out);
+                                    },
+                                    RowStream::Batched{}, piece);
+        EXPECT_EQ(stream.own_parts(), size > 1 && !reversed);
+        const std::string file = path() + ".consecutive" + (reversed ? ".reversed" : "") +
+                                 (listed_elsewhere ? ".listed" : "") + ".piece" + std::to_string(piece);
+        Hdf5File f = Hdf5File::create(file, MPI_COMM_WORLD);
+        const std::uint64_t hash = stream.write_double_rows(
+            f, "/values", 3, [&](std::int64_t k0, std::int64_t k1, const std::int64_t* batch_ids, double* out) {
+              for (std::int64_t k = k0; k < k1; ++k) {
+                EXPECT_EQ(batch_ids[k - k0], ids[k]);
+                for (int c = 0; c < 3; ++c) out[3 * (k - k0) + c] = value(ids[k], c);
+              }
+            });
+        const std::uint64_t hash_ids = stream.write_int64_rows(
+            f, "/ids", 2, [&](std::int64_t k0, std::int64_t k1, const std::int64_t*, std::int64_t* out) {
+              for (std::int64_t k = k0; k < k1; ++k) out[2 * (k - k0)] = ids[k], out[2 * (k - k0) + 1] = -ids[k];
+            });
+        f.close();
+        RowStream::release();
+        std::vector<double> expected;
+        std::vector<std::int64_t> expected_ids;
+        for (std::int64_t id = 0; id < rows; ++id) {
+          for (int c = 0; c < 3; ++c) expected.push_back(value(id, c));
+          expected_ids.push_back(id), expected_ids.push_back(-id);
+        }
+        EXPECT_EQ(hash, row_hash_sum(expected.data(), 3, rows, 0)) << file;
+        EXPECT_EQ(hash_ids, row_hash_sum(expected_ids.data(), 2, rows, 0)) << file;
+        Hdf5File h = Hdf5File::open(file, MPI_COMM_WORLD, "file", nullptr);
+        EXPECT_EQ(h.read_double("/values", 0, rows), expected) << file;
+        EXPECT_EQ(h.read_int64("/ids", 0, rows), expected_ids) << file;
+        int wrong = 0;
+        const RowStream::ReadCheck check = stream.read_double(h, "/values", 3, [&](std::int64_t k, const double* row) {
+          for (int c = 0; c < 3; ++c) wrong += row[c] != value(ids[k], c);
+        });
+        EXPECT_EQ(wrong, 0) << file;
+        EXPECT_EQ(check.hash, hash) << file;
+        h.close();
+        MPI_Barrier(MPI_COMM_WORLD);
+        if (rank == 0) std::filesystem::remove(file);
+      }
+  // The last rank's range one past the end (at 1 rank: the only one): every rank throws.
+  const std::int64_t first = NaturalOrder::block_begin(rows, size, rank),
+                     end = NaturalOrder::block_begin(rows, size, rank + 1) + (rank == size - 1);
+  EXPECT_THROW(RowStream(MPI_COMM_WORLD, rows, end - first, RowStream::Consecutive{first}), std::invalid_argument);
+}
+
+// Several datasets written together (RowStream::write_columns): three columns of 24, 16 and 8 bytes a row over
+// 2^19 + 77 rows (several pieces, each dataset many seal blocks), every row the closed form's, and the seal the
+// block hash of every byte (the seal follows a run a dataset when they are written a piece of each at a time). At
+// 1 rank and with each rank's ids one run (with skipped slots too) every fill gives all three columns (written
+// together); with ids scrambled among the ranks one column a call (one dataset after the other).
+TEST(RowStream, ColumnsWrittenTogether) {
+  const std::int64_t rows = (std::int64_t{1} << 19) + 77;
+  const int size = comm_size(), rank = comm_rank();
+  for (const int layout : {0, 1, 2}) {  // runs, runs with skipped slots, scrambled
+    std::vector<std::int64_t> ids;
+    for (std::int64_t id = 0; id < rows; ++id)
+      if ((layout < 2 ? NaturalOrder::block_owner(rows, size, id) : rank_of(id, size)) == rank) {
+        ids.push_back(id);
+        if (layout == 1 && ids.size() % 1000 == 0) ids.push_back(-1);
+      }
+    const RowStream stream(
+        MPI_COMM_WORLD, rows, static_cast<std::int64_t>(ids.size()),
+        [&](std::int64_t k0, std::int64_t k1, std::int64_t* out) { std::copy(ids.begin() + k0, ids.begin() + k1, out); },
+        RowStream::Batched{});
+    const bool together = size == 1 || layout < 2;
+    EXPECT_EQ(stream.own_parts(), size > 1 && layout < 2);
+    const std::string file = std::string(TISSUE_TEST_OUT_DIR) + "/row_stream_columns_np" + std::to_string(size) +
+                             "_" + std::to_string(layout) + ".h5";
+    Hdf5File f = Hdf5File::create(file, MPI_COMM_WORLD);
+    long long calls = 0, all_three = 0;
+    stream.write_columns(f, {{"/a/values", 3, false}, {"/a/pairs", 2, true}, {"/a/roots", 1, false}},
+                         [&](std::int64_t k0, std::int64_t k1, const std::int64_t* batch_ids, void* const* out) {
+                           ++calls;
+                           all_three += out[0] && out[1] && out[2];
+                           for (std::int64_t k = k0; k < k1; ++k) {
+                             const std::int64_t id = ids[static_cast<std::size_t>(k)], j = k - k0;
+                             EXPECT_EQ(batch_ids[j], id);
+                             if (id < 0) continue;  // a skipped slot: its rows are dropped
+                             if (out[0])
+                               for (int c = 0; c < 3; ++c) static_cast<double*>(out[0])[3 * j + c] = value(id, c);
+                             if (out[1])
+                               static_cast<std::int64_t*>(out[1])[2 * j] = id,
+                                                           static_cast<std::int64_t*>(out[1])[2 * j + 1] = -7 * id;
+                             if (out[2]) static_cast<double*>(out[2])[j] = std::sqrt(static_cast<double>(id));
+                           }
+                         });
+    f.close();
+    RowStream::release();
+    EXPECT_GT(calls, 0);
+    EXPECT_EQ(all_three, together ? calls : 0) << layout;
+    if (rank == 0) {
+      std::ifstream in(file, std::ios::binary);
+      const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+      ASSERT_GT(bytes.size(), std::size_t{24} << 20);
+      const std::size_t user_block = 512, block = std::size_t{1} << 20;
+      std::uint64_t sum = 0;
+      for (std::size_t offset = user_block; offset < bytes.size(); offset += block) {
+        const std::uint64_t at = offset;
+        unsigned char le[8];
+        for (int i = 0; i < 8; ++i) le[i] = static_cast<unsigned char>((at >> (8 * i)) & 0xff);
+        sum += fnv1a(fnv1a(kFnvBasis, le, 8), &bytes[offset], std::min(block, bytes.size() - offset));
+      }
+      char header[128];
+      std::snprintf(header, sizeof header, "TISSUE-HDF5-SEAL 1 %zu %016llx\n", bytes.size(),
+                    static_cast<unsigned long long>(sum));
+      EXPECT_EQ(std::string(bytes.begin(), bytes.begin() + static_cast<long>(std::strlen(header))), header) << layout;
+    }
+    Hdf5File h = Hdf5File::open(file, MPI_COMM_WORLD, "file", nullptr);  // the seal checked by the reader too
+    const std::int64_t first = NaturalOrder::block_begin(rows, size, rank), end = NaturalOrder::block_begin(rows, size, rank + 1);
+    const std::vector<double> values = h.read_double("/a/values", first, end - first),
+                              roots = h.read_double("/a/roots", first, end - first);
+    const std::vector<std::int64_t> pairs = h.read_int64("/a/pairs", first, end - first);
+    std::int64_t wrong = 0;
+    for (std::int64_t i = 0; i < end - first; ++i) {
+      const std::int64_t id = first + i;
+      for (int c = 0; c < 3; ++c) wrong += values[3 * i + c] != value(id, c);
+      wrong += pairs[2 * i] != id || pairs[2 * i + 1] != -7 * id;
+      wrong += roots[i] != std::sqrt(static_cast<double>(id));
+    }
+    EXPECT_EQ(wrong, 0) << layout;
+    h.close();
+    MPI_Barrier(MPI_COMM_WORLD);
+    if (rank == 0) std::filesystem::remove(file);
+  }
+}
+
 TEST(RowStream, AFillThatThrowsOnOneRankStopsEveryRankAndTheStreamWritesOnAfter) {
   // The pieces' rows go point to point a piece ahead of the write, with no collective between pieces: a fill that
   // throws on the rank holding one id (in the first piece, in a middle one, in the last) must stop every rank with

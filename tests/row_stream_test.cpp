@@ -190,6 +190,23 @@ std::uint64_t fnv1a(std::uint64_t h, const void* p, std::size_t n) {
   return h;
 }
 constexpr std::uint64_t kFnvBasis = 1469598103934665603ULL;
+
+// The seal line a file of these bytes must start with: the sum over 1 MiB blocks after the 512-byte user block of
+// FNV-1a(block offset, block bytes), computed here byte by byte (the writer hashes while it writes).
+std::string expected_seal(const std::vector<unsigned char>& bytes) {
+  const std::size_t user_block = 512, block = std::size_t{1} << 20;
+  std::uint64_t sum = 0;
+  for (std::size_t offset = user_block; offset < bytes.size(); offset += block) {
+    const std::uint64_t at = offset;
+    unsigned char le[8];
+    for (int i = 0; i < 8; ++i) le[i] = static_cast<unsigned char>((at >> (8 * i)) & 0xff);
+    sum += fnv1a(fnv1a(kFnvBasis, le, 8), &bytes[offset], std::min(block, bytes.size() - offset));
+  }
+  char header[128];
+  std::snprintf(header, sizeof header, "TISSUE-HDF5-SEAL 1 %zu %016llx\n", bytes.size(),
+                static_cast<unsigned long long>(sum));
+  return header;
+}
 }  // namespace
 
 // The row hash (hashed four rows side by side) is the sum of each row's FNV-1a(row index, row bytes), for any row
@@ -250,18 +267,8 @@ TEST(RowStream, SealIsTheBlockHashOfEveryByte) {
       std::ifstream in(file, std::ios::binary);
       const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
       ASSERT_GT(bytes.size(), std::size_t{96} << 20);
-      const std::size_t user_block = 512, block = std::size_t{1} << 20;
-      std::uint64_t sum = 0;
-      for (std::size_t offset = user_block; offset < bytes.size(); offset += block) {
-        const std::uint64_t at = offset;
-        unsigned char le[8];
-        for (int i = 0; i < 8; ++i) le[i] = static_cast<unsigned char>((at >> (8 * i)) & 0xff);
-        sum += fnv1a(fnv1a(kFnvBasis, le, 8), &bytes[offset], std::min(block, bytes.size() - offset));
-      }
-      char header[128];
-      std::snprintf(header, sizeof header, "TISSUE-HDF5-SEAL 1 %zu %016llx\n", bytes.size(),
-                    static_cast<unsigned long long>(sum));
-      EXPECT_EQ(std::string(bytes.begin(), bytes.begin() + static_cast<long>(std::strlen(header))), header)
+      const std::string header = expected_seal(bytes);
+      EXPECT_EQ(std::string(bytes.begin(), bytes.begin() + static_cast<long>(header.size())), header)
           << (runs ? "runs" : "scrambled");
     }
     Hdf5File h = Hdf5File::open(file, MPI_COMM_WORLD, "file", nullptr);  // the seal checked by the reader too
@@ -480,18 +487,8 @@ TEST(RowStream, ColumnsWrittenTogether) {
       std::ifstream in(file, std::ios::binary);
       const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
       ASSERT_GT(bytes.size(), std::size_t{24} << 20);
-      const std::size_t user_block = 512, block = std::size_t{1} << 20;
-      std::uint64_t sum = 0;
-      for (std::size_t offset = user_block; offset < bytes.size(); offset += block) {
-        const std::uint64_t at = offset;
-        unsigned char le[8];
-        for (int i = 0; i < 8; ++i) le[i] = static_cast<unsigned char>((at >> (8 * i)) & 0xff);
-        sum += fnv1a(fnv1a(kFnvBasis, le, 8), &bytes[offset], std::min(block, bytes.size() - offset));
-      }
-      char header[128];
-      std::snprintf(header, sizeof header, "TISSUE-HDF5-SEAL 1 %zu %016llx\n", bytes.size(),
-                    static_cast<unsigned long long>(sum));
-      EXPECT_EQ(std::string(bytes.begin(), bytes.begin() + static_cast<long>(std::strlen(header))), header) << layout;
+      const std::string header = expected_seal(bytes);
+      EXPECT_EQ(std::string(bytes.begin(), bytes.begin() + static_cast<long>(header.size())), header) << layout;
     }
     Hdf5File h = Hdf5File::open(file, MPI_COMM_WORLD, "file", nullptr);  // the seal checked by the reader too
     const std::int64_t first = NaturalOrder::block_begin(rows, size, rank), end = NaturalOrder::block_begin(rows, size, rank + 1);

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <array>
+#include <climits>
 #include <cstdlib>
 #include <cstring>
 #include <unordered_map>
@@ -243,8 +244,25 @@ struct LatticeGalerkin::Numbers {
   // Each coarse node's neighbour numbers by slot, looked up once (mask_held) and read by the later steps (each
   // lookup is two binary searches; the steps asked four times).
   mutable std::vector<PetscInt> slot_numbers;
+  mutable std::vector<std::uint8_t> slot_order;  // and its present slots by column then (kSlots a node, the count)
+  mutable std::vector<std::uint8_t> slot_count;
   mutable bool numbered = false;
 
+  // This rank's coarse nodes on a dense box of their planes, per body (own_at: no search), when the box is not
+  // much larger than the nodes (a box partition's slab); empty otherwise.
+  struct Dense {
+    std::array<int, 3> lo{}, n{};
+    std::vector<int> c;  // the node's index in mine, -1 for none
+  };
+  std::vector<Dense> dense;
+  // own(id of the node on planes q of body b) without the id: -2 when the dense box does not say.
+  std::ptrdiff_t own_at(int b, const int q[3]) const {
+    if (!ascending || b >= static_cast<int>(dense.size()) || dense[b].c.empty()) return -2;
+    const Dense& d = dense[b];
+    for (int a = 0; a < 3; ++a)
+      if (q[a] < d.lo[a] || q[a] >= d.lo[a] + d.n[a]) return -1;
+    return d.c[(static_cast<std::size_t>(q[0] - d.lo[0]) * d.n[1] + (q[1] - d.lo[1])) * d.n[2] + (q[2] - d.lo[2])];
+  }
   std::ptrdiff_t own(std::int64_t g) const {
     const auto it = std::lower_bound(mine.begin(), mine.end(), g);
     return ascending && it != mine.end() && *it == g ? static_cast<std::ptrdiff_t>(it - mine.begin()) : -1;
@@ -809,6 +827,33 @@ PetscErrorCode LatticeGalerkin::number_coarse_nodes(int l, const Rows& acc, Numb
     for (int a = 0; a < 3; ++a) cplane[c][a] = position(planes[l + 1][b][a], ijk_[i][a]);
   }
   num.ascending = std::is_sorted(mine.begin(), mine.end());
+  {
+    const int nb = shape.bodies();
+    std::vector<std::array<int, 6>> box(nb, {INT_MAX, INT_MAX, INT_MAX, INT_MIN, INT_MIN, INT_MIN});
+    std::vector<std::size_t> count(nb, 0);
+    for (std::size_t c = 0; c < cnodes.size(); ++c) {
+      const int b = model_.body[cnodes[c]];
+      ++count[b];
+      for (int a = 0; a < 3; ++a)
+        box[b][a] = std::min(box[b][a], cplane[c][a]), box[b][3 + a] = std::max(box[b][3 + a], cplane[c][a]);
+    }
+    num.dense.resize(nb);
+    for (int b = 0; b < nb; ++b) {
+      if (!count[b]) continue;
+      auto& d = num.dense[b];
+      std::size_t volume = 1;
+      for (int a = 0; a < 3; ++a) d.lo[a] = box[b][a], d.n[a] = box[b][3 + a] - box[b][a] + 1, volume *= d.n[a];
+      if (volume > 4 * count[b] + 4096) continue;  // a scattered part: the searches stay
+      d.c.assign(volume, -1);
+    }
+    for (std::size_t c = 0; c < cnodes.size(); ++c) {
+      auto& d = num.dense[model_.body[cnodes[c]]];
+      if (d.c.empty()) continue;
+      const auto& q = cplane[c];
+      d.c[(static_cast<std::size_t>(q[0] - d.lo[0]) * d.n[1] + (q[1] - d.lo[1])) * d.n[2] + (q[2] - d.lo[2])] =
+          static_cast<int>(c);
+    }
+  }
   auto own = [&](std::int64_t g) { return num.own(g); };
   for (std::int64_t g : acc.id)
     if (own(g) < 0) asked.push_back(g);
@@ -819,7 +864,7 @@ PetscErrorCode LatticeGalerkin::number_coarse_nodes(int l, const Rows& acc, Numb
       const int q[3] = {cplane[c][0] + s % 3 - 1, cplane[c][1] + s / 3 % 3 - 1, cplane[c][2] + s / 9 - 1};
       bool inside = true;
       for (int a = 0; a < 3; ++a) inside = inside && q[a] >= 0 && q[a] < static_cast<int>(planes[l + 1][b][a].size());
-      if (!inside) continue;
+      if (!inside || num.own_at(b, q) >= 0) continue;
       const std::int64_t g = box.id(planes[l + 1][b][0][q[0]], planes[l + 1][b][1][q[1]], planes[l + 1][b][2][q[2]]);
       if (own(g) < 0) asked.push_back(g);
     }
@@ -881,21 +926,37 @@ void LatticeGalerkin::neighbours(int l, const Numbers& num, const Rows& acc, std
   const BoxGeometry& box = shape.body(b);
   norder = 0;
   const std::uint32_t bits = acc.present[acc.row[c]];
-  if (num.slot_numbers.size() != kSlots * cnodes.size()) num.slot_numbers.assign(kSlots * cnodes.size(), -1);
+  if (num.slot_numbers.size() != kSlots * cnodes.size()) {
+    num.slot_numbers.assign(kSlots * cnodes.size(), -1);
+    num.slot_order.assign(kSlots * cnodes.size(), 0);
+    num.slot_count.assign(cnodes.size(), 0);
+  }
   PetscInt* cached = num.slot_numbers.data() + kSlots * c;
+  std::uint8_t* cached_order = num.slot_order.data() + kSlots * c;
+  if (num.numbered) {
+    // Present now, so present (and looked up, and sorted) in mask_held's call; the slots it dropped since are
+    // skipped, which keeps the others' order (their columns are distinct).
+    for (int q = 0; q < num.slot_count[c]; ++q) {
+      const int s = cached_order[q];
+      if (!(bits >> s & 1)) continue;
+      jnum[s] = cached[s];
+      order[norder++] = s;
+    }
+    return;
+  }
   for (int s = 0; s < kSlots; ++s) {
     if (!(bits >> s & 1)) continue;
-    if (num.numbered) {
-      jnum[s] = cached[s];  // present now, so present (and looked up) in mask_held's call
-    } else {
-      const int q[3] = {cplane[c][0] + s % 3 - 1, cplane[c][1] + s / 3 % 3 - 1, cplane[c][2] + s / 9 - 1};
-      jnum[s] = cached[s] =
-          num.number(box.id(planes[l + 1][b][0][q[0]], planes[l + 1][b][1][q[1]], planes[l + 1][b][2][q[2]]));
-    }
+    const int q[3] = {cplane[c][0] + s % 3 - 1, cplane[c][1] + s / 3 % 3 - 1, cplane[c][2] + s / 9 - 1};
+    const std::ptrdiff_t at = num.own_at(b, q);
+    jnum[s] = cached[s] =
+        at >= 0 ? num.packed[at]
+                : num.number(box.id(planes[l + 1][b][0][q[0]], planes[l + 1][b][1][q[1]], planes[l + 1][b][2][q[2]]));
     order[norder++] = s;
   }
   // Columns in increasing order, as AIJ keeps them.
   std::sort(order.begin(), order.begin() + norder, [&](int x, int y) { return jnum[x] < jnum[y]; });
+  std::copy_n(order.begin(), norder, cached_order);
+  num.slot_count[c] = static_cast<std::uint8_t>(norder);
 }
 
 // 4. This rank's coarse rows, held components (row's and column's) zeroed in place (row[c]: where node c's

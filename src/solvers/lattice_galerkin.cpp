@@ -593,13 +593,10 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
                           cls[2]];
     int e = -1;
     if (at >= 0) {
+      // The whole rows at once (one call instead of one a slot): their absent slots are zero on every path, and
+      // a difference there would only send the row the general way.
       const RowClass& rc = row_classes[at];
-      bool same = rc.present == present;
-      for (std::uint32_t rest = present; same && rest; rest &= rest - 1) {
-        const int s = __builtin_ctz(rest);
-        same = std::memcmp(rc.src.data() + s * kBlock, src + s * kBlock, sizeof(double) * kBlock) == 0;
-      }
-      if (same) e = at;
+      if (rc.present == present && std::memcmp(rc.src.data(), src, sizeof(double) * kSlots * kBlock) == 0) e = at;
     } else if (row_classes.size() < kMaxClasses) {
       at = static_cast<int>(row_classes.size());
       RowClass& rc = row_classes.emplace_back();
@@ -1242,12 +1239,14 @@ void LatticeGalerkin::halve_level_one() {
   for (std::size_t r = 0; r < rows; ++r) {
     if (kept_as[r] < 0) continue;
     const double* from = a + (r * kSlots + kHalf0) * kBlock;
-    std::uint64_t h = 1469598103934665603ull;
+    // Four independent hashes of interleaved values (one chain of multiplies was the pass's time), then combined.
+    std::uint64_t lane[4] = {1469598103934665603ull, 1, 2, 3};
     for (std::size_t e = 0; e < kRow; ++e) {
       std::uint64_t bits;
       std::memcpy(&bits, from + e, sizeof bits);
-      h = (h ^ bits) * 1099511628211ull;
+      lane[e % 4] = (lane[e % 4] ^ bits) * 1099511628211ull;
     }
+    const std::uint64_t h = ((lane[0] * 31 + lane[1]) * 31 + lane[2]) * 31 + lane[3];
     const auto [it, added] = distinct.try_emplace(h, static_cast<int>(kept));
     if (!added && std::memcmp(a + it->second * kRow, from, sizeof(double) * kRow) == 0) {
       kept_as[r] = it->second;

@@ -505,10 +505,10 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     }
   // Row classes: rows of one class (the same axis classes) whose blocks are equal to the bit have the same box T
   // (sum_blocks: the same operations on the same numbers), which is then summed once for the class. On a box
-  // lattice at its reference state (the first tangent of a solve) nearly every row is the first of its class's.
+  // lattice at its reference state (the first tangent of a solve) nearly every row equals its class's first.
   struct RowClass {
     std::uint32_t present = 0;
-    std::vector<double> src;  // the blocks (present slots only are read)
+    std::vector<double> src;  // the class's first row's blocks (kSlots of them, absent ones zero)
     std::vector<double> T;    // the box sums
     std::uint64_t touched = 0;
     std::array<double, 8> w{};
@@ -1225,7 +1225,7 @@ void LatticeGalerkin::halve_level_one() {
   op.col = std::move(col);
   // In place, row by row in order (row r's upper half moves to at most r * kHalf blocks, never past a row not yet
   // moved), so that no second copy of the rows exists even for a moment (with one, this was the solve's peak), and
-  // the pages behind the kept rows go back to the system (the vector keeps its size and never reads them again).
+  // the pages past the kept rows go back to the system (the vector keeps its size and never reads them again).
   // Rows equal to the bit are kept once (a box lattice's interior rows at its reference state are nearly all one
   // row): the product then reads the few distinct rows from the cache, not 126 B a fine molecule from memory.
   double* a = op.rows.a.data();

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <array>
+#include <climits>
 #include <cstdlib>
 #include <cstring>
 #include <unordered_map>
@@ -243,8 +244,25 @@ struct LatticeGalerkin::Numbers {
   // Each coarse node's neighbour numbers by slot, looked up once (mask_held) and read by the later steps (each
   // lookup is two binary searches; the steps asked four times).
   mutable std::vector<PetscInt> slot_numbers;
+  mutable std::vector<std::uint8_t> slot_order;  // and its present slots by column then (kSlots a node, the count)
+  mutable std::vector<std::uint8_t> slot_count;
   mutable bool numbered = false;
 
+  // This rank's coarse nodes on a dense box of their planes, per body (own_at: no search), when the box is not
+  // much larger than the nodes (a box partition's slab); empty otherwise.
+  struct Dense {
+    std::array<int, 3> lo{}, n{};
+    std::vector<int> c;  // the node's index in mine, -1 for none
+  };
+  std::vector<Dense> dense;
+  // own(id of the node on planes q of body b) without the id: -2 when the dense box does not say.
+  std::ptrdiff_t own_at(int b, const int q[3]) const {
+    if (!ascending || b >= static_cast<int>(dense.size()) || dense[b].c.empty()) return -2;
+    const Dense& d = dense[b];
+    for (int a = 0; a < 3; ++a)
+      if (q[a] < d.lo[a] || q[a] >= d.lo[a] + d.n[a]) return -1;
+    return d.c[(static_cast<std::size_t>(q[0] - d.lo[0]) * d.n[1] + (q[1] - d.lo[1])) * d.n[2] + (q[2] - d.lo[2])];
+  }
   std::ptrdiff_t own(std::int64_t g) const {
     const auto it = std::lower_bound(mine.begin(), mine.end(), g);
     return ascending && it != mine.end() && *it == g ? static_cast<std::ptrdiff_t>(it - mine.begin()) : -1;
@@ -439,49 +457,120 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
   }
   std::array<double, kSlots * kBlock> blocks{};
   std::array<double, 64 * kBlock> T{};
-  // Row i (level l, planes p) of level l's operator, its blocks src by stencil slot (present: which), into the
-  // rows of the coarse nodes I that i interpolates from.
-  auto scatter = [&](int b, const std::array<int, 3>& p, std::uint32_t present, const double* src) -> PetscErrorCode {
-    const BoxGeometry& box = shape.body(b);
-    const std::array<const AxisWeights*, 3> wi{&weights[b][0][p[0]], &weights[b][1][p[1]], &weights[b][2][p[2]]};
-    std::array<int, 3> c0;
-    for (int a = 0; a < 3; ++a) c0[a] = wi[a]->at[0] - 1;
-    // Each axis's three neighbour planes among the coarse planes from c0 (sum_blocks reads them for every slot);
-    // a plane outside the lattice or a coarse node outside the 4x4x4 box is an error only for a present slot.
-    AxisSteps steps{};
+  // A row's neighbour planes along one axis (AxisStep triple, relative to its 4x4x4 box) depend only on its plane
+  // and take a few distinct values (interior planes on and between coarse planes, the planes near the ends):
+  // each plane's class, found once here instead of once a row.
+  struct AxisClass {
+    std::array<AxisStep, 3> st{};
     std::uint32_t outside = 0, beyond = 0;
-    for (int a = 0; a < 3; ++a)
-      for (int d = 0; d < 3; ++d) {
-        const int q = p[a] + d - 1;
-        if (q < 0 || q >= static_cast<int>(weights[b][a].size())) {
-          outside |= kSlotsAt[a][d];
-          continue;
+  };
+  auto same_step = [](const AxisStep& x, const AxisStep& y) {
+    if (x.n != y.n) return false;
+    for (int k = 0; k < x.n; ++k)
+      if (x.J[k] != y.J[k] || std::memcmp(&x.w[k], &y.w[k], sizeof(double)) != 0) return false;
+    return true;
+  };
+  std::vector<std::array<std::vector<AxisClass>, 3>> axis_classes(nb);
+  std::vector<std::array<std::vector<int>, 3>> axis_class_of(nb);  // [b][a][p]
+  for (int b = 0; b < nb; ++b)
+    for (int a = 0; a < 3; ++a) {
+      const auto& wa = weights[b][a];
+      auto& classes = axis_classes[b][a];
+      axis_class_of[b][a].resize(wa.size());
+      for (std::size_t p = 0; p < wa.size(); ++p) {
+        AxisClass ac;
+        const int c0 = wa[p].at[0] - 1;
+        for (int d = 0; d < 3; ++d) {
+          const long q = static_cast<long>(p) + d - 1;
+          if (q < 0 || q >= static_cast<long>(wa.size())) {
+            ac.outside |= kSlotsAt[a][d];
+            continue;
+          }
+          AxisStep& st = ac.st[d];
+          st.n = wa[q].n;
+          for (int k = 0; k < wa[q].n; ++k) {
+            st.J[k] = wa[q].at[k] - c0, st.w[k] = wa[q].w[k];
+            if (st.J[k] < 0 || st.J[k] >= 4) ac.beyond |= kSlotsAt[a][d];
+          }
         }
-        const AxisWeights& wq = weights[b][a][q];
-        AxisStep& st = steps[a][d];
-        st.n = wq.n;
-        for (int k = 0; k < wq.n; ++k) {
-          st.J[k] = wq.at[k] - c0[a], st.w[k] = wq.w[k];
-          if (st.J[k] < 0 || st.J[k] >= 4) beyond |= kSlotsAt[a][d];
-        }
+        std::size_t c = 0;
+        for (; c < classes.size(); ++c)
+          if (classes[c].outside == ac.outside && classes[c].beyond == ac.beyond &&
+              same_step(classes[c].st[0], ac.st[0]) && same_step(classes[c].st[1], ac.st[1]) &&
+              same_step(classes[c].st[2], ac.st[2]))
+            break;
+        if (c == classes.size()) classes.push_back(ac);
+        axis_class_of[b][a][p] = static_cast<int>(c);
       }
-    PetscCheck(!(present & outside), PETSC_COMM_SELF, PETSC_ERR_PLIB, "lattice Galerkin product: a block outside the lattice");
-    PetscCheck(!(present & beyond), PETSC_COMM_SELF, PETSC_ERR_PLIB,
-               "lattice Galerkin product: a coarse node outside the box");
-    const std::uint64_t touched = sum_blocks(present, src, steps, T.data());
-    // Every touched J within one coarse plane of every I, so the slot arithmetic below cannot wrap.
+    }
+  // Row classes: rows of one class (the same axis classes) whose blocks are equal to the bit have the same box T
+  // (sum_blocks: the same operations on the same numbers), which is then summed once for the class. On a box
+  // lattice at its reference state (the first tangent of a solve) nearly every row equals its class's first.
+  struct RowClass {
+    std::uint32_t present = 0;
+    std::vector<double> src;  // the class's first row's blocks (kSlots of them, absent ones zero)
+    std::vector<double> T;    // the box sums
+    std::uint64_t touched = 0;
+    std::array<double, 8> w{};
+    std::array<int, 8> shift{};
+  };
+  constexpr std::size_t kMaxClasses = 8192;  // a pending contribution is 8 class + k in 16 bits
+  std::vector<RowClass> row_classes;
+  std::vector<std::vector<int>> class_at(nb);  // [b][(x class * ny + y class) * nz + z class] -> row_classes
+  for (int b = 0; b < nb; ++b)
+    class_at[b].assign(axis_classes[b][0].size() * axis_classes[b][1].size() * axis_classes[b][2].size(), -1);
+  // A coarse row's contributions of class sums are kept as a list (class, k) until the row takes another (then
+  // the list is summed first, in order) or the rows are complete; rows with equal lists are then equal to the
+  // bit (the same operations in the same order from zero), so one is summed and the others copied.
+  constexpr int kPending = 27;                // a coarse node takes at most 3 fine planes an axis
+  constexpr std::uint8_t kSummed = 0x80;      // the list was summed into the row; the low bits keep its length
+  std::vector<std::uint16_t> pending;         // kPending a coarse row
+  std::vector<std::uint8_t> npending;         // its length, | kSummed
+  auto sum_pending = [&](int r) {
+    if (npending[r] & kSummed) return;
+    double* to = acc.block(r, 0);
+    for (int q = 0; q < npending[r]; ++q) {
+      const int code = pending[static_cast<std::size_t>(r) * kPending + q];
+      const RowClass& rc = row_classes[code >> 3];
+      std::uint32_t bits;
+      spread_blocks(rc.touched, rc.T.data(), 1, &to, &rc.w[code & 7], &rc.shift[code & 7], &bits);
+      acc.present[r] |= bits;
+    }
+    npending[r] |= kSummed;
+  };
+  // Every touched J within one coarse plane of every I (the row's own plane's step: J of its coarse nodes), so
+  // the slot arithmetic of spread_blocks cannot wrap.
+  auto check_touched = [](std::uint64_t touched, const AxisSteps& steps) -> PetscErrorCode {
     std::array<int, 3> lo{4, 4, 4}, hi{-1, -1, -1};
     for (std::uint64_t rest = touched; rest; rest &= rest - 1) {
       const int t = __builtin_ctzll(rest), tc[3] = {t % 4, t / 4 % 4, t / 16};
       for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], tc[a]), hi[a] = std::max(hi[a], tc[a]);
     }
     for (int a = 0; a < 3; ++a)
-      PetscCheck(c0[a] + lo[a] >= wi[a]->at[wi[a]->n - 1] - 1 && c0[a] + hi[a] <= wi[a]->at[0] + 1, PETSC_COMM_SELF,
+      PetscCheck(lo[a] >= steps[a][1].J[steps[a][1].n - 1] - 1 && hi[a] <= steps[a][1].J[0] + 1, PETSC_COMM_SELF,
                  PETSC_ERR_PLIB, "lattice Galerkin product: a coarse block beyond the 27-point stencil");
+    return PetscErrorCode(0);
+  };
+  // Row i (level l, planes p) of level l's operator, its blocks src by stencil slot (present: which), into the
+  // rows of the coarse nodes I that i interpolates from.
+  auto scatter = [&](int b, const std::array<int, 3>& p, std::uint32_t present, const double* src) -> PetscErrorCode {
+    const BoxGeometry& box = shape.body(b);
+    const std::array<const AxisWeights*, 3> wi{&weights[b][0][p[0]], &weights[b][1][p[1]], &weights[b][2][p[2]]};
+    std::array<int, 3> c0, cls;
+    for (int a = 0; a < 3; ++a) c0[a] = wi[a]->at[0] - 1, cls[a] = axis_class_of[b][a][p[a]];
+    // Each axis's three neighbour planes among the coarse planes from c0 (sum_blocks reads them for every slot);
+    // a plane outside the lattice or a coarse node outside the 4x4x4 box is an error only for a present slot.
+    const std::array<const AxisClass*, 3> ac{&axis_classes[b][0][cls[0]], &axis_classes[b][1][cls[1]],
+                                             &axis_classes[b][2][cls[2]]};
+    const AxisSteps steps{ac[0]->st, ac[1]->st, ac[2]->st};
+    const std::uint32_t outside = ac[0]->outside | ac[1]->outside | ac[2]->outside;
+    const std::uint32_t beyond = ac[0]->beyond | ac[1]->beyond | ac[2]->beyond;
+    PetscCheck(!(present & outside), PETSC_COMM_SELF, PETSC_ERR_PLIB, "lattice Galerkin product: a block outside the lattice");
+    PetscCheck(!(present & beyond), PETSC_COMM_SELF, PETSC_ERR_PLIB,
+               "lattice Galerkin product: a coarse node outside the box");
     // The coarse rows first (find_or_add may move the rows' storage), then their blocks.
     std::array<int, 8> rows, shift;
     std::array<double, 8> w;
-    std::array<std::uint32_t, 8> bits;
     int nrows = 0;
     for (int x = 0; x < wi[0]->n; ++x)
       for (int y = 0; y < wi[1]->n; ++y)
@@ -494,8 +583,53 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
           // plane from the node's own), so slot = the box index shifted by the node's place in the box.
           shift[nrows] = slot_of(c0[0] - I[0], c0[1] - I[1], c0[2] - I[2]);
         }
+    if (npending.size() < acc.id.size()) {
+      npending.resize(acc.id.size(), 0);
+      pending.resize(acc.id.size() * kPending);
+    }
+    // The row's class: its box sums reused when its blocks are the class's to the bit.
+    int& at = class_at[b][(static_cast<std::size_t>(cls[0]) * axis_classes[b][1].size() + cls[1]) *
+                              axis_classes[b][2].size() +
+                          cls[2]];
+    int e = -1;
+    if (at >= 0) {
+      // The whole rows at once (one call instead of one a slot): their absent slots are zero on every path, and
+      // a difference there would only send the row the general way.
+      const RowClass& rc = row_classes[at];
+      if (rc.present == present && std::memcmp(rc.src.data(), src, sizeof(double) * kSlots * kBlock) == 0) e = at;
+    } else if (row_classes.size() < kMaxClasses) {
+      at = static_cast<int>(row_classes.size());
+      RowClass& rc = row_classes.emplace_back();
+      rc.present = present;
+      rc.src.assign(src, src + kSlots * kBlock);
+      rc.T.resize(64 * kBlock);
+      rc.touched = sum_blocks(present, src, steps, rc.T.data());
+      PetscCall(check_touched(rc.touched, steps));
+      rc.w = w, rc.shift = shift;
+      e = at;
+    }
+    if (e >= 0) {
+      for (int k = 0; k < nrows; ++k) {
+        const int r = rows[k];
+        std::uint8_t& n = npending[r];
+        if (!(n & kSummed) && n < kPending) {
+          pending[static_cast<std::size_t>(r) * kPending + n++] = static_cast<std::uint16_t>(8 * e + k);
+          continue;
+        }
+        sum_pending(r);
+        double* to = acc.block(r, 0);
+        std::uint32_t bits;
+        const RowClass& rc = row_classes[e];
+        spread_blocks(rc.touched, rc.T.data(), 1, &to, &w[k], &shift[k], &bits);
+        acc.present[r] |= bits;
+      }
+      return PetscErrorCode(0);
+    }
+    const std::uint64_t touched = sum_blocks(present, src, steps, T.data());
+    PetscCall(check_touched(touched, steps));
     std::array<double*, 8> to;
-    for (int k = 0; k < nrows; ++k) to[k] = acc.block(rows[k], 0);
+    std::array<std::uint32_t, 8> bits;
+    for (int k = 0; k < nrows; ++k) sum_pending(rows[k]), to[k] = acc.block(rows[k], 0);
     spread_blocks(touched, T.data(), nrows, to.data(), w.data(), shift.data(), bits.data());
     for (int k = 0; k < nrows; ++k) acc.present[rows[k]] |= bits[k];
     return PetscErrorCode(0);
@@ -629,6 +763,27 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     if (!present) continue;
     PetscCall(scatter(b, p, present, src));
   }
+  // The rows still holding only their lists: one summed for each distinct list, the others copied from it.
+  {
+    auto list = [&](std::size_t r) { return pending.data() + r * kPending; };
+    std::unordered_map<std::uint64_t, int> summed;  // a list's hash -> the row summed for it
+    for (std::size_t r = 0; r < npending.size(); ++r) {
+      const int n = npending[r];
+      if (n & kSummed) continue;
+      std::uint64_t h = 1469598103934665603ull ^ static_cast<std::uint64_t>(n);
+      for (int q = 0; q < n; ++q) h = (h ^ list(r)[q]) * 1099511628211ull;
+      const auto [it, added] = summed.try_emplace(h, static_cast<int>(r));
+      const std::size_t s = static_cast<std::size_t>(it->second);
+      if (!added && (npending[s] & ~kSummed) == n && std::equal(list(r), list(r) + n, list(s))) {
+        std::memcpy(acc.block(static_cast<int>(r), 0), acc.block(static_cast<int>(s), 0),
+                    sizeof(double) * kSlots * kBlock);
+        acc.present[r] = acc.present[s];
+        npending[r] |= kSummed;
+        continue;
+      }
+      sum_pending(static_cast<int>(r));
+    }
+  }
   if (l == 0 && !stream) {
     PetscInt rows;
     PetscBool done;
@@ -669,6 +824,33 @@ PetscErrorCode LatticeGalerkin::number_coarse_nodes(int l, const Rows& acc, Numb
     for (int a = 0; a < 3; ++a) cplane[c][a] = position(planes[l + 1][b][a], ijk_[i][a]);
   }
   num.ascending = std::is_sorted(mine.begin(), mine.end());
+  {
+    const int nb = shape.bodies();
+    std::vector<std::array<int, 6>> box(nb, {INT_MAX, INT_MAX, INT_MAX, INT_MIN, INT_MIN, INT_MIN});
+    std::vector<std::size_t> count(nb, 0);
+    for (std::size_t c = 0; c < cnodes.size(); ++c) {
+      const int b = model_.body[cnodes[c]];
+      ++count[b];
+      for (int a = 0; a < 3; ++a)
+        box[b][a] = std::min(box[b][a], cplane[c][a]), box[b][3 + a] = std::max(box[b][3 + a], cplane[c][a]);
+    }
+    num.dense.resize(nb);
+    for (int b = 0; b < nb; ++b) {
+      if (!count[b]) continue;
+      auto& d = num.dense[b];
+      std::size_t volume = 1;
+      for (int a = 0; a < 3; ++a) d.lo[a] = box[b][a], d.n[a] = box[b][3 + a] - box[b][a] + 1, volume *= d.n[a];
+      if (volume > 4 * count[b] + 4096) continue;  // a scattered part: the searches stay
+      d.c.assign(volume, -1);
+    }
+    for (std::size_t c = 0; c < cnodes.size(); ++c) {
+      auto& d = num.dense[model_.body[cnodes[c]]];
+      if (d.c.empty()) continue;
+      const auto& q = cplane[c];
+      d.c[(static_cast<std::size_t>(q[0] - d.lo[0]) * d.n[1] + (q[1] - d.lo[1])) * d.n[2] + (q[2] - d.lo[2])] =
+          static_cast<int>(c);
+    }
+  }
   auto own = [&](std::int64_t g) { return num.own(g); };
   for (std::int64_t g : acc.id)
     if (own(g) < 0) asked.push_back(g);
@@ -679,7 +861,7 @@ PetscErrorCode LatticeGalerkin::number_coarse_nodes(int l, const Rows& acc, Numb
       const int q[3] = {cplane[c][0] + s % 3 - 1, cplane[c][1] + s / 3 % 3 - 1, cplane[c][2] + s / 9 - 1};
       bool inside = true;
       for (int a = 0; a < 3; ++a) inside = inside && q[a] >= 0 && q[a] < static_cast<int>(planes[l + 1][b][a].size());
-      if (!inside) continue;
+      if (!inside || num.own_at(b, q) >= 0) continue;
       const std::int64_t g = box.id(planes[l + 1][b][0][q[0]], planes[l + 1][b][1][q[1]], planes[l + 1][b][2][q[2]]);
       if (own(g) < 0) asked.push_back(g);
     }
@@ -741,21 +923,37 @@ void LatticeGalerkin::neighbours(int l, const Numbers& num, const Rows& acc, std
   const BoxGeometry& box = shape.body(b);
   norder = 0;
   const std::uint32_t bits = acc.present[acc.row[c]];
-  if (num.slot_numbers.size() != kSlots * cnodes.size()) num.slot_numbers.assign(kSlots * cnodes.size(), -1);
+  if (num.slot_numbers.size() != kSlots * cnodes.size()) {
+    num.slot_numbers.assign(kSlots * cnodes.size(), -1);
+    num.slot_order.assign(kSlots * cnodes.size(), 0);
+    num.slot_count.assign(cnodes.size(), 0);
+  }
   PetscInt* cached = num.slot_numbers.data() + kSlots * c;
+  std::uint8_t* cached_order = num.slot_order.data() + kSlots * c;
+  if (num.numbered) {
+    // Present now, so present (and looked up, and sorted) in mask_held's call; the slots it dropped since are
+    // skipped, which keeps the others' order (their columns are distinct).
+    for (int q = 0; q < num.slot_count[c]; ++q) {
+      const int s = cached_order[q];
+      if (!(bits >> s & 1)) continue;
+      jnum[s] = cached[s];
+      order[norder++] = s;
+    }
+    return;
+  }
   for (int s = 0; s < kSlots; ++s) {
     if (!(bits >> s & 1)) continue;
-    if (num.numbered) {
-      jnum[s] = cached[s];  // present now, so present (and looked up) in mask_held's call
-    } else {
-      const int q[3] = {cplane[c][0] + s % 3 - 1, cplane[c][1] + s / 3 % 3 - 1, cplane[c][2] + s / 9 - 1};
-      jnum[s] = cached[s] =
-          num.number(box.id(planes[l + 1][b][0][q[0]], planes[l + 1][b][1][q[1]], planes[l + 1][b][2][q[2]]));
-    }
+    const int q[3] = {cplane[c][0] + s % 3 - 1, cplane[c][1] + s / 3 % 3 - 1, cplane[c][2] + s / 9 - 1};
+    const std::ptrdiff_t at = num.own_at(b, q);
+    jnum[s] = cached[s] =
+        at >= 0 ? num.packed[at]
+                : num.number(box.id(planes[l + 1][b][0][q[0]], planes[l + 1][b][1][q[1]], planes[l + 1][b][2][q[2]]));
     order[norder++] = s;
   }
   // Columns in increasing order, as AIJ keeps them.
   std::sort(order.begin(), order.begin() + norder, [&](int x, int y) { return jnum[x] < jnum[y]; });
+  std::copy_n(order.begin(), norder, cached_order);
+  num.slot_count[c] = static_cast<std::uint8_t>(norder);
 }
 
 // 4. This rank's coarse rows, held components (row's and column's) zeroed in place (row[c]: where node c's
@@ -1025,15 +1223,43 @@ void LatticeGalerkin::halve_level_one() {
   for (std::size_t c = 0; c < nodes; ++c)
     if (op.first[c] % 8) std::copy_n(op.col.begin() + kSlots * c + kHalf0, kHalf, col.begin() + kHalf * c);
   op.col = std::move(col);
-  // In place, row by row in order (row r's upper half moves to r * kHalf blocks, never past a row not yet moved),
-  // so that no second copy of the rows exists even for a moment (with one, this was the solve's peak), and the
-  // pages behind the halved rows go back to the system (the vector keeps its size and never reads them again).
+  // In place, row by row in order (row r's upper half moves to at most r * kHalf blocks, never past a row not yet
+  // moved), so that no second copy of the rows exists even for a moment (with one, this was the solve's peak), and
+  // the pages past the kept rows go back to the system (the vector keeps its size and never reads them again).
+  // Rows equal to the bit are kept once (a box lattice's interior rows at its reference state are nearly all one
+  // row): the product then reads the few distinct rows from the cache, not 126 B a fine molecule from memory.
   double* a = op.rows.a.data();
   const std::size_t rows = op.rows.id.size();
-  for (std::size_t r = 0; r < rows; ++r)
-    std::memmove(a + r * kHalf * kBlock, a + (r * kSlots + kHalf0) * kBlock, sizeof(double) * kHalf * kBlock);
+  constexpr std::size_t kRow = kHalf * kBlock;
+  std::vector<int> kept_as(rows, -1);
+  for (std::size_t c = 0; c < nodes; ++c)
+    if (op.first[c] % 8) kept_as[op.rows.row[c]] = 0;  // the rows some node of this rank reads
+  std::unordered_map<std::uint64_t, int> distinct;    // a row's hash -> the first kept row with it
+  std::size_t kept = 0;
+  for (std::size_t r = 0; r < rows; ++r) {
+    if (kept_as[r] < 0) continue;
+    const double* from = a + (r * kSlots + kHalf0) * kBlock;
+    // Four independent hashes of interleaved values (one chain of multiplies was the pass's time), then combined.
+    std::uint64_t lane[4] = {1469598103934665603ull, 1, 2, 3};
+    for (std::size_t e = 0; e < kRow; ++e) {
+      std::uint64_t bits;
+      std::memcpy(&bits, from + e, sizeof bits);
+      lane[e % 4] = (lane[e % 4] ^ bits) * 1099511628211ull;
+    }
+    const std::uint64_t h = ((lane[0] * 31 + lane[1]) * 31 + lane[2]) * 31 + lane[3];
+    const auto [it, added] = distinct.try_emplace(h, static_cast<int>(kept));
+    if (!added && std::memcmp(a + it->second * kRow, from, sizeof(double) * kRow) == 0) {
+      kept_as[r] = it->second;
+      continue;
+    }
+    std::memmove(a + kept * kRow, from, sizeof(double) * kRow);
+    kept_as[r] = static_cast<int>(kept++);
+  }
+  for (std::size_t c = 0; c < nodes; ++c)
+    if (op.first[c] % 8) op.rows.row[c] = kept_as[op.rows.row[c]];
+  (void)PetscInfo(nullptr, "lattice Galerkin: level 1 keeps %zu distinct rows of %zu\n", kept, rows);
   const std::uintptr_t page = static_cast<std::uintptr_t>(sysconf(_SC_PAGESIZE));
-  const auto from = (reinterpret_cast<std::uintptr_t>(a + rows * kHalf * kBlock) + page - 1) / page * page;
+  const auto from = (reinterpret_cast<std::uintptr_t>(a + kept * kRow) + page - 1) / page * page;
   const auto to = reinterpret_cast<std::uintptr_t>(a + op.rows.a.size()) / page * page;
   if (to > from + (1u << 20)) (void)madvise(reinterpret_cast<void*>(from), to - from, MADV_DONTNEED);
   op.rows.index = {};
@@ -1131,3 +1357,4 @@ PetscErrorCode LatticeGalerkin::stencil_diagonal(Mat A, Vec d) {
 }
 
 }  // namespace tissue
+

@@ -139,7 +139,25 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
   *levels = L;
   if (L == 1) PetscFunctionReturn(0);
 
-  auto member = [](const std::vector<long>& s, long i) { return std::binary_search(s.begin(), s.end(), i); };
+  // Each owned molecule's body and lattice indices, found once for every level (an index is divisions).
+  std::vector<int> body_of(model.owned);
+  std::vector<std::array<int, 3>> index_of(model.owned);
+  for (int i = 0; i < model.owned; ++i) {
+    const std::int64_t g = model.id[i];
+    body_of[i] = shape.body_of(g);
+    const auto ijk = shape.body(body_of[i]).index(g);
+    for (int a = 0; a < 3; ++a) index_of[i][a] = static_cast<int>(ijk[a]);
+  }
+  // kept[b][a][x]: whether lattice plane x along axis a of body b is one of a level's planes.
+  auto kept_planes = [&](const Planes& p) {
+    std::vector<std::array<std::vector<char>, 3>> kept(nb);
+    for (int b = 0; b < nb; ++b)
+      for (int a = 0; a < 3; ++a) {
+        kept[b][a].assign(shape.body(b).n[a], 0);
+        for (long x : p[b][a]) kept[b][a][x] = 1;
+      }
+    return kept;
+  };
   // Unknowns: level 0 is the tangent's layout (3 per molecule, held ones included as identity rows); on coarser
   // levels a held component is no unknown at all (the Dirichlet condition of the coarse problem), so a node
   // has 0-3 unknowns. Each level's nodes this rank owns (local molecule indices, owned order), the global
@@ -155,12 +173,11 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
   std::vector<PetscInt> first(L, 0), count(L, 0);
   for (int l = 0; l < L; ++l) {
     PetscInt n = 0;
+    const auto kept = kept_planes(planes[l]);
     for (int i = 0; i < model.owned; ++i) {
-      const std::int64_t g = model.id[i];
-      const int b = shape.body_of(g);
-      const auto ijk = shape.body(b).index(g);
-      if (!(member(planes[l][b][0], ijk[0]) && member(planes[l][b][1], ijk[1]) && member(planes[l][b][2], ijk[2])))
-        continue;
+      const int b = body_of[i];
+      const auto& ijk = index_of[i];
+      if (!(kept[b][0][ijk[0]] && kept[b][1][ijk[1]] && kept[b][2][ijk[2]])) continue;
       owned_nodes[l].push_back(i);
       base[l].push_back(n);
       n += l == 0 ? 3 : __builtin_popcount(free_mask(i));
@@ -192,11 +209,11 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
     // planes this rank's rows name (a compact block of the lattice: from the rows' lowest and highest planes).
     std::vector<std::array<long, 6>> extent(nb, {LONG_MAX, LONG_MAX, LONG_MAX, -1, -1, -1});
     for (int i : rows) {
-      const std::int64_t g = model.id[i];
-      const int b = shape.body_of(g);
-      const auto ijk = shape.body(b).index(g);
+      const int b = body_of[i];
+      const auto& ijk = index_of[i];
       for (int a = 0; a < 3; ++a)
-        extent[b][a] = std::min(extent[b][a], ijk[a]), extent[b][3 + a] = std::max(extent[b][3 + a], ijk[a]);
+        extent[b][a] = std::min<long>(extent[b][a], ijk[a]),
+        extent[b][3 + a] = std::max<long>(extent[b][3 + a], ijk[a]);
     }
     std::vector<std::array<int, 6>> span(nb);  // per body the coarse planes named: lowest, highest per axis
     std::vector<std::vector<int>> distinct(nb);
@@ -211,16 +228,24 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
                              (span[b][5] - span[b][2] + 1),
                          -1);
     }
+    // weights_at[b][a][x]: lattice plane x among level l+1's planes (the same for every row on it).
+    std::vector<std::array<std::vector<PlaneWeights>, 3>> weights_at(nb);
+    for (int b = 0; b < nb; ++b)
+      for (int a = 0; a < 3; ++a) {
+        if (extent[b][3] < 0) continue;
+        weights_at[b][a].resize(shape.body(b).n[a]);
+        for (long x = extent[b][a]; x <= extent[b][3 + a]; ++x)
+          weights_at[b][a][x] = plane_weights(planes[l + 1][b][a], x);
+      }
     std::vector<std::int64_t> asked;  // asked[u]: the u-th distinct node's id
     std::vector<char> by_free;        // whether a row with a free component names it (a held row sums nothing)
     for (std::size_t r = 0; r < rows.size(); ++r) {
       const bool free_row = free_mask(rows[r]) != 0;
-      const std::int64_t g = model.id[rows[r]];
-      const int b = shape.body_of(g);
+      const int b = body_of[rows[r]];
       const BoxGeometry& box = shape.body(b);
-      const auto ijk = box.index(g);
+      const auto& ijk = index_of[rows[r]];
       std::array<PlaneWeights, 3> w;
-      for (int a = 0; a < 3; ++a) w[a] = plane_weights(planes[l + 1][b][a], ijk[a]);
+      for (int a = 0; a < 3; ++a) w[a] = weights_at[b][a][ijk[a]];
       const auto& sp = span[b];
       const long ny = sp[4] - sp[1] + 1, nz = sp[5] - sp[2] + 1;
       for (int x = 0; x < w[0].n; ++x)

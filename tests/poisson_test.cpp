@@ -7,12 +7,15 @@
 //  - confined compression (rollers on the four lateral faces): H_A = E (1 - nu) / ((1 + nu)(1 - 2 nu));
 // each to 1e-6. Plus: the cell term's force against a finite difference of its energy and its tangent against a
 // finite difference of its force (large strain, every part of the energy on); forces bit for bit those of one
-// rank on any partition; the critical time step is h / c_p; bad input.
+// rank on any partition; the tangent's blocks one run a row; the critical time step is h / c_p; bad input.
 #include <gtest/gtest.h>
 #include <petscsys.h>
 
 #include <cmath>
+#include <algorithm>
+#include <array>
 #include <cstdio>
+#include <map>
 #include <string>
 #include <unordered_map>
 #include <vector>
@@ -237,6 +240,61 @@ TEST(Poisson, FusedCellPassBitForBit) {
   double all = 0;
   MPI_Allreduce(&moved, &all, 1, MPI_DOUBLE, MPI_MAX, PETSC_COMM_WORLD);
   EXPECT_GT(all, 0.0);
+}
+
+// ForceModel::tangent_blocks with cells, at a large deformation: every owned molecule's row comes as one run (the
+// lattice Galerkin stream scatters a run at a time to the coarse rows: the springs' run and the cells' run would
+// scatter a row twice), and the blocks summed per (row, column) are the assembled tangent's (its free components:
+// held rows and columns are masked there) to 1e-13. Cubic cells at 0.45 (volumetric-only blocks) and flat ones.
+TEST(Poisson, TangentBlocksOneRunARow) {
+  for (const Vec3 h : {Vec3{1, 1, 1}, Vec3{1, 1, 0.5}}) {
+    Case c;
+    c.n = {6, 5, 7}, c.h = h, c.nu = 0.45;
+    auto r = run(scene_text(c), PETSC_COMM_WORLD, {}, /*do_solve=*/false);
+    ASSERT_EQ(r->forces->term_names(), (std::vector<std::string>{"cell-elasticity"}));
+    std::vector<double> x;
+    deform(r->model, x);
+    const int owned = r->model.owned;
+    struct Seen {
+      std::vector<int> runs;
+      int row = -1;
+      std::map<std::pair<int, int>, std::array<double, 9>> sum;
+    } seen;
+    seen.runs.assign(owned, 0);
+    auto add = [](void* p, int i, int j, const double K[9]) -> PetscErrorCode {
+      auto& s = *static_cast<Seen*>(p);
+      if (i != s.row) s.runs.at(i)++, s.row = i;
+      auto& b = s.sum[{i, j}];
+      for (int e = 0; e < 9; ++e) b[e] += K[e];
+      return 0;
+    };
+    ASSERT_EQ(r->forces->tangent_blocks(x.data(), add, &seen), 0);
+    for (int i = 0; i < owned; ++i) ASSERT_EQ(seen.runs[i], 1) << "molecule " << i << " cells " << h[2];
+    Mat J;
+    ASSERT_EQ(r->forces->create_tangent(&J), 0);
+    ASSERT_EQ(r->forces->assemble_tangent(x.data(), J), 0);
+    const auto& held = r->forces->held();
+    double worst = 0, scale = 0;
+    long compared = 0;
+    for (const auto& [ij, b] : seen.sum) {
+      const int i = ij.first, j = ij.second;
+      if (j >= owned) continue;  // held flags are the owned molecules'
+      for (int rr = 0; rr < 3; ++rr)
+        for (int cc = 0; cc < 3; ++cc) {
+          if (held[3 * i + rr] || held[3 * j + cc]) continue;
+          const PetscInt row = 3 * static_cast<PetscInt>(r->model.block[i]) + rr;
+          const PetscInt col = 3 * static_cast<PetscInt>(r->model.block[j]) + cc;
+          PetscScalar v;
+          ASSERT_EQ(MatGetValues(J, 1, &row, 1, &col, &v), 0);
+          worst = std::max(worst, std::fabs(v - b[3 * rr + cc])), scale = std::max(scale, std::fabs(v));
+          ++compared;
+        }
+    }
+    EXPECT_GT(compared, 1000);
+    EXPECT_GT(scale, 0.0);
+    EXPECT_LE(worst, 1e-13 * scale) << "cells " << h[2];
+    ASSERT_EQ(MatDestroy(&J), 0);
+  }
 }
 
 // The critical time step of a body with the cell term is 0.8 h / c_p, c_p = sqrt((lambda + 2 mu) / rho); a

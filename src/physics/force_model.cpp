@@ -708,8 +708,30 @@ double* ForceModel::ghost_row_buffer() const {
 PetscErrorCode ForceModel::tangent_blocks(const double* x, Term::BlockAdd add, void* ctx) const {
   PetscFunctionBeginUser;
   PetscCheck(!ghost_rows(), model_.comm, PETSC_ERR_SUP, "tangent_blocks: a term's tangent has rows of ghosts");
-  PetscCall(connection_blocks(x, add, ctx));
-  for (const auto& t : terms_) PetscCall(t->add_tangent(x, add, ctx));
+  const int n = model_.owned;
+  if (static_cast<int>(tangent_.conn_start.size()) != n + 1) tangent_.create_rows(model_);
+  // A molecule's connection row just before the terms' first run of its row, so that a consumer summing a row
+  // at a time (LatticeGalerkin's stream) takes the springs' and the cells' blocks as one run, one scatter a row.
+  struct Merge {
+    const ForceModel& forces;
+    const double* x;
+    Term::BlockAdd add;
+    void* ctx;
+    std::vector<std::uint8_t> done;
+    int row = -1;
+  } merge{*this, x, add, ctx, std::vector<std::uint8_t>(n, 0)};
+  auto merged = [](void* p, int i, int j, const double K[9]) -> PetscErrorCode {
+    auto& m = *static_cast<Merge*>(p);
+    if (i != m.row && i < static_cast<int>(m.done.size()) && !m.done[i]) {
+      PetscCall(m.forces.connection_row(m.x, i, m.add, m.ctx));
+      m.done[i] = 1;
+    }
+    m.row = i;
+    return m.add(m.ctx, i, j, K);
+  };
+  for (const auto& t : terms_) PetscCall(t->add_tangent(x, merged, &merge));
+  for (int i = 0; i < n; ++i)
+    if (!merge.done[i]) PetscCall(connection_row(x, i, add, ctx));
   PetscFunctionReturn(0);
 }
 
@@ -717,27 +739,31 @@ PetscErrorCode ForceModel::connection_blocks(const double* x, Term::BlockAdd add
   PetscFunctionBeginUser;
   const int n = model_.owned;
   if (static_cast<int>(tangent_.conn_start.size()) != n + 1) tangent_.create_rows(model_);
-  for (int i = 0; i < n; ++i) {
-    double self[9] = {};
-    for (int p = tangent_.conn_start[i]; p < tangent_.conn_start[i + 1]; ++p) {
-      const int c = tangent_.row_conns[p];
-      const int j = model_.end_a[c] == i ? model_.end_b[c] : model_.end_a[c];
-      const Stretch st(model_, x, i, j, c);
-      const double* d = st.d;
-      const double len2 = st.len2, k = st.k, geo = st.geo;
-      // The block is symmetric to the bit (d[r] d[s] = d[s] d[r] exactly): its upper triangle only, 6 divisions.
-      double minus[9];
-      for (int r = 0; r < 3; ++r)
-        for (int s = r; s < 3; ++s) {
-          const double nn = d[r] * d[s] / len2;
-          const double K = k * (nn + geo * ((r == s ? 1.0 : 0.0) - nn));
-          minus[3 * r + s] = minus[3 * s + r] = -K;
-        }
-      for (int e = 0; e < 9; ++e) self[e] -= minus[e];  // += K, exactly
-      PetscCall(add(ctx, i, j, minus));
-    }
-    PetscCall(add(ctx, i, i, self));
+  for (int i = 0; i < n; ++i) PetscCall(connection_row(x, i, add, ctx));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode ForceModel::connection_row(const double* x, int i, Term::BlockAdd add, void* ctx) const {
+  PetscFunctionBeginUser;
+  double self[9] = {};
+  for (int p = tangent_.conn_start[i]; p < tangent_.conn_start[i + 1]; ++p) {
+    const int c = tangent_.row_conns[p];
+    const int j = model_.end_a[c] == i ? model_.end_b[c] : model_.end_a[c];
+    const Stretch st(model_, x, i, j, c);
+    const double* d = st.d;
+    const double len2 = st.len2, k = st.k, geo = st.geo;
+    // The block is symmetric to the bit (d[r] d[s] = d[s] d[r] exactly): its upper triangle only, 6 divisions.
+    double minus[9];
+    for (int r = 0; r < 3; ++r)
+      for (int s = r; s < 3; ++s) {
+        const double nn = d[r] * d[s] / len2;
+        const double K = k * (nn + geo * ((r == s ? 1.0 : 0.0) - nn));
+        minus[3 * r + s] = minus[3 * s + r] = -K;
+      }
+    for (int e = 0; e < 9; ++e) self[e] -= minus[e];  // += K, exactly
+    PetscCall(add(ctx, i, j, minus));
   }
+  PetscCall(add(ctx, i, i, self));
   PetscFunctionReturn(0);
 }
 

@@ -63,8 +63,9 @@ public:
   // blocks: they come after the connections' rows, and summing their magnitudes block by block would overstate
   // the bound. The Chebyshev smoother's interval on the finest level (src/solvers/newton_equilibrium.cpp).
   PetscErrorCode jacobi_gershgorin(const double* x, double* bound, bool* exact) const;
-  // Every 3x3 block of -dF/dx (owned rows, local columns, held components not masked): the connections' row by
-  // row in owned order (the diagonal block last), then the terms' in their own order. Blocks may repeat.
+  // Every 3x3 block of -dF/dx (owned rows, local columns, held components not masked): the terms' in their own
+  // order, each molecule's connection row (the diagonal block last) just before the terms' first block of its row,
+  // then the connection rows no term named, in owned order. Blocks may repeat.
   PetscErrorCode tangent_blocks(const double* x, Term::BlockAdd add, void* ctx) const;
   // Collective: the smallest time step bound the terms impose by themselves (infinity: none; Term::critical_time_step).
   double terms_critical_time_step() const;
@@ -170,6 +171,8 @@ private:
   mutable std::vector<double> load_scale_;  // per [[load]]: its history factor at time_ (1 without history)
   // tangent_blocks' connection rows alone (owned order, the diagonal block last).
   PetscErrorCode connection_blocks(const double* x, Term::BlockAdd add, void* ctx) const;
+  // Owned molecule i's connection row (the diagonal block last); the rows made (create_rows).
+  PetscErrorCode connection_row(const double* x, int i, Term::BlockAdd add, void* ctx) const;
   // The tangent's block-row pattern and CSR storage (src/physics/tangent.hpp), built by create_tangent.
   mutable TangentStorage tangent_;
   // Terms whose tangent has rows of ghosts (Term::tangent_has_ghost_rows): the matrix-free product's and the

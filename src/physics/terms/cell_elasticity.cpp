@@ -860,8 +860,36 @@ public:
       const double* block = state + w * static_cast<std::size_t>(first);
       // The entries of dP/dF read below, Dd[3p + j] = dP_(3i + j) / dF_p (i = p / 3): from the closed form over
       // the block's cells as lanes (plain cells; once per Newton iteration, not per product), else the state's.
+      const Moduli& moduli = kinds_[kind_[first]].moduli;
+      if (w == 10 && moduli.mu == 0 && moduli.alpha[0] == 0 && moduli.alpha[1] == 0 && moduli.alpha[2] == 0) {
+        // Volumetric-only cells (add_row's closed form): K_aa[i][i] = V0 W'' (cof F g_a)_i^2, the skew part's
+        // diagonal being zero; W'' = kappa/2 (1 + 1/J^2).
+        const std::size_t sn = static_cast<std::size_t>(n);
+        for (int k = first; k < first + n; ++k) {
+          const std::size_t c = static_cast<std::size_t>(k - first);
+          double F[9];
+          for (int q = 0; q < 9; ++q) F[q] = block[q * sn + c];
+          const double cof[9] = {F[4] * F[8] - F[5] * F[7], F[5] * F[6] - F[3] * F[8], F[3] * F[7] - F[4] * F[6],
+                                 F[2] * F[7] - F[1] * F[8], F[0] * F[8] - F[2] * F[6], F[1] * F[6] - F[0] * F[7],
+                                 F[1] * F[5] - F[2] * F[4], F[2] * F[3] - F[0] * F[5], F[0] * F[4] - F[1] * F[3]};
+          const double J = F[0] * cof[0] + F[1] * cof[1] + F[2] * cof[2], rJ = 1.0 / J;
+          const Geometry& geo = geometry_[kinds_[kind_[k]].body];
+          const double w2 = geo.volume * (0.5 * moduli.kappa * (1.0 + rJ * rJ));
+          int corner[8];
+          corners(k, corner);
+          for (int a = 0; a < 8; ++a) {
+            if (corner[a] >= m_.owned) continue;
+            const double* g = geo.g[a];
+            for (int i = 0; i < 3; ++i) {
+              const double ca = cof[3 * i] * g[0] + cof[3 * i + 1] * g[1] + cof[3 * i + 2] * g[2];
+              diag[3 * corner[a] + i] += w2 * (ca * ca);
+            }
+          }
+        }
+        return;
+      }
       alignas(64) double Dd[27][kCellBlock];
-      if (w == 10) plain_block_diagonal_tangent(n, block, &kinds_[kind_[first]].moduli, Dd);
+      if (w == 10) plain_block_diagonal_tangent(n, block, &moduli, Dd);
       for (int k = first; k < first + n; ++k) {
         int corner[8];
         corners(k, corner);

@@ -1195,8 +1195,6 @@ private:
                       m_.rest.data(), kind.moduli, geo.volume, g, m_.owned, f);
   }
 
-  // Cell k's dP/dF at x, D[9 kl + ij] = dP_ij / dF_kl, one direction kl at a time (dual numbers through stress()
-  // and the history); false when the cell is inverted.
   // Cells whose law is its volumetric part alone, W = kappa/4 (J^2 - 1 - 2 ln J) (mu_c = 0, no virtual diagonals,
   // no fibres, no history running: cubic cells at nu > 1/4): their tangent blocks in closed form from F, cof F,
   // W' = kappa/2 (J - 1/J) and W'' = kappa/2 (1 + 1/J^2) (add_row) instead of dP/dF by nine dual-number stresses.
@@ -1221,6 +1219,8 @@ private:
     return true;
   }
 
+  // Cell k's dP/dF at x, D[9 kl + ij] = dP_ij / dF_kl, one direction kl at a time (dual numbers through stress()
+  // and the history); false when the cell is inverted.
   bool stress_tangent(int k, const double* x, double* D) const {
     int corner[8];
     corners(k, corner);

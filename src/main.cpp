@@ -45,6 +45,7 @@
 #include "src/driver/fit.hpp"
 #include "src/driver/simulation.hpp"
 #include "src/model/cell_law.hpp"
+#include "src/solvers/tissue_options.hpp"
 
 using namespace tissue;
 
@@ -392,6 +393,7 @@ int main(int argc, char** argv) {
     // The whole command is one agreed stage (partition/agreement.hpp): its own stages agree as they go, and a
     // failure anywhere else on one rank still reaches every rank, or ends the job (MPI_Abort), never a hang.
     code = agree(PETSC_COMM_WORLD, [&] {
+      if (*run_cmd || *restart_cmd || *fit_cmd) check_tissue_options();  // bad -static_* / -tissue_*: exit 2
       if (*run_cmd) return run(scene_path, "", overrides, output);
       if (*restart_cmd) return run("", checkpoint_path, overrides, output);
       if (*info_cmd) return info(info_path, PETSC_COMM_WORLD);

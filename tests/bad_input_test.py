@@ -45,13 +45,13 @@ class Runner:
         self.passed = 0
         self.failed = []
 
-    def check(self, label, scene, expects, extra=(), workdir=None, args=None):
-        """Runs `tissue run SCENE [extra] --output DIR/out` (or `tissue ARGS --output DIR/out`) and checks the
-        one-line failure."""
+    def check(self, label, scene, expects, extra=(), workdir=None, args=None, petsc=()):
+        """Runs `tissue run SCENE [extra] --output DIR/out [-- PETSC]` (or `tissue ARGS --output DIR/out`) and
+        checks the one-line failure."""
         out = Path(workdir) / "out"
         if args is None:
             args = ["run", str(scene), *extra]
-        cmd = self.launcher + [str(self.tissue), *args, "--output", str(out)]
+        cmd = self.launcher + [str(self.tissue), *args, "--output", str(out)] + (["--", *petsc] if petsc else [])
         env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
         start = time.monotonic()
         try:
@@ -139,6 +139,15 @@ def main():
         ]
         for label, args, expects in cli_cases:
             runner.check(f"cli {label}", None, expects, workdir=tmp, args=args)
+
+        # the project's own PETSc options (src/solvers/tissue_options.cpp): malformed or out of range
+        option_cases = [
+            ("-static_enough_fraction", "abc"), ("-static_enough_fraction", "-1"), ("-static_first_rtol", "2"),
+            ("-static_chebyshev_fraction", "0"), ("-static_cell_coarse_steps", "-3"),
+            ("-static_volume_smoother_steps", "0"), ("-tissue_guards", "maybe"), ("-tissue_fuse_rows", "x"),
+        ]
+        for name, value in option_cases:
+            runner.check(f"option {name} {value}", valid, ["PETSc options", name], workdir=tmp, petsc=[name, value])
 
         missing = Path(tmp) / "no_such_scene.toml"
         runner.check("missing file", missing, ["no_such_scene.toml"], workdir=tmp)

@@ -1,6 +1,9 @@
 """The python tests' tally: check() counts a passed or failed assertion (printing the failed ones) and returns it, report()
-prints 'N passed, M failed' and gives the exit code; tissue() runs build/tissue under mpirun."""
+prints 'N passed, M failed' and gives the exit code; tissue() runs build/tissue under mpirun; arguments_and_work()
+reads a test's --build/--source and gives it an empty work directory."""
+import argparse
 import os
+import shutil
 import subprocess
 
 counts = {"passed": 0, "failed": 0}
@@ -18,6 +21,19 @@ def check(ok, what):
 def report():
     print(f"{counts['passed']} passed, {counts['failed']} failed")
     return 1 if counts["failed"] else 0
+
+
+def arguments_and_work(name):
+    """The test's arguments (--build BUILD_DIR --source SOURCE_DIR) and its work directory BUILD_DIR/tests/out/NAME,
+    emptied and made."""
+    p = argparse.ArgumentParser()
+    p.add_argument("--build", required=True)
+    p.add_argument("--source", required=True)
+    a = p.parse_args()
+    work = os.path.join(a.build, "tests", "out", name)
+    shutil.rmtree(work, ignore_errors=True)
+    os.makedirs(work)
+    return a, work
 
 
 def tissue(build, ranks, *args, timeout=300):

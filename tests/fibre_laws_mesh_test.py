@@ -19,17 +19,15 @@ l1 < 1). Solved here by Newton with complex-step derivatives, independent of the
      against the solution; and at strain 1e-6 E_m = mu (3 lambda + 2 mu) / (lambda + mu) to 1e-5.
 
 Usage: fibre_laws_mesh_test.py --build BUILD_DIR --source SOURCE_DIR      Prints 'N passed, M failed'."""
-import argparse
 import json
 import os
-import shutil
 import sys
 
 import h5py
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from checks import check, report, run_scene  # noqa: E402
+from checks import arguments_and_work, check, report, run_scene  # noqa: E402
 
 # The test material of docs/anisotropy.md: E_L, E_T, nu_LT, nu_TT, G_L.
 E_L, E_T, NU_LT, NU_TT, G_L = 20000.0, 1000.0, 0.35, 0.3, 800.0
@@ -150,13 +148,7 @@ def compare(out, label, sigma, toe, tension_only):
 
 
 def main():
-    p = argparse.ArgumentParser()
-    p.add_argument("--build", required=True)
-    p.add_argument("--source", required=True)
-    a = p.parse_args()
-    work = os.path.join(a.build, "tests", "out", "fibre_laws_mesh")
-    shutil.rmtree(work, ignore_errors=True)
-    os.makedirs(work)
+    a, work = arguments_and_work("fibre_laws_mesh")
     mu, lam, alpha, E_f = moduli()
 
     # a. Through the toe into its linear part: nominal stress for about 5 % strain along the fibres.

@@ -16,9 +16,7 @@ the exact state is uniform per layer: E = 1 / (0.5 / E_A + 0.5 / E_L), lateral s
 surface tetrahedra's fibre stretch 1 + sigma / E_L and the deep ones' 0, at 1, 2 and 3 ranks.
 
 Usage: fibre_output_test.py --build BUILD_DIR --source SOURCE_DIR      Prints 'N passed, M failed'."""
-import argparse
 import os
-import shutil
 import sys
 import xml.etree.ElementTree as ET
 
@@ -26,7 +24,7 @@ import h5py
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from checks import check, report, run_scene  # noqa: E402
+from checks import arguments_and_work, check, report, run_scene  # noqa: E402
 
 E_T, NU, E_L, NU_LT, STRAIN = 1000.0, 0.3, 20000.0, 0.3, 1e-4
 FIBRES = f"""[body.fibres]
@@ -95,13 +93,7 @@ def check_fibres(out, label, nodes):
 
 
 def main():
-    p = argparse.ArgumentParser()
-    p.add_argument("--build", required=True)
-    p.add_argument("--source", required=True)
-    a = p.parse_args()
-    work = os.path.join(a.build, "tests", "out", "fibre_output")
-    shutil.rmtree(work, ignore_errors=True)
-    os.makedirs(work)
+    a, work = arguments_and_work("fibre_output")
     lattice = 'molecules = [5, 4, 4]\nsize = [4.0, 3.0, 1.5]\ntopology = "face-diagonals"\n'  # 1:1:1/2 cells
     mesh = f'shape = "mesh"\nfile = "{os.path.join(a.source, "tests", "meshes", "cube_h0.5.msh")}"\n'
     for label, body, area, nodes in (("lattice", lattice, 3.0 * 1.5, 8), ("mesh", mesh, 1.0, 4)):

@@ -8,24 +8,16 @@ ends its Krylov solve once CG's residual is below 0.1 of the Newton tolerance. C
   - elongation and the measured E within 1e-9 relative of the old path's.
 
 Usage: krylov_stop_test.py --build BUILD_DIR --source SOURCE_DIR      Prints 'N passed, M failed'."""
-import argparse
 import json
 import os
-import shutil
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from checks import check, report, tissue  # noqa: E402
+from checks import arguments_and_work, check, report, tissue  # noqa: E402
 
 
 def main():
-    p = argparse.ArgumentParser()
-    p.add_argument("--build", required=True)
-    p.add_argument("--source", required=True)
-    a = p.parse_args()
-    work = os.path.join(a.build, "tests", "out", "krylov_stop")
-    shutil.rmtree(work, ignore_errors=True)
-    os.makedirs(work)
+    a, work = arguments_and_work("krylov_stop")
     scene = os.path.join(a.source, "run_scripts", "scenes", "peer_tension.toml")
     fewer = 0
     for ranks in (1, 2, 3):

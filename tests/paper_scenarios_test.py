@@ -4,25 +4,18 @@ objects and the Table 2 box must read the target E through Eq. 3 to better than 
 measured E and the final C must agree across rank counts (to 1e-9 relative: the solves differ only in round-off).
 
 Usage: paper_scenarios_test.py --build BUILD_DIR --source SOURCE_DIR      Prints 'N passed, M failed'."""
-import argparse
 import json
 import os
-import shutil
 import subprocess
 import sys
 
 SCENES = ["fig7_a", "fig7_b", "fig7_c", "fig7_d", "table2"]
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from checks import check, report  # noqa: E402
+from checks import arguments_and_work, check, report  # noqa: E402
 
 
 def main():
-    p = argparse.ArgumentParser()
-    p.add_argument("--build", required=True)
-    p.add_argument("--source", required=True)
-    a = p.parse_args()
-    work = os.path.join(a.build, "tests", "out", "paper_scenarios")
-    shutil.rmtree(work, ignore_errors=True)
+    a, work = arguments_and_work("paper_scenarios")
     for scene in SCENES:
         results = {}
         for ranks in (1, 2, 3):

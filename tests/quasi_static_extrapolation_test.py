@@ -16,15 +16,13 @@ extrapolation is exact up to it, and
 The same ramp on a 9 x 9 x 17 bar (the lattice multigrid), 2 ranks: fewer Newton iterations in all, same rows.
 
 Usage: quasi_static_extrapolation_test.py --build BUILD_DIR --source SOURCE_DIR      Prints 'N passed, M failed'."""
-import argparse
 import csv
 import os
 import re
-import shutil
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from checks import check, report, tissue  # noqa: E402
+from checks import arguments_and_work, check, report, tissue  # noqa: E402
 from visco_restart_test import positions, restart  # noqa: E402  (h5py, the restart into a copy of the run)
 
 E, AREA, LENGTH, D, T = 1.0e9, 0.02 * 0.02, 0.04, 4.0e-6, 10.0
@@ -108,13 +106,7 @@ def compare_runs(label, work, name_on, name_off, steps):
 
 
 def main():
-    p = argparse.ArgumentParser()
-    p.add_argument("--build", required=True)
-    p.add_argument("--source", required=True)
-    a = p.parse_args()
-    work = os.path.join(a.build, "tests", "out", "quasi_static_extrapolation")
-    shutil.rmtree(work, ignore_errors=True)
-    os.makedirs(work)
+    a, work = arguments_and_work("quasi_static_extrapolation")
 
     straight = {}
     for n in (1, 2, 3):

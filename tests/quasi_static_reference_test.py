@@ -16,15 +16,13 @@ A 3 x 3 x 5 Prony bar (E = 1e9 Pa, gamma = 1, tau = 1 s), both ends clamped, the
 1, 2 and 3 ranks alike.
 
 Usage: quasi_static_reference_test.py --build BUILD_DIR --source SOURCE_DIR      Prints 'N passed, M failed'."""
-import argparse
 import csv
 import json
 import os
-import shutil
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from checks import check, report, run_scene  # noqa: E402
+from checks import arguments_and_work, check, report, run_scene  # noqa: E402
 
 SCENE = """
 title = "displacement-only relaxation"
@@ -57,13 +55,7 @@ progress = false
 
 
 def main():
-    p = argparse.ArgumentParser()
-    p.add_argument("--build", required=True)
-    p.add_argument("--source", required=True)
-    a = p.parse_args()
-    work = os.path.join(a.build, "tests", "out", "quasi_static_reference")
-    shutil.rmtree(work, ignore_errors=True)
-    os.makedirs(work)
+    a, work = arguments_and_work("quasi_static_reference")
 
     def run(label, ranks, displacement):
         return run_scene(a.build, work, label, ranks, SCENE.replace("DISPLACEMENT", displacement))

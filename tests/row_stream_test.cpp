@@ -207,6 +207,34 @@ std::string expected_seal(const std::vector<unsigned char>& bytes) {
                 static_cast<unsigned long long>(sum));
   return header;
 }
+
+// A file that `stream` (slots `ids`, a negative id: a slot not written) wrote with rows 0..rows-1 of the closed form,
+// 3 values a row in /values and (id, -id) in /ids, with the writer's row hashes `hash` and `hash_ids`: the hashes are
+// the closed form's, the datasets read back whole equal it, and so do the rows read back through the stream (a
+// skipped slot is never read). Every rank checks; rank 0 removes the file.
+void expect_closed_form_file(const RowStream& stream, const std::vector<std::int64_t>& ids, const std::string& file,
+                             std::int64_t rows, std::uint64_t hash, std::uint64_t hash_ids) {
+  std::vector<double> expected;
+  std::vector<std::int64_t> expected_ids;
+  for (std::int64_t id = 0; id < rows; ++id) {
+    for (int c = 0; c < 3; ++c) expected.push_back(value(id, c));
+    expected_ids.push_back(id), expected_ids.push_back(-id);
+  }
+  EXPECT_EQ(hash, row_hash_sum(expected.data(), 3, rows, 0)) << file;
+  EXPECT_EQ(hash_ids, row_hash_sum(expected_ids.data(), 2, rows, 0)) << file;
+  Hdf5File h = Hdf5File::open(file, MPI_COMM_WORLD, "file", nullptr);
+  EXPECT_EQ(h.read_double("/values", 0, rows), expected) << file;
+  EXPECT_EQ(h.read_int64("/ids", 0, rows), expected_ids) << file;
+  int wrong = 0;
+  const RowStream::ReadCheck check = stream.read_double(h, "/values", 3, [&](std::int64_t k, const double* row) {
+    for (int c = 0; c < 3; ++c) wrong += ids[k] < 0 || row[c] != value(ids[k], c);
+  });
+  EXPECT_EQ(wrong, 0) << file;
+  EXPECT_EQ(check.hash, hash) << file;
+  h.close();
+  MPI_Barrier(MPI_COMM_WORLD);
+  if (comm_rank() == 0) std::filesystem::remove(file);
+}
 }  // namespace
 
 // The row hash (hashed four rows side by side) is the sum of each row's FNV-1a(row index, row bytes), for any row
@@ -347,26 +375,7 @@ TEST(RowStream, BatchedRowsInBothLayouts) {
       f.close();
       RowStream::release();
       EXPECT_GT(batches, 0);
-      std::vector<double> expected;
-      std::vector<std::int64_t> expected_ids;
-      for (std::int64_t id = 0; id < rows; ++id) {
-        for (int c = 0; c < 3; ++c) expected.push_back(value(id, c));
-        expected_ids.push_back(id), expected_ids.push_back(-id);
-      }
-      EXPECT_EQ(hash, row_hash_sum(expected.data(), 3, rows, 0)) << file;
-      EXPECT_EQ(hash_ids, row_hash_sum(expected_ids.data(), 2, rows, 0)) << file;
-      Hdf5File h = Hdf5File::open(file, MPI_COMM_WORLD, "file", nullptr);
-      EXPECT_EQ(h.read_double("/values", 0, rows), expected) << file;
-      EXPECT_EQ(h.read_int64("/ids", 0, rows), expected_ids) << file;
-      int wrong = 0;
-      const RowStream::ReadCheck check = stream.read_double(h, "/values", 3, [&](std::int64_t k, const double* row) {
-        for (int c = 0; c < 3; ++c) wrong += ids[k] < 0 || row[c] != value(ids[k], c);
-      });
-      EXPECT_EQ(wrong, 0) << file;
-      EXPECT_EQ(check.hash, hash) << file;
-      h.close();
-      MPI_Barrier(MPI_COMM_WORLD);
-      if (rank == 0) std::filesystem::remove(file);
+      expect_closed_form_file(stream, ids, file, rows, hash, hash_ids);
     }
 }
 
@@ -411,26 +420,7 @@ TEST(RowStream, ConsecutiveIdsWriteAsTheirList) {
             });
         f.close();
         RowStream::release();
-        std::vector<double> expected;
-        std::vector<std::int64_t> expected_ids;
-        for (std::int64_t id = 0; id < rows; ++id) {
-          for (int c = 0; c < 3; ++c) expected.push_back(value(id, c));
-          expected_ids.push_back(id), expected_ids.push_back(-id);
-        }
-        EXPECT_EQ(hash, row_hash_sum(expected.data(), 3, rows, 0)) << file;
-        EXPECT_EQ(hash_ids, row_hash_sum(expected_ids.data(), 2, rows, 0)) << file;
-        Hdf5File h = Hdf5File::open(file, MPI_COMM_WORLD, "file", nullptr);
-        EXPECT_EQ(h.read_double("/values", 0, rows), expected) << file;
-        EXPECT_EQ(h.read_int64("/ids", 0, rows), expected_ids) << file;
-        int wrong = 0;
-        const RowStream::ReadCheck check = stream.read_double(h, "/values", 3, [&](std::int64_t k, const double* row) {
-          for (int c = 0; c < 3; ++c) wrong += row[c] != value(ids[k], c);
-        });
-        EXPECT_EQ(wrong, 0) << file;
-        EXPECT_EQ(check.hash, hash) << file;
-        h.close();
-        MPI_Barrier(MPI_COMM_WORLD);
-        if (rank == 0) std::filesystem::remove(file);
+        expect_closed_form_file(stream, ids, file, rows, hash, hash_ids);
       }
   // The last rank's range one past the end (at 1 rank: the only one): every rank throws.
   const std::int64_t first = NaturalOrder::block_begin(rows, size, rank),

@@ -12,7 +12,6 @@ c. Checkpoint/restart keeps the current step: restarted at step 12 (1 -> 1, 2 ->
 d. Bad input: a growth below 1, a max_time_step below time_step, a growth on a dynamic run: exit 2, one line.
 
 Usage: time_step_growth_test.py --build BUILD_DIR --source SOURCE_DIR      Prints 'N passed, M failed'."""
-import argparse
 import csv
 import json
 import math
@@ -22,7 +21,7 @@ import subprocess
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from checks import check, report, tissue  # noqa: E402
+from checks import arguments_and_work, check, report, tissue  # noqa: E402
 
 SCENE = """
 title = "SLS creep, growing time step"
@@ -60,13 +59,7 @@ def rows(out):
 
 
 def main():
-    p = argparse.ArgumentParser()
-    p.add_argument("--build", required=True)
-    p.add_argument("--source", required=True)
-    a = p.parse_args()
-    work = os.path.join(a.build, "tests", "out", "time_step_growth")
-    shutil.rmtree(work, ignore_errors=True)
-    os.makedirs(work)
+    a, work = arguments_and_work("time_step_growth")
     scene = os.path.join(work, "creep.toml")
     with open(scene, "w") as f:
         f.write(SCENE)

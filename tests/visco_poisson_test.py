@@ -13,15 +13,13 @@ strain tensor is one creep function times the elastic one:
 With the springs relaxing and the cells not (the state before this test), nu read 0.357 at t = 0 and 0.400 relaxed.
 
 Usage: visco_poisson_test.py --build BUILD_DIR --source SOURCE_DIR      Prints 'N passed, M failed'."""
-import argparse
 import csv
 import json
 import os
-import shutil
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from checks import check, report, run_scene  # noqa: E402
+from checks import arguments_and_work, check, report, run_scene  # noqa: E402
 
 SCENE = """
 title = "nu constant in time"
@@ -54,13 +52,7 @@ progress = false
 
 
 def main():
-    p = argparse.ArgumentParser()
-    p.add_argument("--build", required=True)
-    p.add_argument("--source", required=True)
-    a = p.parse_args()
-    work = os.path.join(a.build, "tests", "out", "visco_poisson")
-    shutil.rmtree(work, ignore_errors=True)
-    os.makedirs(work)
+    a, work = arguments_and_work("visco_poisson")
 
     def run(label, ranks, text):
         out, r = run_scene(a.build, work, label, ranks, text)

@@ -21,7 +21,6 @@ constant per region; with the cells on the body's table instead they drift), che
 1, 2 and 3 ranks; a checkpoint and restart (1 -> 1, 2 -> 2) gives history.csv byte for byte, 2 -> 3 to 1e-9.
 
 Usage: visco_region_cells_test.py --build BUILD_DIR --source SOURCE_DIR      Prints 'N passed, M failed'."""
-import argparse
 import csv
 import json
 import math
@@ -30,7 +29,7 @@ import shutil
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from checks import check, report, run_scene, tissue  # noqa: E402
+from checks import arguments_and_work, check, report, run_scene, tissue  # noqa: E402
 
 SCENE = """
 title = "Prony per region with the cell term"
@@ -95,13 +94,7 @@ def rows(out):
 
 
 def main():
-    p = argparse.ArgumentParser()
-    p.add_argument("--build", required=True)
-    p.add_argument("--source", required=True)
-    a = p.parse_args()
-    work = os.path.join(a.build, "tests", "out", "visco_region_cells")
-    shutil.rmtree(work, ignore_errors=True)
-    os.makedirs(work)
+    a, work = arguments_and_work("visco_region_cells")
 
     def run(label, ranks, text):
         out, r = run_scene(a.build, work, label, ranks, text)

@@ -12,17 +12,15 @@ gamma = [0.5], tau = [3] s and the region's gamma = [2, 1], tau = [0.5, 8] s. Ch
 refused (exit 2).
 
 Usage: visco_regions_test.py --build BUILD_DIR --source SOURCE_DIR      Prints 'N passed, M failed'."""
-import argparse
 import csv
 import json
 import math
 import os
-import shutil
 import subprocess
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from checks import check, report, tissue  # noqa: E402
+from checks import arguments_and_work, check, report, tissue  # noqa: E402
 
 SCENE = """
 title = "Prony per region"
@@ -66,13 +64,7 @@ def G(t, gamma, tau):
 
 
 def main():
-    p = argparse.ArgumentParser()
-    p.add_argument("--build", required=True)
-    p.add_argument("--source", required=True)
-    a = p.parse_args()
-    work = os.path.join(a.build, "tests", "out", "visco_regions")
-    shutil.rmtree(work, ignore_errors=True)
-    os.makedirs(work)
+    a, work = arguments_and_work("visco_regions")
 
     def run(label, ranks, text, *sets):
         path = os.path.join(work, label + ".toml")

@@ -15,7 +15,6 @@ byte for byte as well. The same with the cell term (nu = 0.4: springs and cells 
 2 -> 2, 1 -> 2 and 2 -> 3.
 
 Usage: visco_restart_test.py --build BUILD_DIR --source SOURCE_DIR      Prints 'N passed, M failed'."""
-import argparse
 import csv
 import glob
 import json
@@ -26,7 +25,7 @@ import sys
 import h5py
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from checks import check, report, tissue  # noqa: E402
+from checks import arguments_and_work, check, report, tissue  # noqa: E402
 
 QUASI_STATIC = """
 title = "creep restart, quasi-static"
@@ -168,13 +167,7 @@ def scales(out):
 
 
 def main():
-    p = argparse.ArgumentParser()
-    p.add_argument("--build", required=True)
-    p.add_argument("--source", required=True)
-    a = p.parse_args()
-    work = os.path.join(a.build, "tests", "out", "visco_restart")
-    shutil.rmtree(work, ignore_errors=True)
-    os.makedirs(work)
+    a, work = arguments_and_work("visco_restart")
 
     # Quasi-static: checkpoints at steps 4, 8, 12 (the newest two kept: 8 and 12).
     qs = {n: straight(a.build, work, "qs", QUASI_STATIC, n) for n in (1, 2, 3)}

@@ -210,10 +210,18 @@ PetscErrorCode fine_parts(Mat A, FineParts* parts, bool* ok) {
 }  // namespace
 
 // One level's stencil rows: per node its global molecule id, which of the 27 blocks are there, and the blocks.
+// Rows equal to the bit share one copy of their blocks (at: a row's copy in a, refs: how many rows read it): a
+// box lattice's coarse rows at its reference state are nearly all a few rows, and writing each (2 kB) was most of
+// the coarse update's first touch. A row gets its blocks when first written (writable: zero, or a copy of the
+// shared blocks when other rows still read them); until then it reads as zero.
 struct LatticeGalerkin::Rows {
+  static constexpr std::size_t kRow = kSlots * kBlock;
   std::vector<std::int64_t> id;
   std::vector<std::uint32_t> present;
-  std::vector<double> a;  // kSlots * kBlock per node
+  std::vector<int> at;    // per row: its blocks' copy in a, -1 for none yet
+  std::vector<int> refs;  // per copy: the rows reading it
+  std::vector<double> a;  // kRow per copy
+  std::size_t populated = 0;  // copies of a's reserve faulted in ahead (populate)
   std::unordered_map<std::int64_t, int> index;
   std::vector<int> row;  // once complete: the row of each of this rank's nodes (owned order), -1 for none
 
@@ -224,13 +232,43 @@ struct LatticeGalerkin::Rows {
     if (added) {
       id.push_back(g);
       present.push_back(0);
-      a.resize(a.size() + kSlots * kBlock, 0.0);
+      at.push_back(-1);
     }
     return it->second;
   }
-  double* block(int r, int s) { return a.data() + (static_cast<std::size_t>(r) * kSlots + s) * kBlock; }
+  // Row r's blocks to write: its own copy (a new one may move a's storage: earlier pointers into a are void).
+  double* writable(int r) {
+    const int from = at[r];
+    if (from >= 0 && refs[from] == 1) return a.data() + static_cast<std::size_t>(from) * kRow;
+    const std::size_t copy = refs.size();
+    // The copies about to be written, faulted in a batch at a time (one call instead of one trap a page) within
+    // the reserve only: nothing beyond what the rows are about to use becomes resident.
+    if (copy >= populated && a.capacity() >= (copy + 1) * kRow) {
+      const std::size_t batch = std::max<std::size_t>(1024, a.capacity() / kRow / 16);
+      const std::size_t end = std::min(a.capacity() / kRow, copy + batch);
+      populate(a.data() + copy * kRow, sizeof(double) * (end - copy) * kRow);
+      populated = end;
+    }
+    a.resize(a.size() + kRow, 0.0);
+    refs.push_back(1);
+    at[r] = static_cast<int>(copy);
+    double* to = a.data() + copy * kRow;
+    if (from >= 0) {
+      --refs[from];
+      std::copy_n(a.data() + static_cast<std::size_t>(from) * kRow, kRow, to);
+    }
+    return to;
+  }
+  // Row r (no blocks yet) reads row s's.
+  void share(int r, int s) {
+    at[r] = at[s];
+    ++refs[at[s]];
+    present[r] = present[s];
+  }
   const double* block(int r, int s) const {
-    return a.data() + (static_cast<std::size_t>(r) * kSlots + s) * kBlock;
+    static const std::array<double, kRow> zero{};
+    const double* base = at[r] < 0 ? zero.data() : a.data() + static_cast<std::size_t>(at[r]) * kRow;
+    return base + s * kBlock;
   }
 };
 
@@ -449,11 +487,9 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     // About this rank's coarse nodes and a layer more: no regrowth (a copy and fresh pages) while filling.
     const std::size_t named = l + 1 < static_cast<int>(levels_.named.size()) ? levels_.named[l + 1] : 0;
     const std::size_t expect = std::max(levels_.owned_nodes[l + 1].size() * 5 / 4 + 64, named);
-    acc.id.reserve(expect), acc.present.reserve(expect), acc.a.reserve(expect * kSlots * kBlock);
+    acc.id.reserve(expect), acc.present.reserve(expect), acc.at.reserve(expect), acc.refs.reserve(expect);
+    acc.a.reserve(std::min(named, expect) * kSlots * kBlock);  // address space: only written copies are touched
     acc.index.reserve(expect);
-    // The rows this rank's nodes are about to name (their first touch was the largest part of the coarse
-    // operators' time at 64,000 molecules), faulted in at once.
-    populate(acc.a.data(), sizeof(double) * std::min(named, expect) * kSlots * kBlock);
   }
   std::array<double, kSlots * kBlock> blocks{};
   std::array<double, 64 * kBlock> T{};
@@ -528,7 +564,7 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
   std::vector<std::uint8_t> npending;         // its length, | kSummed
   auto sum_pending = [&](int r) {
     if (npending[r] & kSummed) return;
-    double* to = acc.block(r, 0);
+    double* to = acc.writable(r);
     for (int q = 0; q < npending[r]; ++q) {
       const int code = pending[static_cast<std::size_t>(r) * kPending + q];
       const RowClass& rc = row_classes[code >> 3];
@@ -617,7 +653,7 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
           continue;
         }
         sum_pending(r);
-        double* to = acc.block(r, 0);
+        double* to = acc.writable(r);
         std::uint32_t bits;
         const RowClass& rc = row_classes[e];
         spread_blocks(rc.touched, rc.T.data(), 1, &to, &w[k], &shift[k], &bits);
@@ -629,7 +665,8 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     PetscCall(check_touched(touched, steps));
     std::array<double*, 8> to;
     std::array<std::uint32_t, 8> bits;
-    for (int k = 0; k < nrows; ++k) sum_pending(rows[k]), to[k] = acc.block(rows[k], 0);
+    for (int k = 0; k < nrows; ++k) sum_pending(rows[k]), acc.writable(rows[k]);
+    for (int k = 0; k < nrows; ++k) to[k] = acc.a.data() + static_cast<std::size_t>(acc.at[rows[k]]) * Rows::kRow;
     spread_blocks(touched, T.data(), nrows, to.data(), w.data(), shift.data(), bits.data());
     for (int k = 0; k < nrows; ++k) acc.present[rows[k]] |= bits[k];
     return PetscErrorCode(0);
@@ -758,7 +795,7 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
       const int r = stencil->row[n];
       if (r < 0) continue;  // every component held
       present = stencil->present[r];
-      src = stencil->a.data() + static_cast<std::size_t>(r) * kSlots * kBlock;
+      src = stencil->block(r, 0);
     }
     if (!present) continue;
     PetscCall(scatter(b, p, present, src));
@@ -775,9 +812,7 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
       const auto [it, added] = summed.try_emplace(h, static_cast<int>(r));
       const std::size_t s = static_cast<std::size_t>(it->second);
       if (!added && (npending[s] & ~kSummed) == n && std::equal(list(r), list(r) + n, list(s))) {
-        std::memcpy(acc.block(static_cast<int>(r), 0), acc.block(static_cast<int>(s), 0),
-                    sizeof(double) * kSlots * kBlock);
-        acc.present[r] = acc.present[s];
+        acc.share(static_cast<int>(r), static_cast<int>(s));
         npending[r] |= kSummed;
         continue;
       }
@@ -904,7 +939,7 @@ PetscErrorCode LatticeGalerkin::send_rows_to_owners(int l, const Numbers& number
   for (std::size_t q = 0; q < recvbuf.size(); q += kRecord) {
     const int r = acc.find_or_add(static_cast<std::int64_t>(recvbuf[q]));
     acc.present[r] |= static_cast<std::uint32_t>(recvbuf[q + 1]);
-    double* to = acc.block(r, 0);
+    double* to = acc.writable(r);
     for (int e = 0; e < kSlots * kBlock; ++e) to[e] += recvbuf[q + 2 + e];
   }
   PetscFunctionReturn(0);
@@ -976,13 +1011,20 @@ PetscErrorCode LatticeGalerkin::mask_held(int l, const Numbers& num, Rows& acc, 
     PetscCheck(it != acc.index.end(), PETSC_COMM_SELF, PETSC_ERR_PLIB, "lattice Galerkin product: an empty coarse row");
     const int r = acc.row[c] = it->second;
     neighbours(l, num, acc, c, nb);
+    // A row with a held component here or in a neighbour is written, so it takes its own copy (rows that share
+    // blocks need not share masks).
+    bool masked = mask != 7;
+    for (int s = 0; s < kSlots && !masked; ++s) masked = (acc.present[r] >> s & 1) && jnum[s] % 8 != 7;
+    double* const own = masked ? acc.writable(r) : nullptr;
     for (int s = 0; s < kSlots; ++s) {
       if (!(acc.present[r] >> s & 1)) continue;
       const int jmask = static_cast<int>(jnum[s] % 8);
-      double* blk = acc.block(r, s);
-      for (int k = 0; k < 3; ++k)
-        for (int m = 0; m < 3; ++m)
-          if (!(mask >> k & 1) || !(jmask >> m & 1)) blk[3 * k + m] = 0.0;
+      if (masked) {
+        double* blk = own + s * kBlock;
+        for (int k = 0; k < 3; ++k)
+          for (int m = 0; m < 3; ++m)
+            if (!(mask >> k & 1) || !(jmask >> m & 1)) blk[3 * k + m] = 0.0;
+      }
       if (!jmask) {
         acc.present[r] &= ~(1u << s);
         continue;
@@ -1229,14 +1271,14 @@ void LatticeGalerkin::halve_level_one() {
   // Rows equal to the bit are kept once (a box lattice's interior rows at its reference state are nearly all one
   // row): the product then reads the few distinct rows from the cache, not 126 B a fine molecule from memory.
   double* a = op.rows.a.data();
-  const std::size_t rows = op.rows.id.size();
+  const std::size_t rows = op.rows.id.size(), copies = op.rows.refs.size();
   constexpr std::size_t kRow = kHalf * kBlock;
-  std::vector<int> kept_as(rows, -1);
+  std::vector<int> kept_as(copies, -1);  // by copy of the blocks (rows.at), not by row: shared rows hash once
   for (std::size_t c = 0; c < nodes; ++c)
-    if (op.first[c] % 8) kept_as[op.rows.row[c]] = 0;  // the rows some node of this rank reads
-  std::unordered_map<std::uint64_t, int> distinct;    // a row's hash -> the first kept row with it
+    if (op.first[c] % 8) kept_as[op.rows.at[op.rows.row[c]]] = 0;  // the copies some node of this rank reads
+  std::unordered_map<std::uint64_t, int> distinct;  // a copy's hash -> the first kept copy with it
   std::size_t kept = 0;
-  for (std::size_t r = 0; r < rows; ++r) {
+  for (std::size_t r = 0; r < copies; ++r) {
     if (kept_as[r] < 0) continue;
     const double* from = a + (r * kSlots + kHalf0) * kBlock;
     // Four independent hashes of interleaved values (one chain of multiplies was the pass's time), then combined.
@@ -1256,14 +1298,17 @@ void LatticeGalerkin::halve_level_one() {
     kept_as[r] = static_cast<int>(kept++);
   }
   for (std::size_t c = 0; c < nodes; ++c)
-    if (op.first[c] % 8) op.rows.row[c] = kept_as[op.rows.row[c]];
-  (void)PetscInfo(nullptr, "lattice Galerkin: level 1 keeps %zu distinct rows of %zu\n", kept, rows);
+    if (op.first[c] % 8) op.rows.row[c] = kept_as[op.rows.at[op.rows.row[c]]];
+  (void)PetscInfo(nullptr, "lattice Galerkin: level 1 keeps %zu distinct rows of %zu (%zu copies)\n", kept, rows,
+                  copies);
   const std::uintptr_t page = static_cast<std::uintptr_t>(sysconf(_SC_PAGESIZE));
   const auto from = (reinterpret_cast<std::uintptr_t>(a + kept * kRow) + page - 1) / page * page;
   const auto to = reinterpret_cast<std::uintptr_t>(a + op.rows.a.size()) / page * page;
   if (to > from + (1u << 20)) (void)madvise(reinterpret_cast<void*>(from), to - from, MADV_DONTNEED);
   op.rows.index = {};
   op.rows.present = {};
+  op.rows.at = {};
+  op.rows.refs = {};
   // A spring's block is symmetric to the bit and so is every weighted sum of them; a term's blocks need not be.
   op.symmetric = true;
   for (std::size_t c = 0; c < nodes && op.symmetric; ++c) {

@@ -555,6 +555,38 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
   std::vector<std::vector<int>> class_at(nb);  // [b][(x class * ny + y class) * nz + z class] -> row_classes
   for (int b = 0; b < nb; ++b)
     class_at[b].assign(axis_classes[b][0].size() * axis_classes[b][1].size() * axis_classes[b][2].size(), -1);
+  // Each coarse node's row by its planes on a dense box per body (the planes this rank's nodes interpolate
+  // from), so that a row seen before is a table read, not its id and a hash lookup (1-8 a fine row); a box much
+  // larger than the rows (a scattered part) keeps the lookups. Rows are numbered in the same order either way.
+  struct RowBox {
+    std::array<int, 3> lo{}, n{};
+    std::vector<int> r;  // the row, -1 for none yet
+  };
+  std::vector<RowBox> row_box(nb);
+  {
+    std::vector<std::array<int, 6>> span(nb, {INT_MAX, INT_MAX, INT_MAX, INT_MIN, INT_MIN, INT_MIN});
+    std::vector<std::size_t> count(nb, 0);
+    for (std::size_t n = 0; n < nnodes; ++n) {
+      const int i = l == 0 ? static_cast<int>(n) : nodes[n];
+      const int b = model_.body[i];
+      ++count[b];
+      for (int a = 0; a < 3; ++a) {
+        const int p = l == 0 ? ijk_[i][a] : position(planes[l][b][a], ijk_[i][a]);
+        span[b][a] = std::min(span[b][a], p), span[b][3 + a] = std::max(span[b][3 + a], p);
+      }
+    }
+    for (int b = 0; b < nb; ++b) {
+      if (!count[b]) continue;
+      RowBox& box = row_box[b];
+      std::size_t volume = 1;
+      for (int a = 0; a < 3; ++a) {
+        const AxisWeights &first = weights[b][a][span[b][a]], &last = weights[b][a][span[b][3 + a]];
+        box.lo[a] = first.at[0], box.n[a] = last.at[last.n - 1] - first.at[0] + 1;
+        volume *= static_cast<std::size_t>(box.n[a]);
+      }
+      if (volume <= count[b] + 4096) box.r.assign(volume, -1);
+    }
+  }
   // A coarse row's contributions of class sums are kept as a list (class, k) until the row takes another (then
   // the list is summed first, in order) or the rows are complete; rows with equal lists are then equal to the
   // bit (the same operations in the same order from zero), so one is summed and the others copied.
@@ -605,6 +637,7 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     PetscCheck(!(present & beyond), PETSC_COMM_SELF, PETSC_ERR_PLIB,
                "lattice Galerkin product: a coarse node outside the box");
     // The coarse rows first (find_or_add may move the rows' storage), then their blocks.
+    RowBox& rb = row_box[b];
     std::array<int, 8> rows, shift;
     std::array<double, 8> w;
     int nrows = 0;
@@ -613,8 +646,17 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
         for (int z = 0; z < wi[2]->n; ++z, ++nrows) {
           const int I[3] = {wi[0]->at[x], wi[1]->at[y], wi[2]->at[z]};
           w[nrows] = wi[0]->w[x] * wi[1]->w[y] * wi[2]->w[z];
-          rows[nrows] = acc.find_or_add(box.id(planes[l + 1][b][0][I[0]], planes[l + 1][b][1][I[1]],
-                                               planes[l + 1][b][2][I[2]]));
+          int* known = nullptr;
+          if (!rb.r.empty())
+            known = &rb.r[(static_cast<std::size_t>(I[0] - rb.lo[0]) * rb.n[1] + (I[1] - rb.lo[1])) * rb.n[2] +
+                          (I[2] - rb.lo[2])];
+          if (known && *known >= 0) {
+            rows[nrows] = *known;
+          } else {
+            rows[nrows] = acc.find_or_add(box.id(planes[l + 1][b][0][I[0]], planes[l + 1][b][1][I[1]],
+                                                 planes[l + 1][b][2][I[2]]));
+            if (known) *known = rows[nrows];
+          }
           // J - I along each axis is -1, 0 or 1 (a fine neighbour's enclosing planes are at most one coarse
           // plane from the node's own), so slot = the box index shifted by the node's place in the box.
           shift[nrows] = slot_of(c0[0] - I[0], c0[1] - I[1], c0[2] - I[2]);
@@ -705,7 +747,28 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
         row_free = !(held[3 * i] | held[3 * i + 1] | held[3 * i + 2]);
         row_ijk = ijk[i];
       }
-      // Both molecules free (nearly every block): no masks below.
+      // Both molecules free, two of them, one plane apart at most (nearly every block): the general path's
+      // operations on the block read once, with no masks.
+      if (row_free && i != j) {
+        const std::uint8_t* hj = held + 3 * j;
+        const unsigned e0 = static_cast<unsigned>(ijk[j][0] - row_ijk[0] + 1),
+                       e1 = static_cast<unsigned>(ijk[j][1] - row_ijk[1] + 1),
+                       e2 = static_cast<unsigned>(ijk[j][2] - row_ijk[2] + 1);
+        if (!(hj[0] | hj[1] | hj[2]) && e0 <= 2 && e1 <= 2 && e2 <= 2 && (one_body || model_.body[j] == model_.body[i])) {
+          double k[kBlock];
+          std::memcpy(k, K, sizeof k);
+          double o0 = off[0], o1 = off[1], o2 = off[2];
+          o0 += std::abs(k[0]), o0 += std::abs(k[1]), o0 += std::abs(k[2]);
+          o1 += std::abs(k[3]), o1 += std::abs(k[4]), o1 += std::abs(k[5]);
+          o2 += std::abs(k[6]), o2 += std::abs(k[7]), o2 += std::abs(k[8]);
+          off[0] = o0, off[1] = o1, off[2] = o2;
+          const int s = static_cast<int>(e0 + 3 * e1 + 9 * e2);
+          double* to = blocks.data() + s * kBlock;
+          for (int e = 0; e < kBlock; ++e) to[e] += k[e];
+          present |= 1u << s;
+          return PetscErrorCode(0);
+        }
+      }
       const bool free = row_free && !(held[3 * j] | held[3 * j + 1] | held[3 * j + 2]);
       if (free && i != j) {
         for (int r = 0; r < 3; ++r)

@@ -549,7 +549,13 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     std::uint64_t touched = 0;
     std::array<double, 8> w{};
     std::array<int, 8> shift{};
+    // The first row's inputs (ForceModel::connection_blocks_unless) when it and its neighbours are wholly free
+    // and within the stencil: a row of the class with the same inputs has the same blocks, not streamed at all.
+    bool has_inputs = false;
+    std::vector<int> slots;  // each connection's neighbour's slot
+    std::vector<double> inputs;
   };
+  int created = -1;  // the class the last scatter made, if it made one
   constexpr std::size_t kMaxClasses = 8192;  // a pending contribution is 8 class + k in 16 bits
   std::vector<RowClass> row_classes;
   std::vector<std::vector<int>> class_at(nb);  // [b][(x class * ny + y class) * nz + z class] -> row_classes
@@ -621,7 +627,9 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
   };
   // Row i (level l, planes p) of level l's operator, its blocks src by stencil slot (present: which), into the
   // rows of the coarse nodes I that i interpolates from.
-  auto scatter = [&](int b, const std::array<int, 3>& p, std::uint32_t present, const double* src) -> PetscErrorCode {
+  // known: the row's blocks are its class's first row's (equal inputs), so the class's sums are taken unseen.
+  auto scatter = [&](int b, const std::array<int, 3>& p, std::uint32_t present, const double* src,
+                     bool known = false) -> PetscErrorCode {
     const BoxGeometry& box = shape.body(b);
     const std::array<const AxisWeights*, 3> wi{&weights[b][0][p[0]], &weights[b][1][p[1]], &weights[b][2][p[2]]};
     std::array<int, 3> c0, cls;
@@ -670,7 +678,9 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
                               axis_classes[b][2].size() +
                           cls[2]];
     int e = -1;
-    if (at >= 0) {
+    if (at >= 0 && known) {
+      e = at;
+    } else if (at >= 0) {
       // The whole rows at once (one call instead of one a slot): their absent slots are zero on every path, and
       // a difference there would only send the row the general way.
       const RowClass& rc = row_classes[at];
@@ -685,6 +695,7 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
       PetscCall(check_touched(rc.touched, steps));
       rc.w = w, rc.shift = shift;
       e = at;
+      created = at;
     }
     if (e >= 0) {
       for (int k = 0; k < nrows; ++k) {
@@ -723,11 +734,26 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     // Gershgorin's bound on the Jacobi-scaled operator, row by row as ForceModel::jacobi_gershgorin sums it (the
     // diagonal and the off-diagonal magnitudes of each free component, in the stream's order; a held row's is 1).
     double diag[3] = {}, off[3] = {}, bound = 1.0;
+    // The last row's inputs (springs only, below), while it may start a class.
+    struct Inputs {
+      int row = -1;  // the row they are of, when it could start a class (free, within the stencil)
+      std::vector<int> slots;
+      std::vector<double> inputs;
+    } last;
     auto flush = [&]() -> PetscErrorCode {
       for (int r = 0; r < 3 && row >= 0; ++r)
         if (!held_[3 * row + r]) bound = std::max(bound, 1.0 + off[r] / diag[r]);
       for (int r = 0; r < 3; ++r) diag[r] = off[r] = 0.0;
-      if (row >= 0 && present) PetscCall(scatter(model_.body[row], ijk_[row], present, blocks.data()));
+      if (row >= 0 && present) {
+        created = -1;
+        PetscCall(scatter(model_.body[row], ijk_[row], present, blocks.data()));
+        if (created >= 0 && row == last.row) {  // a class made from a row whose inputs were kept takes them
+          RowClass& rc = row_classes[created];
+          rc.has_inputs = true;
+          rc.slots = std::move(last.slots);
+          rc.inputs = std::move(last.inputs);
+        }
+      }
       for (std::uint32_t rest = present; rest; rest &= rest - 1)
         std::fill_n(blocks.data() + __builtin_ctz(rest) * kBlock, kBlock, 0.0);
       present = 0, row = -1;
@@ -810,7 +836,59 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     auto add = [](void* ctx, int i, int j, const double K[9]) -> PetscErrorCode {
       return (*static_cast<Put*>(ctx))(i, j, K);
     };
-    PetscCall(stream->forces->tangent_blocks(stream->x, add, &put));
+    // Springs only: each row's inputs first; a row whose inputs are its class's first row's (to the bit, and every
+    // molecule of both wholly free and within the stencil) is not streamed: its blocks, Gershgorin sums and so
+    // its contributions are the first row's. The rows come in the same order either way, so the coarse rows sum
+    // the same numbers in the same order.
+    PetscErrorCode known_error = 0;
+    auto known = [&](int i, const int* ends, const double* inputs, int n) -> bool {
+      if (known_error) return true;  // reported after the stream
+      // The row before it first (its contributions come first; it may make the class this row's inputs meet).
+      known_error = flush();
+      last.row = -1;
+      if (known_error) return true;
+      if (held[3 * i] | held[3 * i + 1] | held[3 * i + 2]) return false;
+      const int b = model_.body[i];
+      std::array<int, kSlots> slots;
+      if (n > kSlots) return false;
+      for (int q = 0; q < n; ++q) {
+        const int j = ends[q];
+        const unsigned e0 = static_cast<unsigned>(ijk[j][0] - ijk[i][0] + 1),
+                       e1 = static_cast<unsigned>(ijk[j][1] - ijk[i][1] + 1),
+                       e2 = static_cast<unsigned>(ijk[j][2] - ijk[i][2] + 1);
+        if ((held[3 * j] | held[3 * j + 1] | held[3 * j + 2]) || e0 > 2 || e1 > 2 || e2 > 2 ||
+            model_.body[j] != b)
+          return false;
+        slots[q] = static_cast<int>(e0 + 3 * e1 + 9 * e2);
+      }
+      const std::array<int, 3>& p = ijk[i];
+      const int at = class_at[b][(static_cast<std::size_t>(axis_class_of[b][0][p[0]]) * axis_classes[b][1].size() +
+                                  axis_class_of[b][1][p[1]]) *
+                                     axis_classes[b][2].size() +
+                                 axis_class_of[b][2][p[2]]];
+      if (at < 0) {  // this row may start the class
+        last.row = i;
+        last.slots.assign(slots.begin(), slots.begin() + n);
+        last.inputs.assign(inputs, inputs + 5 * n);
+        return false;
+      }
+      const RowClass& rc = row_classes[at];
+      if (!rc.has_inputs || static_cast<int>(rc.slots.size()) != n ||
+          !std::equal(rc.slots.begin(), rc.slots.end(), slots.begin()) ||
+          std::memcmp(rc.inputs.data(), inputs, sizeof(double) * 5 * n) != 0)
+        return false;
+      known_error = scatter(b, p, rc.present, rc.src.data(), true);
+      return true;
+    };
+    using Known = decltype(known);
+    auto ask = [](void* ctx, int i, const int* ends, const double* inputs, int n) -> bool {
+      return (*static_cast<Known*>(ctx))(i, ends, inputs, n);
+    };
+    if (stream->forces->has_terms())
+      PetscCall(stream->forces->tangent_blocks(stream->x, add, &put));
+    else
+      PetscCall(stream->forces->connection_blocks_unless(stream->x, add, &put, ask, &known));
+    PetscCall(known_error);
     PetscCall(flush());
     jacobi_bound_ = bound;
     PetscCheck(!off_stencil, PETSC_COMM_SELF, PETSC_ERR_SUP,

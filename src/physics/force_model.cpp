@@ -743,6 +743,32 @@ PetscErrorCode ForceModel::connection_blocks(const double* x, Term::BlockAdd add
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode ForceModel::connection_blocks_unless(const double* x, Term::BlockAdd add, void* ctx, RowKnown known,
+                                                    void* known_ctx) const {
+  PetscFunctionBeginUser;
+  PetscCheck(terms_.empty(), model_.comm, PETSC_ERR_SUP, "connection_blocks_unless: the force model has terms");
+  const int n = model_.owned;
+  if (static_cast<int>(tangent_.conn_start.size()) != n + 1) tangent_.create_rows(model_);
+  std::vector<int> ends;
+  std::vector<double> inputs;
+  for (int i = 0; i < n; ++i) {
+    const int first = tangent_.conn_start[i], count = tangent_.conn_start[i + 1] - first;
+    ends.resize(count), inputs.resize(5 * static_cast<std::size_t>(count));
+    // What Stretch and connection_row read, in their order.
+    for (int q = 0; q < count; ++q) {
+      const int c = tangent_.row_conns[first + q];
+      const int j = model_.end_a[c] == i ? model_.end_b[c] : model_.end_a[c];
+      double* in = inputs.data() + 5 * q;
+      for (int r = 0; r < 3; ++r) in[r] = x[3 * j + r] - x[3 * i + r];
+      in[3] = model_.k(c), in[4] = model_.l0(c);
+      ends[q] = j;
+    }
+    if (known(known_ctx, i, ends.data(), inputs.data(), count)) continue;
+    PetscCall(connection_row(x, i, add, ctx));
+  }
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode ForceModel::connection_row(const double* x, int i, Term::BlockAdd add, void* ctx) const {
   PetscFunctionBeginUser;
   double self[9] = {};

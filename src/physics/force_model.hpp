@@ -67,6 +67,13 @@ public:
   // order, each molecule's connection row (the diagonal block last) just before the terms' first block of its row,
   // then the connection rows no term named, in owned order. Blocks may repeat.
   PetscErrorCode tangent_blocks(const double* x, Term::BlockAdd add, void* ctx) const;
+  // tangent_blocks without terms (has_terms() false), each owned row first shown to known(known_ctx, i, ends,
+  // inputs, n): what its blocks are computed from alone, per connection in the row's order its other end and 5
+  // doubles (d = x_j - x_i, k, l0). Rows with equal inputs have equal blocks, to the bit; a row known answers true
+  // for is not streamed (LatticeGalerkin's stream: a box lattice's rows at its reference state).
+  using RowKnown = bool (*)(void* ctx, int i, const int* ends, const double* inputs, int n);
+  PetscErrorCode connection_blocks_unless(const double* x, Term::BlockAdd add, void* ctx, RowKnown known,
+                                          void* known_ctx) const;
   // Collective: the smallest time step bound the terms impose by themselves (infinity: none; Term::critical_time_step).
   double terms_critical_time_step() const;
   // Adds each term's force scale per owned molecule (N) to scale (the residual's round-off floor).

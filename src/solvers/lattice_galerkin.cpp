@@ -210,10 +210,18 @@ PetscErrorCode fine_parts(Mat A, FineParts* parts, bool* ok) {
 }  // namespace
 
 // One level's stencil rows: per node its global molecule id, which of the 27 blocks are there, and the blocks.
+// Rows equal to the bit share one copy of their blocks (at: a row's copy in a, refs: how many rows read it): a
+// box lattice's coarse rows at its reference state are nearly all a few rows, and writing each (2 kB) was most of
+// the coarse update's first touch. A row gets its blocks when first written (writable: zero, or a copy of the
+// shared blocks when other rows still read them); until then it reads as zero.
 struct LatticeGalerkin::Rows {
+  static constexpr std::size_t kRow = kSlots * kBlock;
   std::vector<std::int64_t> id;
   std::vector<std::uint32_t> present;
-  std::vector<double> a;  // kSlots * kBlock per node
+  std::vector<int> at;    // per row: its blocks' copy in a, -1 for none yet
+  std::vector<int> refs;  // per copy: the rows reading it
+  std::vector<double> a;  // kRow per copy
+  std::size_t populated = 0;  // copies of a's reserve faulted in ahead (populate)
   std::unordered_map<std::int64_t, int> index;
   std::vector<int> row;  // once complete: the row of each of this rank's nodes (owned order), -1 for none
 
@@ -224,13 +232,43 @@ struct LatticeGalerkin::Rows {
     if (added) {
       id.push_back(g);
       present.push_back(0);
-      a.resize(a.size() + kSlots * kBlock, 0.0);
+      at.push_back(-1);
     }
     return it->second;
   }
-  double* block(int r, int s) { return a.data() + (static_cast<std::size_t>(r) * kSlots + s) * kBlock; }
+  // Row r's blocks to write: its own copy (a new one may move a's storage: earlier pointers into a are void).
+  double* writable(int r) {
+    const int from = at[r];
+    if (from >= 0 && refs[from] == 1) return a.data() + static_cast<std::size_t>(from) * kRow;
+    const std::size_t copy = refs.size();
+    // The copies about to be written, faulted in a batch at a time (one call instead of one trap a page) within
+    // the reserve only: nothing beyond what the rows are about to use becomes resident.
+    if (copy >= populated && a.capacity() >= (copy + 1) * kRow) {
+      const std::size_t batch = std::max<std::size_t>(1024, a.capacity() / kRow / 16);
+      const std::size_t end = std::min(a.capacity() / kRow, copy + batch);
+      populate(a.data() + copy * kRow, sizeof(double) * (end - copy) * kRow);
+      populated = end;
+    }
+    a.resize(a.size() + kRow, 0.0);
+    refs.push_back(1);
+    at[r] = static_cast<int>(copy);
+    double* to = a.data() + copy * kRow;
+    if (from >= 0) {
+      --refs[from];
+      std::copy_n(a.data() + static_cast<std::size_t>(from) * kRow, kRow, to);
+    }
+    return to;
+  }
+  // Row r (no blocks yet) reads row s's.
+  void share(int r, int s) {
+    at[r] = at[s];
+    ++refs[at[s]];
+    present[r] = present[s];
+  }
   const double* block(int r, int s) const {
-    return a.data() + (static_cast<std::size_t>(r) * kSlots + s) * kBlock;
+    static const std::array<double, kRow> zero{};
+    const double* base = at[r] < 0 ? zero.data() : a.data() + static_cast<std::size_t>(at[r]) * kRow;
+    return base + s * kBlock;
   }
 };
 
@@ -449,11 +487,9 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     // About this rank's coarse nodes and a layer more: no regrowth (a copy and fresh pages) while filling.
     const std::size_t named = l + 1 < static_cast<int>(levels_.named.size()) ? levels_.named[l + 1] : 0;
     const std::size_t expect = std::max(levels_.owned_nodes[l + 1].size() * 5 / 4 + 64, named);
-    acc.id.reserve(expect), acc.present.reserve(expect), acc.a.reserve(expect * kSlots * kBlock);
+    acc.id.reserve(expect), acc.present.reserve(expect), acc.at.reserve(expect), acc.refs.reserve(expect);
+    acc.a.reserve(std::min(named, expect) * kSlots * kBlock);  // address space: only written copies are touched
     acc.index.reserve(expect);
-    // The rows this rank's nodes are about to name (their first touch was the largest part of the coarse
-    // operators' time at 64,000 molecules), faulted in at once.
-    populate(acc.a.data(), sizeof(double) * std::min(named, expect) * kSlots * kBlock);
   }
   std::array<double, kSlots * kBlock> blocks{};
   std::array<double, 64 * kBlock> T{};
@@ -513,12 +549,50 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     std::uint64_t touched = 0;
     std::array<double, 8> w{};
     std::array<int, 8> shift{};
+    // The first row's inputs (ForceModel::connection_blocks_unless) when it and its neighbours are wholly free
+    // and within the stencil: a row of the class with the same inputs has the same blocks, not streamed at all.
+    bool has_inputs = false;
+    std::vector<int> slots;  // each connection's neighbour's slot
+    std::vector<double> inputs;
   };
+  int created = -1;  // the class the last scatter made, if it made one
   constexpr std::size_t kMaxClasses = 8192;  // a pending contribution is 8 class + k in 16 bits
   std::vector<RowClass> row_classes;
   std::vector<std::vector<int>> class_at(nb);  // [b][(x class * ny + y class) * nz + z class] -> row_classes
   for (int b = 0; b < nb; ++b)
     class_at[b].assign(axis_classes[b][0].size() * axis_classes[b][1].size() * axis_classes[b][2].size(), -1);
+  // Each coarse node's row by its planes on a dense box per body (the planes this rank's nodes interpolate
+  // from), so that a row seen before is a table read, not its id and a hash lookup (1-8 a fine row); a box much
+  // larger than the rows (a scattered part) keeps the lookups. Rows are numbered in the same order either way.
+  struct RowBox {
+    std::array<int, 3> lo{}, n{};
+    std::vector<int> r;  // the row, -1 for none yet
+  };
+  std::vector<RowBox> row_box(nb);
+  {
+    std::vector<std::array<int, 6>> span(nb, {INT_MAX, INT_MAX, INT_MAX, INT_MIN, INT_MIN, INT_MIN});
+    std::vector<std::size_t> count(nb, 0);
+    for (std::size_t n = 0; n < nnodes; ++n) {
+      const int i = l == 0 ? static_cast<int>(n) : nodes[n];
+      const int b = model_.body[i];
+      ++count[b];
+      for (int a = 0; a < 3; ++a) {
+        const int p = l == 0 ? ijk_[i][a] : position(planes[l][b][a], ijk_[i][a]);
+        span[b][a] = std::min(span[b][a], p), span[b][3 + a] = std::max(span[b][3 + a], p);
+      }
+    }
+    for (int b = 0; b < nb; ++b) {
+      if (!count[b]) continue;
+      RowBox& box = row_box[b];
+      std::size_t volume = 1;
+      for (int a = 0; a < 3; ++a) {
+        const AxisWeights &first = weights[b][a][span[b][a]], &last = weights[b][a][span[b][3 + a]];
+        box.lo[a] = first.at[0], box.n[a] = last.at[last.n - 1] - first.at[0] + 1;
+        volume *= static_cast<std::size_t>(box.n[a]);
+      }
+      if (volume <= count[b] + 4096) box.r.assign(volume, -1);
+    }
+  }
   // A coarse row's contributions of class sums are kept as a list (class, k) until the row takes another (then
   // the list is summed first, in order) or the rows are complete; rows with equal lists are then equal to the
   // bit (the same operations in the same order from zero), so one is summed and the others copied.
@@ -528,7 +602,7 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
   std::vector<std::uint8_t> npending;         // its length, | kSummed
   auto sum_pending = [&](int r) {
     if (npending[r] & kSummed) return;
-    double* to = acc.block(r, 0);
+    double* to = acc.writable(r);
     for (int q = 0; q < npending[r]; ++q) {
       const int code = pending[static_cast<std::size_t>(r) * kPending + q];
       const RowClass& rc = row_classes[code >> 3];
@@ -553,7 +627,9 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
   };
   // Row i (level l, planes p) of level l's operator, its blocks src by stencil slot (present: which), into the
   // rows of the coarse nodes I that i interpolates from.
-  auto scatter = [&](int b, const std::array<int, 3>& p, std::uint32_t present, const double* src) -> PetscErrorCode {
+  // known: the row's blocks are its class's first row's (equal inputs), so the class's sums are taken unseen.
+  auto scatter = [&](int b, const std::array<int, 3>& p, std::uint32_t present, const double* src,
+                     bool known = false) -> PetscErrorCode {
     const BoxGeometry& box = shape.body(b);
     const std::array<const AxisWeights*, 3> wi{&weights[b][0][p[0]], &weights[b][1][p[1]], &weights[b][2][p[2]]};
     std::array<int, 3> c0, cls;
@@ -569,6 +645,7 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     PetscCheck(!(present & beyond), PETSC_COMM_SELF, PETSC_ERR_PLIB,
                "lattice Galerkin product: a coarse node outside the box");
     // The coarse rows first (find_or_add may move the rows' storage), then their blocks.
+    RowBox& rb = row_box[b];
     std::array<int, 8> rows, shift;
     std::array<double, 8> w;
     int nrows = 0;
@@ -577,8 +654,17 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
         for (int z = 0; z < wi[2]->n; ++z, ++nrows) {
           const int I[3] = {wi[0]->at[x], wi[1]->at[y], wi[2]->at[z]};
           w[nrows] = wi[0]->w[x] * wi[1]->w[y] * wi[2]->w[z];
-          rows[nrows] = acc.find_or_add(box.id(planes[l + 1][b][0][I[0]], planes[l + 1][b][1][I[1]],
-                                               planes[l + 1][b][2][I[2]]));
+          int* known = nullptr;
+          if (!rb.r.empty())
+            known = &rb.r[(static_cast<std::size_t>(I[0] - rb.lo[0]) * rb.n[1] + (I[1] - rb.lo[1])) * rb.n[2] +
+                          (I[2] - rb.lo[2])];
+          if (known && *known >= 0) {
+            rows[nrows] = *known;
+          } else {
+            rows[nrows] = acc.find_or_add(box.id(planes[l + 1][b][0][I[0]], planes[l + 1][b][1][I[1]],
+                                                 planes[l + 1][b][2][I[2]]));
+            if (known) *known = rows[nrows];
+          }
           // J - I along each axis is -1, 0 or 1 (a fine neighbour's enclosing planes are at most one coarse
           // plane from the node's own), so slot = the box index shifted by the node's place in the box.
           shift[nrows] = slot_of(c0[0] - I[0], c0[1] - I[1], c0[2] - I[2]);
@@ -592,7 +678,9 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
                               axis_classes[b][2].size() +
                           cls[2]];
     int e = -1;
-    if (at >= 0) {
+    if (at >= 0 && known) {
+      e = at;
+    } else if (at >= 0) {
       // The whole rows at once (one call instead of one a slot): their absent slots are zero on every path, and
       // a difference there would only send the row the general way.
       const RowClass& rc = row_classes[at];
@@ -607,6 +695,7 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
       PetscCall(check_touched(rc.touched, steps));
       rc.w = w, rc.shift = shift;
       e = at;
+      created = at;
     }
     if (e >= 0) {
       for (int k = 0; k < nrows; ++k) {
@@ -617,7 +706,7 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
           continue;
         }
         sum_pending(r);
-        double* to = acc.block(r, 0);
+        double* to = acc.writable(r);
         std::uint32_t bits;
         const RowClass& rc = row_classes[e];
         spread_blocks(rc.touched, rc.T.data(), 1, &to, &w[k], &shift[k], &bits);
@@ -629,7 +718,8 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     PetscCall(check_touched(touched, steps));
     std::array<double*, 8> to;
     std::array<std::uint32_t, 8> bits;
-    for (int k = 0; k < nrows; ++k) sum_pending(rows[k]), to[k] = acc.block(rows[k], 0);
+    for (int k = 0; k < nrows; ++k) sum_pending(rows[k]), acc.writable(rows[k]);
+    for (int k = 0; k < nrows; ++k) to[k] = acc.a.data() + static_cast<std::size_t>(acc.at[rows[k]]) * Rows::kRow;
     spread_blocks(touched, T.data(), nrows, to.data(), w.data(), shift.data(), bits.data());
     for (int k = 0; k < nrows; ++k) acc.present[rows[k]] |= bits[k];
     return PetscErrorCode(0);
@@ -644,11 +734,26 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     // Gershgorin's bound on the Jacobi-scaled operator, row by row as ForceModel::jacobi_gershgorin sums it (the
     // diagonal and the off-diagonal magnitudes of each free component, in the stream's order; a held row's is 1).
     double diag[3] = {}, off[3] = {}, bound = 1.0;
+    // The last row's inputs (springs only, below), while it may start a class.
+    struct Inputs {
+      int row = -1;  // the row they are of, when it could start a class (free, within the stencil)
+      std::vector<int> slots;
+      std::vector<double> inputs;
+    } last;
     auto flush = [&]() -> PetscErrorCode {
       for (int r = 0; r < 3 && row >= 0; ++r)
         if (!held_[3 * row + r]) bound = std::max(bound, 1.0 + off[r] / diag[r]);
       for (int r = 0; r < 3; ++r) diag[r] = off[r] = 0.0;
-      if (row >= 0 && present) PetscCall(scatter(model_.body[row], ijk_[row], present, blocks.data()));
+      if (row >= 0 && present) {
+        created = -1;
+        PetscCall(scatter(model_.body[row], ijk_[row], present, blocks.data()));
+        if (created >= 0 && row == last.row) {  // a class made from a row whose inputs were kept takes them
+          RowClass& rc = row_classes[created];
+          rc.has_inputs = true;
+          rc.slots = std::move(last.slots);
+          rc.inputs = std::move(last.inputs);
+        }
+      }
       for (std::uint32_t rest = present; rest; rest &= rest - 1)
         std::fill_n(blocks.data() + __builtin_ctz(rest) * kBlock, kBlock, 0.0);
       present = 0, row = -1;
@@ -668,7 +773,28 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
         row_free = !(held[3 * i] | held[3 * i + 1] | held[3 * i + 2]);
         row_ijk = ijk[i];
       }
-      // Both molecules free (nearly every block): no masks below.
+      // Both molecules free, two of them, one plane apart at most (nearly every block): the general path's
+      // operations on the block read once, with no masks.
+      if (row_free && i != j) {
+        const std::uint8_t* hj = held + 3 * j;
+        const unsigned e0 = static_cast<unsigned>(ijk[j][0] - row_ijk[0] + 1),
+                       e1 = static_cast<unsigned>(ijk[j][1] - row_ijk[1] + 1),
+                       e2 = static_cast<unsigned>(ijk[j][2] - row_ijk[2] + 1);
+        if (!(hj[0] | hj[1] | hj[2]) && e0 <= 2 && e1 <= 2 && e2 <= 2 && (one_body || model_.body[j] == model_.body[i])) {
+          double k[kBlock];
+          std::memcpy(k, K, sizeof k);
+          double o0 = off[0], o1 = off[1], o2 = off[2];
+          o0 += std::abs(k[0]), o0 += std::abs(k[1]), o0 += std::abs(k[2]);
+          o1 += std::abs(k[3]), o1 += std::abs(k[4]), o1 += std::abs(k[5]);
+          o2 += std::abs(k[6]), o2 += std::abs(k[7]), o2 += std::abs(k[8]);
+          off[0] = o0, off[1] = o1, off[2] = o2;
+          const int s = static_cast<int>(e0 + 3 * e1 + 9 * e2);
+          double* to = blocks.data() + s * kBlock;
+          for (int e = 0; e < kBlock; ++e) to[e] += k[e];
+          present |= 1u << s;
+          return PetscErrorCode(0);
+        }
+      }
       const bool free = row_free && !(held[3 * j] | held[3 * j + 1] | held[3 * j + 2]);
       if (free && i != j) {
         for (int r = 0; r < 3; ++r)
@@ -710,7 +836,59 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     auto add = [](void* ctx, int i, int j, const double K[9]) -> PetscErrorCode {
       return (*static_cast<Put*>(ctx))(i, j, K);
     };
-    PetscCall(stream->forces->tangent_blocks(stream->x, add, &put));
+    // Springs only: each row's inputs first; a row whose inputs are its class's first row's (to the bit, and every
+    // molecule of both wholly free and within the stencil) is not streamed: its blocks, Gershgorin sums and so
+    // its contributions are the first row's. The rows come in the same order either way, so the coarse rows sum
+    // the same numbers in the same order.
+    PetscErrorCode known_error = 0;
+    auto known = [&](int i, const int* ends, const double* inputs, int n) -> bool {
+      if (known_error) return true;  // reported after the stream
+      // The row before it first (its contributions come first; it may make the class this row's inputs meet).
+      known_error = flush();
+      last.row = -1;
+      if (known_error) return true;
+      if (held[3 * i] | held[3 * i + 1] | held[3 * i + 2]) return false;
+      const int b = model_.body[i];
+      std::array<int, kSlots> slots;
+      if (n > kSlots) return false;
+      for (int q = 0; q < n; ++q) {
+        const int j = ends[q];
+        const unsigned e0 = static_cast<unsigned>(ijk[j][0] - ijk[i][0] + 1),
+                       e1 = static_cast<unsigned>(ijk[j][1] - ijk[i][1] + 1),
+                       e2 = static_cast<unsigned>(ijk[j][2] - ijk[i][2] + 1);
+        if ((held[3 * j] | held[3 * j + 1] | held[3 * j + 2]) || e0 > 2 || e1 > 2 || e2 > 2 ||
+            model_.body[j] != b)
+          return false;
+        slots[q] = static_cast<int>(e0 + 3 * e1 + 9 * e2);
+      }
+      const std::array<int, 3>& p = ijk[i];
+      const int at = class_at[b][(static_cast<std::size_t>(axis_class_of[b][0][p[0]]) * axis_classes[b][1].size() +
+                                  axis_class_of[b][1][p[1]]) *
+                                     axis_classes[b][2].size() +
+                                 axis_class_of[b][2][p[2]]];
+      if (at < 0) {  // this row may start the class
+        last.row = i;
+        last.slots.assign(slots.begin(), slots.begin() + n);
+        last.inputs.assign(inputs, inputs + 5 * n);
+        return false;
+      }
+      const RowClass& rc = row_classes[at];
+      if (!rc.has_inputs || static_cast<int>(rc.slots.size()) != n ||
+          !std::equal(rc.slots.begin(), rc.slots.end(), slots.begin()) ||
+          std::memcmp(rc.inputs.data(), inputs, sizeof(double) * 5 * n) != 0)
+        return false;
+      known_error = scatter(b, p, rc.present, rc.src.data(), true);
+      return true;
+    };
+    using Known = decltype(known);
+    auto ask = [](void* ctx, int i, const int* ends, const double* inputs, int n) -> bool {
+      return (*static_cast<Known*>(ctx))(i, ends, inputs, n);
+    };
+    if (stream->forces->has_terms())
+      PetscCall(stream->forces->tangent_blocks(stream->x, add, &put));
+    else
+      PetscCall(stream->forces->connection_blocks_unless(stream->x, add, &put, ask, &known));
+    PetscCall(known_error);
     PetscCall(flush());
     jacobi_bound_ = bound;
     PetscCheck(!off_stencil, PETSC_COMM_SELF, PETSC_ERR_SUP,
@@ -758,7 +936,7 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
       const int r = stencil->row[n];
       if (r < 0) continue;  // every component held
       present = stencil->present[r];
-      src = stencil->a.data() + static_cast<std::size_t>(r) * kSlots * kBlock;
+      src = stencil->block(r, 0);
     }
     if (!present) continue;
     PetscCall(scatter(b, p, present, src));
@@ -775,9 +953,7 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
       const auto [it, added] = summed.try_emplace(h, static_cast<int>(r));
       const std::size_t s = static_cast<std::size_t>(it->second);
       if (!added && (npending[s] & ~kSummed) == n && std::equal(list(r), list(r) + n, list(s))) {
-        std::memcpy(acc.block(static_cast<int>(r), 0), acc.block(static_cast<int>(s), 0),
-                    sizeof(double) * kSlots * kBlock);
-        acc.present[r] = acc.present[s];
+        acc.share(static_cast<int>(r), static_cast<int>(s));
         npending[r] |= kSummed;
         continue;
       }
@@ -904,7 +1080,7 @@ PetscErrorCode LatticeGalerkin::send_rows_to_owners(int l, const Numbers& number
   for (std::size_t q = 0; q < recvbuf.size(); q += kRecord) {
     const int r = acc.find_or_add(static_cast<std::int64_t>(recvbuf[q]));
     acc.present[r] |= static_cast<std::uint32_t>(recvbuf[q + 1]);
-    double* to = acc.block(r, 0);
+    double* to = acc.writable(r);
     for (int e = 0; e < kSlots * kBlock; ++e) to[e] += recvbuf[q + 2 + e];
   }
   PetscFunctionReturn(0);
@@ -976,13 +1152,20 @@ PetscErrorCode LatticeGalerkin::mask_held(int l, const Numbers& num, Rows& acc, 
     PetscCheck(it != acc.index.end(), PETSC_COMM_SELF, PETSC_ERR_PLIB, "lattice Galerkin product: an empty coarse row");
     const int r = acc.row[c] = it->second;
     neighbours(l, num, acc, c, nb);
+    // A row with a held component here or in a neighbour is written, so it takes its own copy (rows that share
+    // blocks need not share masks).
+    bool masked = mask != 7;
+    for (int s = 0; s < kSlots && !masked; ++s) masked = (acc.present[r] >> s & 1) && jnum[s] % 8 != 7;
+    double* const own = masked ? acc.writable(r) : nullptr;
     for (int s = 0; s < kSlots; ++s) {
       if (!(acc.present[r] >> s & 1)) continue;
       const int jmask = static_cast<int>(jnum[s] % 8);
-      double* blk = acc.block(r, s);
-      for (int k = 0; k < 3; ++k)
-        for (int m = 0; m < 3; ++m)
-          if (!(mask >> k & 1) || !(jmask >> m & 1)) blk[3 * k + m] = 0.0;
+      if (masked) {
+        double* blk = own + s * kBlock;
+        for (int k = 0; k < 3; ++k)
+          for (int m = 0; m < 3; ++m)
+            if (!(mask >> k & 1) || !(jmask >> m & 1)) blk[3 * k + m] = 0.0;
+      }
       if (!jmask) {
         acc.present[r] &= ~(1u << s);
         continue;
@@ -1229,14 +1412,14 @@ void LatticeGalerkin::halve_level_one() {
   // Rows equal to the bit are kept once (a box lattice's interior rows at its reference state are nearly all one
   // row): the product then reads the few distinct rows from the cache, not 126 B a fine molecule from memory.
   double* a = op.rows.a.data();
-  const std::size_t rows = op.rows.id.size();
+  const std::size_t rows = op.rows.id.size(), copies = op.rows.refs.size();
   constexpr std::size_t kRow = kHalf * kBlock;
-  std::vector<int> kept_as(rows, -1);
+  std::vector<int> kept_as(copies, -1);  // by copy of the blocks (rows.at), not by row: shared rows hash once
   for (std::size_t c = 0; c < nodes; ++c)
-    if (op.first[c] % 8) kept_as[op.rows.row[c]] = 0;  // the rows some node of this rank reads
-  std::unordered_map<std::uint64_t, int> distinct;    // a row's hash -> the first kept row with it
+    if (op.first[c] % 8) kept_as[op.rows.at[op.rows.row[c]]] = 0;  // the copies some node of this rank reads
+  std::unordered_map<std::uint64_t, int> distinct;  // a copy's hash -> the first kept copy with it
   std::size_t kept = 0;
-  for (std::size_t r = 0; r < rows; ++r) {
+  for (std::size_t r = 0; r < copies; ++r) {
     if (kept_as[r] < 0) continue;
     const double* from = a + (r * kSlots + kHalf0) * kBlock;
     // Four independent hashes of interleaved values (one chain of multiplies was the pass's time), then combined.
@@ -1256,14 +1439,17 @@ void LatticeGalerkin::halve_level_one() {
     kept_as[r] = static_cast<int>(kept++);
   }
   for (std::size_t c = 0; c < nodes; ++c)
-    if (op.first[c] % 8) op.rows.row[c] = kept_as[op.rows.row[c]];
-  (void)PetscInfo(nullptr, "lattice Galerkin: level 1 keeps %zu distinct rows of %zu\n", kept, rows);
+    if (op.first[c] % 8) op.rows.row[c] = kept_as[op.rows.at[op.rows.row[c]]];
+  (void)PetscInfo(nullptr, "lattice Galerkin: level 1 keeps %zu distinct rows of %zu (%zu copies)\n", kept, rows,
+                  copies);
   const std::uintptr_t page = static_cast<std::uintptr_t>(sysconf(_SC_PAGESIZE));
   const auto from = (reinterpret_cast<std::uintptr_t>(a + kept * kRow) + page - 1) / page * page;
   const auto to = reinterpret_cast<std::uintptr_t>(a + op.rows.a.size()) / page * page;
   if (to > from + (1u << 20)) (void)madvise(reinterpret_cast<void*>(from), to - from, MADV_DONTNEED);
   op.rows.index = {};
   op.rows.present = {};
+  op.rows.at = {};
+  op.rows.refs = {};
   // A spring's block is symmetric to the bit and so is every weighted sum of them; a term's blocks need not be.
   op.symmetric = true;
   for (std::size_t c = 0; c < nodes && op.symmetric; ++c) {

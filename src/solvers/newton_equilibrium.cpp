@@ -16,6 +16,7 @@
 #include <memory>
 #include <utility>
 
+#include "src/solvers/fused_chebyshev.hpp"
 #include "src/solvers/guards.hpp"
 #include "src/solvers/lattice_galerkin.hpp"
 #include "src/solvers/lattice_mg.hpp"
@@ -53,6 +54,9 @@ struct Context {
   // The matrix-free finest level's Chebyshev interval from Gershgorin's bound (fine_chebyshev), and the lower end
   // as a fraction of the upper (-static_chebyshev_fraction).
   bool gershgorin = false, estimating = true;
+  // With that interval, the finest smoother is PETSc's Chebyshev-Jacobi with its vector operations fused
+  // (fused_chebyshev.hpp: the same numbers; -static_fused_chebyshev false keeps PETSc's KSPCHEBYSHEV).
+  bool fused = true;
   // 0.2: on the peer problem at 97,336 molecules the Krylov iterations of the estimate's [0.1, 1.1] x lambda
   // (15) with 0.15 and 0.2; 16 with 0.1 and 0.3, 17 with 0.05 (the bound exceeds lambda_max by about 1.3x).
   double chebyshev_fraction = 0.2;
@@ -230,7 +234,8 @@ PetscErrorCode lend_smoother_vectors(KSP ksp, Vec, Vec, void* p) {
   KSP smoother;
   PetscCall(PCMGGetLevels(pc, &levels));
   PetscCall(PCMGGetSmoother(pc, levels - 1, &smoother));
-  PetscCall(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(smoother), KSPCHEBYSHEV, &chebyshev));
+  PetscCall(PetscObjectTypeCompareAny(reinterpret_cast<PetscObject>(smoother), &chebyshev, KSPCHEBYSHEV,
+                                      kFusedChebyshev, ""));
   if (chebyshev && smoother->nwork >= 2) {
     PetscCall(PetscObjectReference(reinterpret_cast<PetscObject>(smoother->work[0])));
     PetscCall(PetscObjectReference(reinterpret_cast<PetscObject>(smoother->work[1])));
@@ -270,11 +275,21 @@ PetscErrorCode fine_chebyshev(Context* ctx, PC pc) {
   } else {
     PetscCall(ctx->forces->jacobi_gershgorin(ctx->shell->positions(), &bound, &exact));
   }
+  PC jacobi;
+  PetscCall(KSPGetPC(smoother, &jacobi));
   if (exact) {
-    PetscCall(KSPChebyshevEstEigSet(smoother, 0, 0, 0, 0));  // no estimator (it is destroyed)
+    if (ctx->fused) {
+      PetscCall(register_fused_chebyshev());
+      PetscCall(KSPSetType(smoother, kFusedChebyshev));  // its own D^-1: no PCJACOBI beside it
+      PetscCall(PCSetType(jacobi, PCNONE));
+    } else {
+      PetscCall(KSPChebyshevEstEigSet(smoother, 0, 0, 0, 0));  // no estimator (it is destroyed)
+    }
     PetscCall(KSPChebyshevSetEigenvalues(smoother, bound, ctx->chebyshev_fraction * bound));
     ctx->estimating = false;
   } else if (!ctx->estimating) {
+    PetscCall(KSPSetType(smoother, KSPCHEBYSHEV));  // the estimate needs PETSc's (a no-op when it is already)
+    PetscCall(PCSetType(jacobi, PCJACOBI));
     PetscCall(estimate_chebyshev_interval(smoother));
     ctx->estimating = true;
   }
@@ -598,7 +613,8 @@ PetscErrorCode NewtonEquilibrium::Impl::use_matrix_free(bool user_pc, bool user_
     // The user's smoother options keep PETSc's way on every level.
     PetscBool user_smoother = PETSC_FALSE;
     for (const char* name : {"-mg_levels_ksp_type", "-mg_levels_pc_type", "-mg_levels_ksp_chebyshev_eigenvalues",
-                             "-mg_levels_ksp_chebyshev_esteig", "-mg_levels_esteig_ksp_type"}) {
+                             "-mg_levels_ksp_chebyshev_esteig", "-mg_levels_esteig_ksp_type",
+                             "-mg_levels_ksp_chebyshev_kind", "-mg_levels_pc_jacobi_type", "-mg_levels_pc_jacobi_abs"}) {
       PetscBool has = PETSC_FALSE;
       PetscCall(PetscOptionsHasName(nullptr, nullptr, name, &has));
       user_smoother = user_smoother || has ? PETSC_TRUE : PETSC_FALSE;
@@ -610,6 +626,9 @@ PetscErrorCode NewtonEquilibrium::Impl::use_matrix_free(bool user_pc, bool user_
     // options may need its entries (SOR, ILU, ...).
     if (!user_smoother) galerkin->keep_level_one_as_stencil();
     PetscCall(PetscOptionsGetReal(nullptr, nullptr, "-static_chebyshev_fraction", &ctx.chebyshev_fraction, nullptr));
+    PetscBool fused = PETSC_TRUE;
+    PetscCall(PetscOptionsGetBool(nullptr, nullptr, "-static_fused_chebyshev", &fused, nullptr));
+    ctx.fused = fused == PETSC_TRUE;
   } else {
     if (lattice_mg) {  // PCMG's Galerkin products (or the assembled LatticeGalerkin's check) need an AIJ interpolation
       PetscInt levels = 1;

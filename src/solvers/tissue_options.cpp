@@ -51,6 +51,7 @@ void check_tissue_options() {
   fraction("-static_first_rtol", true);
   fraction("-static_enough_fraction", true);
   fraction("-static_chebyshev_fraction", false);
+  boolean("-static_fused_chebyshev");
   whole("-static_cell_coarse_steps", 0);
   boolean("-static_volume_smoother");
   whole("-static_volume_smoother_steps", 1);

@@ -1,0 +1,198 @@
+#include "src/solvers/fused_chebyshev.hpp"
+
+#include <petsc/private/kspimpl.h>  // a KSP type's operations and data
+
+namespace tissue {
+
+namespace {
+
+struct Data {
+  PetscReal emax, emin;  // the interval, as KSPChebyshevSetEigenvalues sets it (0: not set)
+  Vec inverse_diagonal;  // D^-1 as PCJACOBI keeps it (a zero diagonal entry gives 1)
+  PetscObjectState state;  // the operator's state and id it was taken at (PCSetUp's test for a changed operator)
+  PetscObjectId id;
+};
+
+PetscErrorCode set_eigenvalues(KSP ksp, PetscReal emax, PetscReal emin) {
+  PetscFunctionBeginUser;
+  auto* d = static_cast<Data*>(ksp->data);
+  PetscCheck(emax > emin, PetscObjectComm(reinterpret_cast<PetscObject>(ksp)), PETSC_ERR_ARG_INCOMP,
+             "Chebyshev: the largest eigenvalue %g must exceed the smallest %g", (double)emax, (double)emin);
+  PetscCheck(emax * emin > 0, PetscObjectComm(reinterpret_cast<PetscObject>(ksp)), PETSC_ERR_ARG_INCOMP,
+             "Chebyshev: both eigenvalues must have one sign (%g, %g)", (double)emax, (double)emin);
+  d->emax = emax, d->emin = emin;
+  PetscFunctionReturn(0);
+}
+
+// D^-1 of the preconditioning operator, recomputed when it changed (as PCSetUp_Jacobi: reciprocal, zeros to 1).
+PetscErrorCode update_inverse_diagonal(Data* d, Mat P) {
+  PetscFunctionBeginUser;
+  PetscObjectState state;
+  PetscObjectId id;
+  PetscCall(PetscObjectStateGet(reinterpret_cast<PetscObject>(P), &state));
+  PetscCall(PetscObjectGetId(reinterpret_cast<PetscObject>(P), &id));
+  if (d->inverse_diagonal && state == d->state && id == d->id) PetscFunctionReturn(0);
+  if (!d->inverse_diagonal) PetscCall(MatCreateVecs(P, &d->inverse_diagonal, nullptr));
+  PetscCall(MatGetDiagonal(P, d->inverse_diagonal));
+  PetscScalar* v;
+  PetscInt n;
+  PetscCall(VecGetLocalSize(d->inverse_diagonal, &n));
+  PetscCall(VecGetArray(d->inverse_diagonal, &v));
+  for (PetscInt i = 0; i < n; ++i) v[i] = v[i] != 0.0 ? 1.0 / v[i] : 1.0;
+  PetscCall(VecRestoreArray(d->inverse_diagonal, &v));
+  d->state = state, d->id = id;
+  PetscFunctionReturn(0);
+}
+
+// The first step, x_1 = x_0 + s D^-1 (b - A x_0), PETSc's VecAYPX(r, -1, b), VecPointwiseMult and VecAYPX(p, s, x_0)
+// in one pass (from a zero guess r = b and x_0 = +0, which PETSc's KSPSolve set).
+void first_step(PetscInt n, PetscScalar s, const PetscScalar* x0, const PetscScalar* b, const PetscScalar* Ax,
+                const PetscScalar* dinv, PetscScalar* out) {
+  if (x0) {
+    for (PetscInt i = 0; i < n; ++i) out[i] = x0[i] + s * ((b[i] - Ax[i]) * dinv[i]);
+  } else {
+    for (PetscInt i = 0; i < n; ++i) out[i] = 0.0 + s * (b[i] * dinv[i]);
+  }
+}
+
+// A later step, PETSc's VecAYPX(r, -1, b), VecPointwiseMult and VecAXPBYPCZ(z, a, w, g, p_km1, p_k) in one pass:
+// out = a p_km1 + w p_k + g D^-1 (b - A p_k); p_km1 null: the zero guess (+0). out may be p_km1 or p_k.
+void later_step(PetscInt n, PetscScalar a, PetscScalar w, PetscScalar g, const PetscScalar* pkm1, const PetscScalar* pk,
+                const PetscScalar* b, const PetscScalar* Apk, const PetscScalar* dinv, PetscScalar* out) {
+  if (pkm1) {
+    for (PetscInt i = 0; i < n; ++i) out[i] = a * pkm1[i] + w * pk[i] + g * ((b[i] - Apk[i]) * dinv[i]);
+  } else {
+    for (PetscInt i = 0; i < n; ++i) out[i] = a * 0.0 + w * pk[i] + g * ((b[i] - Apk[i]) * dinv[i]);
+  }
+}
+
+// KSPSolve_Chebyshev (PETSc 3.18, first kind, no norms) with each step's vector operations in one pass. The
+// iterates rotate through p[0] = x, p[1], p[2] as PETSc's do; the last step writes x itself (PETSc copies it there).
+PetscErrorCode solve(KSP ksp) {
+  PetscFunctionBeginUser;
+  auto* d = static_cast<Data*>(ksp->data);
+  PetscCheck(d->emax > 0, PetscObjectComm(reinterpret_cast<PetscObject>(ksp)), PETSC_ERR_ORDER,
+             "fused Chebyshev: no eigenvalue interval set");
+  Mat A, P;
+  PetscCall(PCGetOperators(ksp->pc, &A, &P));
+  PetscCall(update_inverse_diagonal(d, P));
+  const PetscInt maxit = ksp->max_it;
+  const PetscInt vectors = maxit > 2 ? 3 : 2;
+  if (ksp->nwork < vectors) PetscCall(KSPSetWorkVecs(ksp, vectors));
+  Vec b = ksp->vec_rhs, x = ksp->vec_sol, product = ksp->work[1];
+  Vec p[3] = {x, ksp->work[0], vectors > 2 ? ksp->work[2] : nullptr};
+  // The scalars exactly as KSPSolve_Chebyshev computes them.
+  const PetscScalar scale = 2.0 / (d->emax + d->emin);
+  const PetscScalar alpha = 1.0 - scale * d->emin;
+  const PetscScalar Gamma = 1.0;
+  const PetscScalar mu = 1.0 / alpha;
+  const PetscScalar omegaprod = 2.0 / alpha;
+  PetscScalar c[3];
+  int km1 = 0, k = 1, kp1 = 2;
+  c[km1] = 1.0;
+  c[k] = mu;
+  PetscInt n;
+  PetscCall(VecGetLocalSize(x, &n));
+  const PetscScalar *bb, *dinv, *Ap;
+  // The arrays of the iterates (x and the work vectors), got and given back around each pass.
+  auto pass = [&](auto&& body) -> PetscErrorCode {
+    PetscScalar* arrays[3] = {nullptr, nullptr, nullptr};
+    for (int v = 0; v < 3; ++v)
+      if (p[v]) PetscCall(VecGetArray(p[v], &arrays[v]));
+    PetscCall(VecGetArrayRead(b, &bb));
+    PetscCall(VecGetArrayRead(product, &Ap));
+    PetscCall(VecGetArrayRead(d->inverse_diagonal, &dinv));
+    body(arrays);
+    PetscCall(VecRestoreArrayRead(d->inverse_diagonal, &dinv));
+    PetscCall(VecRestoreArrayRead(product, &Ap));
+    PetscCall(VecRestoreArrayRead(b, &bb));
+    for (int v = 0; v < 3; ++v)
+      if (p[v]) PetscCall(VecRestoreArray(p[v], &arrays[v]));
+    return 0;
+  };
+  ksp->its = 0;
+  const bool zero_guess = ksp->guess_zero;
+  if (!zero_guess) PetscCall(MatMult(A, x, product));
+  const int first = maxit > 1 ? k : 0;  // one step only: straight into x
+  PetscCall(pass([&](PetscScalar** a) { first_step(n, scale, zero_guess ? nullptr : a[0], bb, Ap, dinv, a[first]); }));
+  PetscCall(PetscLogFlops((zero_guess ? 2.0 : 4.0) * n));
+  bool km1_zero = zero_guess;  // p[km1] is x: +0 from a zero guess until the first step rotates it out
+  for (PetscInt i = 1; i < maxit; ++i) {
+    ksp->its++;
+    c[kp1] = 2.0 * mu * c[k] - c[km1];
+    const PetscScalar omega = omegaprod * c[k] / c[kp1];
+    PetscCall(MatMult(A, p[k], product));
+    const int out = i == maxit - 1 ? 0 : kp1;
+    PetscCall(pass([&](PetscScalar** a) {
+      later_step(n, 1.0 - omega, omega, omega * Gamma * scale, km1_zero ? nullptr : a[km1], a[k], bb, Ap, dinv, a[out]);
+    }));
+    PetscCall(PetscLogFlops(8.0 * n));
+    km1_zero = false;
+    const int t = km1;
+    km1 = k, k = kp1, kp1 = t;
+  }
+  ksp->reason = KSP_CONVERGED_ITS;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode setup(KSP ksp) {
+  PetscFunctionBeginUser;
+  PetscCall(KSPSetWorkVecs(ksp, ksp->max_it > 2 ? 3 : 2));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode reset(KSP ksp) {
+  PetscFunctionBeginUser;
+  PetscCall(VecDestroy(&static_cast<Data*>(ksp->data)->inverse_diagonal));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode destroy(KSP ksp) {
+  PetscFunctionBeginUser;
+  PetscCall(reset(ksp));
+  PetscCall(PetscObjectComposeFunction(reinterpret_cast<PetscObject>(ksp), "KSPChebyshevSetEigenvalues_C", nullptr));
+  PetscCall(KSPDestroyDefault(ksp));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode view(KSP ksp, PetscViewer viewer) {
+  PetscFunctionBeginUser;
+  auto* d = static_cast<Data*>(ksp->data);
+  PetscBool ascii;
+  PetscCall(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(viewer), PETSCVIEWERASCII, &ascii));
+  if (ascii)
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  Chebyshev on Jacobi, vector operations fused: eigenvalues %g, %g\n",
+                                     (double)d->emin, (double)d->emax));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode create(KSP ksp) {
+  PetscFunctionBeginUser;
+  Data* d;
+  PetscCall(PetscNew(&d));
+  ksp->data = d;
+  PetscCall(KSPSetSupportedNorm(ksp, KSP_NORM_NONE, PC_LEFT, 1));
+  PetscCall(KSPSetSupportedNorm(ksp, KSP_NORM_NONE, PC_RIGHT, 1));
+  ksp->ops->setup = setup;
+  ksp->ops->solve = solve;
+  ksp->ops->reset = reset;
+  ksp->ops->destroy = destroy;
+  ksp->ops->view = view;
+  ksp->ops->buildsolution = KSPBuildSolutionDefault;
+  ksp->ops->buildresidual = KSPBuildResidualDefault;
+  PetscCall(PetscObjectComposeFunction(reinterpret_cast<PetscObject>(ksp), "KSPChebyshevSetEigenvalues_C",
+                                       set_eigenvalues));
+  PetscFunctionReturn(0);
+}
+
+}  // namespace
+
+PetscErrorCode register_fused_chebyshev() {
+  PetscFunctionBeginUser;
+  static bool registered = false;
+  if (!registered) PetscCall(KSPRegister(kFusedChebyshev, create));
+  registered = true;
+  PetscFunctionReturn(0);
+}
+
+}  // namespace tissue

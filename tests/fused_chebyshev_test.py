@@ -1,0 +1,66 @@
+#!/usr/bin/env python3
+"""The matrix-free finest smoother with its vector operations fused (src/solvers/fused_chebyshev.cpp) against
+PETSc's KSPCHEBYSHEV on PCJACOBI (`-static_fused_chebyshev false`, the old path), on the LAMMPS peer tension scene
+(run_scripts/scenes/peer_tension.toml, 20^3, the bench's load), 1, 2 and 3 ranks, Chebyshev degrees 2 (the default:
+two work vectors), 1 (one step, straight into x) and 3 (three work vectors, the iterates rotated):
+  - every number of the summary's solve equal to the bit: elongation, the measured E and Poisson ratio, the
+    residual, Newton and Krylov counts (the same operations in the same order);
+  - the fused path was taken: fewer VecAXPBYPCZ calls in -log_view than the old path's (PETSc's Chebyshev step).
+
+Usage: fused_chebyshev_test.py --build BUILD_DIR --source SOURCE_DIR      Prints 'N passed, M failed'."""
+import argparse
+import json
+import os
+import re
+import shutil
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from checks import check, report, tissue  # noqa: E402
+
+
+def axpbypcz_calls(stdout):
+    m = re.search(r"^VecAXPBYCZ\s+(\d+)", stdout, re.M)
+    return int(m.group(1)) if m else 0
+
+
+def main():
+    p = argparse.ArgumentParser()
+    p.add_argument("--build", required=True)
+    p.add_argument("--source", required=True)
+    a = p.parse_args()
+    work = os.path.join(a.build, "tests", "out", "fused_chebyshev")
+    shutil.rmtree(work, ignore_errors=True)
+    os.makedirs(work)
+    scene = os.path.join(a.source, "run_scripts", "scenes", "peer_tension.toml")
+    for ranks in (1, 2, 3):
+        for degree in (2, 1, 3):
+            runs, calls = {}, {}
+            for label, fused in (("fused", "true"), ("petsc", "false")):
+                out = os.path.join(work, f"{label}_np{ranks}_d{degree}")
+                r = tissue(a.build, ranks, "run", scene, "--set", "load.0.force=[0,0,-0.4]", "--set",
+                           "solver.tolerance=1e-8", "--set", "output.fields=[]", "--set", "output.progress=false",
+                           "--output", out, "--", "-static_fused_chebyshev", fused, "-mg_levels_ksp_max_it",
+                           str(degree), "-log_view")
+                if check(r.returncode == 0, f"{label}, {ranks} ranks, degree {degree}: exit {r.returncode}: {r.stderr[-300:]}"):
+                    with open(os.path.join(out, "summary.json")) as f:
+                        runs[label] = json.load(f)
+                    calls[label] = axpbypcz_calls(r.stdout)
+            if len(runs) < 2:
+                continue
+            what = f"{ranks} ranks, degree {degree}"
+            new, old = runs["fused"], runs["petsc"]
+            check(new["solver"]["converged"], f"{what}: converged")
+            for key in ("elongation", "youngs_modulus_measured", "poisson_ratio_measured"):
+                check(new[key] == old[key], f"{what}: {key} {new[key]!r} == {old[key]!r}")
+            for key in ("residual", "iterations", "linear_iterations"):
+                check(new["solver"][key] == old["solver"][key],
+                      f"{what}: solver.{key} {new['solver'][key]!r} == {old['solver'][key]!r}")
+            if degree > 1:
+                check(calls["fused"] < calls["petsc"],
+                      f"{what}: the fused smoother ran (VecAXPBYPCZ calls {calls['fused']} < {calls['petsc']})")
+    return report()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -107,6 +107,10 @@ public:
   int ring_rows() const { return ring_rows_; }
   // Connections handled by stencil segments (the rest go through the generic form).
   long structured_connections() const { return structured_; }
+  // Whether forces_streams and forces_ring sum a long segment's rows in the pull form (each row's springs from
+  // both of its ends, the row written once) or in the push form (each spring once, added to both ends' rows):
+  // the same bits either way; the pull form is the default (docs/benchmarks.md), the push form kept for tests.
+  void set_pull(bool on) { pull_ = on; }
   // The connections' tangent applied to u (the matrix-free Newton tangent's springs, ForceModel::apply_tangent):
   // each connection's K (u_a - u_b) added to end a's row and subtracted from end b's, K = k [n n^T + (1 - l0/l)
   // (I - n n^T)] at x (local, ghosts up to date), on the same segments as forces(): per direction a constant k
@@ -130,6 +134,9 @@ private:
     // leave the rank without a ring (ring_rows).
     int owned_reach;
   };
+  template <class Layout, class Finish>
+  void pull_segment(const Segment& seg, const double* x, double* f, Layout at, int& zeroed, Finish& finish,
+                    const ReadAhead* ahead) const;
   template <class Layout>
   void sweep(const double* x, double* f, Layout at, FinalRows final_rows, void* context,
              const ReadAhead* ahead = nullptr) const;
@@ -154,6 +161,7 @@ private:
   std::vector<int> generic_a_, generic_b_;
   int tail_at_ = 0;
   int ring_rows_ = 0;
+  bool pull_ = true;
 };
 
 }  // namespace tissue

@@ -214,15 +214,10 @@ struct FusedStreams {
   bool sum;  // whether anything reads the kinetic energy (the guards)
   bool drift;  // false: the step ends at an observed whole step (the half kick to it alone)
   std::size_t ring = 0;  // f's rows in a ring of this many (SpringKernel::forces_ring); 0: f has every row
-  // Runs of rows [mass_runs[2 r], mass_runs[2 r + 1]) whose molecules all have the mass run_mass (the same double):
-  // their half kick is one constant and their masses are not read (docs/benchmarks.md); `run`: the next run to
-  // look at (the rows come in increasing order within a step).
-  const int* mass_runs = nullptr;
-  int runs = 0, run = 0;
-  double run_mass = 0;
+  double one_mass = 0;   // > 0: every owned molecule's mass (the same double), m not read
 };
-// Rows [begin, end) of one run the kernel handed over: their kicks (and drift), with one mass or each its own.
-void kick_rows(FusedStreams& s, int begin, int end, bool one_mass) {
+void fused_rows_streams(void* context, int begin, int end) {
+  FusedStreams& s = *static_cast<FusedStreams*>(context);
   Streams3 p = streams_at(s.at, begin);
   if (s.ring)  // the kernel hands over runs within one turn of the ring
     for (int d = 0; d < 3; ++d) p.f[d] = s.at.f[d] + (static_cast<std::size_t>(begin) & (s.ring - 1));
@@ -234,12 +229,12 @@ void kick_rows(FusedStreams& s, int begin, int end, bool one_mass) {
       kick_only_streams(end - begin, s.dt, s.m + begin, p.f[0], p.f[1], p.f[2], p.v[0], p.v[1], p.v[2]);
     return;
   }
-  if (one_mass) {
+  if (s.one_mass > 0) {
     if (s.sum)
-      s.kinetic = kick_kick_drift_streams_one_mass(end - begin, s.dt, s.run_mass, p.f[0], p.f[1], p.f[2], p.v[0],
+      s.kinetic = kick_kick_drift_streams_one_mass(end - begin, s.dt, s.one_mass, p.f[0], p.f[1], p.f[2], p.v[0],
                                                    p.v[1], p.v[2], p.x[0], p.x[1], p.x[2], s.kinetic);
     else
-      kick_kick_drift_only_streams_one_mass(end - begin, s.dt, s.run_mass, p.f[0], p.f[1], p.f[2], p.v[0], p.v[1],
+      kick_kick_drift_only_streams_one_mass(end - begin, s.dt, s.one_mass, p.f[0], p.f[1], p.f[2], p.v[0], p.v[1],
                                             p.v[2], p.x[0], p.x[1], p.x[2]);
     return;
   }
@@ -249,20 +244,6 @@ void kick_rows(FusedStreams& s, int begin, int end, bool one_mass) {
   else
     kick_kick_drift_only_streams(end - begin, s.dt, s.m + begin, p.f[0], p.f[1], p.f[2], p.v[0], p.v[1], p.v[2],
                                  p.x[0], p.x[1], p.x[2]);
-}
-// The rows split at the mass runs, in order (the kinetic sum runs in molecule order whatever the split).
-void fused_rows_streams(void* context, int begin, int end) {
-  FusedStreams& s = *static_cast<FusedStreams*>(context);
-  if (!s.drift || s.runs == 0) {
-    kick_rows(s, begin, end, false);
-    return;
-  }
-  for (int b = begin, e = begin; b < end; b = e) {
-    while (s.run < s.runs && s.mass_runs[2 * s.run + 1] <= b) ++s.run;
-    const bool inside = s.run < s.runs && s.mass_runs[2 * s.run] <= b;
-    e = s.run == s.runs ? end : std::min(end, s.mass_runs[2 * s.run + (inside ? 1 : 0)]);
-    kick_rows(s, b, e, inside);
-  }
 }
 
 // n molecules' values, interlaced (a[3 i + d]) to three streams (a[d * n + i]) and back, in place through
@@ -358,20 +339,11 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
   // whole step keep every row's force in f (the next step's half kick reads it, and the state may be read).
   const std::size_t ring_rows = fuse ? static_cast<std::size_t>(forces.kernel().ring_rows()) : 0;
   std::vector<double> ring(ring_rows ? 3 * (ring_rows + static_cast<std::size_t>(model.local - model.owned)) : 0);
-  // The runs of rows whose molecules have the middle molecule's mass (a lattice's interior: all but its faces'), at
-  // least 8 rows each: the fused drifting steps' kicks there read no masses and divide once.
-  std::vector<int> mass_runs;
-  const double run_mass = n > 0 ? m[n / 2] : 0.0;
-  for (int i = 0; i < n;) {
-    if (m[i] != run_mass) {
-      ++i;
-      continue;
-    }
-    int e = i + 1;
-    while (e < n && m[e] == run_mass) ++e;
-    if (e - i >= 8) mass_runs.push_back(i), mass_runs.push_back(e);
-    i = e;
-  }
+  // One mass for every owned molecule (bit for bit): the fused drifting steps' kicks then read no masses.
+  double one_mass = n > 0 ? m[0] : 0.0;
+  for (int i = 1; i < n && one_mass > 0; ++i)
+    if (m[i] != one_mass) one_mass = 0;
+  if (!(one_mass > 0)) one_mass = 0;
   bool streams = false;  // x, v, f hold three streams each (x and f: stride local, v: stride n)
   auto set_streams = [&](bool on) {
     if (on == streams) return;
@@ -420,8 +392,7 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
       ReadAhead ahead;  // what the kicks read besides f (x: the kernel read it)
       ahead.rows[0] = v, ahead.rows[1] = v + sn, ahead.rows[2] = v + 2 * sn, ahead.rows[3] = m;
       ahead.streams = 4, ahead.end = n;
-      step.mass_runs = mass_runs.data(), step.runs = static_cast<int>(mass_runs.size() / 2), step.run_mass = run_mass;
-      if (step.runs > 0 && next_unobserved) ahead.streams = 3;  // the masses outside the runs: few, read on demand
+      if (one_mass > 0 && next_unobserved) step.one_mass = one_mass, ahead.streams = 3;
       if (ring_rows && next_unobserved) {
         double* r = ring.data();
         step.at.f[0] = r, step.at.f[1] = r + ring_rows, step.at.f[2] = r + 2 * ring_rows;

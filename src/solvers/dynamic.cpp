@@ -135,39 +135,6 @@ void kick_kick_drift_only_streams(int n, double dt, const double* __restrict m, 
   }
 }
 
-// The same two passes for a rank whose molecules all have one mass (a lattice of one material): the half kick dt / 2m
-// is one constant, the same double the per-molecule passes compute for each, and the masses are not read (8 bytes
-// a molecule a step).
-TISSUE_CLONES
-double kick_kick_drift_streams_one_mass(int n, double dt, double m, const double* __restrict f0,
-                                        const double* __restrict f1, const double* __restrict f2,
-                                        double* __restrict v0, double* __restrict v1, double* __restrict v2,
-                                        double* __restrict x0, double* __restrict x1, double* __restrict x2,
-                                        double kinetic) {
-  const double kick = 0.5 * dt / m;
-  return kinetic_sum(n, [&](int i) __attribute__((always_inline)) {
-    const double w0 = v0[i] + kick * f0[i], w1 = v1[i] + kick * f1[i], w2 = v2[i] + kick * f2[i];
-    double vv = 0;
-    vv += w0 * w0, vv += w1 * w1, vv += w2 * w2;
-    v0[i] = w0 + kick * f0[i], v1[i] = w1 + kick * f1[i], v2[i] = w2 + kick * f2[i];
-    x0[i] += dt * v0[i], x1[i] += dt * v1[i], x2[i] += dt * v2[i];
-    return m * vv;
-  }, kinetic);
-}
-TISSUE_CLONES
-void kick_kick_drift_only_streams_one_mass(int n, double dt, double m, const double* __restrict f0,
-                                           const double* __restrict f1, const double* __restrict f2,
-                                           double* __restrict v0, double* __restrict v1, double* __restrict v2,
-                                           double* __restrict x0, double* __restrict x1, double* __restrict x2) {
-  const double kick = 0.5 * dt / m;
-  for (int i = 0; i < n; ++i) {
-    v0[i] = (v0[i] + kick * f0[i]) + kick * f0[i];
-    v1[i] = (v1[i] + kick * f1[i]) + kick * f1[i];
-    v2[i] = (v2[i] + kick * f2[i]) + kick * f2[i];
-    x0[i] += dt * v0[i], x1[i] += dt * v1[i], x2[i] += dt * v2[i];
-  }
-}
-
 // The half kick to the whole step alone (the step before an observed state) and the half kick and drift that
 // follow it, on the streams: kick() and kick_drift()'s arithmetic, on other addresses.
 TISSUE_CLONES
@@ -214,7 +181,6 @@ struct FusedStreams {
   bool sum;  // whether anything reads the kinetic energy (the guards)
   bool drift;  // false: the step ends at an observed whole step (the half kick to it alone)
   std::size_t ring = 0;  // f's rows in a ring of this many (SpringKernel::forces_ring); 0: f has every row
-  double one_mass = 0;   // > 0: every owned molecule's mass (the same double), m not read
 };
 void fused_rows_streams(void* context, int begin, int end) {
   FusedStreams& s = *static_cast<FusedStreams*>(context);
@@ -227,15 +193,6 @@ void fused_rows_streams(void* context, int begin, int end) {
                                s.kinetic);
     else
       kick_only_streams(end - begin, s.dt, s.m + begin, p.f[0], p.f[1], p.f[2], p.v[0], p.v[1], p.v[2]);
-    return;
-  }
-  if (s.one_mass > 0) {
-    if (s.sum)
-      s.kinetic = kick_kick_drift_streams_one_mass(end - begin, s.dt, s.one_mass, p.f[0], p.f[1], p.f[2], p.v[0],
-                                                   p.v[1], p.v[2], p.x[0], p.x[1], p.x[2], s.kinetic);
-    else
-      kick_kick_drift_only_streams_one_mass(end - begin, s.dt, s.one_mass, p.f[0], p.f[1], p.f[2], p.v[0], p.v[1],
-                                            p.v[2], p.x[0], p.x[1], p.x[2]);
     return;
   }
   if (s.sum)
@@ -339,11 +296,6 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
   // whole step keep every row's force in f (the next step's half kick reads it, and the state may be read).
   const std::size_t ring_rows = fuse ? static_cast<std::size_t>(forces.kernel().ring_rows()) : 0;
   std::vector<double> ring(ring_rows ? 3 * (ring_rows + static_cast<std::size_t>(model.local - model.owned)) : 0);
-  // One mass for every owned molecule (bit for bit): the fused drifting steps' kicks then read no masses.
-  double one_mass = n > 0 ? m[0] : 0.0;
-  for (int i = 1; i < n && one_mass > 0; ++i)
-    if (m[i] != one_mass) one_mass = 0;
-  if (!(one_mass > 0)) one_mass = 0;
   bool streams = false;  // x, v, f hold three streams each (x and f: stride local, v: stride n)
   auto set_streams = [&](bool on) {
     if (on == streams) return;
@@ -390,9 +342,8 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
       FusedStreams step{dt, m, {{f, f + sl, f + 2 * sl}, {v, v + sn, v + 2 * sn}, {x, x + sl, x + 2 * sl}}, 0.0,
                         guard.enabled(), next_unobserved};
       ReadAhead ahead;  // what the kicks read besides f (x: the kernel read it)
-      ahead.rows[0] = v, ahead.rows[1] = v + sn, ahead.rows[2] = v + 2 * sn, ahead.rows[3] = m;
+      ahead.rows[0] = m, ahead.rows[1] = v, ahead.rows[2] = v + sn, ahead.rows[3] = v + 2 * sn;
       ahead.streams = 4, ahead.end = n;
-      if (one_mass > 0 && next_unobserved) step.one_mass = one_mass, ahead.streams = 3;
       if (ring_rows && next_unobserved) {
         double* r = ring.data();
         step.at.f[0] = r, step.at.f[1] = r + ring_rows, step.at.f[2] = r + 2 * ring_rows;

@@ -8,6 +8,9 @@
 //     A molecule that lacks some of the pattern's directions (a box's row ends, faces and edges) stays in the
 //     segment as an exception: its missing directions give a force of +0.0, which leaves every sum's bits as
 //     they are, so a segment spans whole planes of a box instead of a row between two row ends.
+// The stencil form comes in two shapes with the same bits: push (each spring once, subtracted from end b's row and
+// summed into end a's) and, for the explicit solver's streams and ring, pull (each row's springs from both ends summed
+// in registers, the row written once; every spring computed twice).
 // Both sum every molecule's force in the same order (connections on it as end b by increasing end a, then the
 // sum of its own forward connections by increasing end b: the order of the global connection list), with no
 // fused multiply-add, so forces do not depend on which form ran, nor on the partition.

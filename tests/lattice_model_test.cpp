@@ -365,23 +365,35 @@ void expect_stencil_equals_generic(const char* body, double one_rank_share) {
   };
   const std::vector<double> xs = streams(x);
   std::vector<double> fs(3 * stride, nan), gs(3 * stride, nan);
+  // As above, the positions of a row handed over are spoiled (the pull form reads a row's x until the rows its
+  // largest offset above it are done), in the pull form (the default) and the push form.
   struct StreamCheck {
     const std::vector<double>* expected;
     const std::vector<double>* f;
+    std::vector<double>* x;
     std::size_t stride;
     int next = 0;
     bool ok = true;
   };
-  StreamCheck stream_check{&first, &fs, stride};
-  stencil_kernel.forces_streams(xs.data(), fs.data(), stride, [](void* context, int begin, int end) {
-    StreamCheck& c = *static_cast<StreamCheck*>(context);
-    c.ok = c.ok && begin == c.next && end > begin;
-    for (int i = begin; i < end; ++i)
-      for (int d = 0; d < 3; ++d) c.ok = c.ok && (*c.f)[d * c.stride + i] == (*c.expected)[3 * i + d];
-    c.next = end;
-  }, &stream_check);
-  EXPECT_TRUE(stream_check.ok);
-  EXPECT_EQ(stream_check.next, typed.owned);
+  for (const bool pull : {false, true}) {
+    std::vector<double> xs_spoiled = xs;
+    std::fill(fs.begin(), fs.end(), nan);
+    StreamCheck stream_check{&first, &fs, &xs_spoiled, stride};
+    SpringKernel form(typed);
+    form.set_pull(pull);
+    form.forces_streams(xs_spoiled.data(), fs.data(), stride, [](void* context, int begin, int end) {
+      StreamCheck& c = *static_cast<StreamCheck*>(context);
+      c.ok = c.ok && begin == c.next && end > begin;
+      for (int i = begin; i < end; ++i)
+        for (int d = 0; d < 3; ++d) {
+          c.ok = c.ok && (*c.f)[d * c.stride + i] == (*c.expected)[3 * i + d];
+          (*c.x)[d * c.stride + i] = std::numeric_limits<double>::quiet_NaN();
+        }
+      c.next = end;
+    }, &stream_check);
+    EXPECT_TRUE(stream_check.ok) << (pull ? "pull" : "push");
+    EXPECT_EQ(stream_check.next, typed.owned);
+  }
   generic_kernel.forces_streams(xs.data(), gs.data(), stride, nullptr, nullptr);
   for (int i = 0; i < typed.owned; ++i)
     for (int d = 0; d < 3; ++d) {

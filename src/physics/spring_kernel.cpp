@@ -439,6 +439,94 @@ private:
   mutable int w0_ = 0, w1_ = 0;
 };
 
+// The pull form (SpringKernel::pull_segment): each row's force summed in registers from every spring on it, its
+// backward ones (end b: from the molecules at offset bo[q] below, by decreasing offset, i.e. by increasing end a)
+// subtracted from the row's value so far, then the sum of its own forward ones (end a, in direction order) added,
+// the row written once: the additions the push form does, in its order, on the same operands (a backward spring's
+// separation is x_b - x_a as the push form computes it), so the same bits; every spring is computed twice, from each
+// end, and no row is updated twice (docs/benchmarks.md). x and f point at the piece's first row (three streams
+// each). Masked with one select on k (l - l0) / l, as the push form: bit q of pb[i] (of pf[i]) says whether
+// backward spring q (forward spring s) of row i exists; a missing one subtracts or adds +-0.0, which leaves the
+// sums' bits as they are (neither is ever -0.0). kOwn: the rows are the segment's molecules (their own sums).
+template <int D, bool kMasked, bool kOwn>
+__attribute__((always_inline)) inline void pull_body(int n, const double* __restrict x0, const double* __restrict x1,
+                                                     const double* __restrict x2, double* __restrict f0,
+                                                     double* __restrict f1, double* __restrict f2, const int* bo_,
+                                                     const double* bk_, const double* bl_, const int* fo_,
+                                                     const double* fk_, const double* fl_,
+                                                     const std::uint32_t* __restrict pb,
+                                                     const std::uint32_t* __restrict pf) {
+  int bo[D], fo[D];
+  double bk[D], bl[D], fk[D], fl[D];
+  for (int q = 0; q < D; ++q) bo[q] = bo_[q], bk[q] = bk_[q], bl[q] = bl_[q], fo[q] = fo_[q], fk[q] = fk_[q], fl[q] = fl_[q];
+  for (int i = 0; i < n; ++i) {
+    const double y0 = x0[i], y1 = x1[i], y2 = x2[i];
+    double a0 = f0[i], a1 = f1[i], a2 = f2[i];
+#pragma GCC unroll 32
+    for (int q = 0; q < D; ++q) {
+      const int j = i - bo[q];
+      const double d0 = y0 - x0[j], d1 = y1 - x1[j], d2 = y2 - x2[j];
+      const double len = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
+      double sc = bk[q] * (len - bl[q]) / len;
+      if constexpr (kMasked) sc = (pb[i] >> q & 1u) ? sc : 0.0;
+      a0 -= sc * d0, a1 -= sc * d1, a2 -= sc * d2;
+    }
+    if constexpr (kOwn) {
+      double o0 = 0, o1 = 0, o2 = 0;
+#pragma GCC unroll 32
+      for (int s = 0; s < D; ++s) {
+        const int j = i + fo[s];
+        const double d0 = x0[j] - y0, d1 = x1[j] - y1, d2 = x2[j] - y2;
+        const double len = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
+        double sc = fk[s] * (len - fl[s]) / len;
+        if constexpr (kMasked) sc = (pf[i] >> s & 1u) ? sc : 0.0;
+        o0 += sc * d0, o1 += sc * d1, o2 += sc * d2;
+      }
+      a0 += o0, a1 += o1, a2 += o2;
+    }
+    f0[i] = a0, f1[i] = a1, f2[i] = a2;
+  }
+}
+
+// The pull form's pieces, one clone set per direction count (the patterns' counts a lattice has: rectangular 3,
+// face-diagonals 9, body-diagonals 13; other counts keep the push form).
+struct PullPiece {
+  int n;
+  const double* x[3];
+  double* f[3];
+  const int *bo, *fo;
+  const double *bk, *bl, *fk, *fl;
+  const std::uint32_t *pb, *pf;
+  bool masked, own;
+};
+template <int D>
+__attribute__((always_inline)) inline void pull_dispatch(const PullPiece& p) {
+  if (p.masked) {
+    if (p.own)
+      pull_body<D, true, true>(p.n, p.x[0], p.x[1], p.x[2], p.f[0], p.f[1], p.f[2], p.bo, p.bk, p.bl, p.fo, p.fk, p.fl,
+                               p.pb, p.pf);
+    else
+      pull_body<D, true, false>(p.n, p.x[0], p.x[1], p.x[2], p.f[0], p.f[1], p.f[2], p.bo, p.bk, p.bl, p.fo, p.fk,
+                                p.fl, p.pb, p.pf);
+  } else {
+    if (p.own)
+      pull_body<D, false, true>(p.n, p.x[0], p.x[1], p.x[2], p.f[0], p.f[1], p.f[2], p.bo, p.bk, p.bl, p.fo, p.fk,
+                                p.fl, p.pb, p.pf);
+    else
+      pull_body<D, false, false>(p.n, p.x[0], p.x[1], p.x[2], p.f[0], p.f[1], p.f[2], p.bo, p.bk, p.bl, p.fo, p.fk,
+                                 p.fl, p.pb, p.pf);
+  }
+}
+TISSUE_CLONES void pull_rows3(const PullPiece& p) { pull_dispatch<3>(p); }
+TISSUE_CLONES void pull_rows9(const PullPiece& p) { pull_dispatch<9>(p); }
+TISSUE_CLONES void pull_rows13(const PullPiece& p) { pull_dispatch<13>(p); }
+bool pull_directions(int d) { return d == 3 || d == 9 || d == 13; }
+void pull_rows(int d, const PullPiece& p) {
+  if (d == 9) pull_rows9(p);
+  else if (d == 13) pull_rows13(p);
+  else pull_rows3(p);
+}
+
 }  // namespace
 
 SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
@@ -666,6 +754,86 @@ void SpringKernel::forces_ring(const double* x, double* ring, std::size_t stride
         final_rows, context, ahead);
 }
 
+// A segment in the pull form (pull_body): its rows [first, first + molecules + P) below the owned count, P its
+// largest offset to an owned row, in pieces of at most kForceBlock rows (within one turn of a ring, on one side of
+// the segment's end and of each first + offset, below which a direction has no spring on the piece's rows). A row
+// reads x up to P rows below it, so a row goes to final_rows (which may change its x) once the rows P above it are
+// done: the rows live in f are those the push form keeps (the chunk and P: the same ring).
+template <class Layout, class Finish>
+void SpringKernel::pull_segment(const Segment& seg, const double* x, double* f, Layout at, int& zeroed,
+                                Finish& finish, const ReadAhead* ahead) const {
+  const int p = seg.pattern, start = pattern_start_[p], directions = directions_[p];
+  const int* offset = offsets_.data() + start;
+  const int* scatter = scatter_.data() + start;
+  const double *k = k_.data() + start, *l0 = l0_.data() + start;
+  const StencilException* exceptions = exceptions_.data() + seg.first_exception;
+  const int n_exceptions = seg.exceptions, first = seg.first_molecule, end = first + seg.molecules;
+  // The backward directions by decreasing offset: those that can end on an owned row (the others, into the ghosts'
+  // rows, never do); the rest of the D slots are never present.
+  int bs[kMaxDirections], bo[kMaxDirections], nb = 0;
+  double bk[kMaxDirections], bl[kMaxDirections];
+  for (int q = 0; q < directions; ++q) {
+    const int s = scatter[q];
+    if (offset[s] > seg.owned_reach) continue;
+    bs[nb] = s, bo[nb] = offset[s], bk[nb] = k[s], bl[nb] = l0[s], ++nb;
+  }
+  for (int q = nb; q < directions; ++q) bs[q] = -1, bo[q] = 0, bk[q] = 1.0, bl[q] = 0.0;
+  const int reach = nb ? bo[0] : 0, rows_end = std::min(end + reach, model_.owned);
+  const std::uint32_t all = directions >= 32 ? ~0u : (1u << directions) - 1u;
+  int next_back[kMaxDirections] = {}, next_own = 0;  // per backward direction / own: the next exception to look at
+  alignas(64) std::uint32_t pb[kForceBlock], pf[kForceBlock];
+  int piece_bo[kMaxDirections];
+  auto handed = [&](int below) { return below >= model_.owned ? model_.owned : below - reach; };
+  // Rows past the segment's end that the next segments or generic connections still touch stay live (`later` counts
+  // only the generic ones: the push form never hands over a row past a segment's end).
+  const int later = std::min(seg.later, &seg + 1 < segments_.data() + segments_.size() ? (&seg + 1)->first_molecule
+                                                                                       : seg.later);
+  for (int c0 = first; c0 < rows_end; c0 += kChunk) {
+    const int c1 = std::min(c0 + kChunk, rows_end);
+    for (int r0 = c0, n = 0; r0 < c1; r0 += n) {
+      n = at.run(r0, std::min(kForceBlock, c1 - r0));
+      const bool own = r0 < end;
+      if (own) n = std::min(n, end - r0);
+      for (int q = 0; q < nb; ++q)
+        if (r0 < first + bo[q]) n = std::min(n, first + bo[q] - r0);
+      zero_ahead(f, at, zeroed, r0 + n);
+      bool masked = nb < directions;
+      std::fill(pb, pb + n, all);
+      for (int q = 0; q < directions; ++q) {
+        piece_bo[q] = bo[q];
+        if (q >= nb || r0 < first + bo[q]) {  // no spring: end a below the segment (read x at the row itself)
+          piece_bo[q] = 0, masked = true;
+          for (int i = 0; i < n; ++i) pb[i] &= ~(1u << q);
+          continue;
+        }
+        const int o = bo[q], s = bs[q];
+        for (int i = std::max(0, end + o - r0); i < n; ++i) pb[i] &= ~(1u << q), masked = true;  // end a past the end
+        int& e = next_back[q];
+        while (e < n_exceptions && exceptions[e].molecule < r0 - o) ++e;
+        for (int t = e; t < n_exceptions && exceptions[t].molecule < r0 + n - o; ++t)
+          if (!(exceptions[t].present >> s & 1u)) pb[exceptions[t].molecule + o - r0] &= ~(1u << q), masked = true;
+      }
+      if (own) {
+        std::fill(pf, pf + n, all);
+        while (next_own < n_exceptions && exceptions[next_own].molecule < r0) ++next_own;
+        for (int t = next_own; t < n_exceptions && exceptions[t].molecule < r0 + n; ++t)
+          pf[exceptions[t].molecule - r0] = exceptions[t].present, masked = true;
+      }
+      if (ahead) {  // the rows handed over next (a cache line, 8 rows, at a time)
+        const int a0 = std::max(0, r0 - reach), a1 = std::min(r0 + n - reach, ahead->end);
+        for (int r = 0; r < ahead->streams; ++r)
+          for (int i = a0; i < a1; i += 8) __builtin_prefetch(ahead->rows[r] + i, 0, 2);
+      }
+      const PullPiece piece{n,        {x + at(r0, 0), x + at(r0, 1), x + at(r0, 2)},
+                            {f + at.f(r0, 0), f + at.f(r0, 1), f + at.f(r0, 2)},
+                            piece_bo, offset, bk, bl, k, l0, pb, pf, masked, own};
+      pull_rows(directions, piece);
+    }
+    finish(std::min(handed(c1), later));
+  }
+  finish(std::min(std::max(end, handed(rows_end)), later));
+}
+
 template <class Layout>
 void SpringKernel::sweep(const double* x, double* f, Layout at, FinalRows final_rows, void* context,
                          const ReadAhead* ahead) const {
@@ -710,6 +878,13 @@ void SpringKernel::sweep(const double* x, double* f, Layout at, FinalRows final_
       finish(std::min(seg.first_molecule, seg.later));
     }
     const int p = seg.pattern, start = pattern_start_[p];
+    if constexpr (!std::is_same_v<Layout, Interlaced>) {
+      if (pull_ && pull_directions(directions_[p]) && seg.molecules >= kChunk) {
+        pull_segment(seg, x, f, at, zeroed, finish, ahead);
+        c = seg.first_connection + seg.connections;
+        continue;
+      }
+    }
     const StencilException* exceptions = exceptions_.data() + seg.first_exception;
     const int chunk = final_rows ? kChunk : seg.molecules;
     for (int m0 = 0, e0 = 0; m0 < seg.molecules; m0 += chunk) {

@@ -8,6 +8,9 @@
 //     A molecule that lacks some of the pattern's directions (a box's row ends, faces and edges) stays in the
 //     segment as an exception: its missing directions give a force of +0.0, which leaves every sum's bits as
 //     they are, so a segment spans whole planes of a box instead of a row between two row ends.
+// The stencil form comes in two shapes with the same bits: push (each spring once, subtracted from end b's row and
+// summed into end a's) and, for the explicit solver's streams and ring, pull (each row's springs from both ends summed
+// in registers, the row written once; every spring computed twice).
 // Both sum every molecule's force in the same order (connections on it as end b by increasing end a, then the
 // sum of its own forward connections by increasing end b: the order of the global connection list), with no
 // fused multiply-add, so forces do not depend on which form ran, nor on the partition.
@@ -107,6 +110,10 @@ public:
   int ring_rows() const { return ring_rows_; }
   // Connections handled by stencil segments (the rest go through the generic form).
   long structured_connections() const { return structured_; }
+  // Whether forces_streams and forces_ring sum a long segment's rows in the pull form (each row's springs from
+  // both of its ends, the row written once) or in the push form (each spring once, added to both ends' rows):
+  // the same bits either way; the pull form is the default (docs/benchmarks.md), the push form kept for tests.
+  void set_pull(bool on) { pull_ = on; }
   // The connections' tangent applied to u (the matrix-free Newton tangent's springs, ForceModel::apply_tangent):
   // each connection's K (u_a - u_b) added to end a's row and subtracted from end b's, K = k [n n^T + (1 - l0/l)
   // (I - n n^T)] at x (local, ghosts up to date), on the same segments as forces(): per direction a constant k
@@ -130,6 +137,9 @@ private:
     // leave the rank without a ring (ring_rows).
     int owned_reach;
   };
+  template <class Layout, class Finish>
+  void pull_segment(const Segment& seg, const double* x, double* f, Layout at, int& zeroed, Finish& finish,
+                    const ReadAhead* ahead) const;
   template <class Layout>
   void sweep(const double* x, double* f, Layout at, FinalRows final_rows, void* context,
              const ReadAhead* ahead = nullptr) const;
@@ -154,6 +164,7 @@ private:
   std::vector<int> generic_a_, generic_b_;
   int tail_at_ = 0;
   int ring_rows_ = 0;
+  bool pull_ = true;
 };
 
 }  // namespace tissue

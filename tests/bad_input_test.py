@@ -145,6 +145,7 @@ def main():
             ("-static_enough_fraction", "abc"), ("-static_enough_fraction", "-1"), ("-static_first_rtol", "2"),
             ("-static_chebyshev_fraction", "0"), ("-static_cell_coarse_steps", "-3"),
             ("-static_volume_smoother_steps", "0"), ("-tissue_guards", "maybe"), ("-tissue_fuse_rows", "x"),
+            ("-static_fused_chebyshev", "sometimes"),
         ]
         for name, value in option_cases:
             runner.check(f"option {name} {value}", valid, ["PETSc options", name], workdir=tmp, petsc=[name, value])

@@ -671,6 +671,13 @@ public:
       geo.volume = box.h[0] * box.h[1] * box.h[2];
       for (int c = 0; c < 8; ++c)
         for (int d = 0; d < 3; ++d) geo.g[c][d] = (((c >> d) & 1) ? 1.0 : -1.0) / (4.0 * box.h[d]);
+      for (int a = 0; a < 8; ++a)
+        for (int c = 0; c < 8; ++c) {
+          const double *ga = geo.g[a], *gb = geo.g[c];
+          geo.cross[a][c][0] = ga[1] * gb[2] - ga[2] * gb[1];
+          geo.cross[a][c][1] = ga[2] * gb[0] - ga[0] * gb[2];
+          geo.cross[a][c][2] = ga[0] * gb[1] - ga[1] * gb[0];
+        }
       geometry_.push_back(geo);
     }
     for (int b = 0; b < model.shape.bodies(); ++b)
@@ -827,19 +834,14 @@ public:
       if (volumetric_only(k)) {
         // K_ab = V0 (W'' (cof g_a) (x) (cof g_b) + W' [F (g_a x g_b)]_x): d cof_ij / dF_kl = e_ikm e_jln F_mn
         // contracted with g_a's j and g_b's l is the skew matrix e_ikm w_m, w = F (g_a x g_b).
-        const double *F = D, *cof = D + 9, w1 = D[18], w2 = D[19];
-        const double* ga = geo.g[a];
-        double ca[3];
-        for (int i = 0; i < 3; ++i) ca[i] = cof[3 * i] * ga[0] + cof[3 * i + 1] * ga[1] + cof[3 * i + 2] * ga[2];
+        // cof g_b of the cell's 8 corners kept with its state (volumetric_state), g_a x g_b with the geometry.
+        const double *F = D, w1 = D[18], w2 = D[19], *cg = D + 20;
+        const double* ca = cg + 3 * a;
         for (int b = 0; b < 8; ++b) {
-          const double* gb = geo.g[b];
-          const double cross[3] = {ga[1] * gb[2] - ga[2] * gb[1], ga[2] * gb[0] - ga[0] * gb[2],
-                                   ga[0] * gb[1] - ga[1] * gb[0]};
-          double cb[3], w[3];
-          for (int i = 0; i < 3; ++i) {
-            cb[i] = cof[3 * i] * gb[0] + cof[3 * i + 1] * gb[1] + cof[3 * i + 2] * gb[2];
+          const double *cross = geo.cross[a][b], *cb = cg + 3 * b;
+          double w[3];
+          for (int i = 0; i < 3; ++i)
             w[i] = w1 * (F[3 * i] * cross[0] + F[3 * i + 1] * cross[1] + F[3 * i + 2] * cross[2]);
-          }
           const double skew[9] = {0, w[2], -w[1], -w[2], 0, w[0], w[1], -w[0], 0};
           for (int i = 0; i < 3; ++i)
             for (int kk = 0; kk < 3; ++kk)
@@ -1334,7 +1336,8 @@ private:
     const Moduli& m = kinds_[kind_[k]].moduli;
     return plain() && m.mu == 0 && m.alpha[0] == 0 && m.alpha[1] == 0 && m.alpha[2] == 0;
   }
-  // Fills s[0..8] = F, s[9..17] = cof F, s[18] = W', s[19] = W''; false when the cell is inverted.
+  // Fills s[0..8] = F, s[9..17] = cof F, s[18] = W', s[19] = W'', s[20 + 3b + i] = (cof F g_b)_i (b = 0..7);
+  // false when the cell is inverted.
   bool volumetric_state(int k, const double* x, double* s) const {
     int corner[8];
     corners(k, corner);
@@ -1348,6 +1351,11 @@ private:
     if (!(J > 0)) return false;
     const double half = 0.5 * kinds_[kind_[k]].moduli.kappa, rJ = 1.0 / J;
     s[18] = half * (J - rJ), s[19] = half * (1.0 + rJ * rJ);
+    const Geometry& geo = geometry_[kinds_[kind_[k]].body];
+    for (int b = 0; b < 8; ++b) {
+      const double* gb = geo.g[b];
+      for (int i = 0; i < 3; ++i) s[20 + 3 * b + i] = cof[3 * i] * gb[0] + cof[3 * i + 1] * gb[1] + cof[3 * i + 2] * gb[2];
+    }
     return true;
   }
 
@@ -1382,6 +1390,7 @@ private:
   struct Geometry {
     double volume = 0;
     double g[8][3];
+    double cross[8][8][3];  // g_a x g_b (add_row's volumetric blocks)
   };
   // F = I + sum_a u_a (x) g_a, from displacements (positions far from the origin would cost digits of F - I).
   void gradient(const double* x, const int* corner, const Geometry& geo, double F[9]) const {

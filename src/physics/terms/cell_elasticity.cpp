@@ -382,6 +382,87 @@ void cell_block_tangent(int n, const int* __restrict base, const int* __restrict
   for (int i = 0; i < n; ++i) add_cell_corners(q, i, base, offset, owned, out);
 }
 
+__attribute__((always_inline)) inline void cof_of(const double F[9], double cof[9]) {
+  cof[0] = F[4] * F[8] - F[5] * F[7], cof[1] = F[5] * F[6] - F[3] * F[8], cof[2] = F[3] * F[7] - F[4] * F[6];
+  cof[3] = F[2] * F[7] - F[1] * F[8], cof[4] = F[0] * F[8] - F[2] * F[6], cof[5] = F[1] * F[6] - F[0] * F[7];
+  cof[6] = F[1] * F[5] - F[2] * F[4], cof[7] = F[2] * F[3] - F[0] * F[5], cof[8] = F[0] * F[4] - F[1] * F[3];
+}
+
+// cell_block_tangent for volumetric-only cells (mu = 0, no virtual diagonals: cubic cells at nu > 1/4, W =
+// kappa/4 (J^2 - 1 - 2 ln J)), from the displacements d = x - X at the Newton iterate instead of a state per cell:
+// F = I + the same axis differences of d as dF's of u (row layout or gathered), then dP = W'' dJ cof F + W' dcof
+// with W' = kappa/2 (J - 1/J), W'' = kappa/2 (1 + 1/J^2) (isotropic_stress_direction's terms with s = 0). The
+// kernel reads 24 B a molecule of d (its rows as u's) where the state held 80 B a cell, which the product streamed
+// on every application. An inverted cell takes F = I (as the state's).
+TISSUE_CELL_CLONES
+void volumetric_block_tangent(int n, const int* __restrict base, const int* __restrict offset, bool rows,
+                              const double* __restrict u, const double* __restrict disp, double kappa, double volume,
+                              const double g[3], int owned, double* __restrict out) {
+  alignas(64) double dF[9][kCellBlock], G[9][kCellBlock], dP[9][kCellBlock];
+  const double gx = g[0], gy = g[1], gz = g[2];
+  if (rows) {
+    const double *ur[4], *dr[4];
+    for (int r = 0; r < 4; ++r) ur[r] = u + 3 * (base[0] + offset[2 * r]), dr[r] = disp + 3 * (base[0] + offset[2 * r]);
+    row_gradient(ur[0], ur[1], ur[2], ur[3], n, gx, gy, gz, dF);
+    row_gradient(dr[0], dr[1], dr[2], dr[3], n, gx, gy, gz, G);
+  } else {
+    for (int d = 0; d < 3; ++d)
+      for (int i = 0; i < n; ++i) {
+        double v[8], w[8];
+        for (int c = 0; c < 8; ++c) v[c] = u[3 * (base[i] + offset[c]) + d], w[c] = disp[3 * (base[i] + offset[c]) + d];
+        corner_gradient(v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], gx, gy, gz, dF[3 * d][i], dF[3 * d + 1][i],
+                        dF[3 * d + 2][i]);
+        corner_gradient(w[0], w[1], w[2], w[3], w[4], w[5], w[6], w[7], gx, gy, gz, G[3 * d][i], G[3 * d + 1][i],
+                        G[3 * d + 2][i]);
+      }
+  }
+  // An inverted cell takes F = I (the residual is NaN already): found in a pass of its own, so that the lanes'
+  // arithmetic below has no branch and vectorizes.
+  alignas(64) double Js[kCellBlock];
+  for (int i = 0; i < n; ++i) {
+    double F[9], cof[9];
+    for (int q = 0; q < 9; ++q) F[q] = G[q][i] + (q % 4 == 0 ? 1.0 : 0.0);
+    cof_of(F, cof);
+    Js[i] = F[0] * cof[0] + F[1] * cof[1] + F[2] * cof[2];
+  }
+  for (int i = 0; i < n; ++i)
+    if (!(Js[i] > 0))
+      for (int q = 0; q < 9; ++q) G[q][i] = 0.0;
+  const double half = 0.5 * kappa;
+  for (int i = 0; i < n; ++i) {
+    double F[9], d[9], cof[9];
+    for (int q = 0; q < 9; ++q) F[q] = G[q][i] + (q % 4 == 0 ? 1.0 : 0.0), d[q] = dF[q][i];
+    cof_of(F, cof);
+    const double J = F[0] * cof[0] + F[1] * cof[1] + F[2] * cof[2];
+    const double dcof[9] = {(d[4] * F[8] + F[4] * d[8]) - (d[5] * F[7] + F[5] * d[7]),
+                            (d[5] * F[6] + F[5] * d[6]) - (d[3] * F[8] + F[3] * d[8]),
+                            (d[3] * F[7] + F[3] * d[7]) - (d[4] * F[6] + F[4] * d[6]),
+                            (d[2] * F[7] + F[2] * d[7]) - (d[1] * F[8] + F[1] * d[8]),
+                            (d[0] * F[8] + F[0] * d[8]) - (d[2] * F[6] + F[2] * d[6]),
+                            (d[1] * F[6] + F[1] * d[6]) - (d[0] * F[7] + F[0] * d[7]),
+                            (d[1] * F[5] + F[1] * d[5]) - (d[2] * F[4] + F[2] * d[4]),
+                            (d[2] * F[3] + F[2] * d[3]) - (d[0] * F[5] + F[0] * d[5]),
+                            (d[0] * F[4] + F[0] * d[4]) - (d[1] * F[3] + F[1] * d[3])};
+    double dJ = 0;
+    for (int q = 0; q < 9; ++q) dJ += cof[q] * d[q];
+    const double rJ = 1.0 / J;
+    const double vol = half * (J - rJ), dvol = half * (1.0 + rJ * rJ) * dJ;
+    for (int q = 0; q < 9; ++q) dP[q][i] = dvol * cof[q] + vol * dcof[q];
+  }
+  for (int r = 0; r < 3; ++r)
+    for (int i = 0; i < n; ++i) {
+      dP[3 * r][i] = -volume * dP[3 * r][i] * gx;
+      dP[3 * r + 1][i] = -volume * dP[3 * r + 1][i] * gy;
+      dP[3 * r + 2][i] = -volume * dP[3 * r + 2][i] * gz;
+    }
+  const double(&q)[9][kCellBlock] = dP;
+  if (rows) {
+    add_row_corners(q, n, base, offset, owned, out);
+    return;
+  }
+  for (int i = 0; i < n; ++i) add_cell_corners(q, i, base, offset, owned, out);
+}
+
 // The entries of dP/dF the tangent's diagonal reads, for a block's plain cells as vector lanes (the tangent
 // state's layout: F's and the scale mu J^(-2/3), Fs[q n + c]): Dd[3p + j][c] = dP_(3i + j) / dF_p with i = p / 3
 // (row i of P along direction p), the product's arithmetic (isotropic part, then the face diagonals) along e_p.
@@ -590,6 +671,13 @@ public:
       geo.volume = box.h[0] * box.h[1] * box.h[2];
       for (int c = 0; c < 8; ++c)
         for (int d = 0; d < 3; ++d) geo.g[c][d] = (((c >> d) & 1) ? 1.0 : -1.0) / (4.0 * box.h[d]);
+      for (int a = 0; a < 8; ++a)
+        for (int c = 0; c < 8; ++c) {
+          const double *ga = geo.g[a], *gb = geo.g[c];
+          geo.cross[a][c][0] = ga[1] * gb[2] - ga[2] * gb[1];
+          geo.cross[a][c][1] = ga[2] * gb[0] - ga[0] * gb[2];
+          geo.cross[a][c][2] = ga[0] * gb[1] - ga[1] * gb[0];
+        }
       geometry_.push_back(geo);
     }
     for (int b = 0; b < model.shape.bodies(); ++b)
@@ -746,19 +834,14 @@ public:
       if (volumetric_only(k)) {
         // K_ab = V0 (W'' (cof g_a) (x) (cof g_b) + W' [F (g_a x g_b)]_x): d cof_ij / dF_kl = e_ikm e_jln F_mn
         // contracted with g_a's j and g_b's l is the skew matrix e_ikm w_m, w = F (g_a x g_b).
-        const double *F = D, *cof = D + 9, w1 = D[18], w2 = D[19];
-        const double* ga = geo.g[a];
-        double ca[3];
-        for (int i = 0; i < 3; ++i) ca[i] = cof[3 * i] * ga[0] + cof[3 * i + 1] * ga[1] + cof[3 * i + 2] * ga[2];
+        // cof g_b of the cell's 8 corners kept with its state (volumetric_state), g_a x g_b with the geometry.
+        const double *F = D, w1 = D[18], w2 = D[19], *cg = D + 20;
+        const double* ca = cg + 3 * a;
         for (int b = 0; b < 8; ++b) {
-          const double* gb = geo.g[b];
-          const double cross[3] = {ga[1] * gb[2] - ga[2] * gb[1], ga[2] * gb[0] - ga[0] * gb[2],
-                                   ga[0] * gb[1] - ga[1] * gb[0]};
-          double cb[3], w[3];
-          for (int i = 0; i < 3; ++i) {
-            cb[i] = cof[3 * i] * gb[0] + cof[3 * i + 1] * gb[1] + cof[3 * i + 2] * gb[2];
+          const double *cross = geo.cross[a][b], *cb = cg + 3 * b;
+          double w[3];
+          for (int i = 0; i < 3; ++i)
             w[i] = w1 * (F[3 * i] * cross[0] + F[3 * i + 1] * cross[1] + F[3 * i + 2] * cross[2]);
-          }
           const double skew[9] = {0, w[2], -w[1], -w[2], 0, w[0], w[1], -w[0], 0};
           for (int i = 0; i < 3; ++i)
             for (int kk = 0; kk < 3; ++kk)
@@ -804,10 +887,48 @@ public:
   // the block from `first` with n cells at w first + c n + k - first, w values a cell); without blocks (fibres)
   // one cell at a time.
   bool has_tangent_state() const override { return true; }
+  // Every cell volumetric-only (mu = 0, no virtual diagonals) and in blocks: the product's state is the
+  // displacements (tangent_state).
+  bool volumetric() const {
+    return !blocks_.empty() && plain() && std::all_of(kinds_.begin(), kinds_.end(), [](const Kind& k) {
+      return k.moduli.mu == 0 && k.moduli.alpha[0] == 0 && k.moduli.alpha[1] == 0 && k.moduli.alpha[2] == 0;
+    });
+  }
+  // Volumetric-only cell k's diagonal (add_row's closed form): K_aa[i][i] = V0 W'' (cof F g_a)_i^2, the skew
+  // part's diagonal being zero; W'' = kappa/2 (1 + 1/J^2). F = I for an inverted cell (the state's).
+  void add_volumetric_diagonal(int k, double F[9], double* diag) const {
+    if (!(F[0] * (F[4] * F[8] - F[5] * F[7]) - F[1] * (F[3] * F[8] - F[5] * F[6]) + F[2] * (F[3] * F[7] - F[4] * F[6]) > 0))
+      for (int q = 0; q < 9; ++q) F[q] = q % 4 == 0 ? 1.0 : 0.0;
+    const double cof[9] = {F[4] * F[8] - F[5] * F[7], F[5] * F[6] - F[3] * F[8], F[3] * F[7] - F[4] * F[6],
+                           F[2] * F[7] - F[1] * F[8], F[0] * F[8] - F[2] * F[6], F[1] * F[6] - F[0] * F[7],
+                           F[1] * F[5] - F[2] * F[4], F[2] * F[3] - F[0] * F[5], F[0] * F[4] - F[1] * F[3]};
+    const double J = F[0] * cof[0] + F[1] * cof[1] + F[2] * cof[2], rJ = 1.0 / J;
+    const Geometry& geo = geometry_[kinds_[kind_[k]].body];
+    const double w2 = geo.volume * (0.5 * kinds_[kind_[k]].moduli.kappa * (1.0 + rJ * rJ));
+    int corner[8];
+    corners(k, corner);
+    for (int a = 0; a < 8; ++a) {
+      if (corner[a] >= m_.owned) continue;
+      const double* g = geo.g[a];
+      for (int i = 0; i < 3; ++i) {
+        const double ca = cof[3 * i] * g[0] + cof[3 * i + 1] * g[1] + cof[3 * i + 2] * g[2];
+        diag[3 * corner[a] + i] += w2 * (ca * ca);
+      }
+    }
+  }
   bool tangent_state_fast() const override { return state_width() == 10; }
   // state[0]: the width w it was made with (a history may start between the state and a product: begin_step).
-  std::size_t tangent_state_size() const override { return 1 + state_width() * static_cast<std::size_t>(cells_); }
+  // Volumetric-only cells (volumetric()) keep the displacements x - X of the local molecules instead (width 3:
+  // 24 B a molecule), from which each product recomputes F (volumetric_block_tangent).
+  std::size_t tangent_state_size() const override {
+    return 1 + (volumetric() ? m_.rest.size() : state_width() * static_cast<std::size_t>(cells_));
+  }
   void tangent_state(const double* x, double* state_with_width) const override {
+    if (volumetric()) {
+      state_with_width[0] = 3;
+      for (std::size_t i = 0; i < m_.rest.size(); ++i) state_with_width[1 + i] = x[i] - m_.rest[i];
+      return;
+    }
     const int w = state_width();
     state_with_width[0] = w;
     double* state = state_with_width + 1;
@@ -835,6 +956,16 @@ public:
   void apply_tangent_state(const double* state_with_width, const double* u, double* out) const override {
     const int w = static_cast<int>(state_with_width[0]);
     const double* state = state_with_width + 1;
+    if (w == 3) {
+      for (const Block& b : blocks_) {
+        const Kind& kind = kinds_[kind_[b.first]];
+        const Geometry& geo = geometry_[kind.body];
+        const double g[3] = {geo.g[1][0], geo.g[2][1], geo.g[4][2]};
+        volumetric_block_tangent(b.n, base_.data() + b.first, patterns_[pattern_[b.first]].data(), b.rows, u, state,
+                                 kind.moduli.kappa, geo.volume, g, m_.owned, out);
+      }
+      return;
+    }
     if (!blocks_.empty()) {
       for (const Block& b : blocks_) {
         const Kind& kind = kinds_[kind_[b.first]];
@@ -856,6 +987,24 @@ public:
   void add_tangent_state_diagonal(const double* state_with_width, double* diag) const override {
     const int w = static_cast<int>(state_with_width[0]);
     const double* state = state_with_width + 1;
+    if (w == 3) {
+      // F from the displacements with the product's arithmetic (corner_gradient), then the closed form below.
+      for (int k = 0; k < cells_; ++k) {
+        int corner[8];
+        corners(k, corner);
+        const Geometry& geo = geometry_[kinds_[kind_[k]].body];
+        double F[9];
+        for (int d = 0; d < 3; ++d) {
+          double v[8];
+          for (int c = 0; c < 8; ++c) v[c] = state[3 * corner[c] + d];
+          corner_gradient(v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], geo.g[1][0], geo.g[2][1], geo.g[4][2],
+                          F[3 * d], F[3 * d + 1], F[3 * d + 2]);
+        }
+        for (int q = 0; q < 9; q += 4) F[q] += 1.0;
+        add_volumetric_diagonal(k, F, diag);
+      }
+      return;
+    }
     for_each_state_block([&](int first, int n) {
       const double* block = state + w * static_cast<std::size_t>(first);
       // The entries of dP/dF read below, Dd[3p + j] = dP_(3i + j) / dF_p (i = p / 3): from the closed form over
@@ -869,22 +1018,7 @@ public:
           const std::size_t c = static_cast<std::size_t>(k - first);
           double F[9];
           for (int q = 0; q < 9; ++q) F[q] = block[q * sn + c];
-          const double cof[9] = {F[4] * F[8] - F[5] * F[7], F[5] * F[6] - F[3] * F[8], F[3] * F[7] - F[4] * F[6],
-                                 F[2] * F[7] - F[1] * F[8], F[0] * F[8] - F[2] * F[6], F[1] * F[6] - F[0] * F[7],
-                                 F[1] * F[5] - F[2] * F[4], F[2] * F[3] - F[0] * F[5], F[0] * F[4] - F[1] * F[3]};
-          const double J = F[0] * cof[0] + F[1] * cof[1] + F[2] * cof[2], rJ = 1.0 / J;
-          const Geometry& geo = geometry_[kinds_[kind_[k]].body];
-          const double w2 = geo.volume * (0.5 * moduli.kappa * (1.0 + rJ * rJ));
-          int corner[8];
-          corners(k, corner);
-          for (int a = 0; a < 8; ++a) {
-            if (corner[a] >= m_.owned) continue;
-            const double* g = geo.g[a];
-            for (int i = 0; i < 3; ++i) {
-              const double ca = cof[3 * i] * g[0] + cof[3 * i + 1] * g[1] + cof[3 * i + 2] * g[2];
-              diag[3 * corner[a] + i] += w2 * (ca * ca);
-            }
-          }
+          add_volumetric_diagonal(k, F, diag);
         }
         return;
       }
@@ -1202,7 +1336,8 @@ private:
     const Moduli& m = kinds_[kind_[k]].moduli;
     return plain() && m.mu == 0 && m.alpha[0] == 0 && m.alpha[1] == 0 && m.alpha[2] == 0;
   }
-  // Fills s[0..8] = F, s[9..17] = cof F, s[18] = W', s[19] = W''; false when the cell is inverted.
+  // Fills s[0..8] = F, s[9..17] = cof F, s[18] = W', s[19] = W'', s[20 + 3b + i] = (cof F g_b)_i (b = 0..7);
+  // false when the cell is inverted.
   bool volumetric_state(int k, const double* x, double* s) const {
     int corner[8];
     corners(k, corner);
@@ -1216,6 +1351,11 @@ private:
     if (!(J > 0)) return false;
     const double half = 0.5 * kinds_[kind_[k]].moduli.kappa, rJ = 1.0 / J;
     s[18] = half * (J - rJ), s[19] = half * (1.0 + rJ * rJ);
+    const Geometry& geo = geometry_[kinds_[kind_[k]].body];
+    for (int b = 0; b < 8; ++b) {
+      const double* gb = geo.g[b];
+      for (int i = 0; i < 3; ++i) s[20 + 3 * b + i] = cof[3 * i] * gb[0] + cof[3 * i + 1] * gb[1] + cof[3 * i + 2] * gb[2];
+    }
     return true;
   }
 
@@ -1250,6 +1390,7 @@ private:
   struct Geometry {
     double volume = 0;
     double g[8][3];
+    double cross[8][8][3];  // g_a x g_b (add_row's volumetric blocks)
   };
   // F = I + sum_a u_a (x) g_a, from displacements (positions far from the origin would cost digits of F - I).
   void gradient(const double* x, const int* corner, const Geometry& geo, double F[9]) const {

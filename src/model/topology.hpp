@@ -67,6 +67,21 @@ public:
   }
   // The rest distance of a neighbour in that direction: BoxGeometry::rest_distance's double for its offset.
   double rest_distance(const Neighbour& x) const { return distance_[x.direction]; }
+  std::size_t directions() const { return step_.size(); }
+  // Molecule g's neighbour count and how many of them have higher ids, without the list: from the stencil inside,
+  // from the list (left in `out`) near a face. The set-up's counting passes need no more.
+  void counts(std::int64_t g, std::vector<Neighbour>& out, int& degree, int& forward) const {
+    const auto ijk = box_.index(g);
+    bool inside = sorted_;
+    for (int d = 0; d < 3; ++d) inside = inside && ijk[d] >= reach_[d] && ijk[d] < box_.n[d] - reach_[d];
+    if (inside) {
+      degree = static_cast<int>(step_.size()), forward = forward_;
+      return;
+    }
+    lattice_neighbours(*style_, box_, g, out);
+    degree = static_cast<int>(out.size()), forward = 0;
+    for (const auto& x : out) forward += x.id > g;
+  }
 
 private:
   const TopologyStyle* style_;
@@ -76,6 +91,7 @@ private:
   std::vector<double> distance_;  // per stencil offset: the rest distance
   long reach_[3] = {0, 0, 0};
   bool sorted_ = false;  // the steps increase strictly: interior lists need no sort
+  int forward_ = 0;       // steps > 0: an interior molecule's neighbours with higher ids
 };
 
 // Tetrahedral topology: how many of the cells' Kuhn tetrahedra contain both molecules a and b (the connection's

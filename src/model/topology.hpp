@@ -8,6 +8,7 @@
 // whole connection list; the explicit builder enumerates every connection (and tetrahedron) of the body, the
 // independent reference the tests check the stencil against (tests/whole_body.hpp).
 #pragma once
+#include <array>
 #include <string>
 #include <vector>
 
@@ -61,7 +62,7 @@ public:
     const auto ijk = box_.index(g);
     bool inside = sorted_;
     for (int d = 0; d < 3; ++d) inside = inside && ijk[d] >= reach_[d] && ijk[d] < box_.n[d] - reach_[d];
-    if (!inside) return lattice_neighbours(*style_, box_, g, out);
+    if (!inside) return near_face(g, ijk, out);
     out.resize(step_.size());
     for (std::size_t s = 0; s < step_.size(); ++s) out[s] = {g + step_[s], cls_[s], static_cast<int>(s)};
   }
@@ -78,12 +79,24 @@ public:
       degree = static_cast<int>(step_.size()), forward = forward_;
       return;
     }
-    lattice_neighbours(*style_, box_, g, out);
+    near_face(g, ijk, out);
     degree = static_cast<int>(out.size()), forward = 0;
     for (const auto& x : out) forward += x.id > g;
   }
 
 private:
+  // Near a face: the offsets that stay in the box, by the same steps (sorted steps keep the list sorted);
+  // lattice_neighbours' sort where they are not.
+  void near_face(std::int64_t g, const std::array<long, 3>& ijk, std::vector<Neighbour>& out) const {
+    if (!sorted_) return lattice_neighbours(*style_, box_, g, out);
+    out.clear();
+    for (std::size_t s = 0; s < step_.size(); ++s) {
+      const int* d = style_->stencil[s].d;
+      bool in = true;
+      for (int a = 0; a < 3; ++a) in = in && ijk[a] + d[a] >= 0 && ijk[a] + d[a] < box_.n[a];
+      if (in) out.push_back({g + step_[s], cls_[s], static_cast<int>(s)});
+    }
+  }
   const TopologyStyle* style_;
   BoxGeometry box_;
   std::vector<std::int64_t> step_;  // per stencil offset, in the stencil's order: the id difference

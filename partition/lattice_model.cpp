@@ -217,6 +217,13 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
   };
   std::vector<std::int64_t> ghosts;
   for (long i = 0; i < m.owned; ++i) {
+    if (contiguous) {  // a whole stencil inside the owned run has no ghost: no list
+      const int b = m.shape.body_of(owned_ids[i]);
+      std::int64_t lowest, highest;
+      if (!cells[b] && stencil[b].interior(owned_ids[i], lowest, highest) && lowest >= first_owned &&
+          highest - first_owned < m.owned)
+        continue;
+    }
     const int b = neighbours(owned_ids[i]);
     for (const auto& x : nb)
       if (!is_owned(x.id, i)) ghosts.push_back(x.id);
@@ -342,6 +349,12 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
   std::vector<int> end_a, end_b;
   auto walk = [&]() {
     long owned_before = 0;  // owned molecules with ids below a: where a sits among them
+    // A molecule's forward connections gathered here, then appended in one go per array (not a push_back each).
+    std::size_t widest = 0;
+    for (int b = 0; b < nbodies; ++b) widest = std::max(widest, stencil[b].directions());
+    std::vector<int> row_b(widest);
+    std::vector<ConnectionClass> row_class(widest);
+    std::vector<std::uint16_t> row_type(widest);
     for (int i : order) {
       const std::int64_t a = ids[i];
       const bool a_owned = i < m.owned;
@@ -350,18 +363,17 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
       const int b = neighbours(a);
       const BoxGeometry& box = m.shape.body(b);
       int rank_of_b = 0;  // position of the connection among a's forward ones
+      int row = 0;
       for (const auto& x : nb) {
         if (x.id < a) continue;
         const int forward = rank_of_b++;
         const long owned_j = owned_index(x.id, near);
         if (!a_owned && owned_j < 0) continue;
         const int j = static_cast<int>(owned_j >= 0 ? owned_j : m.owned + find_sorted(ghosts, x.id));
-        end_a.push_back(i), end_b.push_back(j);
-        m.connection_class.push_back(x.cls);
         int& known = direction_type[b][x.direction];
         if (known < 0) known = length_type(forward, stencil[b].rest_distance(x));
-        length_types.push_back(static_cast<std::uint16_t>(known));
-        if (a_owned) ++m.written_count;
+        row_b[row] = j, row_class[row] = x.cls, row_type[row] = static_cast<std::uint16_t>(known);
+        ++row;
         if (any_tetrahedra) {
           // Tetrahedra incident on the connection (Van Gelder's Eq. 5, Lloyd's sum): every Kuhn tetrahedron of
           // a box has the same volume; summed one by one, as the explicit path sums them.
@@ -373,6 +385,11 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
           inputs.tetra_volume.push_back(volume), inputs.tetra_lloyd_sum.push_back(lloyd);
         }
       }
+      end_a.insert(end_a.end(), row, i);
+      end_b.insert(end_b.end(), row_b.begin(), row_b.begin() + row);
+      m.connection_class.insert(m.connection_class.end(), row_class.begin(), row_class.begin() + row);
+      length_types.insert(length_types.end(), row_type.begin(), row_type.begin() + row);
+      if (a_owned) m.written_count += row;
     }
   };
   end_a.reserve(count), end_b.reserve(count);

@@ -69,6 +69,14 @@ public:
   // The rest distance of a neighbour in that direction: BoxGeometry::rest_distance's double for its offset.
   double rest_distance(const Neighbour& x) const { return distance_[x.direction]; }
   std::size_t directions() const { return step_.size(); }
+  // Whether molecule g has its whole stencil, and then its lowest and highest neighbour ids.
+  bool interior(std::int64_t g, std::int64_t& lowest, std::int64_t& highest) const {
+    const auto ijk = box_.index(g);
+    bool inside = sorted_ && !step_.empty();
+    for (int d = 0; d < 3; ++d) inside = inside && ijk[d] >= reach_[d] && ijk[d] < box_.n[d] - reach_[d];
+    if (inside) lowest = g + step_.front(), highest = g + step_.back();
+    return inside;
+  }
   // Molecule g's neighbour count and how many of them have higher ids, without the list: from the stencil inside,
   // from the list (left in `out`) near a face. The set-up's counting passes need no more.
   void counts(std::int64_t g, std::vector<Neighbour>& out, int& degree, int& forward) const {

@@ -67,10 +67,28 @@ bool ConnectionTable::compact() {
     if (r) *r = {kb, it->second};
     return it->second;
   };
+  // The shortcut inline (most connections of a lattice), type_of for the rest: the same answers.
+  auto lattice_type_of = [&](std::size_t c) {
+    std::uint64_t kb;
+    std::memcpy(&kb, &stiffness_[c], 8);
+    const Recent& r = recent[length_type_[c]];
+    return r.type >= 0 && r.k_bits == kb ? static_cast<std::uint16_t>(r.type) : type_of(c);
+  };
   // First the table alone: past 65,536 types nothing changes.
   for (std::size_t c = 0; c < nc; ++c) {
-    type_of(c);
+    if (recent.empty()) type_of(c);
+    else lattice_type_of(c);
     if (tk.size() > 65536) return false;
+  }
+  if (!length_type_.empty()) {
+    // Box lattices: each connection's type over its length type, which nothing reads after connection c's own
+    // lookup; the array becomes the types' (no fresh 2 B a connection to fault in and zero).
+    for (std::size_t c = 0; c < nc; ++c) length_type_[c] = lattice_type_of(c);
+    type_ = std::move(length_type_);
+    length_type_ = std::vector<std::uint16_t>(), length_table_ = std::vector<double>();
+    stiffness_ = std::vector<double>();
+    type_stiffness_ = std::move(tk), type_rest_length_ = std::move(tl);
+    return true;
   }
   // Then each connection's type, 2 bytes at the front of the stiffness array's own storage (byte 2c lies in
   // entry c / 4, already read), so no third per-connection array exists while both 8-byte ones do: that was

@@ -124,6 +124,12 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
     stencil[b].neighbours(g, nb);
     return b;
   };
+  // The counting passes need the numbers alone: no list for a molecule the whole stencil fits around.
+  auto counts = [&](std::int64_t g, int& degree, int& forward) {
+    const int b = m.shape.body_of(g);
+    stencil[b].counts(g, nb, degree, forward);
+    return b;
+  };
 
   // 1-2. This rank's block of the natural order, and the part (owning rank) of each of its molecules.
   const std::int64_t begin = NaturalOrder::block_begin(n, m.size, m.rank);
@@ -136,9 +142,10 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
   std::vector<std::int64_t> first_connection(end - begin);
   std::int64_t forward_total = 0;
   for (std::int64_t g = begin; g < end; ++g) {
-    neighbours(g);
+    int degree, forward;
+    counts(g, degree, forward);
     first_connection[g - begin] = forward_total;
-    for (const auto& x : nb) forward_total += x.id > g;
+    forward_total += forward;
   }
   std::int64_t offset = 0;
   MPI_Exscan(&forward_total, &offset, 1, MPI_INT64_T, MPI_SUM, comm);
@@ -201,11 +208,25 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
   for (int b = 0; b < nbodies; ++b)
     cells[b] = body_has_cells(specs[b], b < static_cast<int>(scene.calibrations.size()) ? scene.calibrations[b]
                                                                                            : scene.calibration);
+  // Owned ids that are one run (every rank of a box bisection's slabs, one rank): owned is a range test.
+  const bool contiguous = m.owned > 0 && owned_ids.back() - owned_ids.front() == m.owned - 1;
+  const std::int64_t first_owned = m.owned > 0 ? owned_ids.front() : 0;
+  auto is_owned = [&](std::int64_t id, long near) {
+    if (contiguous) return id >= first_owned && id - first_owned < m.owned;
+    return find_sorted_near(owned_ids.data(), m.owned, near, id) >= 0;
+  };
   std::vector<std::int64_t> ghosts;
   for (long i = 0; i < m.owned; ++i) {
+    if (contiguous) {  // a whole stencil inside the owned run has no ghost: no list
+      const int b = m.shape.body_of(owned_ids[i]);
+      std::int64_t lowest, highest;
+      if (!cells[b] && stencil[b].interior(owned_ids[i], lowest, highest) && lowest >= first_owned &&
+          highest - first_owned < m.owned)
+        continue;
+    }
     const int b = neighbours(owned_ids[i]);
     for (const auto& x : nb)
-      if (find_sorted_near(owned_ids.data(), m.owned, i, x.id) < 0) ghosts.push_back(x.id);
+      if (!is_owned(x.id, i)) ghosts.push_back(x.id);
     if (!cells[b]) continue;
     const BoxGeometry& box = m.shape.body(b);
     const auto ijk = box.index(owned_ids[i]);
@@ -215,7 +236,7 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
           const long q[3] = {ijk[0] + dx, ijk[1] + dy, ijk[2] + dz};
           if (q[0] < 0 || q[1] < 0 || q[2] < 0 || q[0] >= box.n[0] || q[1] >= box.n[1] || q[2] >= box.n[2]) continue;
           const std::int64_t g = box.id(q[0], q[1], q[2]);
-          if (find_sorted_near(owned_ids.data(), m.owned, i, g) < 0) ghosts.push_back(g);
+          if (!is_owned(g, i)) ghosts.push_back(g);
         }
   }
   std::sort(ghosts.begin(), ghosts.end());
@@ -270,22 +291,26 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
     first[i] = i < m.owned ? owned_first[i] : ghost_first[i - m.owned];
     const std::int64_t g = ids[i];
     block[i] = i < m.owned ? m.first_block + i : ghost_block[i - m.owned];
-    const int b = neighbours(g);
-    for (const auto& x : nb) count += x.id > g;
+    int degree, forward;
+    const int b = counts(g, degree, forward);
+    count += forward;
     const BoxGeometry& box = m.shape.body(b);
     const Vec3 x = box.rest_position(g);
     for (int d = 0; d < 3; ++d) m.rest[3 * i + d] = x[d];
     const MoleculeMaterial mat = molecule_material(specs[b], box, g);
     m.mass[i] = mat.density * box.volume(g);
     inputs.youngs_modulus[i] = mat.youngs_modulus;
-    inputs.degree[i] = static_cast<int>(nb.size());
+    inputs.degree[i] = degree;
     body[i] = b;
   }
   m.block.assign(block), m.body.assign(body), m.first_connection.assign(first);
   block = std::vector<PetscInt>(), body = std::vector<int>(), first = std::vector<std::int64_t>();
   owned_ids = owned_first = ghost_first = std::vector<std::int64_t>();  // ids and m.first_connection hold them
   // Owned molecule g's local index, searched from `near` (an owned index next to g in id order).
-  auto owned_index = [&](std::int64_t g, long near) { return find_sorted_near(ids.data(), m.owned, near, g); };
+  auto owned_index = [&](std::int64_t g, long near) -> long {
+    if (contiguous) return g >= first_owned && g - first_owned < m.owned ? static_cast<long>(g - first_owned) : -1;
+    return find_sorted_near(ids.data(), m.owned, near, g);
+  };
 
   // 5. Connections with at least one owned end: walk the local molecules in increasing id and emit each one's
   //    forward connections, which yields the global (a, b) order directly.
@@ -304,6 +329,9 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
   std::vector<double> length_table;
   std::unordered_map<std::uint64_t, std::uint16_t> length_index;
   std::vector<std::pair<std::uint64_t, int>> recent;  // per forward position: (bits, type), type -1: none yet
+  // Each body's stencil direction has one rest length: its type, once found, is kept by direction (-1: not yet).
+  std::vector<std::vector<int>> direction_type(nbodies);
+  for (int b = 0; b < nbodies; ++b) direction_type[b].assign(stencil[b].directions(), -1);
   auto length_type = [&](int forward, double l) {
     std::uint64_t bits;
     std::memcpy(&bits, &l, 8);
@@ -321,6 +349,12 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
   std::vector<int> end_a, end_b;
   auto walk = [&]() {
     long owned_before = 0;  // owned molecules with ids below a: where a sits among them
+    // A molecule's forward connections gathered here, then appended in one go per array (not a push_back each).
+    std::size_t widest = 0;
+    for (int b = 0; b < nbodies; ++b) widest = std::max(widest, stencil[b].directions());
+    std::vector<int> row_b(widest);
+    std::vector<ConnectionClass> row_class(widest);
+    std::vector<std::uint16_t> row_type(widest);
     for (int i : order) {
       const std::int64_t a = ids[i];
       const bool a_owned = i < m.owned;
@@ -329,16 +363,17 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
       const int b = neighbours(a);
       const BoxGeometry& box = m.shape.body(b);
       int rank_of_b = 0;  // position of the connection among a's forward ones
+      int row = 0;
       for (const auto& x : nb) {
         if (x.id < a) continue;
         const int forward = rank_of_b++;
         const long owned_j = owned_index(x.id, near);
         if (!a_owned && owned_j < 0) continue;
         const int j = static_cast<int>(owned_j >= 0 ? owned_j : m.owned + find_sorted(ghosts, x.id));
-        end_a.push_back(i), end_b.push_back(j);
-        m.connection_class.push_back(x.cls);
-        length_types.push_back(length_type(forward, stencil[b].rest_distance(x)));
-        if (a_owned) ++m.written_count;
+        int& known = direction_type[b][x.direction];
+        if (known < 0) known = length_type(forward, stencil[b].rest_distance(x));
+        row_b[row] = j, row_class[row] = x.cls, row_type[row] = static_cast<std::uint16_t>(known);
+        ++row;
         if (any_tetrahedra) {
           // Tetrahedra incident on the connection (Van Gelder's Eq. 5, Lloyd's sum): every Kuhn tetrahedron of
           // a box has the same volume; summed one by one, as the explicit path sums them.
@@ -350,6 +385,11 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
           inputs.tetra_volume.push_back(volume), inputs.tetra_lloyd_sum.push_back(lloyd);
         }
       }
+      end_a.insert(end_a.end(), row, i);
+      end_b.insert(end_b.end(), row_b.begin(), row_b.begin() + row);
+      m.connection_class.insert(m.connection_class.end(), row_class.begin(), row_class.begin() + row);
+      length_types.insert(length_types.end(), row_type.begin(), row_type.begin() + row);
+      if (a_owned) m.written_count += row;
     }
   };
   end_a.reserve(count), end_b.reserve(count);

@@ -67,6 +67,7 @@ LatticeStencil::LatticeStencil(const TopologyStyle& style, const BoxGeometry& bo
     distance_.push_back(std::sqrt(sum));
   }
   sorted_ = std::adjacent_find(step_.begin(), step_.end(), std::greater_equal<std::int64_t>()) == step_.end();
+  forward_ = static_cast<int>(std::count_if(step_.begin(), step_.end(), [](std::int64_t s) { return s > 0; }));
 }
 
 const TopologyStyle* find_topology(const std::string& name) { return find_style(topology_styles(), name); }

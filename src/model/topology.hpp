@@ -8,6 +8,7 @@
 // whole connection list; the explicit builder enumerates every connection (and tetrahedron) of the body, the
 // independent reference the tests check the stencil against (tests/whole_body.hpp).
 #pragma once
+#include <array>
 #include <string>
 #include <vector>
 
@@ -61,14 +62,49 @@ public:
     const auto ijk = box_.index(g);
     bool inside = sorted_;
     for (int d = 0; d < 3; ++d) inside = inside && ijk[d] >= reach_[d] && ijk[d] < box_.n[d] - reach_[d];
-    if (!inside) return lattice_neighbours(*style_, box_, g, out);
+    if (!inside) return near_face(g, ijk, out);
     out.resize(step_.size());
     for (std::size_t s = 0; s < step_.size(); ++s) out[s] = {g + step_[s], cls_[s], static_cast<int>(s)};
   }
   // The rest distance of a neighbour in that direction: BoxGeometry::rest_distance's double for its offset.
   double rest_distance(const Neighbour& x) const { return distance_[x.direction]; }
+  std::size_t directions() const { return step_.size(); }
+  // Whether molecule g has its whole stencil, and then its lowest and highest neighbour ids.
+  bool interior(std::int64_t g, std::int64_t& lowest, std::int64_t& highest) const {
+    const auto ijk = box_.index(g);
+    bool inside = sorted_ && !step_.empty();
+    for (int d = 0; d < 3; ++d) inside = inside && ijk[d] >= reach_[d] && ijk[d] < box_.n[d] - reach_[d];
+    if (inside) lowest = g + step_.front(), highest = g + step_.back();
+    return inside;
+  }
+  // Molecule g's neighbour count and how many of them have higher ids, without the list: from the stencil inside,
+  // from the list (left in `out`) near a face. The set-up's counting passes need no more.
+  void counts(std::int64_t g, std::vector<Neighbour>& out, int& degree, int& forward) const {
+    const auto ijk = box_.index(g);
+    bool inside = sorted_;
+    for (int d = 0; d < 3; ++d) inside = inside && ijk[d] >= reach_[d] && ijk[d] < box_.n[d] - reach_[d];
+    if (inside) {
+      degree = static_cast<int>(step_.size()), forward = forward_;
+      return;
+    }
+    near_face(g, ijk, out);
+    degree = static_cast<int>(out.size()), forward = 0;
+    for (const auto& x : out) forward += x.id > g;
+  }
 
 private:
+  // Near a face: the offsets that stay in the box, by the same steps (sorted steps keep the list sorted);
+  // lattice_neighbours' sort where they are not.
+  void near_face(std::int64_t g, const std::array<long, 3>& ijk, std::vector<Neighbour>& out) const {
+    if (!sorted_) return lattice_neighbours(*style_, box_, g, out);
+    out.clear();
+    for (std::size_t s = 0; s < step_.size(); ++s) {
+      const int* d = style_->stencil[s].d;
+      bool in = true;
+      for (int a = 0; a < 3; ++a) in = in && ijk[a] + d[a] >= 0 && ijk[a] + d[a] < box_.n[a];
+      if (in) out.push_back({g + step_[s], cls_[s], static_cast<int>(s)});
+    }
+  }
   const TopologyStyle* style_;
   BoxGeometry box_;
   std::vector<std::int64_t> step_;  // per stencil offset, in the stencil's order: the id difference
@@ -76,6 +112,7 @@ private:
   std::vector<double> distance_;  // per stencil offset: the rest distance
   long reach_[3] = {0, 0, 0};
   bool sorted_ = false;  // the steps increase strictly: interior lists need no sort
+  int forward_ = 0;       // steps > 0: an interior molecule's neighbours with higher ids
 };
 
 // Tetrahedral topology: how many of the cells' Kuhn tetrahedra contain both molecules a and b (the connection's

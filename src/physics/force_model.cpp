@@ -312,9 +312,10 @@ Term* ForceModel::cell_history() const {
 
 double ForceModel::largest_stiffness_rate() const {
   std::vector<double> ksum(model_.local, 0.0);
+  const ConnectionColumn k = model_.table.stiffness_column();  // the storage asked once, not per connection
   model_.end_a.for_each_pair(model_.end_b, [&](int c, int a, int b) {
-    ksum[a] += model_.k(c);
-    ksum[b] += model_.k(c);
+    ksum[a] += k[c];
+    ksum[b] += k[c];
   });
   for (const auto& t : terms_) t->add_stiffness_bound(ksum);
   double rate = 0;

@@ -623,11 +623,16 @@ SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
       } else if (next < nc && a[next] < m) {
         break;
       }
-      if (!merge(pattern, run_first, run_last, merged) || merged.empty()) break;
-      if (m + merged.back().offset >= local) break;
-      const long slots = static_cast<long>(molecules + 1) * static_cast<long>(merged.size());
+      // Most runs are the pattern itself (a lattice's interior): then the union is the pattern, unbuilt.
+      bool same = run_last - run_first == static_cast<int>(pattern.size());
+      for (int t = run_first, s = 0; same && t < run_last; ++t, ++s)
+        same = pattern[s].offset == b[t] - a[t] && pattern[s].type == type[t];
+      if (!same && (!merge(pattern, run_first, run_last, merged) || merged.empty())) break;
+      const std::vector<Direction>& grown = same ? pattern : merged;
+      if (m + grown.back().offset >= local) break;
+      const long slots = static_cast<long>(molecules + 1) * static_cast<long>(grown.size());
       if (4 * (slots - present - (run_last - run_first)) > slots) break;
-      pattern.swap(merged);
+      if (!same) pattern.swap(merged);
       members.push_back({run_first, run_last});
       present += run_last - run_first;
       next = run_last;

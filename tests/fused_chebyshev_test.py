@@ -8,15 +8,13 @@ two work vectors), 1 (one step, straight into x) and 3 (three work vectors, the 
   - the fused path was taken: fewer VecAXPBYPCZ calls in -log_view than the old path's (PETSc's Chebyshev step).
 
 Usage: fused_chebyshev_test.py --build BUILD_DIR --source SOURCE_DIR      Prints 'N passed, M failed'."""
-import argparse
 import json
 import os
 import re
-import shutil
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from checks import check, report, tissue  # noqa: E402
+from checks import arguments_and_work, check, report, tissue  # noqa: E402
 
 
 def axpbypcz_calls(stdout):
@@ -25,13 +23,7 @@ def axpbypcz_calls(stdout):
 
 
 def main():
-    p = argparse.ArgumentParser()
-    p.add_argument("--build", required=True)
-    p.add_argument("--source", required=True)
-    a = p.parse_args()
-    work = os.path.join(a.build, "tests", "out", "fused_chebyshev")
-    shutil.rmtree(work, ignore_errors=True)
-    os.makedirs(work)
+    a, work = arguments_and_work("fused_chebyshev")
     scene = os.path.join(a.source, "run_scripts", "scenes", "peer_tension.toml")
     for ranks in (1, 2, 3):
         for degree in (2, 1, 3):

@@ -119,6 +119,27 @@ __attribute__((always_inline)) inline void add_row_corners(const double (&q)[9][
   }
 }
 
+// A tangent product's last step, for n cells' dP (overwritten): Q = V0 dP g per column (in dP's place); corner c's
+// row s_x q0 + s_y q1 + s_z q2, cell_block_forces's sums with the opposite sign, added to the owned corners of out.
+__attribute__((always_inline)) inline void add_cell_products(double (&dP)[9][kCellBlock], int n, double volume,
+                                                             double gx, double gy, double gz, bool rows,
+                                                             const int* __restrict base,
+                                                             const int* __restrict offset, int owned,
+                                                             double* __restrict out) {
+  for (int r = 0; r < 3; ++r)
+    for (int i = 0; i < n; ++i) {
+      dP[3 * r][i] = -volume * dP[3 * r][i] * gx;
+      dP[3 * r + 1][i] = -volume * dP[3 * r + 1][i] * gy;
+      dP[3 * r + 2][i] = -volume * dP[3 * r + 2][i] * gz;
+    }
+  const double(&q)[9][kCellBlock] = dP;
+  if (rows) {
+    add_row_corners(q, n, base, offset, owned, out);
+    return;
+  }
+  for (int i = 0; i < n; ++i) add_cell_corners(q, i, base, offset, owned, out);
+}
+
 // The forces of n <= kCellBlock cells of one moduli (no fibres, no history) and one corner pattern (cell i's
 // corner c is base[i] + offset[c]), added to their owned corners: CellElasticity::cell_forces's arithmetic,
 // operation for operation (stress() for plain moduli, with the same order of sums), with the cells as the
@@ -366,20 +387,7 @@ void cell_block_tangent(int n, const int* __restrict base, const int* __restrict
       }
     }
   }
-  // Q = V0 dP g per column (in dP's place); corner c's row: s_x q0 + s_y q1 + s_z q2, cell_block_forces's sums
-  // with the opposite sign.
-  for (int r = 0; r < 3; ++r)
-    for (int i = 0; i < n; ++i) {
-      dP[3 * r][i] = -volume * dP[3 * r][i] * gx;
-      dP[3 * r + 1][i] = -volume * dP[3 * r + 1][i] * gy;
-      dP[3 * r + 2][i] = -volume * dP[3 * r + 2][i] * gz;
-    }
-  const double(&q)[9][kCellBlock] = dP;
-  if (rows) {
-    add_row_corners(q, n, base, offset, owned, out);
-    return;
-  }
-  for (int i = 0; i < n; ++i) add_cell_corners(q, i, base, offset, owned, out);
+  add_cell_products(dP, n, volume, gx, gy, gz, rows, base, offset, owned, out);
 }
 
 __attribute__((always_inline)) inline void cof_of(const double F[9], double cof[9]) {
@@ -449,18 +457,7 @@ void volumetric_block_tangent(int n, const int* __restrict base, const int* __re
     const double vol = half * (J - rJ), dvol = half * (1.0 + rJ * rJ) * dJ;
     for (int q = 0; q < 9; ++q) dP[q][i] = dvol * cof[q] + vol * dcof[q];
   }
-  for (int r = 0; r < 3; ++r)
-    for (int i = 0; i < n; ++i) {
-      dP[3 * r][i] = -volume * dP[3 * r][i] * gx;
-      dP[3 * r + 1][i] = -volume * dP[3 * r + 1][i] * gy;
-      dP[3 * r + 2][i] = -volume * dP[3 * r + 2][i] * gz;
-    }
-  const double(&q)[9][kCellBlock] = dP;
-  if (rows) {
-    add_row_corners(q, n, base, offset, owned, out);
-    return;
-  }
-  for (int i = 0; i < n; ++i) add_cell_corners(q, i, base, offset, owned, out);
+  add_cell_products(dP, n, volume, gx, gy, gz, rows, base, offset, owned, out);
 }
 
 // The entries of dP/dF the tangent's diagonal reads, for a block's plain cells as vector lanes (the tangent

@@ -278,6 +278,19 @@ void cell_block_forces(int n, const int* __restrict base, const int* __restrict 
   }
 }
 
+// The derivative of cof F along d (d cof F [d]): the products' and the volumetric kernel's one expression.
+__attribute__((always_inline)) inline void dcof_of(const double F[9], const double d[9], double dcof[9]) {
+  dcof[0] = (d[4] * F[8] + F[4] * d[8]) - (d[5] * F[7] + F[5] * d[7]);
+  dcof[1] = (d[5] * F[6] + F[5] * d[6]) - (d[3] * F[8] + F[3] * d[8]);
+  dcof[2] = (d[3] * F[7] + F[3] * d[7]) - (d[4] * F[6] + F[4] * d[6]);
+  dcof[3] = (d[2] * F[7] + F[2] * d[7]) - (d[1] * F[8] + F[1] * d[8]);
+  dcof[4] = (d[0] * F[8] + F[0] * d[8]) - (d[2] * F[6] + F[2] * d[6]);
+  dcof[5] = (d[1] * F[6] + F[1] * d[6]) - (d[0] * F[7] + F[0] * d[7]);
+  dcof[6] = (d[1] * F[5] + F[1] * d[5]) - (d[2] * F[4] + F[2] * d[4]);
+  dcof[7] = (d[2] * F[3] + F[2] * d[3]) - (d[0] * F[5] + F[0] * d[5]);
+  dcof[8] = (d[0] * F[4] + F[0] * d[4]) - (d[1] * F[3] + F[1] * d[3]);
+}
+
 // stress()'s derivative along d for plain moduli (no fibres, no history) at F, with s = mu J^(-2/3) given, one
 // cell (a vector lane of cell_block_tangent, or one cell of the diagonal): d(cof) is bilinear in F and d;
 // dJ = cof : d; s moves by -2/3 s dJ / J, I1 / (3J) by (2/3 F : d - I1 / (3J) dJ) / J; the volumetric factor
@@ -288,15 +301,8 @@ __attribute__((always_inline)) inline void isotropic_stress_direction(const doub
   const double cof[9] = {F[4] * F[8] - F[5] * F[7], F[5] * F[6] - F[3] * F[8], F[3] * F[7] - F[4] * F[6],
                          F[2] * F[7] - F[1] * F[8], F[0] * F[8] - F[2] * F[6], F[1] * F[6] - F[0] * F[7],
                          F[1] * F[5] - F[2] * F[4], F[2] * F[3] - F[0] * F[5], F[0] * F[4] - F[1] * F[3]};
-  const double dcof[9] = {(d[4] * F[8] + F[4] * d[8]) - (d[5] * F[7] + F[5] * d[7]),
-                          (d[5] * F[6] + F[5] * d[6]) - (d[3] * F[8] + F[3] * d[8]),
-                          (d[3] * F[7] + F[3] * d[7]) - (d[4] * F[6] + F[4] * d[6]),
-                          (d[2] * F[7] + F[2] * d[7]) - (d[1] * F[8] + F[1] * d[8]),
-                          (d[0] * F[8] + F[0] * d[8]) - (d[2] * F[6] + F[2] * d[6]),
-                          (d[1] * F[6] + F[1] * d[6]) - (d[0] * F[7] + F[0] * d[7]),
-                          (d[1] * F[5] + F[1] * d[5]) - (d[2] * F[4] + F[2] * d[4]),
-                          (d[2] * F[3] + F[2] * d[3]) - (d[0] * F[5] + F[0] * d[5]),
-                          (d[0] * F[4] + F[0] * d[4]) - (d[1] * F[3] + F[1] * d[3])};
+  double dcof[9];
+  dcof_of(F, d, dcof);
   const double J = F[0] * cof[0] + F[1] * cof[1] + F[2] * cof[2];
   double dJ = 0, I1 = 0, dI1 = 0;
   for (int q = 0; q < 9; ++q) dJ += cof[q] * d[q], I1 += F[q] * F[q], dI1 += F[q] * d[q];
@@ -442,15 +448,8 @@ void volumetric_block_tangent(int n, const int* __restrict base, const int* __re
     for (int q = 0; q < 9; ++q) F[q] = G[q][i] + (q % 4 == 0 ? 1.0 : 0.0), d[q] = dF[q][i];
     cof_of(F, cof);
     const double J = F[0] * cof[0] + F[1] * cof[1] + F[2] * cof[2];
-    const double dcof[9] = {(d[4] * F[8] + F[4] * d[8]) - (d[5] * F[7] + F[5] * d[7]),
-                            (d[5] * F[6] + F[5] * d[6]) - (d[3] * F[8] + F[3] * d[8]),
-                            (d[3] * F[7] + F[3] * d[7]) - (d[4] * F[6] + F[4] * d[6]),
-                            (d[2] * F[7] + F[2] * d[7]) - (d[1] * F[8] + F[1] * d[8]),
-                            (d[0] * F[8] + F[0] * d[8]) - (d[2] * F[6] + F[2] * d[6]),
-                            (d[1] * F[6] + F[1] * d[6]) - (d[0] * F[7] + F[0] * d[7]),
-                            (d[1] * F[5] + F[1] * d[5]) - (d[2] * F[4] + F[2] * d[4]),
-                            (d[2] * F[3] + F[2] * d[3]) - (d[0] * F[5] + F[0] * d[5]),
-                            (d[0] * F[4] + F[0] * d[4]) - (d[1] * F[3] + F[1] * d[3])};
+    double dcof[9];
+    dcof_of(F, d, dcof);
     double dJ = 0;
     for (int q = 0; q < 9; ++q) dJ += cof[q] * d[q];
     const double rJ = 1.0 / J;

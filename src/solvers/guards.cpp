@@ -152,6 +152,14 @@ void StepGuard::full_check() {
   keep();
 }
 
+void StepGuard::full_check_as_made() {
+  Timer timer{seconds_};
+  read_state();
+  ++checks_;
+  check_finite_state();
+  check_lengths(/*from_energy=*/true);
+}
+
 void StepGuard::dynamic_step(double local_kinetic) {
   if (!enabled_) return;
   Timer timer{seconds_};

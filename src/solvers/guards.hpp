@@ -47,6 +47,9 @@ public:
   void relaxation_step(double residual);
   // Full check now (collective): finite state, connection lengths; keeps the state as the last good one.
   void full_check();
+  // The same check of the state this guard was made at, nothing changed since (the static solver's final check):
+  // the lengths from the constructor's connection pass, and the copy it kept stays the last good state.
+  void full_check_as_made();
   // Keeps the current state as the last good one (no checks).
   void keep();
 

@@ -14,6 +14,9 @@ namespace tissue {
 
 namespace {
 
+// The free components in a 3-bit mask (a table: __builtin_popcount is a library call without -mpopcnt).
+constexpr int kFreeCount[8] = {0, 1, 1, 2, 1, 2, 2, 3};
+
 // The planes a coarser level keeps along one axis: every other plane of the level below, and the last.
 std::vector<long> coarser(const std::vector<long>& s) {
   if (s.size() <= 2) return s;
@@ -180,7 +183,7 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
       if (!(kept[b][0][ijk[0]] && kept[b][1][ijk[1]] && kept[b][2][ijk[2]])) continue;
       owned_nodes[l].push_back(i);
       base[l].push_back(n);
-      n += l == 0 ? 3 : __builtin_popcount(free_mask(i));
+      n += l == 0 ? 3 : kFreeCount[free_mask(i)];
     }
     count[l] = n;
     PetscInt before = 0;
@@ -290,7 +293,7 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
     auto column = [](PetscInt packed, int k) -> PetscInt {
       const int mask = static_cast<int>(packed % 8);
       if (!(mask >> k & 1)) return -1;
-      return packed / 8 + __builtin_popcount(mask & ((1 << k) - 1));
+      return packed / 8 + kFreeCount[mask & ((1 << k) - 1)];
     };
 
     const PetscInt cfirst = first[l + 1], clast = first[l + 1] + count[l + 1];
@@ -308,7 +311,7 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
         if (held[3 * i + k]) return -1;  // a held component takes no coarse correction
         if (l == 0) return base[l][r] + k;
         const int mask = free_mask(i);
-        return base[l][r] + __builtin_popcount(mask & ((1 << k) - 1));
+        return base[l][r] + kFreeCount[mask & ((1 << k) - 1)];
       };
       for (std::size_t r = 0; r < rows.size(); ++r)
         for (int k = 0; k < 3; ++k) {

@@ -27,8 +27,9 @@ struct Timer {
 }  // namespace
 
 StepGuard::StepGuard(const char* solver, const Scene& scene, const LocalModel& model, const ForceModel& forces,
-                     SolverState& state, long every)
-    : solver_(solver), scene_(scene), model_(model), forces_(forces), state_(state), every_(std::max(1L, every)) {
+                     SolverState& state, long every, bool copy)
+    : solver_(solver), scene_(scene), model_(model), forces_(forces), state_(state), every_(std::max(1L, every)),
+      copy_(copy) {
   Timer timer{seconds_};
   // The switch is in PETSc's options database (-tissue_guards false after --, or PETSC_OPTIONS), read the same on
   // every rank; a malformed value is PETSc's error.
@@ -61,8 +62,10 @@ StepGuard::StepGuard(const char* solver, const Scene& scene, const LocalModel& m
 void StepGuard::keep() {
   // With the guards off (benchmarks) no copy: 48 bytes a molecule that a run without checks would never restore.
   if (!enabled_) return;
-  good_x_.assign(state_.x.array(), state_.x.array() + 3 * model_.owned);
-  good_v_ = state_.v;
+  if (copy_) {
+    good_x_.assign(state_.x.array(), state_.x.array() + 3 * model_.owned);
+    good_v_ = state_.v;
+  }
   good_step_ = state_.step;
   good_time_ = state_.time;
 }
@@ -152,6 +155,14 @@ void StepGuard::full_check() {
   keep();
 }
 
+void StepGuard::full_check_as_made() {
+  Timer timer{seconds_};
+  read_state();
+  ++checks_;
+  check_finite_state();
+  check_lengths(/*from_energy=*/true);
+}
+
 void StepGuard::dynamic_step(double local_kinetic) {
   if (!enabled_) return;
   Timer timer{seconds_};
@@ -226,9 +237,11 @@ void StepGuard::fail(const std::string& problem, std::int64_t molecule) {
                                     "nothing written", solver_, problem, step, where),
                         SolverFailure::State::nothing);
   // Put the last good state back: main() writes it as DIR/last_good.h5.
-  std::copy(good_x_.begin(), good_x_.end(), state_.x.array());
-  state_.x.update_ghosts();
-  state_.v = good_v_;
+  if (copy_) {
+    std::copy(good_x_.begin(), good_x_.end(), state_.x.array());
+    state_.x.update_ghosts();
+    state_.v = good_v_;
+  }
   state_.step = good_step_;
   state_.time = good_time_;
   throw SolverFailure(fmt::format("{}: {} at step {}: {}; last good state: step {}", solver_, problem, step, where,

@@ -33,8 +33,10 @@ class StepGuard {
 public:
   // `every`: iterations between full checks (finite state, connection lengths, energy) and copies of the
   // last good state.
+  // `copy` false: the solver does not change the state while this guard lives (a final check only), so the state
+  // itself stays the last good one: no copy (48 B a molecule), and a failure leaves it as it is.
   StepGuard(const char* solver, const Scene& scene, const LocalModel& model, const ForceModel& forces,
-            SolverState& state, long every = 128);
+            SolverState& state, long every = 128, bool copy = true);
 
   // Dynamic, after every step: `local_kinetic` is this rank's sum of m v^2 / 2 (computed in the solver's own
   // loop; NaN and Inf propagate into it). No communication but every kReduceEvery steps (one reduction of two
@@ -47,6 +49,9 @@ public:
   void relaxation_step(double residual);
   // Full check now (collective): finite state, connection lengths; keeps the state as the last good one.
   void full_check();
+  // The same check of the state this guard was made at, nothing changed since (the static solver's final check):
+  // the lengths from the constructor's connection pass, and what it kept stays the last good state.
+  void full_check_as_made();
   // Keeps the current state as the last good one (no checks).
   void keep();
 
@@ -82,6 +87,7 @@ private:
   double kinetic_ = 0.0, kinetic_checked_ = 0.0, energy0_ = 0.0;
   double residual0_ = -1.0;
   bool enabled_ = true;       // false with -tissue_guards false (benchmarks)
+  bool copy_ = true;          // the last good state is a copy (false: the state itself, never changed here)
   bool energy_check_ = true;  // off when a term the energy does not account for is on (cyclic loads, contact)
   std::vector<double> good_x_, good_v_;
   long good_step_ = 0;

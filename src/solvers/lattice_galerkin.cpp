@@ -1261,9 +1261,11 @@ PetscErrorCode LatticeGalerkin::applies(const ForceModel& forces, const double* 
   PetscFunctionBeginUser;
   index_molecules();
   bool good = true;
+  // One body: no body to compare (a molecule's body is a search among runs of the molecules).
+  const bool one_body = model_.shape.bodies() == 1;
   auto put = [&](int i, int j, const double*) -> PetscErrorCode {
     for (int d = 0; d < 3; ++d) good = good && std::abs(ijk_[i][d] - ijk_[j][d]) <= 1;
-    good = good && model_.body[i] == model_.body[j];
+    good = good && (one_body || model_.body[i] == model_.body[j]);
     return PetscErrorCode(0);
   };
   using Put = decltype(put);
@@ -1276,10 +1278,10 @@ PetscErrorCode LatticeGalerkin::applies(const ForceModel& forces, const double* 
     // Springs only: the blocks join exactly the ends of the connections of owned molecules, so their ends say
     // it without computing a block (the stream cost 2.5 % of a 64,000-molecule solve's instructions); a term's
     // blocks within lattice cells are inside the stencil by construction (the cell term's dual numbers cost 6 %).
-    for (int c = 0; good && c < model_.connections(); ++c) {
-      const int i = model_.end_a[c], j = model_.end_b[c];
-      if (i < model_.owned || j < model_.owned) PetscCall(put(i, j, nullptr));
-    }
+    // Both ends by runs (for_each_pair), not a division a read; put cannot fail.
+    model_.end_a.for_each_pair(model_.end_b, [&](int, int i, int j) {
+      if (i < model_.owned || j < model_.owned) (void)put(i, j, nullptr);
+    });
   }
   ijk_ = {};
   int mine = good ? 1 : 0, all = 0;

@@ -123,8 +123,9 @@ PetscErrorCode destroy(Mat P) {
 }  // namespace
 
 PetscErrorCode interpolation_shell(MPI_Comm comm, const std::vector<std::uint8_t>& held, int fine_nodes,
-                                   const std::vector<int>& start, const std::vector<double>& w,
-                                   const std::vector<PetscInt>& packed, PetscInt cfirst, PetscInt ccount, Mat* P) {
+                                   const std::vector<int>& start, std::vector<double>&& weights,
+                                   std::vector<std::uint8_t>&& which, const std::vector<PetscInt>& packed,
+                                   PetscInt cfirst, PetscInt ccount, Mat* P) {
   PetscFunctionBeginUser;
   auto ip = std::make_unique<Interpolation>();
   ip->nc = ccount;
@@ -146,7 +147,10 @@ PetscErrorCode interpolation_shell(MPI_Comm comm, const std::vector<std::uint8_t
              PETSC_ERR_SUP, "lattice multigrid: too many coarse unknowns on one rank for the interpolation shell");
   ip->node.resize(fine_nodes);
   ip->at.resize(packed.size());
-  ip->which.resize(packed.size());
+  PetscCheck(which.size() == packed.size() && weights.size() <= 256, PETSC_COMM_SELF, PETSC_ERR_PLIB,
+             "lattice multigrid: interpolation weights do not match the entries");
+  ip->which = std::move(which);
+  ip->weights = std::move(weights);
   for (int i = 0; i < fine_nodes; ++i) {
     const int n = start[i + 1] - start[i];
     PetscCheck(n <= 8, PETSC_COMM_SELF, PETSC_ERR_PLIB, "lattice multigrid: more than 8 coarse nodes a molecule");
@@ -160,14 +164,6 @@ PetscErrorCode interpolation_shell(MPI_Comm comm, const std::vector<std::uint8_t
     PetscInt at = b - cfirst;
     if (b < cfirst || b >= clast) at = ccount + offset[std::lower_bound(away.begin(), away.end(), packed[e]) - away.begin()];
     ip->at[e] = static_cast<std::int32_t>(8 * at + mask);
-    auto found = std::find(ip->weights.begin(), ip->weights.end(), w[e]);
-    if (found == ip->weights.end()) {
-      PetscCheck(ip->weights.size() < 256, PETSC_COMM_SELF, PETSC_ERR_SUP,
-                 "lattice multigrid: more than 256 distinct interpolation weights");
-      ip->weights.push_back(w[e]);
-      found = ip->weights.end() - 1;
-    }
-    ip->which[e] = static_cast<std::uint8_t>(found - ip->weights.begin());
   }
   Vec layout;
   IS is;
@@ -183,6 +179,35 @@ PetscErrorCode interpolation_shell(MPI_Comm comm, const std::vector<std::uint8_t
   PetscCall(MatShellSetOperation(*P, MATOP_MULT, reinterpret_cast<void (*)(void)>(mult)));
   PetscCall(MatShellSetOperation(*P, MATOP_MULT_ADD, reinterpret_cast<void (*)(void)>(mult_add)));
   PetscCall(MatShellSetOperation(*P, MATOP_MULT_TRANSPOSE, reinterpret_cast<void (*)(void)>(mult_transpose)));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode interpolation_column_sums(Mat P, Vec c) {
+  PetscFunctionBeginUser;
+  // mult_transpose's sums with every fine value 1 (held components 0): no fine vector to make and fill.
+  Interpolation* ip = context(P);
+  PetscCall(VecZeroEntries(c));
+  PetscCall(VecZeroEntries(ip->ghosts));
+  PetscScalar *u, *g;
+  PetscCall(VecGetArray(c, &u));
+  PetscCall(VecGetArray(ip->ghosts, &g));
+  std::size_t e = 0;
+  for (std::size_t i = 0; i < ip->node.size(); ++i) {
+    const int n = ip->node[i] & 15, held = ip->node[i] >> 4;
+    double v[3];
+    for (int k = 0; k < 3; ++k) v[k] = held >> k & 1 ? 0.0 : 1.0;
+    for (int q = 0; q < n; ++q, ++e) {
+      const std::int32_t at = ip->at[e] >> 3, mask = ip->at[e] & 7;
+      PetscScalar* to = at < ip->nc ? u + at : g + (at - ip->nc);
+      const double w = ip->weights[ip->which[e]];
+      for (int k = 0, m = 0; k < 3; ++k)
+        if (mask >> k & 1) to[m++] += w * v[k];
+    }
+  }
+  PetscCall(VecRestoreArray(ip->ghosts, &g));
+  PetscCall(VecRestoreArray(c, &u));
+  PetscCall(VecScatterBegin(ip->scatter, ip->ghosts, c, ADD_VALUES, SCATTER_REVERSE));
+  PetscCall(VecScatterEnd(ip->scatter, ip->ghosts, c, ADD_VALUES, SCATTER_REVERSE));
   PetscFunctionReturn(0);
 }
 

@@ -15,11 +15,15 @@
 namespace tissue {
 
 // Collective. fine_nodes: this rank's owned molecules (rows 3 i + k, local); held: 3 a molecule (at least
-// 3 * fine_nodes); per fine molecule i its coarse nodes are entries start[i] .. start[i + 1] - 1 with weights w[e]
-// and packed[e] = 8 * (global first unknown of the coarse node) + its free-component mask; this rank owns
-// coarse unknowns cfirst .. cfirst + ccount - 1.
+// 3 * fine_nodes); per fine molecule i its coarse nodes are entries start[i] .. start[i + 1] - 1 with weights
+// weights[which[e]] (at most 256 distinct, taken by the shell) and packed[e] = 8 * (global first unknown of the
+// coarse node) + its free-component mask; this rank owns coarse unknowns cfirst .. cfirst + ccount - 1.
 PetscErrorCode interpolation_shell(MPI_Comm comm, const std::vector<std::uint8_t>& held, int fine_nodes,
-                                   const std::vector<int>& start, const std::vector<double>& w,
-                                   const std::vector<PetscInt>& packed, PetscInt cfirst, PetscInt ccount, Mat* P);
+                                   const std::vector<int>& start, std::vector<double>&& weights,
+                                   std::vector<std::uint8_t>&& which, const std::vector<PetscInt>& packed,
+                                   PetscInt cfirst, PetscInt ccount, Mat* P);
+// Collective. c = P^T 1 for a shell P of interpolation_shell (the sums of its columns over free fine components;
+// MatMultTranspose's numbers without a fine vector of ones).
+PetscErrorCode interpolation_column_sums(Mat P, Vec c);
 
 }  // namespace tissue

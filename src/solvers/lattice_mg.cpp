@@ -14,6 +14,9 @@ namespace tissue {
 
 namespace {
 
+// The free components in a 3-bit mask (a table: __builtin_popcount is a library call without -mpopcnt).
+constexpr int kFreeCount[8] = {0, 1, 1, 2, 1, 2, 2, 3};
+
 // The planes a coarser level keeps along one axis: every other plane of the level below, and the last.
 std::vector<long> coarser(const std::vector<long>& s) {
   if (s.size() <= 2) return s;
@@ -180,7 +183,7 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
       if (!(kept[b][0][ijk[0]] && kept[b][1][ijk[1]] && kept[b][2][ijk[2]])) continue;
       owned_nodes[l].push_back(i);
       base[l].push_back(n);
-      n += l == 0 ? 3 : __builtin_popcount(free_mask(i));
+      n += l == 0 ? 3 : kFreeCount[free_mask(i)];
     }
     count[l] = n;
     PetscInt before = 0;
@@ -196,14 +199,17 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
   for (int l = 0; l + 1 < L; ++l) {
     const auto& rows = owned_nodes[l];
     const auto& cols = owned_nodes[l + 1];
-    // Trilinear weights: per axis the enclosing planes of level l+1 and their weights, then all products.
-    struct Entry {
-      std::int64_t node;  // the coarse node: its index among the distinct ones (asked)
-      double w;
-    };
+    // Trilinear weights: per axis the enclosing planes of level l+1 and their weights, then all products. Per
+    // entry its coarse node (the index among the distinct ones, asked; then, in place, the directory's answer) and
+    // its weight: as the index of one of the few distinct weights (in order of first use) for the finest shell,
+    // which keeps them so (4 + 1 bytes an entry, not 16 + 8 + 4 written and dropped), else as the number.
+    const bool shell = l == 0 && finest_as_shell;
     std::vector<int> start(rows.size() + 1, 0);
-    std::vector<Entry> entries;
-    entries.reserve(8 * rows.size());
+    std::vector<PetscInt> node;
+    std::vector<double> weight, distinct_weights;
+    std::vector<std::uint8_t> which;
+    bool too_many_weights = false;
+    node.reserve(8 * rows.size());
     // Each coarse node is asked of the directory once: a fine row's coarse nodes are also its neighbours' (at
     // level 0 each is named by about 27 rows). Distinct ones are found on a dense box, per body, of the coarse
     // planes this rank's rows name (a compact block of the lattice: from the rows' lowest and highest planes).
@@ -259,34 +265,45 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
               by_free.push_back(0);
             }
             if (free_row && !by_free[u]) by_free[u] = 1, named[l + 1]++;
-            entries.push_back({u, w[0].w[x] * w[1].w[y] * w[2].w[z]});
+            const double product = w[0].w[x] * w[1].w[y] * w[2].w[z];
+            node.push_back(u);
+            if (!shell) {
+              weight.push_back(product);
+              continue;
+            }
+            auto found = std::find(distinct_weights.begin(), distinct_weights.end(), product);
+            if (found == distinct_weights.end()) {
+              too_many_weights = too_many_weights || distinct_weights.size() == 256;  // refused below, as before
+              if (!too_many_weights) distinct_weights.push_back(product);
+              found = distinct_weights.end() - 1;
+            }
+            which.push_back(static_cast<std::uint8_t>(found - distinct_weights.begin()));
           }
-      start[r + 1] = static_cast<int>(entries.size());
+      start[r + 1] = static_cast<int>(node.size());
     }
     std::vector<std::vector<int>>().swap(distinct);
     // The directory carries each coarse node's first unknown and free-component mask, packed as 8 base + mask.
     std::vector<std::int64_t> mine(cols.size());
-    std::vector<PetscInt> packed(cols.size()), answers, distinct_answers;
+    std::vector<PetscInt> packed(cols.size()), distinct_answers;
     for (std::size_t c = 0; c < cols.size(); ++c) mine[c] = model.id[cols[c]], packed[c] = 8 * base[l + 1][c] + free_mask(cols[c]);
     PetscCall(lattice_lookup(model.comm, total, mine, packed, asked, distinct_answers));
-    answers.resize(entries.size());
-    for (std::size_t e = 0; e < entries.size(); ++e) answers[e] = distinct_answers[entries[e].node];
+    std::vector<PetscInt>& answers = node;  // each entry's coarse node, now as its packed answer
+    for (PetscInt& a : answers) a = distinct_answers[a];
     // Column of component k of a coarse node, or -1 when that component is held.
     auto column = [](PetscInt packed, int k) -> PetscInt {
       const int mask = static_cast<int>(packed % 8);
       if (!(mask >> k & 1)) return -1;
-      return packed / 8 + __builtin_popcount(mask & ((1 << k) - 1));
+      return packed / 8 + kFreeCount[mask & ((1 << k) - 1)];
     };
 
     const PetscInt cfirst = first[l + 1], clast = first[l + 1] + count[l + 1];
     Mat P;
-    if (l == 0 && finest_as_shell) {
-      std::vector<double> w(entries.size());
-      for (std::size_t e = 0; e < entries.size(); ++e) w[e] = entries[e].w;
+    if (shell) {
       std::vector<std::int64_t>().swap(asked);
-      std::vector<Entry>().swap(entries);
-      PetscCall(interpolation_shell(model.comm, held, static_cast<int>(rows.size()), start, w, answers, cfirst,
-                                    count[l + 1], &P));
+      PetscCheck(!too_many_weights, PETSC_COMM_SELF, PETSC_ERR_SUP,
+                 "lattice multigrid: more than 256 distinct interpolation weights");
+      PetscCall(interpolation_shell(model.comm, held, static_cast<int>(rows.size()), start, std::move(distinct_weights),
+                                    std::move(which), answers, cfirst, count[l + 1], &P));
     } else {
       std::vector<PetscInt> dnnz(count[l], 0), onnz(count[l], 0);
       auto row_of = [&](std::size_t r, int k) -> PetscInt {
@@ -294,7 +311,7 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
         if (held[3 * i + k]) return -1;  // a held component takes no coarse correction
         if (l == 0) return base[l][r] + k;
         const int mask = free_mask(i);
-        return base[l][r] + __builtin_popcount(mask & ((1 << k) - 1));
+        return base[l][r] + kFreeCount[mask & ((1 << k) - 1)];
       };
       for (std::size_t r = 0; r < rows.size(); ++r)
         for (int k = 0; k < 3; ++k) {
@@ -320,7 +337,7 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
           cs.clear(), v.clear();
           for (int e = start[r]; e < start[r + 1]; ++e) {
             const PetscInt c = column(answers[e], k);
-            if (c >= 0) cs.push_back(c), v.push_back(entries[e].w);
+            if (c >= 0) cs.push_back(c), v.push_back(weight[e]);
           }
           if (!cs.empty())
             PetscCall(MatSetValues(P, 1, &row, static_cast<PetscInt>(cs.size()), cs.data(), v.data(), INSERT_VALUES));
@@ -330,10 +347,16 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
     }
     interp[l] = P;
     // A coarse unknown that no fine one interpolates from would make the coarse operator singular.
-    Vec ones, sums;
-    PetscCall(MatCreateVecs(P, &sums, &ones));
-    PetscCall(VecSet(ones, 1.0));
-    PetscCall(MatMultTranspose(P, ones, sums));
+    // (The shell sums its columns without a fine vector of ones: 24 B a molecule made, filled and dropped.)
+    Vec ones = nullptr, sums;
+    if (shell) {
+      PetscCall(MatCreateVecs(P, &sums, nullptr));
+      PetscCall(interpolation_column_sums(P, sums));
+    } else {
+      PetscCall(MatCreateVecs(P, &sums, &ones));
+      PetscCall(VecSet(ones, 1.0));
+      PetscCall(MatMultTranspose(P, ones, sums));
+    }
     PetscReal least = 1.0;
     PetscCall(VecMin(sums, nullptr, &least));
     if (least <= 0) empty_column = PETSC_TRUE;

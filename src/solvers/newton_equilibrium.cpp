@@ -119,10 +119,9 @@ PetscErrorCode load_positions(Context* ctx, Vec X) {
   PetscFunctionReturn(0);
 }
 
-// R(x) = -(connection forces + applied forces), zero on held components: SNES drives it to zero.
-PetscErrorCode residual(SNES, Vec X, Vec R, void* p) {
+// The state's forces at the positions X (state.f, held components zero); a failure is kept in ctx->error.
+PetscErrorCode evaluate_forces(Context* ctx, Vec X) {
   PetscFunctionBeginUser;
-  auto* ctx = static_cast<Context*>(p);
   PetscCall(load_positions(ctx, X));
   // Called on every evaluation even after a failure, so that the ranks make the same collectives (contact terms
   // exchange inside forces()); the first error is kept.
@@ -131,6 +130,14 @@ PetscErrorCode residual(SNES, Vec X, Vec R, void* p) {
     ctx->forces->forces(ctx->state->x.array(), ctx->state->v.data(), ctx->state->f.data(), ctx->load_factor);
   });
   if (!ctx->error) ctx->error = error;
+  PetscFunctionReturn(0);
+}
+
+// R(x) = -(connection forces + applied forces), zero on held components: SNES drives it to zero.
+PetscErrorCode residual(SNES, Vec X, Vec R, void* p) {
+  PetscFunctionBeginUser;
+  auto* ctx = static_cast<Context*>(p);
+  PetscCall(evaluate_forces(ctx, X));
   PetscScalar* r;
   PetscCall(VecGetArray(R, &r));
   // A rank whose evaluation failed hands SNES a NaN residual: its norm is NaN on every rank, so every rank's SNES
@@ -806,10 +813,7 @@ PetscErrorCode NewtonEquilibrium::Impl::finish() {
   }
   // The final state and its residual, in the common definition.
   ctx.load_factor = 1.0;
-  Vec R;
-  PetscCall(VecDuplicate(X, &R));
-  PetscCall(residual(snes, X, R, &ctx));
-  PetscCall(VecDestroy(&R));  // the residual is read from state.f
+  PetscCall(evaluate_forces(&ctx, X));  // the residual is read from state.f (no vector of it is needed)
   agree(model.comm, [&] {
     if (ctx.error) std::rethrow_exception(std::exchange(ctx.error, nullptr));
   });
@@ -817,8 +821,8 @@ PetscErrorCode NewtonEquilibrium::Impl::finish() {
   report.converged = report.residual <= tolerance * 1.0000001;
   check_finite(model, state.x.array(), state.f.data(), report.iterations, kind.c_str());
   {
-    StepGuard guard(kind.c_str(), scene, model, forces, state);
-    guard.full_check();  // a collapsed (inverted) connection at equilibrium is a failure too
+    StepGuard guard(kind.c_str(), scene, model, forces, state, 128, /*copy=*/false);  // the state is only read
+    guard.full_check_as_made();  // a collapsed (inverted) connection at equilibrium is a failure too
   }
   PetscFunctionReturn(0);
 }

@@ -33,7 +33,15 @@ void check_connections(const Scene& scene, const LocalModel& model) {
   // The first bad connection (smallest global id) over all ranks.
   long long bad = std::numeric_limits<long long>::max();
   const bool calibrated = model.table.calibrated();
-  for (int c = 0; c < model.connections(); ++c) {
+  // A table stored by type holds each (l0, k) once: when every type passes, every connection does (no pass).
+  bool every_type_good = model.table.typed();
+  if (every_type_good) {
+    const ConnectionColumn k = model.table.stiffness_column(), l = model.table.rest_length_column();
+    for (std::size_t t = 0; t < model.table.connection_types(); ++t)
+      every_type_good = every_type_good && l.value[t] > 0 && std::isfinite(l.value[t]) && k.value[t] >= 0 &&
+                        std::isfinite(k.value[t]);
+  }
+  for (int c = 0; !every_type_good && c < model.connections(); ++c) {
     const double l0 = model.l0(c), k = calibrated ? model.k(c) : 0.0;
     if (!(l0 > 0) || !std::isfinite(l0) || !(k >= 0) || !std::isfinite(k))
       bad = std::min<long long>(bad, model.connection_id(c));

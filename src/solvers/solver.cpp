@@ -28,13 +28,15 @@ double force_round_off(const LocalModel& model, const ForceModel& forces) {
   // to eps R / 2 at magnitude R (k R / 2 for a spring), in squares: a slender body far from the origin stalls at
   // R / l0 times its springs' floor (a 10 x 1 x 1 beam of 0.25 tetrahedra: 3.6e-7 relative at R = 10, 5.2e-6 at
   // R = 110; docs/benchmarks.md).
-  std::vector<double> scale(model.local, 0.0), squares(model.local, 0.0);
+  std::vector<double> scale(model.local, 0.0), squares(model.local, 0.0), magnitude(model.local);
   const double* x = model.rest.data();
-  auto magnitude = [&](int i) {
-    return std::max({std::fabs(x[3 * i]), std::fabs(x[3 * i + 1]), std::fabs(x[3 * i + 2])});
-  };
+  // Each molecule's magnitude once (not twice a connection), k and l0 through their columns (no storage test a read).
+  for (int i = 0; i < model.local; ++i)
+    magnitude[i] = std::max({std::fabs(x[3 * i]), std::fabs(x[3 * i + 1]), std::fabs(x[3 * i + 2])});
+  const ConnectionColumn stiffness = model.table.stiffness_column(), rest_length = model.table.rest_length_column();
   model.end_a.for_each_pair(model.end_b, [&](int c, int a, int b) {
-    const double k = std::fabs(model.k(c)), kl = k * model.l0(c), kr = k * std::max(magnitude(a), magnitude(b)) / 2;
+    const double k = std::fabs(stiffness[c]), kl = k * rest_length[c];
+    const double kr = k * std::max(magnitude[a], magnitude[b]) / 2;
     scale[a] += kl, scale[b] += kl;
     squares[a] += kr * kr, squares[b] += kr * kr;
   });

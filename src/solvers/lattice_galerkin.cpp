@@ -139,13 +139,16 @@ __attribute__((always_inline)) inline void masked_block(const double* blk, bool 
 // A_ij^T u_i to row j; both take 4-lane vectors (the fourth lane is unused: it reads the next value and is never
 // stored): A_ij^T u_i from the block's three rows, A_ij u_j from its three columns, read as the rows of the block's
 // transpose at `columns`. When every block between two wholly free nodes is symmetric to the bit (springs only),
-// columns is a itself; otherwise (a term's blocks) it is the kept rows' blocks transposed (halve_level_one). Lane k
+// columns is a itself; otherwise (a term's blocks) it is the kept rows' blocks transposed (halve_level_one) when
+// they are few, or the lanes are gathered from the block's entries (null: no copy of many distinct rows). Lane k
 // then computes exactly the scalar expressions sum_m A[k][m] v_m and sum_m A[m][k] u_m in the same order (no fused
 // multiply-adds in this build), so the result does not depend on the layout. Blocks with a held component go the
 // general way (masks).
 using Lanes = double __attribute__((vector_size(32)));
 
-template <bool kTransposed>
+enum class Columns { kRows, kCopy, kGathered };  // where A_ij u_j's columns come from (stencil_product)
+
+template <Columns kColumns>
 __attribute__((always_inline)) inline void stencil_product(std::size_t nodes, const PetscInt* first, const int* row,
                                                            const double* a, const double* columns,
                                                            const PetscInt* cols, PetscInt n, const double* u,
@@ -168,10 +171,14 @@ __attribute__((always_inline)) inline void stencil_product(std::size_t nodes, co
       if ((mask & jm) == 7) {
         Lanes r0, r1, r2;
         std::memcpy(&r0, blk, sizeof r0), std::memcpy(&r1, blk + 3, sizeof r1), std::memcpy(&r2, blk + 6, sizeof r2);
-        if (kTransposed) {
+        if (kColumns == Columns::kCopy) {
           Lanes c0, c1, c2;
           std::memcpy(&c0, tblk, sizeof c0), std::memcpy(&c1, tblk + 3, sizeof c1);
           std::memcpy(&c2, tblk + 6, sizeof c2);
+          acc += c0 * src[0] + c1 * src[1] + c2 * src[2];
+        } else if (kColumns == Columns::kGathered) {
+          const Lanes c0 = {blk[0], blk[3], blk[6], 0.0}, c1 = {blk[1], blk[4], blk[7], 0.0},
+                      c2 = {blk[2], blk[5], blk[8], 0.0};
           acc += c0 * src[0] + c1 * src[1] + c2 * src[2];
         } else {
           acc += r0 * src[0] + r1 * src[1] + r2 * src[2];
@@ -192,13 +199,16 @@ __attribute__((always_inline)) inline void stencil_product(std::size_t nodes, co
 TISSUE_CLONES void symmetric_stencil_product(std::size_t nodes, const PetscInt* first, const int* row,
                                              const double* a, const PetscInt* cols, PetscInt n, const double* u,
                                              const double* g, double* y, double* h) {
-  stencil_product<false>(nodes, first, row, a, a, cols, n, u, g, y, h);
+  stencil_product<Columns::kRows>(nodes, first, row, a, a, cols, n, u, g, y, h);
 }
 
 TISSUE_CLONES void general_stencil_product(std::size_t nodes, const PetscInt* first, const int* row,
                                            const double* a, const double* columns, const PetscInt* cols, PetscInt n,
                                            const double* u, const double* g, double* y, double* h) {
-  stencil_product<true>(nodes, first, row, a, columns, cols, n, u, g, y, h);
+  if (columns)
+    stencil_product<Columns::kCopy>(nodes, first, row, a, columns, cols, n, u, g, y, h);
+  else
+    stencil_product<Columns::kGathered>(nodes, first, row, a, a, cols, n, u, g, y, h);
 }
 
 // Pages about to be written from scratch, faulted in by one call instead of one trap a 4 kB page at first touch:
@@ -348,7 +358,7 @@ struct LatticeGalerkin::StencilOperator {
                                 // the neighbour; -1: no block
   PetscInt n = 0;               // owned unknowns
   bool symmetric = false;       // every block between two wholly free nodes symmetric to the bit (halve_level_one)
-  std::vector<double> columns;  // when not: the kept rows' blocks transposed, as rows.a (the product's A_ij u_j)
+  std::vector<double> columns;  // when not, and few distinct rows: their blocks transposed (A_ij u_j's columns)
   Vec ghosts = nullptr;         // the neighbours' values owned elsewhere
   Vec shares = nullptr;         // what the transposed blocks add to them (a product's reverse scatter)
   VecScatter scatter = nullptr;
@@ -1491,10 +1501,11 @@ void LatticeGalerkin::halve_level_one() {
     }
   }
   // The tangent is symmetric, but a cell's block A_ab need not be (only A_ba = A_ab^T): the product then reads the
-  // columns from a transposed copy of the kept rows (few: a box lattice's distinct rows), 3 padding values for the
-  // last block's unused lane.
-  op.columns.clear();
-  if (!op.symmetric) {
+  // columns from a transposed copy of the kept rows, 3 padding values for the last block's unused lane, when they
+  // are at most a quarter of the rows (a box lattice at rest: its few distinct rows); otherwise (a deformed
+  // state, nearly every row distinct) no copy, and the product gathers the columns from the rows.
+  op.columns = {};
+  if (!op.symmetric && 4 * kept <= rows) {
     op.columns.assign(kept * kRow + 3, 0.0);
     for (std::size_t b = 0; b < kept * kHalf; ++b)
       for (int r = 0; r < 3; ++r)
@@ -1524,7 +1535,7 @@ PetscErrorCode LatticeGalerkin::stencil_mult(Mat A, Vec in, Vec out) {
                               op->col.data(), n, u, g, y, h);
   else
     general_stencil_product(op->first.size(), op->first.data(), op->rows.row.data(), op->rows.a.data(),
-                            op->columns.data(), op->col.data(), n, u, g, y, h);
+                            op->columns.empty() ? nullptr : op->columns.data(), op->col.data(), n, u, g, y, h);
   PetscCall(VecRestoreArray(op->shares, &h));
   PetscCall(VecRestoreArray(out, &y));
   PetscCall(VecRestoreArrayRead(op->ghosts, &g));

@@ -135,26 +135,35 @@ __attribute__((always_inline)) inline void masked_block(const double* blk, bool 
     if (jm >> k & 1) back[q++] += blk[k] * ui[0] + blk[3 + k] * ui[1] + blk[6 + k] * ui[2];
 }
 
-// Level 1's product over its halved rows (LatticeGalerkin::stencil_mult) when every block between two wholly
-// free nodes is symmetric to the bit: then a block's row r read as its column r gives A_ij u_j with the same
-// operations in the same order, so both products of a block, A_ij u_j and A_ij^T u_i, take its three rows as
-// 4-lane vectors (the fourth lane is unused: it reads the next value and is never stored). Blocks with a held
-// component go the general way (masks), as in stencil_mult.
+// Level 1's product over its halved rows (LatticeGalerkin::stencil_mult). A block A_ij adds A_ij u_j to row i and
+// A_ij^T u_i to row j; both take 4-lane vectors (the fourth lane is unused: it reads the next value and is never
+// stored): A_ij^T u_i from the block's three rows, A_ij u_j from its three columns, read as the rows of the block's
+// transpose at `columns`. When every block between two wholly free nodes is symmetric to the bit (springs only),
+// columns is a itself; otherwise (a term's blocks) it is the kept rows' blocks transposed (halve_level_one) when
+// they are few, or the lanes are gathered from the block's entries (null: no copy of many distinct rows). Lane k
+// then computes exactly the scalar expressions sum_m A[k][m] v_m and sum_m A[m][k] u_m in the same order (no fused
+// multiply-adds in this build), so the result does not depend on the layout. Blocks with a held component go the
+// general way (masks).
 using Lanes = double __attribute__((vector_size(32)));
 
-TISSUE_CLONES void symmetric_stencil_product(std::size_t nodes, const PetscInt* first, const int* row,
-                                             const double* a, const PetscInt* cols, PetscInt n, const double* u,
-                                             const double* g, double* y, double* h) {
+enum class Columns { kRows, kCopy, kGathered };  // where A_ij u_j's columns come from (stencil_product)
+
+template <Columns kColumns>
+__attribute__((always_inline)) inline void stencil_product(std::size_t nodes, const PetscInt* first, const int* row,
+                                                           const double* a, const double* columns,
+                                                           const PetscInt* cols, PetscInt n, const double* u,
+                                                           const double* g, double* y, double* h) {
   for (std::size_t c = 0; c < nodes; ++c) {
     const int mask = static_cast<int>(first[c] % 8);
     if (!mask) continue;
     const double* blk = a + kHalf * kBlock * static_cast<std::size_t>(row[c]);
+    const double* tblk = columns + kHalf * kBlock * static_cast<std::size_t>(row[c]);
     const PetscInt* col = cols + kHalf * c;
     double* to = y + first[c] / 8;
     double ui[3];
     for (int m = 0, q = 0; m < 3; ++m) ui[m] = mask >> m & 1 ? u[first[c] / 8 + q++] : 0.0;
     Lanes acc = {0.0, 0.0, 0.0, 0.0};
-    for (int s = 0; s < kHalf; ++s, blk += kBlock) {
+    for (int s = 0; s < kHalf; ++s, blk += kBlock, tblk += kBlock) {
       if (col[s] < 0) continue;
       const int jm = static_cast<int>(col[s] & 7);
       const PetscInt at = col[s] >> 3;
@@ -162,7 +171,18 @@ TISSUE_CLONES void symmetric_stencil_product(std::size_t nodes, const PetscInt* 
       if ((mask & jm) == 7) {
         Lanes r0, r1, r2;
         std::memcpy(&r0, blk, sizeof r0), std::memcpy(&r1, blk + 3, sizeof r1), std::memcpy(&r2, blk + 6, sizeof r2);
-        acc += r0 * src[0] + r1 * src[1] + r2 * src[2];
+        if (kColumns == Columns::kCopy) {
+          Lanes c0, c1, c2;
+          std::memcpy(&c0, tblk, sizeof c0), std::memcpy(&c1, tblk + 3, sizeof c1);
+          std::memcpy(&c2, tblk + 6, sizeof c2);
+          acc += c0 * src[0] + c1 * src[1] + c2 * src[2];
+        } else if (kColumns == Columns::kGathered) {
+          const Lanes c0 = {blk[0], blk[3], blk[6], 0.0}, c1 = {blk[1], blk[4], blk[7], 0.0},
+                      c2 = {blk[2], blk[5], blk[8], 0.0};
+          acc += c0 * src[0] + c1 * src[1] + c2 * src[2];
+        } else {
+          acc += r0 * src[0] + r1 * src[1] + r2 * src[2];
+        }
         if (s == 0) continue;
         double* back = at < n ? y + at : h + (at - n);
         const Lanes t = r0 * ui[0] + r1 * ui[1] + r2 * ui[2];
@@ -174,6 +194,21 @@ TISSUE_CLONES void symmetric_stencil_product(std::size_t nodes, const PetscInt* 
     for (int k = 0, q = 0; k < 3; ++k)
       if (mask >> k & 1) to[q++] += acc[k];
   }
+}
+
+TISSUE_CLONES void symmetric_stencil_product(std::size_t nodes, const PetscInt* first, const int* row,
+                                             const double* a, const PetscInt* cols, PetscInt n, const double* u,
+                                             const double* g, double* y, double* h) {
+  stencil_product<Columns::kRows>(nodes, first, row, a, a, cols, n, u, g, y, h);
+}
+
+TISSUE_CLONES void general_stencil_product(std::size_t nodes, const PetscInt* first, const int* row,
+                                           const double* a, const double* columns, const PetscInt* cols, PetscInt n,
+                                           const double* u, const double* g, double* y, double* h) {
+  if (columns)
+    stencil_product<Columns::kCopy>(nodes, first, row, a, columns, cols, n, u, g, y, h);
+  else
+    stencil_product<Columns::kGathered>(nodes, first, row, a, a, cols, n, u, g, y, h);
 }
 
 // Pages about to be written from scratch, faulted in by one call instead of one trap a 4 kB page at first touch:
@@ -323,6 +358,7 @@ struct LatticeGalerkin::StencilOperator {
                                 // the neighbour; -1: no block
   PetscInt n = 0;               // owned unknowns
   bool symmetric = false;       // every block between two wholly free nodes symmetric to the bit (halve_level_one)
+  std::vector<double> columns;  // when not, and few distinct rows: their blocks transposed (A_ij u_j's columns)
   Vec ghosts = nullptr;         // the neighbours' values owned elsewhere
   Vec shares = nullptr;         // what the transposed blocks add to them (a product's reverse scatter)
   VecScatter scatter = nullptr;
@@ -1466,6 +1502,17 @@ void LatticeGalerkin::halve_level_one() {
           op.symmetric = op.symmetric && std::memcmp(blk + 3 * r + k, blk + 3 * k + r, sizeof(double)) == 0;
     }
   }
+  // The tangent is symmetric, but a cell's block A_ab need not be (only A_ba = A_ab^T): the product then reads the
+  // columns from a transposed copy of the kept rows, 3 padding values for the last block's unused lane, when they
+  // are at most a quarter of the rows (a box lattice at rest: its few distinct rows); otherwise (a deformed
+  // state, nearly every row distinct) no copy, and the product gathers the columns from the rows.
+  op.columns = {};
+  if (!op.symmetric && 4 * kept <= rows) {
+    op.columns.assign(kept * kRow + 3, 0.0);
+    for (std::size_t b = 0; b < kept * kHalf; ++b)
+      for (int r = 0; r < 3; ++r)
+        for (int k = 0; k < 3; ++k) op.columns[b * kBlock + 3 * k + r] = a[b * kBlock + 3 * r + k];
+  }
 }
 
 // y = A u over the halved rows: each kept block A_ij adds A_ij u_j to row i and A_ij^T u_i to row j, whose
@@ -1488,35 +1535,9 @@ PetscErrorCode LatticeGalerkin::stencil_mult(Mat A, Vec in, Vec out) {
   if (op->symmetric)
     symmetric_stencil_product(op->first.size(), op->first.data(), op->rows.row.data(), op->rows.a.data(),
                               op->col.data(), n, u, g, y, h);
-  for (std::size_t c = 0; c < (op->symmetric ? 0 : op->first.size()); ++c) {
-    const int mask = static_cast<int>(op->first[c] % 8);
-    if (!mask) continue;
-    const double* blk = op->rows.a.data() + kHalf * kBlock * op->rows.row[c];
-    const PetscInt* col = op->col.data() + kHalf * c;
-    PetscScalar* to = y + op->first[c] / 8;
-    double ui[3];
-    for (int m = 0, q = 0; m < 3; ++m) ui[m] = mask >> m & 1 ? u[op->first[c] / 8 + q++] : 0.0;
-    double acc[3] = {0.0, 0.0, 0.0};
-    for (int s = 0; s < kHalf; ++s, blk += kBlock) {
-      if (col[s] < 0) continue;
-      const int jm = static_cast<int>(col[s] & 7);
-      const PetscInt at = col[s] >> 3;
-      const double* src = at < n ? u + at : g + (at - n);
-      if ((mask & jm) == 7) {
-        // Both nodes free in every component (nearly every block): the general path below without its masks,
-        // the same operations in the same order.
-        const double v0 = src[0], v1 = src[1], v2 = src[2];
-        for (int k = 0; k < 3; ++k) acc[k] += blk[3 * k] * v0 + blk[3 * k + 1] * v1 + blk[3 * k + 2] * v2;
-        if (s == 0) continue;
-        PetscScalar* back = at < n ? y + at : h + (at - n);
-        for (int k = 0; k < 3; ++k) back[k] += blk[k] * ui[0] + blk[3 + k] * ui[1] + blk[6 + k] * ui[2];
-        continue;
-      }
-      masked_block(blk, s == 0, jm, src, ui, acc, at < n ? y + at : h + (at - n));
-    }
-    for (int k = 0, q = 0; k < 3; ++k)
-      if (mask >> k & 1) to[q++] += acc[k];
-  }
+  else
+    general_stencil_product(op->first.size(), op->first.data(), op->rows.row.data(), op->rows.a.data(),
+                            op->columns.empty() ? nullptr : op->columns.data(), op->col.data(), n, u, g, y, h);
   PetscCall(VecRestoreArray(op->shares, &h));
   PetscCall(VecRestoreArray(out, &y));
   PetscCall(VecRestoreArrayRead(op->ghosts, &g));

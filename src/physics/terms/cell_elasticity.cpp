@@ -20,6 +20,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <map>
 #include <stdexcept>
 #include <unordered_map>
@@ -744,6 +745,7 @@ public:
     if (ring_ > kRingCells) return add_tangent_by_cell(x, add, ctx);
     const std::size_t R = ring_;
     std::vector<double> ring(81 * R);
+    VolumetricBlocks reuse[8];
     for (int k = 0; k < cells_; ++k) {
       double* slot = &ring[81 * (static_cast<std::size_t>(k) % R)];
       if (!(volumetric_only(k) ? volumetric_state(k, x, slot) : stress_tangent(k, x, slot)))
@@ -758,7 +760,7 @@ public:
         bool last = true;
         for (int d = 0; d < 3; ++d) last = last && (!(c >> d & 1) || b[d] == box.n[d] - 2);
         if (!last) continue;
-        const PetscErrorCode ierr = add_row(corner[c], k, ring.data(), add, ctx);
+        const PetscErrorCode ierr = add_row(corner[c], k, ring.data(), add, ctx, reuse);
         if (ierr) return ierr;
       }
     }
@@ -798,8 +800,20 @@ public:
     return 0;
   }
 
+  // A volumetric-only cell's blocks K_ab (b = 0..7) for one corner a, with what they are computed from: the cell's
+  // state as volumetric_state fills it (F, cof F, W', W'', cof F g_b) and its geometry. Cells whose state is equal
+  // to the bit have equal blocks (at rest every cell of a body: F = I), so add_row takes them from the last cell
+  // computed for the same corner instead of computing them again.
+  struct VolumetricBlocks {
+    static constexpr int kState = 44;
+    int body = -1;  // the geometry's
+    double state[kState];
+    double Kb[8][9];
+  };
+
   // Molecule m's row of the tangent from its cells (the last one is cell `last`; their dP/dF in the ring).
-  PetscErrorCode add_row(int m, int last, const double* ring, BlockAdd add, void* ctx) const {
+  PetscErrorCode add_row(int m, int last, const double* ring, BlockAdd add, void* ctx,
+                         VolumetricBlocks* reuse) const {
     const BoxGeometry& box = m_.shape.body(kinds_[kind_[last]].body);
     const auto ijk = box.index(m_.id[m]);
     double K[27][9];
@@ -826,8 +840,17 @@ public:
       const Geometry& geo = geometry_[kinds_[kind_[k]].body];
       int corner[8];
       corners(k, corner);
-      double Kb[8][9];
-      if (volumetric_only(k)) {
+      double local[8][9];
+      double(*Kb)[9] = local;
+      VolumetricBlocks& last_a = reuse[a];
+      const int body = kinds_[kind_[k]].body;
+      if (volumetric_only(k) && last_a.body == body &&
+          std::memcmp(last_a.state, D, sizeof last_a.state) == 0) {
+        Kb = last_a.Kb;
+      } else if (volumetric_only(k)) {
+        Kb = last_a.Kb;
+        last_a.body = body;
+        std::memcpy(last_a.state, D, sizeof last_a.state);
         // K_ab = V0 (W'' (cof g_a) (x) (cof g_b) + W' [F (g_a x g_b)]_x): d cof_ij / dF_kl = e_ikm e_jln F_mn
         // contracted with g_a's j and g_b's l is the skew matrix e_ikm w_m, w = F (g_a x g_b).
         // cof g_b of the cell's 8 corners kept with its state (volumetric_state), g_a x g_b with the geometry.

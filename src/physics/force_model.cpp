@@ -587,9 +587,8 @@ PetscErrorCode ForceModel::tangent_diagonal(const double* x, double* diag, bool 
   PetscFunctionBeginUser;
   const int n = model_.owned;
   std::fill(diag, diag + 3 * n, 0.0);
-  const int nc = model_.connections();
-  for (int c = 0; c < nc; ++c) {
-    const int a = model_.end_a[c], b = model_.end_b[c];
+  // The ends from the runs (no search and no division a connection), in connection order as before.
+  model_.end_a.for_each_pair(model_.end_b, [&](int c, int a, int b) {
     const Stretch st(model_, x, a, b, c);
     const double* d = st.d;
     const double len2 = st.len2, k = st.k, geo = st.geo;
@@ -598,7 +597,7 @@ PetscErrorCode ForceModel::tangent_diagonal(const double* x, double* diag, bool 
       if (a < n) diag[3 * a + r] += K;
       if (b < n) diag[3 * b + r] += K;
     }
-  }
+  });
   if (!terms_.empty()) {
     auto add = [](void* p, int row, int col, const double K[9]) -> PetscErrorCode {
       if (row == col)
@@ -758,7 +757,7 @@ PetscErrorCode ForceModel::connection_blocks_unless(const double* x, Term::Block
     // What Stretch and connection_row read, in their order.
     for (int q = 0; q < count; ++q) {
       const int c = tangent_.row_conns[first + q];
-      const int j = model_.end_a[c] == i ? model_.end_b[c] : model_.end_a[c];
+      const int j = model_.other_end(c, i);
       double* in = inputs.data() + 5 * q;
       for (int r = 0; r < 3; ++r) in[r] = x[3 * j + r] - x[3 * i + r];
       in[3] = model_.k(c), in[4] = model_.l0(c);
@@ -775,7 +774,7 @@ PetscErrorCode ForceModel::connection_row(const double* x, int i, Term::BlockAdd
   double self[9] = {};
   for (int p = tangent_.conn_start[i]; p < tangent_.conn_start[i + 1]; ++p) {
     const int c = tangent_.row_conns[p];
-    const int j = model_.end_a[c] == i ? model_.end_b[c] : model_.end_a[c];
+    const int j = model_.other_end(c, i);
     const Stretch st(model_, x, i, j, c);
     const double* d = st.d;
     const double len2 = st.len2, k = st.k, geo = st.geo;

@@ -56,19 +56,6 @@ public:
     return (c - r.first_connection) % (pattern_start_[r.pattern + 1] - pattern_start_[r.pattern]);
   }
   const int* data() const { return plain_.data(); }  // the plain storage only
-  // The end of c that is not i (i is one of c's ends; this is end a, end_b end b): with both ends runs of the
-  // same rows (to_runs), one run lookup and one division for the pair instead of two or three reads of
-  // operator[] (a row's connections come from several runs, so each read there can be a search).
-  int other_end(const ConnectionEnd& end_b, int c, int i) const {
-    if (runs_.empty() || end_b.runs_.size() != runs_.size()) {
-      const int a = (*this)[c];
-      return a == i ? end_b[c] : a;
-    }
-    const Run& r = runs_[find(c)];
-    const int start = pattern_start_[r.pattern], directions = pattern_start_[r.pattern + 1] - start;
-    const int q = c - r.first_connection, a = r.first_molecule + q / directions;
-    return a == i ? a + end_b.offsets_[start + q % directions] : a;
-  }
   // f(c, a, b) for every connection c in increasing order, a = (*this)[c] and b = end_b[c]: from the runs, with
   // no search and no division, when both ends are runs of the same rows (to_runs), else value by value. For the
   // passes over every connection outside the force kernel (energy, guards, time step bound).
@@ -297,7 +284,6 @@ struct MoleculeLayout {
     return first_connection[end_a[c]] + (forward_rank.empty() ? lattice_forward_rank(c) : forward_rank[c]);
   }
   int lattice_forward_rank(int c) const;  // b's position among a's forward neighbours (box lattices)
-  int other_end(int c, int i) const { return end_a.other_end(end_b, c, i); }  // c's end that is not i
   // The rank that owns end a writes the connection to files (each connection written exactly once).
   WrittenConnections written_here() const { return {end_a, owned, written_count}; }
   // f(c, a, b) for the same connections in the same order, with their ends (ConnectionEnd::for_each_pair).

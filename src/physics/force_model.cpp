@@ -587,9 +587,8 @@ PetscErrorCode ForceModel::tangent_diagonal(const double* x, double* diag, bool 
   PetscFunctionBeginUser;
   const int n = model_.owned;
   std::fill(diag, diag + 3 * n, 0.0);
-  // A chunk of connections at a time: their inputs gathered (the ends from the runs: no search and no division a
-  // connection), their diagonal terms computed vectorized (tangent_diagonal_terms), then summed in connection
-  // order as before.
+  // A chunk of connections at a time: their inputs gathered, their diagonal terms computed vectorized
+  // (tangent_diagonal_terms: the same operations), then summed in connection order as before, so to the bit.
   constexpr int kChunk = 256;
   alignas(64) double d[3][kChunk] = {}, ks[kChunk] = {}, ls[kChunk] = {}, K[3][kChunk];
   int ea[kChunk], eb[kChunk], filled = 0;
@@ -771,7 +770,7 @@ PetscErrorCode ForceModel::connection_blocks_unless(const double* x, Term::Block
     // What Stretch and connection_row read, in their order.
     for (int q = 0; q < count; ++q) {
       const int c = tangent_.row_conns[first + q];
-      const int j = model_.other_end(c, i);
+      const int j = model_.end_a[c] == i ? model_.end_b[c] : model_.end_a[c];
       double* in = inputs.data() + 5 * q;
       for (int r = 0; r < 3; ++r) in[r] = x[3 * j + r] - x[3 * i + r];
       in[3] = model_.k(c), in[4] = model_.l0(c);
@@ -788,7 +787,7 @@ PetscErrorCode ForceModel::connection_row(const double* x, int i, Term::BlockAdd
   double self[9] = {};
   for (int p = tangent_.conn_start[i]; p < tangent_.conn_start[i + 1]; ++p) {
     const int c = tangent_.row_conns[p];
-    const int j = model_.other_end(c, i);
+    const int j = model_.end_a[c] == i ? model_.end_b[c] : model_.end_a[c];
     const Stretch st(model_, x, i, j, c);
     const double* d = st.d;
     const double len2 = st.len2, k = st.k, geo = st.geo;

@@ -126,21 +126,20 @@ PetscErrorCode TangentStorage::create(const LocalModel& model, Mat* J, const std
 }
 
 void TangentStorage::create_rows(const LocalModel& model) {
-  const int n = model.owned;
+  const int n = model.owned, nc = model.connections();
   // A counting sort of the connections by owned end.
-  // The ends from the runs (ConnectionEnd::for_each_pair: no search and no division a connection).
   conn_start.assign(n + 1, 0);
-  model.end_a.for_each_pair(model.end_b, [&](int, int a, int b) {
-    if (a < n) conn_start[a + 1]++;
-    if (b < n) conn_start[b + 1]++;
-  });
+  for (int c = 0; c < nc; ++c) {
+    if (model.end_a[c] < n) conn_start[model.end_a[c] + 1]++;
+    if (model.end_b[c] < n) conn_start[model.end_b[c] + 1]++;
+  }
   for (int i = 0; i < n; ++i) conn_start[i + 1] += conn_start[i];
   row_conns.assign(conn_start[n], 0);
   std::vector<int> fill(conn_start.begin(), conn_start.end() - 1);
-  model.end_a.for_each_pair(model.end_b, [&](int c, int a, int b) {
-    if (a < n) row_conns[fill[a]++] = c;
-    if (b < n) row_conns[fill[b]++] = c;
-  });
+  for (int c = 0; c < nc; ++c) {
+    if (model.end_a[c] < n) row_conns[fill[model.end_a[c]]++] = c;
+    if (model.end_b[c] < n) row_conns[fill[model.end_b[c]]++] = c;
+  }
 }
 
 void TangentStorage::release_arrays() {

@@ -587,18 +587,30 @@ PetscErrorCode ForceModel::tangent_diagonal(const double* x, double* diag, bool 
   PetscFunctionBeginUser;
   const int n = model_.owned;
   std::fill(diag, diag + 3 * n, 0.0);
-  const int nc = model_.connections();
-  for (int c = 0; c < nc; ++c) {
-    const int a = model_.end_a[c], b = model_.end_b[c];
-    const Stretch st(model_, x, a, b, c);
-    const double* d = st.d;
-    const double len2 = st.len2, k = st.k, geo = st.geo;
-    for (int r = 0; r < 3; ++r) {
-      const double K = k * (geo + (1.0 - geo) * d[r] * d[r] / len2);
-      if (a < n) diag[3 * a + r] += K;
-      if (b < n) diag[3 * b + r] += K;
+  // A chunk of connections at a time: their inputs gathered, their diagonal terms computed vectorized
+  // (tangent_diagonal_terms: the same operations), then summed in connection order as before, so to the bit.
+  constexpr int kChunk = 256;
+  alignas(64) double d[3][kChunk] = {}, ks[kChunk] = {}, ls[kChunk] = {}, K[3][kChunk];
+  int ea[kChunk], eb[kChunk], filled = 0;
+  const ConnectionColumn kc = model_.table.stiffness_column(), lc = model_.table.rest_length_column();
+  auto flush = [&] {
+    tangent_diagonal_terms(filled, d[0], d[1], d[2], ks, ls, K[0], K[1], K[2]);
+    for (int q = 0; q < filled; ++q) {
+      const int a = ea[q], b = eb[q];
+      for (int r = 0; r < 3; ++r) {
+        if (a < n) diag[3 * a + r] += K[r][q];
+        if (b < n) diag[3 * b + r] += K[r][q];
+      }
     }
-  }
+    filled = 0;
+  };
+  model_.end_a.for_each_pair(model_.end_b, [&](int c, int a, int b) {
+    ea[filled] = a, eb[filled] = b;
+    for (int r = 0; r < 3; ++r) d[r][filled] = x[3 * b + r] - x[3 * a + r];
+    ks[filled] = kc[c], ls[filled] = lc[c];
+    if (++filled == kChunk) flush();
+  });
+  flush();
   if (!terms_.empty()) {
     auto add = [](void* p, int row, int col, const double K[9]) -> PetscErrorCode {
       if (row == col)

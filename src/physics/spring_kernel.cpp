@@ -529,6 +529,18 @@ void pull_rows(int d, const PullPiece& p) {
 
 }  // namespace
 
+TISSUE_CLONES
+void tangent_diagonal_terms(int n, const double* __restrict d0, const double* __restrict d1,
+                            const double* __restrict d2, const double* __restrict k, const double* __restrict l0,
+                            double* __restrict K0, double* __restrict K1, double* __restrict K2) {
+  for (int i = 0; i < n; ++i) {
+    const double len2 = d0[i] * d0[i] + d1[i] * d1[i] + d2[i] * d2[i], geo = 1.0 - l0[i] / std::sqrt(len2);
+    K0[i] = k[i] * (geo + (1.0 - geo) * d0[i] * d0[i] / len2);
+    K1[i] = k[i] * (geo + (1.0 - geo) * d1[i] * d1[i] / len2);
+    K2[i] = k[i] * (geo + (1.0 - geo) * d2[i] * d2[i] / len2);
+  }
+}
+
 SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
   const int nc = model.connections();
   const EndReader a(model.end_a);  // indexed as arrays; runs (ConnectionEnd) give the same values

@@ -167,4 +167,11 @@ private:
   bool pull_ = true;
 };
 
+// The diagonal of n connections' tangent blocks, K_rr = k (g + (1 - g) d_r^2 / |d|^2) with g = 1 - l0 / |d|, from d
+// (three streams), k and l0: ForceModel::tangent_diagonal's operations in its order, every value its own to the
+// bit, but vectorized (here for this file's -fno-rounding-math, CMakeLists.txt; as scalars its four divisions and
+// square root a connection were most of that function's time).
+void tangent_diagonal_terms(int n, const double* d0, const double* d1, const double* d2, const double* k,
+                            const double* l0, double* K0, double* K1, double* K2);
+
 }  // namespace tissue

@@ -86,6 +86,9 @@ constexpr int kForceBlock = 128;
 // With final_rows, the sweep goes in chunks of molecules so that a chunk's rows are handed over while still in
 // cache (sweep()); the largest ring forces_ring uses (rows: 1.5 MB).
 constexpr int kChunk = 8 * kForceBlock, kLargestRing = 1 << 16;
+// The pull form's pieces run masked only in the groups of this many rows that hold a row with a missing spring
+// (a multiple of the vector loops' rows an iteration: 8 unmasked, 16 masked).
+constexpr int kPullGroup = 16;
 
 // One direction of a stencil block: the springs from molecules a0 .. a0 + n - 1 to a0 + offset; their forces go
 // into end b's rows at once and into g for end a's sum. Masked: a spring whose keep[i] is 0 gives +0.0 (a select,
@@ -700,6 +703,9 @@ SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
     seg->later = lowest;
     c = seg->first_connection;
   }
+  for (Segment& seg : segments_)
+    if (pull_directions(directions_[seg.pattern]) && seg.molecules >= kChunk) pull_marks(seg);
+  marks_.shrink_to_fit();
   // The ring's rows: the sweep with final_rows (sweep(), the same steps without the arithmetic) holds rows
   // [done, zeroed) live; the ring must hold the widest such window.
   long done = 0, zeroed = 0, widest = 0;
@@ -764,29 +770,86 @@ void SpringKernel::forces_ring(const double* x, double* ring, std::size_t stride
 // the segment's end and of each first + offset, below which a direction has no spring on the piece's rows). A row
 // reads x up to P rows below it, so a row goes to final_rows (which may change its x) once the rows P above it are
 // done: the rows live in f are those the push form keeps (the chunk and P: the same ring).
+SpringKernel::Backward SpringKernel::backward(const Segment& seg) const {
+  const int start = pattern_start_[seg.pattern], directions = directions_[seg.pattern];
+  Backward bw;
+  for (int q = 0; q < directions; ++q) {
+    const int s = scatter_[start + q], o = offsets_[start + s];
+    if (o > seg.owned_reach) continue;
+    bw.s[bw.n] = s, bw.offset[bw.n] = o, bw.k[bw.n] = k_[start + s], bw.l0[bw.n] = l0_[start + s], ++bw.n;
+  }
+  for (int q = bw.n; q < directions; ++q) bw.s[q] = -1, bw.offset[q] = 0, bw.k[q] = 1.0, bw.l0[q] = 0.0;
+  bw.full = (1u << bw.n) - 1u;  // n <= 13 (pull_directions)
+  return bw;
+}
+
+void SpringKernel::pull_bits(const Segment& seg, const Backward& bw, int r0, int n, int* e_back, int& e_own,
+                             std::uint32_t* pb, std::uint32_t* pf) const {
+  const int directions = directions_[seg.pattern], first = seg.first_molecule, end = first + seg.molecules;
+  const StencilException* exceptions = exceptions_.data() + seg.first_exception;
+  const int n_exceptions = seg.exceptions;
+  std::fill(pb, pb + n, bw.full);
+  for (int q = 0; q < bw.n; ++q) {
+    const int o = bw.offset[q], s = bw.s[q];
+    if (r0 < first + o) {  // no spring: end a below the segment
+      for (int i = 0; i < n; ++i) pb[i] &= ~(1u << q);
+      continue;
+    }
+    for (int i = std::max(0, end + o - r0); i < n; ++i) pb[i] &= ~(1u << q);  // end a past the end
+    int& e = e_back[q];
+    while (e < n_exceptions && exceptions[e].molecule < r0 - o) ++e;
+    for (int t = e; t < n_exceptions && exceptions[t].molecule < r0 + n - o; ++t)
+      if (!(exceptions[t].present >> s & 1u)) pb[exceptions[t].molecule + o - r0] &= ~(1u << q);
+  }
+  std::fill(pf, pf + n, (1u << directions) - 1u);
+  if (r0 >= end) return;
+  while (e_own < n_exceptions && exceptions[e_own].molecule < r0) ++e_own;
+  for (int t = e_own; t < n_exceptions && exceptions[t].molecule < r0 + n; ++t)
+    pf[exceptions[t].molecule - r0] = exceptions[t].present;
+}
+
+void SpringKernel::pull_marks(Segment& seg) {
+  const Backward bw = backward(seg);
+  const int first = seg.first_molecule, end = first + seg.molecules;
+  const int rows_end = std::min(end + (bw.n ? bw.offset[0] : 0), model_.owned);
+  const std::uint32_t all = (1u << directions_[seg.pattern]) - 1u;
+  seg.first_mark = static_cast<int>(marks_.size());
+  int e_back[kPullDirections] = {}, e_own = 0;
+  std::uint32_t pb[kForceBlock], pf[kForceBlock];
+  for (int r0 = first, n = 0; r0 < rows_end; r0 += n) {
+    n = std::min(kForceBlock, rows_end - r0);
+    if (r0 < end) n = std::min(n, end - r0);
+    for (int q = 0; q < bw.n; ++q)
+      if (r0 < first + bw.offset[q]) n = std::min(n, first + bw.offset[q] - r0);
+    pull_bits(seg, bw, r0, n, e_back, e_own, pb, pf);
+    for (int i = 0; i < n; ++i)
+      if (pb[i] != bw.full || pf[i] != all) marks_.push_back({r0 + i, pb[i], pf[i]});
+  }
+  seg.marks = static_cast<int>(marks_.size()) - seg.first_mark;
+}
+
+// A segment in the pull form (pull_body): its rows [first, first + molecules + P) below the owned count, P its
+// largest offset to an owned row, in pieces of at most kForceBlock rows (within one turn of a ring, on one side of
+// the segment's end and of each first + offset, below which a direction has no spring on the piece's rows). A row
+// reads x up to P rows below it, so a row goes to final_rows (which may change its x) once the rows P above it are
+// done: the rows live in f are those the push form keeps (the chunk and P: the same ring). The rows whose springs
+// are not all present come from the segment's marks (pull_marks); a piece's groups of kPullGroup rows without a
+// mark run unmasked (a lattice's row ends leave most of them so).
 template <class Layout, class Finish>
 void SpringKernel::pull_segment(const Segment& seg, const double* x, double* f, Layout at, int& zeroed,
                                 Finish& finish, const ReadAhead* ahead) const {
   const int p = seg.pattern, start = pattern_start_[p], directions = directions_[p];
   const int* offset = offsets_.data() + start;
-  const int* scatter = scatter_.data() + start;
   const double *k = k_.data() + start, *l0 = l0_.data() + start;
-  const StencilException* exceptions = exceptions_.data() + seg.first_exception;
-  const int n_exceptions = seg.exceptions, first = seg.first_molecule, end = first + seg.molecules;
-  // The backward directions by decreasing offset: those that can end on an owned row (the others, into the ghosts'
-  // rows, never do); the rest of the D slots are never present.
-  int bs[kMaxDirections], bo[kMaxDirections], nb = 0;
-  double bk[kMaxDirections], bl[kMaxDirections];
-  for (int q = 0; q < directions; ++q) {
-    const int s = scatter[q];
-    if (offset[s] > seg.owned_reach) continue;
-    bs[nb] = s, bo[nb] = offset[s], bk[nb] = k[s], bl[nb] = l0[s], ++nb;
-  }
-  for (int q = nb; q < directions; ++q) bs[q] = -1, bo[q] = 0, bk[q] = 1.0, bl[q] = 0.0;
-  const int reach = nb ? bo[0] : 0, rows_end = std::min(end + reach, model_.owned);
-  const std::uint32_t all = directions >= 32 ? ~0u : (1u << directions) - 1u;
-  int next_back[kMaxDirections] = {}, next_own = 0;  // per backward direction / own: the next exception to look at
+  const int first = seg.first_molecule, end = first + seg.molecules;
+  const Backward bw = backward(seg);
+  const int reach = bw.n ? bw.offset[0] : 0, rows_end = std::min(end + reach, model_.owned);
+  const std::uint32_t all = (1u << directions) - 1u;
+  // Directions into the ghosts' rows are never present: then every row is masked.
+  const bool always = bw.n < directions;
   alignas(64) std::uint32_t pb[kForceBlock], pf[kForceBlock];
+  std::fill(pb, pb + kForceBlock, bw.full), std::fill(pf, pf + kForceBlock, all);
+  const PullMark *mark = marks_.data() + seg.first_mark, *marks_end = mark + seg.marks;
   int piece_bo[kMaxDirections];
   auto handed = [&](int below) { return below >= model_.owned ? model_.owned : below - reach; };
   // Rows past the segment's end that the next segments or generic connections still touch stay live (`later` counts
@@ -799,40 +862,35 @@ void SpringKernel::pull_segment(const Segment& seg, const double* x, double* f, 
       n = at.run(r0, std::min(kForceBlock, c1 - r0));
       const bool own = r0 < end;
       if (own) n = std::min(n, end - r0);
-      for (int q = 0; q < nb; ++q)
-        if (r0 < first + bo[q]) n = std::min(n, first + bo[q] - r0);
+      for (int q = 0; q < bw.n; ++q)
+        if (r0 < first + bw.offset[q]) n = std::min(n, first + bw.offset[q] - r0);
       zero_ahead(f, at, zeroed, r0 + n);
-      bool masked = nb < directions;
-      std::fill(pb, pb + n, all);
-      for (int q = 0; q < directions; ++q) {
-        piece_bo[q] = bo[q];
-        if (q >= nb || r0 < first + bo[q]) {  // no spring: end a below the segment (read x at the row itself)
-          piece_bo[q] = 0, masked = true;
-          for (int i = 0; i < n; ++i) pb[i] &= ~(1u << q);
-          continue;
-        }
-        const int o = bo[q], s = bs[q];
-        for (int i = std::max(0, end + o - r0); i < n; ++i) pb[i] &= ~(1u << q), masked = true;  // end a past the end
-        int& e = next_back[q];
-        while (e < n_exceptions && exceptions[e].molecule < r0 - o) ++e;
-        for (int t = e; t < n_exceptions && exceptions[t].molecule < r0 + n - o; ++t)
-          if (!(exceptions[t].present >> s & 1u)) pb[exceptions[t].molecule + o - r0] &= ~(1u << q), masked = true;
-      }
-      if (own) {
-        std::fill(pf, pf + n, all);
-        while (next_own < n_exceptions && exceptions[next_own].molecule < r0) ++next_own;
-        for (int t = next_own; t < n_exceptions && exceptions[t].molecule < r0 + n; ++t)
-          pf[exceptions[t].molecule - r0] = exceptions[t].present, masked = true;
+      for (int q = 0; q < directions; ++q)  // no spring: end a below the segment (read x at the row itself)
+        piece_bo[q] = q >= bw.n || r0 < first + bw.offset[q] ? 0 : bw.offset[q];
+      std::uint32_t dirty = always ? ~0u : 0u;  // bit g: rows [g kPullGroup, + kPullGroup) hold a mark
+      const PullMark* piece_marks = mark;
+      for (; mark < marks_end && mark->row < r0 + n; ++mark) {
+        const int i = mark->row - r0;
+        pb[i] = mark->pb, pf[i] = mark->pf, dirty |= 1u << (i / kPullGroup);
       }
       if (ahead) {  // the rows handed over next (a cache line, 8 rows, at a time)
         const int a0 = std::max(0, r0 - reach), a1 = std::min(r0 + n - reach, ahead->end);
         for (int r = 0; r < ahead->streams; ++r)
           for (int i = a0; i < a1; i += 8) __builtin_prefetch(ahead->rows[r] + i, 0, 2);
       }
-      const PullPiece piece{n,        {x + at(r0, 0), x + at(r0, 1), x + at(r0, 2)},
-                            {f + at.f(r0, 0), f + at.f(r0, 1), f + at.f(r0, 2)},
-                            piece_bo, offset, bk, bl, k, l0, pb, pf, masked, own};
-      pull_rows(directions, piece);
+      // Runs of groups, masked or not (each row on its own: the runs change no bit).
+      for (int i0 = 0, i1 = 0; i0 < n; i0 = i1) {
+        const bool masked = dirty >> (i0 / kPullGroup) & 1u;
+        i1 = i0 + kPullGroup;
+        while (i1 < n && (dirty >> (i1 / kPullGroup) & 1u) == masked) i1 += kPullGroup;
+        i1 = std::min(i1, n);
+        const PullPiece piece{i1 - i0,
+                              {x + at(r0, 0) + i0, x + at(r0, 1) + i0, x + at(r0, 2) + i0},
+                              {f + at.f(r0, 0) + i0, f + at.f(r0, 1) + i0, f + at.f(r0, 2) + i0},
+                              piece_bo, offset, bw.k, bw.l0, k, l0, pb + i0, pf + i0, masked, own};
+        pull_rows(directions, piece);
+      }
+      for (const PullMark* t = piece_marks; t < mark; ++t) pb[t->row - r0] = bw.full, pf[t->row - r0] = all;
     }
     finish(std::min(handed(c1), later));
   }

@@ -86,9 +86,6 @@ constexpr int kForceBlock = 128;
 // With final_rows, the sweep goes in chunks of molecules so that a chunk's rows are handed over while still in
 // cache (sweep()); the largest ring forces_ring uses (rows: 1.5 MB).
 constexpr int kChunk = 8 * kForceBlock, kLargestRing = 1 << 16;
-// The pull form's pieces run masked only in the groups of this many rows that hold a row with a missing spring
-// (a multiple of the vector loops' rows an iteration: 8 unmasked, 16 masked).
-constexpr int kPullGroup = 16;
 
 // One direction of a stencil block: the springs from molecules a0 .. a0 + n - 1 to a0 + offset; their forces go
 // into end b's rows at once and into g for end a's sum. Masked: a spring whose keep[i] is 0 gives +0.0 (a select,
@@ -442,6 +439,9 @@ private:
   mutable int w0_ = 0, w1_ = 0;
 };
 
+// A pull row's present springs (bit q: the q-th backward / own forward one; at most 13 directions).
+using PullBits = std::uint32_t;
+
 // The pull form (SpringKernel::pull_segment): each row's force summed in registers from every spring on it, its
 // backward ones (end b: from the molecules at offset bo[q] below, by decreasing offset, i.e. by increasing end a)
 // subtracted from the row's value so far, then the sum of its own forward ones (end a, in direction order) added,
@@ -451,14 +451,16 @@ private:
 // each). Masked with one select on k (l - l0) / l, as the push form: bit q of pb[i] (of pf[i]) says whether
 // backward spring q (forward spring s) of row i exists; a missing one subtracts or adds +-0.0, which leaves the
 // sums' bits as they are (neither is ever -0.0). kOwn: the rows are the segment's molecules (their own sums).
-template <int D, bool kMasked, bool kOwn>
+// Always masked, also where every spring is present: the compiler vectorizes the masked loop over more rows an
+// iteration (the bits' narrower lanes), which ran faster than the unmasked loop (docs/benchmarks.md, kern18k).
+template <int D, bool kOwn>
 __attribute__((always_inline)) inline void pull_body(int n, const double* __restrict x0, const double* __restrict x1,
                                                      const double* __restrict x2, double* __restrict f0,
                                                      double* __restrict f1, double* __restrict f2, const int* bo_,
                                                      const double* bk_, const double* bl_, const int* fo_,
                                                      const double* fk_, const double* fl_,
-                                                     const std::uint32_t* __restrict pb,
-                                                     const std::uint32_t* __restrict pf) {
+                                                     const PullBits* __restrict pb,
+                                                     const PullBits* __restrict pf) {
   int bo[D], fo[D];
   double bk[D], bl[D], fk[D], fl[D];
   for (int q = 0; q < D; ++q) bo[q] = bo_[q], bk[q] = bk_[q], bl[q] = bl_[q], fo[q] = fo_[q], fk[q] = fk_[q], fl[q] = fl_[q];
@@ -471,7 +473,7 @@ __attribute__((always_inline)) inline void pull_body(int n, const double* __rest
       const double d0 = y0 - x0[j], d1 = y1 - x1[j], d2 = y2 - x2[j];
       const double len = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
       double sc = bk[q] * (len - bl[q]) / len;
-      if constexpr (kMasked) sc = (pb[i] >> q & 1u) ? sc : 0.0;
+      sc = (pb[i] >> q & 1u) ? sc : 0.0;
       a0 -= sc * d0, a1 -= sc * d1, a2 -= sc * d2;
     }
     if constexpr (kOwn) {
@@ -482,7 +484,7 @@ __attribute__((always_inline)) inline void pull_body(int n, const double* __rest
         const double d0 = x0[j] - y0, d1 = x1[j] - y1, d2 = x2[j] - y2;
         const double len = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
         double sc = fk[s] * (len - fl[s]) / len;
-        if constexpr (kMasked) sc = (pf[i] >> s & 1u) ? sc : 0.0;
+        sc = (pf[i] >> s & 1u) ? sc : 0.0;
         o0 += sc * d0, o1 += sc * d1, o2 += sc * d2;
       }
       a0 += o0, a1 += o1, a2 += o2;
@@ -499,26 +501,17 @@ struct PullPiece {
   double* f[3];
   const int *bo, *fo;
   const double *bk, *bl, *fk, *fl;
-  const std::uint32_t *pb, *pf;
-  bool masked, own;
+  const PullBits *pb, *pf;
+  bool own;
 };
 template <int D>
 __attribute__((always_inline)) inline void pull_dispatch(const PullPiece& p) {
-  if (p.masked) {
-    if (p.own)
-      pull_body<D, true, true>(p.n, p.x[0], p.x[1], p.x[2], p.f[0], p.f[1], p.f[2], p.bo, p.bk, p.bl, p.fo, p.fk, p.fl,
-                               p.pb, p.pf);
-    else
-      pull_body<D, true, false>(p.n, p.x[0], p.x[1], p.x[2], p.f[0], p.f[1], p.f[2], p.bo, p.bk, p.bl, p.fo, p.fk,
-                                p.fl, p.pb, p.pf);
-  } else {
-    if (p.own)
-      pull_body<D, false, true>(p.n, p.x[0], p.x[1], p.x[2], p.f[0], p.f[1], p.f[2], p.bo, p.bk, p.bl, p.fo, p.fk,
-                                p.fl, p.pb, p.pf);
-    else
-      pull_body<D, false, false>(p.n, p.x[0], p.x[1], p.x[2], p.f[0], p.f[1], p.f[2], p.bo, p.bk, p.bl, p.fo, p.fk,
-                                 p.fl, p.pb, p.pf);
-  }
+  if (p.own)
+    pull_body<D, true>(p.n, p.x[0], p.x[1], p.x[2], p.f[0], p.f[1], p.f[2], p.bo, p.bk, p.bl, p.fo, p.fk, p.fl, p.pb,
+                       p.pf);
+  else
+    pull_body<D, false>(p.n, p.x[0], p.x[1], p.x[2], p.f[0], p.f[1], p.f[2], p.bo, p.bk, p.bl, p.fo, p.fk, p.fl, p.pb,
+                        p.pf);
 }
 TISSUE_CLONES void pull_rows3(const PullPiece& p) { pull_dispatch<3>(p); }
 TISSUE_CLONES void pull_rows9(const PullPiece& p) { pull_dispatch<9>(p); }
@@ -833,8 +826,7 @@ void SpringKernel::pull_marks(Segment& seg) {
 // the segment's end and of each first + offset, below which a direction has no spring on the piece's rows). A row
 // reads x up to P rows below it, so a row goes to final_rows (which may change its x) once the rows P above it are
 // done: the rows live in f are those the push form keeps (the chunk and P: the same ring). The rows whose springs
-// are not all present come from the segment's marks (pull_marks); a piece's groups of kPullGroup rows without a
-// mark run unmasked (a lattice's row ends leave most of them so).
+// are not all present come from the segment's marks (pull_marks), not from its exceptions piece by piece.
 template <class Layout, class Finish>
 void SpringKernel::pull_segment(const Segment& seg, const double* x, double* f, Layout at, int& zeroed,
                                 Finish& finish, const ReadAhead* ahead) const {
@@ -845,9 +837,7 @@ void SpringKernel::pull_segment(const Segment& seg, const double* x, double* f, 
   const Backward bw = backward(seg);
   const int reach = bw.n ? bw.offset[0] : 0, rows_end = std::min(end + reach, model_.owned);
   const std::uint32_t all = (1u << directions) - 1u;
-  // Directions into the ghosts' rows are never present: then every row is masked.
-  const bool always = bw.n < directions;
-  alignas(64) std::uint32_t pb[kForceBlock], pf[kForceBlock];
+  alignas(64) PullBits pb[kForceBlock], pf[kForceBlock];
   std::fill(pb, pb + kForceBlock, bw.full), std::fill(pf, pf + kForceBlock, all);
   const PullMark *mark = marks_.data() + seg.first_mark, *marks_end = mark + seg.marks;
   int piece_bo[kMaxDirections];
@@ -867,29 +857,18 @@ void SpringKernel::pull_segment(const Segment& seg, const double* x, double* f, 
       zero_ahead(f, at, zeroed, r0 + n);
       for (int q = 0; q < directions; ++q)  // no spring: end a below the segment (read x at the row itself)
         piece_bo[q] = q >= bw.n || r0 < first + bw.offset[q] ? 0 : bw.offset[q];
-      std::uint32_t dirty = always ? ~0u : 0u;  // bit g: rows [g kPullGroup, + kPullGroup) hold a mark
       const PullMark* piece_marks = mark;
-      for (; mark < marks_end && mark->row < r0 + n; ++mark) {
-        const int i = mark->row - r0;
-        pb[i] = mark->pb, pf[i] = mark->pf, dirty |= 1u << (i / kPullGroup);
-      }
+      for (; mark < marks_end && mark->row < r0 + n; ++mark)
+        pb[mark->row - r0] = static_cast<PullBits>(mark->pb), pf[mark->row - r0] = static_cast<PullBits>(mark->pf);
       if (ahead) {  // the rows handed over next (a cache line, 8 rows, at a time)
         const int a0 = std::max(0, r0 - reach), a1 = std::min(r0 + n - reach, ahead->end);
         for (int r = 0; r < ahead->streams; ++r)
           for (int i = a0; i < a1; i += 8) __builtin_prefetch(ahead->rows[r] + i, 0, 2);
       }
-      // Runs of groups, masked or not (each row on its own: the runs change no bit).
-      for (int i0 = 0, i1 = 0; i0 < n; i0 = i1) {
-        const bool masked = dirty >> (i0 / kPullGroup) & 1u;
-        i1 = i0 + kPullGroup;
-        while (i1 < n && (dirty >> (i1 / kPullGroup) & 1u) == masked) i1 += kPullGroup;
-        i1 = std::min(i1, n);
-        const PullPiece piece{i1 - i0,
-                              {x + at(r0, 0) + i0, x + at(r0, 1) + i0, x + at(r0, 2) + i0},
-                              {f + at.f(r0, 0) + i0, f + at.f(r0, 1) + i0, f + at.f(r0, 2) + i0},
-                              piece_bo, offset, bw.k, bw.l0, k, l0, pb + i0, pf + i0, masked, own};
-        pull_rows(directions, piece);
-      }
+      const PullPiece piece{n,        {x + at(r0, 0), x + at(r0, 1), x + at(r0, 2)},
+                            {f + at.f(r0, 0), f + at.f(r0, 1), f + at.f(r0, 2)},
+                            piece_bo, offset, bw.k, bw.l0, k, l0, pb, pf, own};
+      pull_rows(directions, piece);
       for (const PullMark* t = piece_marks; t < mark; ++t) pb[t->row - r0] = bw.full, pf[t->row - r0] = all;
     }
     finish(std::min(handed(c1), later));

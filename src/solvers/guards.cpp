@@ -24,20 +24,6 @@ struct Timer {
   ~Timer() { total += MPI_Wtime() - start; }
 };
 
-// Each connection's length over its rest length for a block of connections (ends a, b; rest lengths l0): the same
-// doubles as length_of(x, a, b) / l0, +inf for a connection not written here (a >= owned), vectorized (the square
-// root and division of every connection are the check's cost; IEEE rounds them the same at any width).
-__attribute__((target_clones("avx512f", "avx2", "default")))
-void length_ratios(int n, const int* __restrict a, const int* __restrict b, const double* __restrict l0,
-                   const double* __restrict x, int owned, double* __restrict ratio) {
-  for (int i = 0; i < n; ++i) {
-    const double d0 = x[3 * b[i]] - x[3 * a[i]], d1 = x[3 * b[i] + 1] - x[3 * a[i] + 1];
-    const double d2 = x[3 * b[i] + 2] - x[3 * a[i] + 2];
-    const double r = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2) / l0[i];
-    ratio[i] = a[i] < owned ? r : std::numeric_limits<double>::infinity();
-  }
-}
-
 }  // namespace
 
 StepGuard::StepGuard(const char* solver, const Scene& scene, const LocalModel& model, const ForceModel& forces,
@@ -140,27 +126,11 @@ void StepGuard::check_lengths(bool from_energy) {
   if (from_energy) {
     worst = worst_ratio_, worst_id = worst_id_, worst_c = worst_c_;
   } else {
-    // The first connection (in connection order) with the least ratio (a NaN ratio never is), in blocks.
     error = attempt([&] {
-      constexpr int kBlock = 1024;
-      int a[kBlock], b[kBlock];
-      double l0[kBlock], ratio[kBlock];
-      const ConnectionColumn rest = model_.table.rest_length_column();
-      for (int c0 = 0, n = 0, nc = model_.connections(); c0 < nc; c0 += n) {
-        n = std::min(kBlock, nc - c0);
-        model_.end_a.decode(c0, c0 + n, a), model_.end_b.decode(c0, c0 + n, b);
-        for (int i = 0; i < n; ++i) l0[i] = rest[c0 + i];
-        length_ratios(n, a, b, l0, x, model_.owned, ratio);
-        double low = worst;
-        for (int i = 0; i < n; ++i) low = ratio[i] < low ? ratio[i] : low;
-        if (!(low < worst)) continue;
-        for (int i = 0; i < n; ++i)
-          if (ratio[i] == low) {
-            worst = low, worst_c = c0 + i;
-            break;
-          }
-      }
-      if (worst_c >= 0) worst_id = model_.connection_id(worst_c);
+      model_.for_each_written([&](int c, int a, int b) {
+        const double ratio = length_of(x, a, b) / model_.l0(c);
+        if (ratio < worst) worst = ratio, worst_id = model_.connection_id(c), worst_c = c;
+      });
     });
   }
   double mins[2] = {worst, error ? -1.0 : 0.0}, reduced[2];  // MIN: the flag is -1 when a rank failed

@@ -544,6 +544,22 @@ TEST(SpringKernel, StencilSegmentsEqualGenericKernelBitForBit) { expect_stencil_
 // share would be under 0.9.
 TEST(SpringKernel, MaskedRowEndsEqualGenericKernelBitForBit) { expect_stencil_equals_generic(kOneMaterial, 0.95); }
 
+// Rows of 70 molecules: the pull form's pieces hold long stretches of rows with every spring present (no mark)
+// between the row ends' marks, as a large lattice's do; the same bits as the generic kernel.
+const char* kLongRows = R"(
+[body]
+molecules = [70, 5, 6]
+spacing = [0.1, 0.12, 0.09]
+topology = "face-diagonals"
+youngs_modulus = 1.0e5
+[calibration]
+method = "manual"
+stiffness = { edge = 100.0, face = 50.0 }
+)";
+TEST(SpringKernel, LongRowsEqualGenericKernelBitForBit) {
+  expect_stencil_equals_generic(kLongRows, 0.95);
+}
+
 // The coarse (blocked) lattice partition: every molecule of a block in the block's part, every part non-empty and
 // near the mean, the edge cut METIS reports equal to the connections counted between parts here, and the same
 // parts whatever the number of ranks that compute it (each rank counts only its natural block's connections).

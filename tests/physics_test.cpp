@@ -7,6 +7,8 @@
 
 #include <cmath>
 #include <functional>
+#include <limits>
+#include <string>
 
 #include "tests/pipeline.hpp"
 #include "io/scene.hpp"
@@ -15,6 +17,8 @@
 #include "src/calibration/calibration.hpp"
 #include "src/measure/measure.hpp"
 #include "src/model/body.hpp"
+#include "src/solvers/guards.hpp"
+#include "src/solvers/molecule_report.hpp"
 #include "src/solvers/solver.hpp"
 
 using namespace tissue;
@@ -420,4 +424,58 @@ TEST(Physics, FusedStepInARingEqualsSeparatePassesBitForBit) { fused_in_a_ring_e
 // every owned row live there: no ring on that rank (this test failed so).
 TEST(Physics, FusedStepInARingOnEveryRankWhenThePartitionCutsTheRows) {
   fused_in_a_ring_equals_separate_passes("body.molecules=[48, 12, 24]");
+}
+
+// The guard's connection-length check (StepGuard::check_lengths at a full check) names the shortest connection
+// relative to its rest length, the first in connection order on a tie (the smallest id over the ranks): two
+// connections squeezed to the same 2^-14 m (rest 0.1 m), against the check's plain loop over the connections
+// (the reference here), at every rank count.
+TEST(Physics, LengthCheckNamesTheFirstShortestConnection) {
+  const char* text = R"(
+[body]
+molecules = [8, 6, 5]
+spacing = [0.1, 0.1, 0.1]
+topology = "face-diagonals"
+youngs_modulus = 1.0e4
+[solver]
+kind = "dynamic"
+time_step = 1e-5
+steps = 1
+)";
+  auto r = run(text, PETSC_COMM_WORLD, {}, false);
+  const LocalModel& m = r->model;
+  double* x = r->state->x.array();
+  // Molecules a and b (ids: x-neighbours a + 1, b + 1 in the box's order) put 2^-14 m from those neighbours, at
+  // exactly representable positions, so both separations (and their ratios) are the same doubles.
+  const std::int64_t a = 2 + 8 * (1 + 6 * 1), b = 4 + 8 * (3 + 6 * 2);
+  const double at_a[3] = {1.0, 2.0, 3.0}, at_b[3] = {5.0, 6.0, 7.0}, gap = std::ldexp(1.0, -14);
+  for (int i = 0; i < m.local; ++i)
+    for (int d = 0; d < 3; ++d) {
+      if (m.id[i] == a + 1) x[3 * i + d] = at_a[d];
+      if (m.id[i] == a) x[3 * i + d] = at_a[d] - (d == 0 ? gap : 0.0);
+      if (m.id[i] == b + 1) x[3 * i + d] = at_b[d];
+      if (m.id[i] == b) x[3 * i + d] = at_b[d] - (d == 0 ? gap : 0.0);
+    }
+  // The reference: every connection written here in order, strictly shorter replaces, then the least ratio's
+  // smallest id over the ranks.
+  double worst = std::numeric_limits<double>::infinity();
+  long long worst_id = -1, expected = 0;
+  m.for_each_written([&](int c, int ea, int eb) {
+    const double ratio = length_of(x, ea, eb) / m.l0(c);
+    if (ratio < worst) worst = ratio, worst_id = m.connection_id(c);
+  });
+  double least = 0;
+  MPI_Allreduce(&worst, &least, 1, MPI_DOUBLE, MPI_MIN, PETSC_COMM_WORLD);
+  long long mine = worst == least ? worst_id : std::numeric_limits<long long>::max();
+  MPI_Allreduce(&mine, &expected, 1, MPI_LONG_LONG, MPI_MIN, PETSC_COMM_WORLD);
+  ASSERT_EQ(least, gap / 0.1);  // both squeezed connections, the same double
+  ASSERT_LT(least, kCollapsedLengthRatio);
+  StepGuard guard("dynamic", r->scene, m, *r->forces, *r->state);
+  std::string what;
+  try {
+    guard.full_check();
+  } catch (const SolverFailure& e) {
+    what = e.what();
+  }
+  EXPECT_NE(what.find("connection " + std::to_string(expected) + " collapsed"), std::string::npos) << what;
 }

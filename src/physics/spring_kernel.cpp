@@ -439,6 +439,9 @@ private:
   mutable int w0_ = 0, w1_ = 0;
 };
 
+// A pull row's present springs (bit q: the q-th backward / own forward one; at most 13 directions).
+using PullBits = std::uint32_t;
+
 // The pull form (SpringKernel::pull_segment): each row's force summed in registers from every spring on it, its
 // backward ones (end b: from the molecules at offset bo[q] below, by decreasing offset, i.e. by increasing end a)
 // subtracted from the row's value so far, then the sum of its own forward ones (end a, in direction order) added,
@@ -448,14 +451,16 @@ private:
 // each). Masked with one select on k (l - l0) / l, as the push form: bit q of pb[i] (of pf[i]) says whether
 // backward spring q (forward spring s) of row i exists; a missing one subtracts or adds +-0.0, which leaves the
 // sums' bits as they are (neither is ever -0.0). kOwn: the rows are the segment's molecules (their own sums).
-template <int D, bool kMasked, bool kOwn>
+// Always masked, also where every spring is present: the compiler vectorizes the masked loop over more rows an
+// iteration (the bits' narrower lanes), which ran faster than the unmasked loop (docs/benchmarks.md, kern18k).
+template <int D, bool kOwn>
 __attribute__((always_inline)) inline void pull_body(int n, const double* __restrict x0, const double* __restrict x1,
                                                      const double* __restrict x2, double* __restrict f0,
                                                      double* __restrict f1, double* __restrict f2, const int* bo_,
                                                      const double* bk_, const double* bl_, const int* fo_,
                                                      const double* fk_, const double* fl_,
-                                                     const std::uint32_t* __restrict pb,
-                                                     const std::uint32_t* __restrict pf) {
+                                                     const PullBits* __restrict pb,
+                                                     const PullBits* __restrict pf) {
   int bo[D], fo[D];
   double bk[D], bl[D], fk[D], fl[D];
   for (int q = 0; q < D; ++q) bo[q] = bo_[q], bk[q] = bk_[q], bl[q] = bl_[q], fo[q] = fo_[q], fk[q] = fk_[q], fl[q] = fl_[q];
@@ -468,7 +473,7 @@ __attribute__((always_inline)) inline void pull_body(int n, const double* __rest
       const double d0 = y0 - x0[j], d1 = y1 - x1[j], d2 = y2 - x2[j];
       const double len = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
       double sc = bk[q] * (len - bl[q]) / len;
-      if constexpr (kMasked) sc = (pb[i] >> q & 1u) ? sc : 0.0;
+      sc = (pb[i] >> q & 1u) ? sc : 0.0;
       a0 -= sc * d0, a1 -= sc * d1, a2 -= sc * d2;
     }
     if constexpr (kOwn) {
@@ -479,7 +484,7 @@ __attribute__((always_inline)) inline void pull_body(int n, const double* __rest
         const double d0 = x0[j] - y0, d1 = x1[j] - y1, d2 = x2[j] - y2;
         const double len = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
         double sc = fk[s] * (len - fl[s]) / len;
-        if constexpr (kMasked) sc = (pf[i] >> s & 1u) ? sc : 0.0;
+        sc = (pf[i] >> s & 1u) ? sc : 0.0;
         o0 += sc * d0, o1 += sc * d1, o2 += sc * d2;
       }
       a0 += o0, a1 += o1, a2 += o2;
@@ -496,26 +501,17 @@ struct PullPiece {
   double* f[3];
   const int *bo, *fo;
   const double *bk, *bl, *fk, *fl;
-  const std::uint32_t *pb, *pf;
-  bool masked, own;
+  const PullBits *pb, *pf;
+  bool own;
 };
 template <int D>
 __attribute__((always_inline)) inline void pull_dispatch(const PullPiece& p) {
-  if (p.masked) {
-    if (p.own)
-      pull_body<D, true, true>(p.n, p.x[0], p.x[1], p.x[2], p.f[0], p.f[1], p.f[2], p.bo, p.bk, p.bl, p.fo, p.fk, p.fl,
-                               p.pb, p.pf);
-    else
-      pull_body<D, true, false>(p.n, p.x[0], p.x[1], p.x[2], p.f[0], p.f[1], p.f[2], p.bo, p.bk, p.bl, p.fo, p.fk,
-                                p.fl, p.pb, p.pf);
-  } else {
-    if (p.own)
-      pull_body<D, false, true>(p.n, p.x[0], p.x[1], p.x[2], p.f[0], p.f[1], p.f[2], p.bo, p.bk, p.bl, p.fo, p.fk,
-                                p.fl, p.pb, p.pf);
-    else
-      pull_body<D, false, false>(p.n, p.x[0], p.x[1], p.x[2], p.f[0], p.f[1], p.f[2], p.bo, p.bk, p.bl, p.fo, p.fk,
-                                 p.fl, p.pb, p.pf);
-  }
+  if (p.own)
+    pull_body<D, true>(p.n, p.x[0], p.x[1], p.x[2], p.f[0], p.f[1], p.f[2], p.bo, p.bk, p.bl, p.fo, p.fk, p.fl, p.pb,
+                       p.pf);
+  else
+    pull_body<D, false>(p.n, p.x[0], p.x[1], p.x[2], p.f[0], p.f[1], p.f[2], p.bo, p.bk, p.bl, p.fo, p.fk, p.fl, p.pb,
+                        p.pf);
 }
 TISSUE_CLONES void pull_rows3(const PullPiece& p) { pull_dispatch<3>(p); }
 TISSUE_CLONES void pull_rows9(const PullPiece& p) { pull_dispatch<9>(p); }
@@ -712,6 +708,9 @@ SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
     seg->later = lowest;
     c = seg->first_connection;
   }
+  for (Segment& seg : segments_)
+    if (pull_directions(directions_[seg.pattern]) && seg.molecules >= kChunk) pull_marks(seg);
+  marks_.shrink_to_fit();
   // The ring's rows: the sweep with final_rows (sweep(), the same steps without the arithmetic) holds rows
   // [done, zeroed) live; the ring must hold the widest such window.
   long done = 0, zeroed = 0, widest = 0;
@@ -776,29 +775,83 @@ void SpringKernel::forces_ring(const double* x, double* ring, std::size_t stride
 // the segment's end and of each first + offset, below which a direction has no spring on the piece's rows). A row
 // reads x up to P rows below it, so a row goes to final_rows (which may change its x) once the rows P above it are
 // done: the rows live in f are those the push form keeps (the chunk and P: the same ring).
+SpringKernel::Backward SpringKernel::backward(const Segment& seg) const {
+  const int start = pattern_start_[seg.pattern], directions = directions_[seg.pattern];
+  Backward bw;
+  for (int q = 0; q < directions; ++q) {
+    const int s = scatter_[start + q], o = offsets_[start + s];
+    if (o > seg.owned_reach) continue;
+    bw.s[bw.n] = s, bw.offset[bw.n] = o, bw.k[bw.n] = k_[start + s], bw.l0[bw.n] = l0_[start + s], ++bw.n;
+  }
+  for (int q = bw.n; q < directions; ++q) bw.s[q] = -1, bw.offset[q] = 0, bw.k[q] = 1.0, bw.l0[q] = 0.0;
+  bw.full = (1u << bw.n) - 1u;  // n <= 13 (pull_directions)
+  return bw;
+}
+
+void SpringKernel::pull_bits(const Segment& seg, const Backward& bw, int r0, int n, int* e_back, int& e_own,
+                             std::uint32_t* pb, std::uint32_t* pf) const {
+  const int directions = directions_[seg.pattern], first = seg.first_molecule, end = first + seg.molecules;
+  const StencilException* exceptions = exceptions_.data() + seg.first_exception;
+  const int n_exceptions = seg.exceptions;
+  std::fill(pb, pb + n, bw.full);
+  for (int q = 0; q < bw.n; ++q) {
+    const int o = bw.offset[q], s = bw.s[q];
+    if (r0 < first + o) {  // no spring: end a below the segment
+      for (int i = 0; i < n; ++i) pb[i] &= ~(1u << q);
+      continue;
+    }
+    for (int i = std::max(0, end + o - r0); i < n; ++i) pb[i] &= ~(1u << q);  // end a past the end
+    int& e = e_back[q];
+    while (e < n_exceptions && exceptions[e].molecule < r0 - o) ++e;
+    for (int t = e; t < n_exceptions && exceptions[t].molecule < r0 + n - o; ++t)
+      if (!(exceptions[t].present >> s & 1u)) pb[exceptions[t].molecule + o - r0] &= ~(1u << q);
+  }
+  std::fill(pf, pf + n, (1u << directions) - 1u);
+  if (r0 >= end) return;
+  while (e_own < n_exceptions && exceptions[e_own].molecule < r0) ++e_own;
+  for (int t = e_own; t < n_exceptions && exceptions[t].molecule < r0 + n; ++t)
+    pf[exceptions[t].molecule - r0] = exceptions[t].present;
+}
+
+void SpringKernel::pull_marks(Segment& seg) {
+  const Backward bw = backward(seg);
+  const int first = seg.first_molecule, end = first + seg.molecules;
+  const int rows_end = std::min(end + (bw.n ? bw.offset[0] : 0), model_.owned);
+  const std::uint32_t all = (1u << directions_[seg.pattern]) - 1u;
+  seg.first_mark = static_cast<int>(marks_.size());
+  int e_back[kPullDirections] = {}, e_own = 0;
+  std::uint32_t pb[kForceBlock], pf[kForceBlock];
+  for (int r0 = first, n = 0; r0 < rows_end; r0 += n) {
+    n = std::min(kForceBlock, rows_end - r0);
+    if (r0 < end) n = std::min(n, end - r0);
+    for (int q = 0; q < bw.n; ++q)
+      if (r0 < first + bw.offset[q]) n = std::min(n, first + bw.offset[q] - r0);
+    pull_bits(seg, bw, r0, n, e_back, e_own, pb, pf);
+    for (int i = 0; i < n; ++i)
+      if (pb[i] != bw.full || pf[i] != all) marks_.push_back({r0 + i, pb[i], pf[i]});
+  }
+  seg.marks = static_cast<int>(marks_.size()) - seg.first_mark;
+}
+
+// A segment in the pull form (pull_body): its rows [first, first + molecules + P) below the owned count, P its
+// largest offset to an owned row, in pieces of at most kForceBlock rows (within one turn of a ring, on one side of
+// the segment's end and of each first + offset, below which a direction has no spring on the piece's rows). A row
+// reads x up to P rows below it, so a row goes to final_rows (which may change its x) once the rows P above it are
+// done: the rows live in f are those the push form keeps (the chunk and P: the same ring). The rows whose springs
+// are not all present come from the segment's marks (pull_marks), not from its exceptions piece by piece.
 template <class Layout, class Finish>
 void SpringKernel::pull_segment(const Segment& seg, const double* x, double* f, Layout at, int& zeroed,
                                 Finish& finish, const ReadAhead* ahead) const {
   const int p = seg.pattern, start = pattern_start_[p], directions = directions_[p];
   const int* offset = offsets_.data() + start;
-  const int* scatter = scatter_.data() + start;
   const double *k = k_.data() + start, *l0 = l0_.data() + start;
-  const StencilException* exceptions = exceptions_.data() + seg.first_exception;
-  const int n_exceptions = seg.exceptions, first = seg.first_molecule, end = first + seg.molecules;
-  // The backward directions by decreasing offset: those that can end on an owned row (the others, into the ghosts'
-  // rows, never do); the rest of the D slots are never present.
-  int bs[kMaxDirections], bo[kMaxDirections], nb = 0;
-  double bk[kMaxDirections], bl[kMaxDirections];
-  for (int q = 0; q < directions; ++q) {
-    const int s = scatter[q];
-    if (offset[s] > seg.owned_reach) continue;
-    bs[nb] = s, bo[nb] = offset[s], bk[nb] = k[s], bl[nb] = l0[s], ++nb;
-  }
-  for (int q = nb; q < directions; ++q) bs[q] = -1, bo[q] = 0, bk[q] = 1.0, bl[q] = 0.0;
-  const int reach = nb ? bo[0] : 0, rows_end = std::min(end + reach, model_.owned);
-  const std::uint32_t all = directions >= 32 ? ~0u : (1u << directions) - 1u;
-  int next_back[kMaxDirections] = {}, next_own = 0;  // per backward direction / own: the next exception to look at
-  alignas(64) std::uint32_t pb[kForceBlock], pf[kForceBlock];
+  const int first = seg.first_molecule, end = first + seg.molecules;
+  const Backward bw = backward(seg);
+  const int reach = bw.n ? bw.offset[0] : 0, rows_end = std::min(end + reach, model_.owned);
+  const std::uint32_t all = (1u << directions) - 1u;
+  alignas(64) PullBits pb[kForceBlock], pf[kForceBlock];
+  std::fill(pb, pb + kForceBlock, bw.full), std::fill(pf, pf + kForceBlock, all);
+  const PullMark *mark = marks_.data() + seg.first_mark, *marks_end = mark + seg.marks;
   int piece_bo[kMaxDirections];
   auto handed = [&](int below) { return below >= model_.owned ? model_.owned : below - reach; };
   // Rows past the segment's end that the next segments or generic connections still touch stay live (`later` counts
@@ -811,31 +864,14 @@ void SpringKernel::pull_segment(const Segment& seg, const double* x, double* f, 
       n = at.run(r0, std::min(kForceBlock, c1 - r0));
       const bool own = r0 < end;
       if (own) n = std::min(n, end - r0);
-      for (int q = 0; q < nb; ++q)
-        if (r0 < first + bo[q]) n = std::min(n, first + bo[q] - r0);
+      for (int q = 0; q < bw.n; ++q)
+        if (r0 < first + bw.offset[q]) n = std::min(n, first + bw.offset[q] - r0);
       zero_ahead(f, at, zeroed, r0 + n);
-      bool masked = nb < directions;
-      std::fill(pb, pb + n, all);
-      for (int q = 0; q < directions; ++q) {
-        piece_bo[q] = bo[q];
-        if (q >= nb || r0 < first + bo[q]) {  // no spring: end a below the segment (read x at the row itself)
-          piece_bo[q] = 0, masked = true;
-          for (int i = 0; i < n; ++i) pb[i] &= ~(1u << q);
-          continue;
-        }
-        const int o = bo[q], s = bs[q];
-        for (int i = std::max(0, end + o - r0); i < n; ++i) pb[i] &= ~(1u << q), masked = true;  // end a past the end
-        int& e = next_back[q];
-        while (e < n_exceptions && exceptions[e].molecule < r0 - o) ++e;
-        for (int t = e; t < n_exceptions && exceptions[t].molecule < r0 + n - o; ++t)
-          if (!(exceptions[t].present >> s & 1u)) pb[exceptions[t].molecule + o - r0] &= ~(1u << q), masked = true;
-      }
-      if (own) {
-        std::fill(pf, pf + n, all);
-        while (next_own < n_exceptions && exceptions[next_own].molecule < r0) ++next_own;
-        for (int t = next_own; t < n_exceptions && exceptions[t].molecule < r0 + n; ++t)
-          pf[exceptions[t].molecule - r0] = exceptions[t].present, masked = true;
-      }
+      for (int q = 0; q < directions; ++q)  // no spring: end a below the segment (read x at the row itself)
+        piece_bo[q] = q >= bw.n || r0 < first + bw.offset[q] ? 0 : bw.offset[q];
+      const PullMark* piece_marks = mark;
+      for (; mark < marks_end && mark->row < r0 + n; ++mark)
+        pb[mark->row - r0] = static_cast<PullBits>(mark->pb), pf[mark->row - r0] = static_cast<PullBits>(mark->pf);
       if (ahead) {  // the rows handed over next (a cache line, 8 rows, at a time)
         const int a0 = std::max(0, r0 - reach), a1 = std::min(r0 + n - reach, ahead->end);
         for (int r = 0; r < ahead->streams; ++r)
@@ -843,8 +879,9 @@ void SpringKernel::pull_segment(const Segment& seg, const double* x, double* f, 
       }
       const PullPiece piece{n,        {x + at(r0, 0), x + at(r0, 1), x + at(r0, 2)},
                             {f + at.f(r0, 0), f + at.f(r0, 1), f + at.f(r0, 2)},
-                            piece_bo, offset, bk, bl, k, l0, pb, pf, masked, own};
+                            piece_bo, offset, bw.k, bw.l0, k, l0, pb, pf, own};
       pull_rows(directions, piece);
+      for (const PullMark* t = piece_marks; t < mark; ++t) pb[t->row - r0] = bw.full, pf[t->row - r0] = all;
     }
     finish(std::min(handed(c1), later));
   }

@@ -136,7 +136,31 @@ private:
     // zero that far ahead: zeroing to the pattern's largest offset would keep every owned row live at once and
     // leave the rank without a ring (ring_rows).
     int owned_reach;
+    // The pull form's rows whose springs are not all present (pull_marks_): marks_[first_mark, + marks).
+    int first_mark = 0, marks = 0;
   };
+  // A row of a pull segment whose backward springs (pb: bit q for the q-th by decreasing offset) or own forward
+  // springs (pf: bit s) are not all present; every other row has them all (the segment's Backward::full and all
+  // directions' bits).
+  struct PullMark {
+    int row;
+    std::uint32_t pb, pf;
+  };
+  // A pull segment's backward directions: those that can end on an owned row, by decreasing offset.
+  static constexpr int kPullDirections = 32;  // as many as a pattern may have
+  struct Backward {
+    int n = 0;  // how many (the pattern's other directions: never present)
+    int s[kPullDirections], offset[kPullDirections];  // the direction, its offset
+    double k[kPullDirections], l0[kPullDirections];
+    std::uint32_t full = 0;  // the bits of the n directions
+  };
+  Backward backward(const Segment& seg) const;
+  // Each row's present springs for rows [r0, r0 + n) of a pull segment (n <= kForceBlock; the rows on one side of
+  // the segment's end and of each first + offset), from its exceptions; e_back, e_own: the exception cursors.
+  void pull_bits(const Segment& seg, const Backward& bw, int r0, int n, int* e_back, int& e_own, std::uint32_t* pb,
+                 std::uint32_t* pf) const;
+  // Fills marks_ for a pull segment (once, in the constructor).
+  void pull_marks(Segment& seg);
   template <class Layout, class Finish>
   void pull_segment(const Segment& seg, const double* x, double* f, Layout at, int& zeroed, Finish& finish,
                     const ReadAhead* ahead) const;
@@ -156,6 +180,7 @@ private:
   std::vector<int> pattern_start_;        // per pattern: start in offsets_ / types_
   std::vector<int> reach_;                // per pattern: its largest offset
   std::vector<StencilException> exceptions_;     // per segment, by molecule
+  std::vector<PullMark> marks_;                   // per pull segment, by row
   // The generic connections after the last segment, as generic_reach (untyped models: all of them, all rows).
   int tail_reach_ = std::numeric_limits<int>::max();
   long structured_ = 0;

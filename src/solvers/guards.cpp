@@ -54,8 +54,12 @@ StepGuard::StepGuard(const char* solver, const Scene& scene, const LocalModel& m
   kinetic_ = global[0];
   kinetic_checked_ = kinetic_;
   energy_check_ = energy_check_ && forces.energy_never_grows();
-  double spring, work;
-  energy0_ = kinetic_ + energy(&spring, &work);
+  // The energy at the start is the growth check's reference, which only dynamic_step reads, and only with the
+  // guards on (read the same on every rank: the reduction in energy() is skipped on all or none).
+  if (enabled_) {
+    double spring, work;
+    energy0_ = kinetic_ + energy(&spring, &work);
+  }
   keep();
 }
 

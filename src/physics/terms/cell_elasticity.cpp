@@ -1294,9 +1294,14 @@ private:
 
   // A block: cells [first, first + n) of one moduli and corner pattern, as a lattice row (rows) or gathered;
   // reach: 1 + its highest owned corner (the force model runs it once the rows below that are final).
+  // kind, pattern: its cells' (kind_, pattern_); ijk: a row block's corner 0's lattice index (row_rest). Kept here
+  // so that a product or force pass over the blocks reads no per-cell array and no molecule id (a cache miss a
+  // block at 10^6 molecules).
   struct Block {
     int first, n, reach;
     bool rows;
+    int kind, pattern;
+    std::array<long, 3> ijk;
   };
   std::vector<Block> blocks_;  // in cell order; empty with fibres (no block ever runs then)
   // add_tangent's ring of dP/dF: the most cells between a molecule's first and last cell (ids x-fastest).
@@ -1319,7 +1324,9 @@ private:
       for (int i = k; i < k + n; ++i)
         for (int c = 0; c < 8; ++c)
           if (base_[i] + p[c] < m_.owned) reach = std::max(reach, base_[i] + p[c] + 1);
-      blocks_.push_back({k, n, reach, rows});
+      const std::array<long, 3> ijk =
+          rows ? m_.shape.body(kinds_[kind_[k]].body).index(m_.id[base_[k]]) : std::array<long, 3>{0, 0, 0};
+      blocks_.push_back({k, n, reach, rows, kind_[k], pattern_[k], ijk});
       k += n;
     }
     blocks_.shrink_to_fit();
@@ -1328,11 +1335,11 @@ private:
   // Block b's product (state of width w: 0 volumetric-only, from x; 10 F and mu J^(-2/3) a cell; 81 dP/dF).
   void block_tangent(const Block& b, int w, const double* x, const double* state, const double* u,
                      double* out) const {
-    const Kind& kind = kinds_[kind_[b.first]];
+    const Kind& kind = kinds_[b.kind];
     const Geometry& geo = geometry_[kind.body];
     const double g[3] = {geo.g[1][0], geo.g[2][1], geo.g[4][2]};
     const int* base = base_.data() + b.first;
-    const int* pattern = patterns_[pattern_[b.first]].data();
+    const int* pattern = patterns_[b.pattern].data();
     if (w == 0) {
       RowRest rest;
       const bool computed = b.rows && lattice_rest_;
@@ -1346,20 +1353,19 @@ private:
   }
   // A row block's lattice (its corner 0's index): the rest positions cell_block_forces computes.
   void row_rest(const Block& b, RowRest& rest) const {
-    const BoxGeometry& box = m_.shape.body(kinds_[kind_[b.first]].body);
-    const auto ijk = box.index(m_.id[base_[b.first]]);
-    for (int d = 0; d < 3; ++d) rest.offset[d] = box.offset[d], rest.h[d] = box.h[d], rest.ijk[d] = ijk[d];
+    const BoxGeometry& box = m_.shape.body(kinds_[b.kind].body);
+    for (int d = 0; d < 3; ++d) rest.offset[d] = box.offset[d], rest.h[d] = box.h[d], rest.ijk[d] = b.ijk[d];
   }
 
   void block_forces(const Block& b, const double* x, double* f) const {
     const int k = b.first;
-    const Kind& kind = kinds_[kind_[k]];
+    const Kind& kind = kinds_[b.kind];
     const Geometry& geo = geometry_[kind.body];
     const double g[3] = {geo.g[1][0], geo.g[2][1], geo.g[4][2]};
     RowRest rest;
     const bool computed = b.rows && lattice_rest_;
     if (computed) row_rest(b, rest);
-    cell_block_forces(b.n, base_.data() + k, patterns_[pattern_[k]].data(), b.rows, computed ? &rest : nullptr, x,
+    cell_block_forces(b.n, base_.data() + k, patterns_[b.pattern].data(), b.rows, computed ? &rest : nullptr, x,
                       m_.rest.data(), kind.moduli, geo.volume, g, m_.owned, f);
   }
 

@@ -51,6 +51,8 @@ PetscErrorCode estimate(KSP ksp) {
   if (d->emax > 0 && ids[0] == d->est_ids[0] && ids[1] == d->est_ids[1] && states[0] == d->est_states[0] &&
       states[1] == d->est_states[1])
     PetscFunctionReturn(0);
+  // D^-1 is remade at the next smoothing anyway (the operator changed): not kept through the estimate's vectors.
+  PetscCall(VecDestroy(&d->inverse_diagonal));
   KSP reference, estimator;
   PetscCall(KSPCreate(PetscObjectComm(reinterpret_cast<PetscObject>(ksp)), &reference));
   PetscCall(KSPSetType(reference, KSPCHEBYSHEV));
@@ -193,8 +195,11 @@ PetscErrorCode solve(KSP ksp) {
 
 PetscErrorCode setup(KSP ksp) {
   PetscFunctionBeginUser;
-  PetscCall(KSPSetWorkVecs(ksp, ksp->max_it > 2 ? 3 : 2));
   PetscCall(estimate(ksp));  // where KSPCHEBYSHEV's set-up estimates (PCSetUp of the multigrid)
+  // Made once: the set-up runs again for every new operator (the estimate), and the line search holds the first
+  // two (lend_smoother_vectors: new ones would leave it two of its own).
+  const PetscInt vectors = ksp->max_it > 2 ? 3 : 2;
+  if (ksp->nwork < vectors) PetscCall(KSPSetWorkVecs(ksp, vectors));
   PetscFunctionReturn(0);
 }
 

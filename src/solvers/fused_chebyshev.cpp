@@ -32,10 +32,22 @@ PetscErrorCode set_eigenvalues(KSP ksp, PetscReal emax, PetscReal emin) {
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode update_inverse_diagonal(Data* d, Mat P);
+
+// PCJACOBI's application with this smoother's D^-1 (the same products: VecPointwiseMult).
+PetscErrorCode apply_inverse_diagonal(PC pc, Vec x, Vec y) {
+  PetscFunctionBeginUser;
+  Vec* inverse_diagonal;
+  PetscCall(PCShellGetContext(pc, &inverse_diagonal));
+  PetscCall(VecPointwiseMult(y, x, *inverse_diagonal));
+  PetscFunctionReturn(0);
+}
+
 // The interval as KSPCHEBYSHEV's set-up estimates it, when the operators changed since the last estimate: a
-// KSPCHEBYSHEV on PCJACOBI made for it on the same operators with the same estimator (its KSPSetUp runs PETSc's
-// estimate), its CG's extreme eigenvalues read as KSPCHEBYSHEV reads them (KSPComputeEigenvalues over its
-// iterations, the least and largest real parts) and transformed as it transforms them.
+// KSPCHEBYSHEV made for it on the same operators with the same estimator (its KSPSetUp runs PETSc's estimate) on
+// Jacobi (this smoother's D^-1, PCJACOBI's numbers, computed once for the estimate and the smoothing), its CG's
+// extreme eigenvalues read as KSPCHEBYSHEV reads them (KSPComputeEigenvalues over its iterations, the least and
+// largest real parts) and transformed as it transforms them.
 PetscErrorCode estimate(KSP ksp) {
   PetscFunctionBeginUser;
   auto* d = static_cast<Data*>(ksp->data);
@@ -51,15 +63,16 @@ PetscErrorCode estimate(KSP ksp) {
   if (d->emax > 0 && ids[0] == d->est_ids[0] && ids[1] == d->est_ids[1] && states[0] == d->est_states[0] &&
       states[1] == d->est_states[1])
     PetscFunctionReturn(0);
-  // D^-1 is remade at the next smoothing anyway (the operator changed): not kept through the estimate's vectors.
-  PetscCall(VecDestroy(&d->inverse_diagonal));
+  PetscCall(update_inverse_diagonal(d, P));
   KSP reference, estimator;
   PetscCall(KSPCreate(PetscObjectComm(reinterpret_cast<PetscObject>(ksp)), &reference));
   PetscCall(KSPSetType(reference, KSPCHEBYSHEV));
   PetscCall(KSPSetOperators(reference, A, P));
   PC jacobi;
   PetscCall(KSPGetPC(reference, &jacobi));
-  PetscCall(PCSetType(jacobi, PCJACOBI));
+  PetscCall(PCSetType(jacobi, PCSHELL));
+  PetscCall(PCShellSetContext(jacobi, &d->inverse_diagonal));
+  PetscCall(PCShellSetApply(jacobi, apply_inverse_diagonal));
   PetscCall(KSPChebyshevEstEigSet(reference, d->tform[0], d->tform[1], d->tform[2], d->tform[3]));
   PetscCall(KSPChebyshevEstEigGetKSP(reference, &estimator));
   PetscCheck(estimator, PetscObjectComm(reinterpret_cast<PetscObject>(ksp)), PETSC_ERR_PLIB,

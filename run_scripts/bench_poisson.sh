@@ -11,7 +11,7 @@
 #     Krylov counts at nu = 0.45 against nu = 0.25; target: time ratio <= 1.5.
 # Prints a markdown table (docs/benchmarks.md). 10^6 molecules take minutes and several GB: run it once, on a
 # quiet machine.
-#   bash run_scripts/bench_poisson.sh [build/tissue]          # N=100 S0=20 S1=120 STATIC=1 REPEAT=1 by default
+#   bash run_scripts/bench_poisson.sh [build/tissue]          # N=100 S0=20 S1=120 STATIC=1 DYNAMIC=1 REPEAT=1 by default
 set -euo pipefail
 cd "$(dirname "$0")/.."
 TISSUE=${1:-build/tissue}
@@ -74,15 +74,17 @@ print(s['seconds'], s['iterations'], s['linear_iterations'])"
 echo "| $N^3 molecules, 1 rank | springs only / nu = 0.25 | cell term, nu = 0.45 | ratio | target |"
 echo "|---|---|---|---|---|"
 # REPEAT passes, springs only and the cell term alternating; the medians (this VM's rates move up to 2x between
-# consecutive runs, 2026-12-02: one pair decides nothing) and each pass's ratio on stderr.
+# consecutive runs, 2026-12-02: one pair decides nothing) and each pass's ratio on stderr. DYNAMIC=0: the static
+# row only.
 PASSES=""
 for pass in $(seq "${REPEAT:-1}"); do
+  [ "${DYNAMIC:-1}" = 1 ] || break
   read -r springs springs_wall < <(rate)
   read -r cells cells_wall < <(rate --set body.poisson_ratio=0.45)
   echo "pass $pass: springs $springs / $springs_wall, cells $cells / $cells_wall steps/s (CPU / solver clock)" >&2
   PASSES="$PASSES($springs, $springs_wall, $cells, $cells_wall),"
 done
-python3 - <<EOF
+[ "${DYNAMIC:-1}" = 1 ] && python3 - <<EOF
 from statistics import median
 p = [$PASSES]
 for label, s, c in (("CPU seconds, whole process", 0, 2), ("solver.seconds, wall", 1, 3)):

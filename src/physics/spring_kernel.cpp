@@ -961,7 +961,8 @@ void SpringKernel::sweep(const double* x, double* f, Layout at, FinalRows final_
   finish(m.owned);
 }
 
-void SpringKernel::tangent(const double* x, const double* u, double* out, double* ghost) const {
+void SpringKernel::tangent(const double* x, const double* u, double* out, double* ghost, FinalRows final_rows,
+                           void* context) const {
   const LocalModel& m = model_;
   std::fill(ghost, ghost + 3 * static_cast<std::size_t>(m.local - m.owned), 0.0);
   int zeroed = 0;  // out's rows below it are zeroed (just ahead of their first write, as in forces())
@@ -976,16 +977,36 @@ void SpringKernel::tangent(const double* x, const double* u, double* out, double
                     lc.type ? lc.type + c0 : nullptr, kc.type ? kc.value : kc.value + c0,
                     lc.type ? lc.value : lc.value + c0, x, u, out, ghost, m.owned);
   };
+  // Owned rows below `done` went to final_rows (sweep()'s push form: a row is final once the sweep passed it as
+  // end a, unless a later generic connection touches it).
+  int done = 0;
+  auto finish = [&](int below) {
+    below = std::min(below, m.owned);
+    if (!final_rows || below <= done) return;
+    zero_ahead(out, Interlaced{}, zeroed, below);
+    final_rows(context, done, below);
+    done = below;
+  };
   int c = 0;
   for (const Segment& seg : segments_) {
     if (c < seg.first_connection) {
       zero_ahead(out, Interlaced{}, zeroed, seg.generic_reach);
       generic(c, seg.first_connection, seg.generic_at);
+      finish(std::min(seg.first_molecule, seg.later));
     }
     const int p = seg.pattern, start = pattern_start_[p];
-    stencil_tangent(seg.first_molecule, seg.molecules, directions_[p], offsets_.data() + start, scatter_.data() + start,
-                    k_.data() + start, l0_.data() + start, exceptions_.data() + seg.first_exception, seg.exceptions, x,
-                    u, out, ghost, m.owned, reach_[p], &zeroed);
+    const StencilException* exceptions = exceptions_.data() + seg.first_exception;
+    const int chunk = final_rows ? kChunk : seg.molecules;  // a multiple of the blocks: the same blocks
+    for (int m0 = 0, e0 = 0; m0 < seg.molecules; m0 += chunk) {
+      const int count = std::min(chunk, seg.molecules - m0), end = seg.first_molecule + m0 + count;
+      int e1 = e0;
+      while (e1 < seg.exceptions && exceptions[e1].molecule < end) ++e1;
+      stencil_tangent(seg.first_molecule + m0, count, directions_[p], offsets_.data() + start,
+                      scatter_.data() + start, k_.data() + start, l0_.data() + start, exceptions + e0, e1 - e0, x, u,
+                      out, ghost, m.owned, reach_[p], &zeroed);
+      e0 = e1;
+      finish(std::min(end, seg.later));
+    }
     c = seg.first_connection + seg.connections;
   }
   if (c < m.connections()) {
@@ -993,6 +1014,7 @@ void SpringKernel::tangent(const double* x, const double* u, double* out, double
     generic(c, m.connections(), tail_at_);
   }
   zero_ahead(out, Interlaced{}, zeroed, m.owned);
+  finish(m.owned);
 }
 
 }  // namespace tissue

@@ -119,7 +119,10 @@ public:
   // (I - n n^T)] at x (local, ghosts up to date), on the same segments as forces(): per direction a constant k
   // and l0 and contiguous streams, the square root and division vectorized. out: 3 * owned values (zeroed here);
   // ghost: 3 * (local - owned) values of scratch for the ghosts' rows (their owners compute those).
-  void tangent(const double* x, const double* u, double* out, double* ghost) const;
+  // With final_rows, out's owned rows are handed over as they become final (as forces() does; chunks of the same
+  // blocks, the same bits), so that a term can add its part while they are in cache (the cell term's product).
+  void tangent(const double* x, const double* u, double* out, double* ghost, FinalRows final_rows = nullptr,
+               void* context = nullptr) const;
 
 private:
   struct Segment {

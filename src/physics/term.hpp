@@ -81,8 +81,20 @@ public:
   virtual bool has_tangent_state() const { return false; }
   virtual std::size_t tangent_state_size() const { return 0; }
   virtual void tangent_state(const double* x, double* state) const {}
-  virtual void apply_tangent_state(const double* state, const double* u, double* out) const {}
-  virtual void add_tangent_state_diagonal(const double* state, double* diag) const {}
+  // x: the positions the state was made at (unchanged since), which a state may leave out (the cell term's
+  // volumetric-only cells recompute F from it).
+  virtual void apply_tangent_state(const double* x, const double* state, const double* u, double* out) const {}
+  virtual void add_tangent_state_diagonal(const double* x, const double* state, double* diag) const {}
+  // Terms whose product goes in pieces, each adding to owned rows below some row (the cell term's blocks): the
+  // matrix-free product runs them from the springs' sweep as its rows become final (ForceModel::apply_tangent's
+  // final_rows), while they are in cache. apply_tangent_state_below applies pieces [from, ...) whose rows are all
+  // below `below` and returns the next; all of them, from 0, add exactly what apply_tangent_state adds, in the
+  // same order for every row (the same bits).
+  virtual bool tangent_by_rows() const { return false; }
+  virtual int apply_tangent_state_below(const double* x, const double* state, const double* u, int below, int from,
+                                        double* out) const {
+    return from;
+  }
   // Such terms whose product costs no more than the springs' (measured: docs/benchmarks.md): the static solve is
   // then matrix-free by default (the cell term without fibres).
   virtual bool tangent_state_fast() const { return false; }

@@ -11,6 +11,13 @@ struct Data {
   Vec inverse_diagonal;  // D^-1 as PCJACOBI keeps it (a zero diagonal entry gives 1)
   PetscObjectState state;  // the operator's state and id it was taken at (PCSetUp's test for a changed operator)
   PetscObjectId id;
+  // fused_chebyshev_estimate: the transform and the estimator's iterations, and the operators' ids and states the
+  // interval was estimated at (KSPSetUp_Chebyshev's test).
+  bool estimate;
+  PetscReal tform[4];
+  PetscInt steps;
+  PetscObjectId est_ids[2];
+  PetscObjectState est_states[2];
 };
 
 PetscErrorCode set_eigenvalues(KSP ksp, PetscReal emax, PetscReal emin) {
@@ -21,6 +28,70 @@ PetscErrorCode set_eigenvalues(KSP ksp, PetscReal emax, PetscReal emin) {
   PetscCheck(emax * emin > 0, PetscObjectComm(reinterpret_cast<PetscObject>(ksp)), PETSC_ERR_ARG_INCOMP,
              "Chebyshev: both eigenvalues must have one sign (%g, %g)", (double)emax, (double)emin);
   d->emax = emax, d->emin = emin;
+  d->estimate = false;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode update_inverse_diagonal(Data* d, Mat P);
+
+// PCJACOBI's application with this smoother's D^-1 (the same products: VecPointwiseMult).
+PetscErrorCode apply_inverse_diagonal(PC pc, Vec x, Vec y) {
+  PetscFunctionBeginUser;
+  Vec* inverse_diagonal;
+  PetscCall(PCShellGetContext(pc, &inverse_diagonal));
+  PetscCall(VecPointwiseMult(y, x, *inverse_diagonal));
+  PetscFunctionReturn(0);
+}
+
+// The interval as KSPCHEBYSHEV's set-up estimates it, when the operators changed since the last estimate: a
+// KSPCHEBYSHEV made for it on the same operators with the same estimator (its KSPSetUp runs PETSc's estimate) on
+// Jacobi (this smoother's D^-1, PCJACOBI's numbers, computed once for the estimate and the smoothing), its CG's
+// extreme eigenvalues read as KSPCHEBYSHEV reads them (KSPComputeEigenvalues over its iterations, the least and
+// largest real parts) and transformed as it transforms them.
+PetscErrorCode estimate(KSP ksp) {
+  PetscFunctionBeginUser;
+  auto* d = static_cast<Data*>(ksp->data);
+  if (!d->estimate) PetscFunctionReturn(0);
+  Mat A, P;
+  PetscCall(PCGetOperators(ksp->pc, &A, &P));
+  PetscObjectId ids[2];
+  PetscObjectState states[2];
+  PetscCall(PetscObjectGetId(reinterpret_cast<PetscObject>(A), &ids[0]));
+  PetscCall(PetscObjectGetId(reinterpret_cast<PetscObject>(P), &ids[1]));
+  PetscCall(PetscObjectStateGet(reinterpret_cast<PetscObject>(A), &states[0]));
+  PetscCall(PetscObjectStateGet(reinterpret_cast<PetscObject>(P), &states[1]));
+  if (d->emax > 0 && ids[0] == d->est_ids[0] && ids[1] == d->est_ids[1] && states[0] == d->est_states[0] &&
+      states[1] == d->est_states[1])
+    PetscFunctionReturn(0);
+  PetscCall(update_inverse_diagonal(d, P));
+  KSP reference, estimator;
+  PetscCall(KSPCreate(PetscObjectComm(reinterpret_cast<PetscObject>(ksp)), &reference));
+  PetscCall(KSPSetType(reference, KSPCHEBYSHEV));
+  PetscCall(KSPSetOperators(reference, A, P));
+  PC jacobi;
+  PetscCall(KSPGetPC(reference, &jacobi));
+  PetscCall(PCSetType(jacobi, PCSHELL));
+  PetscCall(PCShellSetContext(jacobi, &d->inverse_diagonal));
+  PetscCall(PCShellSetApply(jacobi, apply_inverse_diagonal));
+  PetscCall(KSPChebyshevEstEigSet(reference, d->tform[0], d->tform[1], d->tform[2], d->tform[3]));
+  PetscCall(KSPChebyshevEstEigGetKSP(reference, &estimator));
+  PetscCheck(estimator, PetscObjectComm(reinterpret_cast<PetscObject>(ksp)), PETSC_ERR_PLIB,
+             "fused Chebyshev: PETSc made no eigenvalue estimator");
+  PetscCall(KSPSetType(estimator, KSPCG));
+  PetscCall(KSPSetTolerances(estimator, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, d->steps));
+  PetscCall(KSPSetUp(reference));  // the estimate
+  PetscInt n, found;
+  PetscCall(KSPGetIterationNumber(estimator, &n));
+  PetscReal *re, *im;
+  PetscCall(PetscMalloc2(n, &re, n, &im));
+  PetscCall(KSPComputeEigenvalues(estimator, n, re, im, &found));
+  PetscReal min = PETSC_MAX_REAL, max = PETSC_MIN_REAL;
+  for (PetscInt i = 0; i < found; ++i) min = PetscMin(min, re[i]), max = PetscMax(max, re[i]);
+  PetscCall(PetscFree2(re, im));
+  PetscCall(KSPDestroy(&reference));
+  d->emin = d->tform[0] * min + d->tform[1] * max;
+  d->emax = d->tform[2] * min + d->tform[3] * max;
+  for (int q = 0; q < 2; ++q) d->est_ids[q] = ids[q], d->est_states[q] = states[q];
   PetscFunctionReturn(0);
 }
 
@@ -137,7 +208,11 @@ PetscErrorCode solve(KSP ksp) {
 
 PetscErrorCode setup(KSP ksp) {
   PetscFunctionBeginUser;
-  PetscCall(KSPSetWorkVecs(ksp, ksp->max_it > 2 ? 3 : 2));
+  PetscCall(estimate(ksp));  // where KSPCHEBYSHEV's set-up estimates (PCSetUp of the multigrid)
+  // Made once: the set-up runs again for every new operator (the estimate), and the line search holds the first
+  // two (lend_smoother_vectors: new ones would leave it two of its own).
+  const PetscInt vectors = ksp->max_it > 2 ? 3 : 2;
+  if (ksp->nwork < vectors) PetscCall(KSPSetWorkVecs(ksp, vectors));
   PetscFunctionReturn(0);
 }
 
@@ -173,6 +248,7 @@ PetscErrorCode create(KSP ksp) {
   ksp->data = d;
   PetscCall(KSPSetSupportedNorm(ksp, KSP_NORM_NONE, PC_LEFT, 1));
   PetscCall(KSPSetSupportedNorm(ksp, KSP_NORM_NONE, PC_RIGHT, 1));
+  ksp->setupnewmatrix = PETSC_TRUE;  // the set-up runs again for a new operator (the estimate), as KSPCHEBYSHEV's
   ksp->ops->setup = setup;
   ksp->ops->solve = solve;
   ksp->ops->reset = reset;
@@ -186,6 +262,22 @@ PetscErrorCode create(KSP ksp) {
 }
 
 }  // namespace
+
+PetscErrorCode fused_chebyshev_estimate(KSP ksp, PetscReal a, PetscReal b, PetscReal c, PetscReal d,
+                                        PetscInt steps) {
+  PetscFunctionBeginUser;
+  PetscBool fused;
+  PetscCall(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(ksp), kFusedChebyshev, &fused));
+  PetscCheck(fused, PetscObjectComm(reinterpret_cast<PetscObject>(ksp)), PETSC_ERR_ARG_WRONG,
+             "fused_chebyshev_estimate: not a %s", kFusedChebyshev);
+  auto* data = static_cast<Data*>(ksp->data);
+  data->estimate = true;
+  data->tform[0] = a, data->tform[1] = b, data->tform[2] = c, data->tform[3] = d;
+  data->steps = steps;
+  data->emax = data->emin = 0;  // none until the first estimate
+  data->est_ids[0] = data->est_ids[1] = 0;
+  PetscFunctionReturn(0);
+}
 
 PetscErrorCode register_fused_chebyshev() {
   PetscFunctionBeginUser;

@@ -4,8 +4,9 @@
 // reading two or three 24 B-a-molecule arrays; here each step is the product and one pass over the rows, which
 // computes the same numbers (the same operations on every component, in the same order: the result is PETSc's to
 // the bit) from b, A p, D^-1 and the last two iterates. Two work vectors for two steps (PETSc keeps three).
-// KSPChebyshevSetEigenvalues sets its interval as it sets KSPCHEBYSHEV's; there is no estimator, so it serves
-// only where the bounds are known (the Gershgorin bound of the matrix-free finest level: newton_equilibrium.cpp).
+// KSPChebyshevSetEigenvalues sets its interval as it sets KSPCHEBYSHEV's (the Gershgorin bound of the matrix-free
+// finest level: newton_equilibrium.cpp); fused_chebyshev_estimate has it estimate the interval as KSPCHEBYSHEV with
+// KSPChebyshevEstEigSet does (a term adds blocks: the cells), by PETSc's own estimator whenever the operator changed.
 #pragma once
 #include <petscksp.h>
 
@@ -15,5 +16,11 @@ namespace tissue {
 inline constexpr const char* kFusedChebyshev = "tissue_fused_chebyshev";
 // Not collective. Registers the type with PETSc (idempotent).
 PetscErrorCode register_fused_chebyshev();
+// Not collective. The interval from PETSc's estimate whenever the operator changes: KSPChebyshevEstEigSet(a, b, c,
+// d) on a KSPCHEBYSHEV over PCJACOBI with the same operators, its estimator CG of `steps` iterations, set up (the
+// estimate: PETSc's noisy right-hand side) and then read (KSPComputeEigenvalues), so that the interval, and every
+// smoothing after it, are those of PETSc's KSPCHEBYSHEV so configured, to the bit. The estimator's vectors live
+// only during the estimate.
+PetscErrorCode fused_chebyshev_estimate(KSP ksp, PetscReal a, PetscReal b, PetscReal c, PetscReal d, PetscInt steps);
 
 }  // namespace tissue

@@ -80,7 +80,8 @@ PetscErrorCode lattice_lookup(MPI_Comm comm, std::int64_t total, const std::vect
 
 PetscErrorCode estimate_chebyshev_interval(KSP smoother) {
   PetscFunctionBeginUser;
-  PetscCall(KSPChebyshevEstEigSet(smoother, 0, 0.1, 0, 1.1));
+  PetscCall(KSPChebyshevEstEigSet(smoother, kChebyshevEstimate[0], kChebyshevEstimate[1], kChebyshevEstimate[2],
+                                  kChebyshevEstimate[3]));
   // Galerkin operators of an SPD tangent are SPD: CG estimates the eigenvalues with 4 work vectors where the
   // default GMRES keeps ~15 per level (340 B per molecule at 64,000). -mg_levels_esteig_ksp_type overrides.
   // 6 CG iterations instead of PETSc's 10: the same Krylov iterations (3 + 9) on the peer problem at 8,000,
@@ -89,7 +90,7 @@ PetscErrorCode estimate_chebyshev_interval(KSP smoother) {
   PetscCall(KSPChebyshevEstEigGetKSP(smoother, &estimator));
   if (estimator) {
     PetscCall(KSPSetType(estimator, KSPCG));
-    PetscCall(KSPSetTolerances(estimator, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, 6));
+    PetscCall(KSPSetTolerances(estimator, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, kChebyshevEstimateSteps));
   }
   PetscFunctionReturn(0);
 }

@@ -53,6 +53,10 @@ PetscErrorCode setup_lattice_mg(const LocalModel& model, const std::vector<std::
 // A level's Chebyshev smoother estimates its eigenvalue interval as [0.1, 1.1] x the largest eigenvalue a short CG
 // run finds (what setup_lattice_mg sets on every level; the matrix-free finest level may set bounds instead).
 PetscErrorCode estimate_chebyshev_interval(KSP smoother);
+// Its transform (KSPChebyshevEstEigSet's a, b, c, d) and the estimator CG's iterations (the fused finest smoother
+// estimates with the same: fused_chebyshev_estimate).
+inline constexpr PetscReal kChebyshevEstimate[4] = {0, 0.1, 0, 1.1};
+inline constexpr PetscInt kChebyshevEstimateSteps = 6;
 
 // Collective. The numbers `answers` of molecules (global ids `asked`), from their owners' (ids `mine`, numbers
 // `nums`), through a directory: id g lives on rank g / chunk, so no rank holds more than its chunk of it.

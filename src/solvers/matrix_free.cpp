@@ -111,14 +111,36 @@ PetscErrorCode MatrixFreeTangent::mult(Mat J, Vec in, Vec out) {
   }
   PetscScalar* y;
   PetscCall(VecGetArray(out, &y));
-  PetscCall(self->forces_.apply_tangent(self->x_, w, y, self->cached_));
+  const auto& terms = self->forces_.terms();
+  // The first term's product in pieces from the springs' sweep, each once the springs' part of its rows is final
+  // (one pass over u, x and out for both; every row sums springs, then the term's pieces in order: the same bits).
+  struct Pass {
+    const Term* term;
+    const double *x, *state, *u;
+    double* out;
+    int next;
+  } pass{self->by_state_ && terms[0]->tangent_by_rows() ? terms[0].get() : nullptr, self->x_, nullptr, w, y, 0};
+  if (pass.term) {
+    pass.state = self->state_[0].data();
+    auto rows = [](void* context, int, int end) {
+      Pass& p = *static_cast<Pass*>(context);
+      p.next = p.term->apply_tangent_state_below(p.x, p.state, p.u, end, p.next, p.out);
+    };
+    PetscCall(self->forces_.apply_tangent(self->x_, w, y, self->cached_, rows, &pass));
+  } else {
+    PetscCall(self->forces_.apply_tangent(self->x_, w, y, self->cached_));
+  }
   if (self->by_state_) {
     // w's held components are zero now (apply_tangent); the held rows keep the identity's values it wrote.
     const std::vector<int>& held = self->forces_.held_owned();
     self->held_out_.resize(held.size());
     for (std::size_t h = 0; h < held.size(); ++h) self->held_out_[h] = y[held[h]];
-    const auto& terms = self->forces_.terms();
-    for (std::size_t t = 0; t < terms.size(); ++t) terms[t]->apply_tangent_state(self->state_[t].data(), w, y);
+    std::size_t t = 0;
+    if (pass.term) {  // its pieces the sweep left (none: its last rows are handed over at its end)
+      pass.term->apply_tangent_state_below(self->x_, pass.state, w, self->model_.owned, pass.next, y);
+      t = 1;
+    }
+    for (; t < terms.size(); ++t) terms[t]->apply_tangent_state(self->x_, self->state_[t].data(), w, y);
     for (std::size_t h = 0; h < held.size(); ++h) y[held[h]] = self->held_out_[h];
   } else if (self->cached_) {
     // Held rows and columns of the cached blocks are zero: the identity rows apply_tangent wrote stay.
@@ -152,7 +174,7 @@ PetscErrorCode MatrixFreeTangent::diagonal(Mat J, Vec d) {
   PetscCall(self->forces_.tangent_diagonal(self->x_, y, self->cached_));
   if (self->by_state_) {
     const auto& terms = self->forces_.terms();
-    for (std::size_t t = 0; t < terms.size(); ++t) terms[t]->add_tangent_state_diagonal(self->state_[t].data(), y);
+    for (std::size_t t = 0; t < terms.size(); ++t) terms[t]->add_tangent_state_diagonal(self->x_, self->state_[t].data(), y);
     for (int h : self->forces_.held_owned()) y[h] = 1.0;
   } else if (self->cached_) {
     const int n = self->model_.owned;

@@ -7,7 +7,9 @@
 // once per Newton iteration, in set_positions, and kept per owned molecule (up to 27, a lattice stencil: 2,052 B a
 // molecule, only in such scenes); the springs' blocks are recomputed on every product. Where every term applies its
 // own product from a smaller state (Term::has_tangent_state: the cell term's dP/dF, 648 B a cell), that state is
-// kept instead of the blocks.
+// kept instead of the blocks; the first such term's product runs inside the springs' sweep, a piece as soon as the
+// springs' part of its rows is final (Term::apply_tangent_state_below), so one pass over u, x and out does both
+// (the same bits as the two passes).
 #pragma once
 #include <petscmat.h>
 

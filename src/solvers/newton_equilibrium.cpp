@@ -54,6 +54,7 @@ struct Context {
   // The matrix-free finest level's Chebyshev interval from Gershgorin's bound (fine_chebyshev), and the lower end
   // as a fraction of the upper (-static_chebyshev_fraction).
   bool gershgorin = false, estimating = true;
+  bool fused_estimating = false;  // the finest smoother is the fused one with PETSc's estimate (a term's blocks)
   // With that interval, the finest smoother is PETSc's Chebyshev-Jacobi with its vector operations fused
   // (fused_chebyshev.hpp: the same numbers; -static_fused_chebyshev false keeps PETSc's KSPCHEBYSHEV).
   bool fused = true;
@@ -294,10 +295,20 @@ PetscErrorCode fine_chebyshev(Context* ctx, PC pc) {
     }
     PetscCall(KSPChebyshevSetEigenvalues(smoother, bound, ctx->chebyshev_fraction * bound));
     ctx->estimating = false;
-  } else if (!ctx->estimating) {
-    PetscCall(KSPSetType(smoother, KSPCHEBYSHEV));  // the estimate needs PETSc's (a no-op when it is already)
-    PetscCall(PCSetType(jacobi, PCJACOBI));
-    PetscCall(estimate_chebyshev_interval(smoother));
+  } else if (!ctx->estimating || (ctx->fused && !ctx->fused_estimating)) {
+    if (ctx->fused) {
+      // The fused steps on the interval PETSc's estimate gives (estimate_chebyshev_interval's, to the bit).
+      PetscCall(register_fused_chebyshev());
+      PetscCall(KSPSetType(smoother, kFusedChebyshev));
+      PetscCall(PCSetType(jacobi, PCNONE));
+      PetscCall(fused_chebyshev_estimate(smoother, kChebyshevEstimate[0], kChebyshevEstimate[1],
+                                         kChebyshevEstimate[2], kChebyshevEstimate[3], kChebyshevEstimateSteps));
+      ctx->fused_estimating = true;
+    } else {
+      PetscCall(KSPSetType(smoother, KSPCHEBYSHEV));  // the estimate needs PETSc's (a no-op when it is already)
+      PetscCall(PCSetType(jacobi, PCJACOBI));
+      PetscCall(estimate_chebyshev_interval(smoother));
+    }
     ctx->estimating = true;
   }
   PetscFunctionReturn(0);
@@ -621,7 +632,8 @@ PetscErrorCode NewtonEquilibrium::Impl::use_matrix_free(bool user_pc, bool user_
     PetscBool user_smoother = PETSC_FALSE;
     for (const char* name : {"-mg_levels_ksp_type", "-mg_levels_pc_type", "-mg_levels_ksp_chebyshev_eigenvalues",
                              "-mg_levels_ksp_chebyshev_esteig", "-mg_levels_esteig_ksp_type",
-                             "-mg_levels_ksp_chebyshev_kind", "-mg_levels_pc_jacobi_type", "-mg_levels_pc_jacobi_abs"}) {
+                             "-mg_levels_ksp_chebyshev_kind", "-mg_levels_pc_jacobi_type", "-mg_levels_pc_jacobi_abs",
+                             "-mg_levels_esteig_ksp_max_it", "-mg_levels_ksp_chebyshev_esteig_noisy"}) {
       PetscBool has = PETSC_FALSE;
       PetscCall(PetscOptionsHasName(nullptr, nullptr, name, &has));
       user_smoother = user_smoother || has ? PETSC_TRUE : PETSC_FALSE;

@@ -404,27 +404,50 @@ __attribute__((always_inline)) inline void cof_of(const double F[9], double cof[
 }
 
 // cell_block_tangent for volumetric-only cells (mu = 0, no virtual diagonals: cubic cells at nu > 1/4, W =
-// kappa/4 (J^2 - 1 - 2 ln J)), from the displacements d = x - X at the Newton iterate instead of a state per cell:
-// F = I + the same axis differences of d as dF's of u (row layout or gathered), then dP = W'' dJ cof F + W' dcof
-// with W' = kappa/2 (J - 1/J), W'' = kappa/2 (1 + 1/J^2) (isotropic_stress_direction's terms with s = 0). The
-// kernel reads 24 B a molecule of d (its rows as u's) where the state held 80 B a cell, which the product streamed
-// on every application. An inverted cell takes F = I (as the state's).
+// kappa/4 (J^2 - 1 - 2 ln J)), from the Newton iterate's positions x instead of a state per cell: F = I + the same
+// axis differences of the displacements d = x - X as dF's of u (row layout or gathered), then dP = W'' dJ cof F +
+// W' dcof with W' = kappa/2 (J - 1/J), W'' = kappa/2 (1 + 1/J^2) (isotropic_stress_direction's terms with s = 0).
+// Row blocks on a lattice (rest given) compute X as cell_block_forces does (the same doubles as the model's rest
+// positions), so the kernel reads x, which the springs' product has just read (the fused pass: MatrixFreeTangent),
+// where a state of 80 B a cell, or of d, would be streamed on every application. An inverted cell takes F = I.
 TISSUE_CELL_CLONES
 void volumetric_block_tangent(int n, const int* __restrict base, const int* __restrict offset, bool rows,
-                              const double* __restrict u, const double* __restrict disp, double kappa, double volume,
-                              const double g[3], int owned, double* __restrict out) {
+                              const RowRest* rest, const double* __restrict u, const double* __restrict x,
+                              const double* __restrict X, double kappa, double volume, const double g[3], int owned,
+                              double* __restrict out) {
   alignas(64) double dF[9][kCellBlock], G[9][kCellBlock], dP[9][kCellBlock];
   const double gx = g[0], gy = g[1], gz = g[2];
   if (rows) {
-    const double *ur[4], *dr[4];
-    for (int r = 0; r < 4; ++r) ur[r] = u + 3 * (base[0] + offset[2 * r]), dr[r] = disp + 3 * (base[0] + offset[2 * r]);
+    const double* ur[4];
+    for (int r = 0; r < 4; ++r) ur[r] = u + 3 * (base[0] + offset[2 * r]);
     row_gradient(ur[0], ur[1], ur[2], ur[3], n, gx, gy, gz, dF);
+    alignas(64) double dr[4][3 * (kCellBlock + 1)];  // the rows' displacements, interleaved as x
+    if (rest) {
+      alignas(64) double Xx[kCellBlock + 1];
+      for (int j = 0; j < n + 1; ++j) Xx[j] = rest->offset[0] + static_cast<double>(rest->ijk[0] + j) * rest->h[0];
+      for (int r = 0; r < 4; ++r) {
+        const double Xy = rest->offset[1] + static_cast<double>(rest->ijk[1] + (r & 1)) * rest->h[1];
+        const double Xz = rest->offset[2] + static_cast<double>(rest->ijk[2] + (r >> 1)) * rest->h[2];
+        const double* __restrict xr = x + 3 * (base[0] + offset[2 * r]);
+        double* __restrict d = dr[r];
+        for (int j = 0; j < n + 1; ++j)
+          d[3 * j] = xr[3 * j] - Xx[j], d[3 * j + 1] = xr[3 * j + 1] - Xy, d[3 * j + 2] = xr[3 * j + 2] - Xz;
+      }
+    } else {
+      for (int r = 0; r < 4; ++r) {
+        const int s = 3 * (base[0] + offset[2 * r]);
+        for (int j = 0; j < 3 * (n + 1); ++j) dr[r][j] = x[s + j] - X[s + j];
+      }
+    }
     row_gradient(dr[0], dr[1], dr[2], dr[3], n, gx, gy, gz, G);
   } else {
     for (int d = 0; d < 3; ++d)
       for (int i = 0; i < n; ++i) {
         double v[8], w[8];
-        for (int c = 0; c < 8; ++c) v[c] = u[3 * (base[i] + offset[c]) + d], w[c] = disp[3 * (base[i] + offset[c]) + d];
+        for (int c = 0; c < 8; ++c) {
+          const int j = 3 * (base[i] + offset[c]) + d;
+          v[c] = u[j], w[c] = x[j] - X[j];
+        }
         corner_gradient(v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], gx, gy, gz, dF[3 * d][i], dF[3 * d + 1][i],
                         dF[3 * d + 2][i]);
         corner_gradient(w[0], w[1], w[2], w[3], w[4], w[5], w[6], w[7], gx, gy, gz, G[3 * d][i], G[3 * d + 1][i],
@@ -906,8 +929,8 @@ public:
   // the block from `first` with n cells at w first + c n + k - first, w values a cell); without blocks (fibres)
   // one cell at a time.
   bool has_tangent_state() const override { return true; }
-  // Every cell volumetric-only (mu = 0, no virtual diagonals) and in blocks: the product's state is the
-  // displacements (tangent_state).
+  // Every cell volumetric-only (mu = 0, no virtual diagonals) and in blocks: the product needs no state but the
+  // positions (tangent_state).
   bool volumetric() const {
     return !blocks_.empty() && plain() && std::all_of(kinds_.begin(), kinds_.end(), [](const Kind& k) {
       return k.moduli.mu == 0 && k.moduli.alpha[0] == 0 && k.moduli.alpha[1] == 0 && k.moduli.alpha[2] == 0;
@@ -937,15 +960,14 @@ public:
   }
   bool tangent_state_fast() const override { return state_width() == 10; }
   // state[0]: the width w it was made with (a history may start between the state and a product: begin_step).
-  // Volumetric-only cells (volumetric()) keep the displacements x - X of the local molecules instead (width 3:
-  // 24 B a molecule), from which each product recomputes F (volumetric_block_tangent).
+  // Volumetric-only cells (volumetric()) keep nothing (width 0): each product recomputes F from the positions the
+  // state was made at (volumetric_block_tangent).
   std::size_t tangent_state_size() const override {
-    return 1 + (volumetric() ? m_.rest.size() : state_width() * static_cast<std::size_t>(cells_));
+    return 1 + (volumetric() ? 0 : state_width() * static_cast<std::size_t>(cells_));
   }
   void tangent_state(const double* x, double* state_with_width) const override {
     if (volumetric()) {
-      state_with_width[0] = 3;
-      for (std::size_t i = 0; i < m_.rest.size(); ++i) state_with_width[1 + i] = x[i] - m_.rest[i];
+      state_with_width[0] = 0;
       return;
     }
     const int w = state_width();
@@ -972,28 +994,12 @@ public:
       }
     });
   }
-  void apply_tangent_state(const double* state_with_width, const double* u, double* out) const override {
+  void apply_tangent_state(const double* x, const double* state_with_width, const double* u,
+                           double* out) const override {
     const int w = static_cast<int>(state_with_width[0]);
     const double* state = state_with_width + 1;
-    if (w == 3) {
-      for (const Block& b : blocks_) {
-        const Kind& kind = kinds_[kind_[b.first]];
-        const Geometry& geo = geometry_[kind.body];
-        const double g[3] = {geo.g[1][0], geo.g[2][1], geo.g[4][2]};
-        volumetric_block_tangent(b.n, base_.data() + b.first, patterns_[pattern_[b.first]].data(), b.rows, u, state,
-                                 kind.moduli.kappa, geo.volume, g, m_.owned, out);
-      }
-      return;
-    }
     if (!blocks_.empty()) {
-      for (const Block& b : blocks_) {
-        const Kind& kind = kinds_[kind_[b.first]];
-        const Geometry& geo = geometry_[kind.body];
-        const double g[3] = {geo.g[1][0], geo.g[2][1], geo.g[4][2]};
-        cell_block_tangent(b.n, base_.data() + b.first, patterns_[pattern_[b.first]].data(), b.rows, u,
-                           state + w * static_cast<std::size_t>(b.first), w == 10 ? &kind.moduli : nullptr,
-                           geo.volume, g, m_.owned, out);
-      }
+      for (const Block& b : blocks_) block_tangent(b, w, x, state, u, out);
       return;
     }
     for (int k = 0; k < cells_; ++k) {
@@ -1003,11 +1009,21 @@ public:
                          state + 81 * static_cast<std::size_t>(k), nullptr, geo.volume, g, m_.owned, out);
     }
   }
-  void add_tangent_state_diagonal(const double* state_with_width, double* diag) const override {
+  // The same blocks in the same order, each once its owned corners' rows are final in the springs' sweep
+  // (ForceModel::apply_tangent's final_rows): u, x and out come from the cache.
+  bool tangent_by_rows() const override { return !blocks_.empty(); }
+  int apply_tangent_state_below(const double* x, const double* state_with_width, const double* u, int below,
+                                int from, double* out) const override {
+    const int w = static_cast<int>(state_with_width[0]);
+    const int nb = static_cast<int>(blocks_.size());
+    for (; from < nb && blocks_[from].reach <= below; ++from) block_tangent(blocks_[from], w, x, state_with_width + 1, u, out);
+    return from;
+  }
+  void add_tangent_state_diagonal(const double* x, const double* state_with_width, double* diag) const override {
     const int w = static_cast<int>(state_with_width[0]);
     const double* state = state_with_width + 1;
-    if (w == 3) {
-      // F from the displacements with the product's arithmetic (corner_gradient), then the closed form below.
+    if (w == 0) {
+      // F from the displacements x - X with the product's arithmetic (corner_gradient), then the closed form below.
       for (int k = 0; k < cells_; ++k) {
         int corner[8];
         corners(k, corner);
@@ -1015,7 +1031,7 @@ public:
         double F[9];
         for (int d = 0; d < 3; ++d) {
           double v[8];
-          for (int c = 0; c < 8; ++c) v[c] = state[3 * corner[c] + d];
+          for (int c = 0; c < 8; ++c) v[c] = x[3 * corner[c] + d] - m_.rest[3 * corner[c] + d];
           corner_gradient(v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], geo.g[1][0], geo.g[2][1], geo.g[4][2],
                           F[3 * d], F[3 * d + 1], F[3 * d + 2]);
         }
@@ -1301,9 +1317,14 @@ private:
 
   // A block: cells [first, first + n) of one moduli and corner pattern, as a lattice row (rows) or gathered;
   // reach: 1 + its highest owned corner (the force model runs it once the rows below that are final).
+  // kind, pattern: its cells' (kind_, pattern_); ijk: a row block's corner 0's lattice index (row_rest). Kept here
+  // so that a product or force pass over the blocks reads no per-cell array and no molecule id (a cache miss a
+  // block at 10^6 molecules).
   struct Block {
     int first, n, reach;
     bool rows;
+    int kind, pattern;
+    std::array<long, 3> ijk;
   };
   std::vector<Block> blocks_;  // in cell order; empty with fibres (no block ever runs then)
   // add_tangent's ring of dP/dF: the most cells between a molecule's first and last cell (ids x-fastest).
@@ -1326,25 +1347,48 @@ private:
       for (int i = k; i < k + n; ++i)
         for (int c = 0; c < 8; ++c)
           if (base_[i] + p[c] < m_.owned) reach = std::max(reach, base_[i] + p[c] + 1);
-      blocks_.push_back({k, n, reach, rows});
+      const std::array<long, 3> ijk =
+          rows ? m_.shape.body(kinds_[kind_[k]].body).index(m_.id[base_[k]]) : std::array<long, 3>{0, 0, 0};
+      blocks_.push_back({k, n, reach, rows, kind_[k], pattern_[k], ijk});
       k += n;
     }
     blocks_.shrink_to_fit();
   }
 
+  // Block b's product (state of width w: 0 volumetric-only, from x; 10 F and mu J^(-2/3) a cell; 81 dP/dF).
+  void block_tangent(const Block& b, int w, const double* x, const double* state, const double* u,
+                     double* out) const {
+    const Kind& kind = kinds_[b.kind];
+    const Geometry& geo = geometry_[kind.body];
+    const double g[3] = {geo.g[1][0], geo.g[2][1], geo.g[4][2]};
+    const int* base = base_.data() + b.first;
+    const int* pattern = patterns_[b.pattern].data();
+    if (w == 0) {
+      RowRest rest;
+      const bool computed = b.rows && lattice_rest_;
+      if (computed) row_rest(b, rest);
+      volumetric_block_tangent(b.n, base, pattern, b.rows, computed ? &rest : nullptr, u, x, m_.rest.data(),
+                               kind.moduli.kappa, geo.volume, g, m_.owned, out);
+      return;
+    }
+    cell_block_tangent(b.n, base, pattern, b.rows, u, state + w * static_cast<std::size_t>(b.first),
+                       w == 10 ? &kind.moduli : nullptr, geo.volume, g, m_.owned, out);
+  }
+  // A row block's lattice (its corner 0's index): the rest positions cell_block_forces computes.
+  void row_rest(const Block& b, RowRest& rest) const {
+    const BoxGeometry& box = m_.shape.body(kinds_[b.kind].body);
+    for (int d = 0; d < 3; ++d) rest.offset[d] = box.offset[d], rest.h[d] = box.h[d], rest.ijk[d] = b.ijk[d];
+  }
+
   void block_forces(const Block& b, const double* x, double* f) const {
     const int k = b.first;
-    const Kind& kind = kinds_[kind_[k]];
+    const Kind& kind = kinds_[b.kind];
     const Geometry& geo = geometry_[kind.body];
     const double g[3] = {geo.g[1][0], geo.g[2][1], geo.g[4][2]};
     RowRest rest;
     const bool computed = b.rows && lattice_rest_;
-    if (computed) {
-      const BoxGeometry& box = m_.shape.body(kind.body);
-      const auto ijk = box.index(m_.id[base_[k]]);
-      for (int d = 0; d < 3; ++d) rest.offset[d] = box.offset[d], rest.h[d] = box.h[d], rest.ijk[d] = ijk[d];
-    }
-    cell_block_forces(b.n, base_.data() + k, patterns_[pattern_[k]].data(), b.rows, computed ? &rest : nullptr, x,
+    if (computed) row_rest(b, rest);
+    cell_block_forces(b.n, base_.data() + k, patterns_[b.pattern].data(), b.rows, computed ? &rest : nullptr, x,
                       m_.rest.data(), kind.moduli, geo.volume, g, m_.owned, f);
   }
 

@@ -306,12 +306,13 @@ std::string Output::checkpoint(const SolverState& state, const ForceModel* force
 
 void Output::history_row(const SolverState& state, const ForceModel& forces, const TensionTest& test) {
   const Measurements m = measure(scene_, model_, test, state.x.array(), state.v.data());
-  // Dynamic runs: the reactions of the step's own force evaluation (no second one per row). Static load steps:
+  // Dynamic runs and the static solve's last row: the reactions of the step's own force evaluation (no second one
+  // per row; src/solvers/solver.hpp, forces_final). Static load steps:
   // the step's fraction of the loads; their rows count the load steps, and `time` is that fraction (pseudo-time).
   const SolverStyle* kind = find_solver(scene_.solver.kind);
   const bool load_steps = !kind->time_line;
   std::vector<Vec3> reactions;
-  if (kind->integrates_time) {
+  if (kind->integrates_time || (state.forces_final && state.load_factor == 1.0)) {
     reactions = forces.last_reactions();
   } else {
     std::vector<double> scratch(3 * model_.local);

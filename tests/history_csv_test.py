@@ -4,7 +4,8 @@ static creep scene with a ramp-and-hold load at 1 and 2 ranks, read back with th
 is the interface's (step, time, force_x..z, elongation, kinetic_energy, reaction<i>_x..z per [[fix]]); one row per
 step, t = 0 first, the breakpoint 0.3 s landed on; every cell a number; the applied force follows the history; the
 roller's reaction balances it to the solver's tolerance; summary.json's reactions and time are the last row's;
-the same curve at 1 and 2 ranks to 1e-10; a relaxation run's single row (its equilibrium); and a second run into the same directory starts a new file.
+the same curve at 1 and 2 ranks to 1e-10; a relaxation run's single row (its equilibrium); a static run's load
+steps (each row's reactions balancing its load, the last row the summary's); and a second run into the same directory starts a new file.
 
 Usage: history_csv_test.py --build BUILD_DIR --source SOURCE_DIR      Prints 'N passed, M failed'."""
 import argparse
@@ -108,6 +109,30 @@ def main():
               f"relaxation: one row, step 1 at time 1: {rows}")
         check(data[0][5] == summary["elongation"] and [data[0][7:10]] == summary["reactions"],
               "relaxation: the row's elongation and reactions are the summary's")
+
+    # Static in three load steps: one row a load step (time = the loads' fraction), each row's reactions balancing
+    # its own applied force (the last row's come from the final residual's evaluation, not a second one: a stale
+    # step's reactions would balance 2/3 of the load), and the summary's reactions the last row's, at 1 and 2 ranks.
+    static = relax.replace('kind = "relaxation"\n', 'kind = "static"\nload_steps = 3\n')
+    with open(os.path.join(workdir, "static.toml"), "w") as f:
+        f.write(static)
+    for ranks in (1, 2):
+        out = os.path.join(workdir, f"static_np{ranks}")
+        r = subprocess.run(["mpirun", "--oversubscribe", "-np", str(ranks), os.path.join(a.build, "tissue"), "run",
+                            os.path.join(workdir, "static.toml"), "--output", out], capture_output=True, text=True,
+                           timeout=120)
+        if not check(r.returncode == 0, f"static, {ranks} ranks: exit code {r.returncode}: {r.stderr[-300:]}"):
+            continue
+        with open(os.path.join(out, "history.csv"), newline="") as f:
+            rows = list(csv.reader(f))
+        summary = json.load(open(os.path.join(out, "summary.json")))
+        data = [[float(c) for c in row] for row in rows[1:]]
+        check(rows[0] == COLUMNS and [row[0] for row in data] == [1.0, 2.0, 3.0], f"static: three rows: {rows}")
+        for row in data:
+            check(abs(row[4] - 4.0e-3 * row[1]) <= 1e-15, f"static, {ranks} ranks: force_z {row[4]} at {row[1]}")
+            check(abs(row[9] + row[4]) <= 1e-8 * 4.0e-3, f"static, {ranks} ranks: reaction {row[9]} balances {row[4]}")
+        check(data[-1][1] == 1.0 and [data[-1][7:10]] == summary["reactions"] and data[-1][5] == summary["elongation"],
+              f"static, {ranks} ranks: the last row is the summary's: {data[-1]} {summary['reactions']}")
 
     # A second run into the same directory writes a new history.csv, not rows after the old ones.
     rows, _ = run(a.build, workdir, 1, os.path.join(workdir, "np1"))

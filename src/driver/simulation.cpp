@@ -73,7 +73,12 @@ void Simulation::measure() {
   measured_ = tissue::measure(scene_, model_, test_, state_->x.array(), state_->v.data());
   initial_ = tissue::measure(scene_, model_, test_, model_.rest.data(), nullptr);
   measure_contact(*forces_, measured_);  // the contact forces of the final state's force evaluation
-  if (!scene_.fixes.empty()) {
+  if (scene_.fixes.empty()) return;
+  // The static solve's final evaluation was at this state with the full loads: its reactions, not a third
+  // evaluation. A calibration wrapping the solver may change the stiffness after its last solve: evaluated.
+  if (state_->forces_final && !solver_wrapping_calibration(scene_)) {
+    measured_.reactions = forces_->last_reactions();
+  } else {
     std::vector<double> scratch(3 * model_.local);  // the state's forces stay as the solve left them
     measured_.reactions = forces_->reactions(state_->x.array(), state_->v.data(), scratch.data());
   }

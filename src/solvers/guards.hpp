@@ -34,7 +34,8 @@ public:
   // `every`: iterations between full checks (finite state, connection lengths, energy) and copies of the
   // last good state.
   // `copy` false: the solver does not change the state while this guard lives (a final check only), so the state
-  // itself stays the last good one: no copy (48 B a molecule), and a failure leaves it as it is.
+  // itself stays the last good one: no copy (48 B a molecule), and a failure leaves it as it is; no energies
+  // either (kinetic_energy() is 0): only full_check_as_made() may follow.
   StepGuard(const char* solver, const Scene& scene, const LocalModel& model, const ForceModel& forces,
             SolverState& state, long every = 128, bool copy = true);
 
@@ -50,7 +51,8 @@ public:
   // Full check now (collective): finite state, connection lengths; keeps the state as the last good one.
   void full_check();
   // The same check of the state this guard was made at, nothing changed since (the static solver's final check):
-  // the lengths from the constructor's connection pass, and what it kept stays the last good state.
+  // the lengths from the constructor's connection pass (with `copy` false: one pass of its own, the only one),
+  // and what it kept stays the last good state.
   void full_check_as_made();
   // Keeps the current state as the last good one (no checks).
   void keep();

@@ -675,6 +675,7 @@ PetscErrorCode NewtonEquilibrium::Impl::solve(long steps) {
   // molecule less at the solve's peak when the load is applied in one step. Agreed by every rank: the copy's
   // VecDuplicate is collective (a rank whose molecules all sit at rest while another's moved hung the job).
   bool from_rest = false;
+  state.forces_final = false;
   drop_velocities();
   {
     const PetscScalar* xs;
@@ -819,16 +820,21 @@ PetscErrorCode NewtonEquilibrium::Impl::finish() {
   ctx.galerkin = nullptr;
   galerkin.reset();
   restore_velocities();
-  if (std::exchange(record_pending, false)) {
-    PetscCall(load_positions(&ctx, X));
-    ctx.hooks->record(state);
-  }
   // The final state and its residual, in the common definition.
   ctx.load_factor = 1.0;
   PetscCall(evaluate_forces(&ctx, X));  // the residual is read from state.f (no vector of it is needed)
+  if (std::exchange(record_pending, false)) {
+    // The last load step's row, at the positions just evaluated: when every rank's evaluation succeeded and the
+    // step reached the full loads, its reactions are that evaluation's (the same numbers, no second one).
+    int ok = !ctx.error && state.load_factor == 1.0, all = 0;
+    MPI_Allreduce(&ok, &all, 1, MPI_INT, MPI_MIN, model.comm);
+    state.forces_final = all != 0;
+    ctx.hooks->record(state);
+  }
   agree(model.comm, [&] {
     if (ctx.error) std::rethrow_exception(std::exchange(ctx.error, nullptr));
   });
+  state.forces_final = true;  // for the measurement's reactions (Simulation::measure)
   report.residual = relative_residual(model, forces, state.f.data());
   report.converged = report.residual <= tolerance * 1.0000001;
   check_finite(model, state.x.array(), state.f.data(), report.iterations, kind.c_str());

@@ -50,6 +50,9 @@ struct SolverState {
   long fire_positive = 0;                  // relaxation: steps since the power was last negative
   bool restarted = false;                  // loaded from a checkpoint
   double load_factor = 1.0;  // static: the fraction of the loads the last converged load step reached
+  // Static: the last ForceModel::forces() call was at x and v with the full loads (load factor 1) and nothing has
+  // moved since, so forces.last_reactions() are the reactions there (no second evaluation for them).
+  bool forces_final = false;
   // Dynamic runs whose forces read velocities (viscosity): the half-step velocities (owned) that the last force
   // evaluation read; empty otherwise. A checkpoint keeps them: velocity Verlet's forces at step n read
   // v(n - 1/2), not the whole-step v(n) that the checkpoint's velocities hold.

@@ -383,8 +383,7 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
         if (stencil[b].interior(a, lowest, highest) && highest - first_owned < m.owned && forward_rows_known(b)) {
           const LatticeStencil& st = stencil[b];
           const std::size_t f0 = st.forward_begin(), nf = forward_type[b].size();
-          end_a.insert(end_a.end(), nf, i);
-          for (std::size_t s = f0; s < f0 + nf; ++s) end_b.push_back(static_cast<int>(i + st.step(s)));
+          for (std::size_t s = f0; s < f0 + nf; ++s) end_a.push_back(i), end_b.push_back(static_cast<int>(i + st.step(s)));
           m.connection_class.insert(m.connection_class.end(), forward_class[b].begin(), forward_class[b].end());
           length_types.insert(length_types.end(), forward_type[b].begin(), forward_type[b].end());
           m.written_count += nf;

@@ -355,11 +355,41 @@ LocalModel build_lattice_model(const Scene& scene, MPI_Comm comm, CalibrationInp
     std::vector<int> row_b(widest);
     std::vector<ConnectionClass> row_class(widest);
     std::vector<std::uint16_t> row_type(widest);
+    // Per body, once every forward direction's length type is known: the forward rows' classes and types, the
+    // same for every interior molecule (empty: not yet).
+    std::vector<std::vector<ConnectionClass>> forward_class(nbodies);
+    std::vector<std::vector<std::uint16_t>> forward_type(nbodies);
+    auto forward_rows_known = [&](int b) {
+      if (!forward_type[b].empty()) return true;
+      const LatticeStencil& st = stencil[b];
+      for (std::size_t s = st.forward_begin(); s < st.directions(); ++s)
+        if (direction_type[b][s] < 0) return false;
+      for (std::size_t s = st.forward_begin(); s < st.directions(); ++s)
+        forward_class[b].push_back(st.connection_class(s)),
+            forward_type[b].push_back(static_cast<std::uint16_t>(direction_type[b][s]));
+      return !forward_type[b].empty();
+    };
     for (int i : order) {
       const std::int64_t a = ids[i];
       const bool a_owned = i < m.owned;
       const long near = a_owned ? i : owned_before;
       owned_before += a_owned;
+      if (contiguous && a_owned && !any_tetrahedra) {
+        // An owned molecule with its whole stencil and its highest neighbour in the owned run: every forward
+        // neighbour is owned, at local index i + step (owned index = id - first owned id), in stencil order:
+        // the rows the list below would give, without the list or a lookup a neighbour.
+        const int b = m.shape.body_of(a);
+        std::int64_t lowest, highest;
+        if (stencil[b].interior(a, lowest, highest) && highest - first_owned < m.owned && forward_rows_known(b)) {
+          const LatticeStencil& st = stencil[b];
+          const std::size_t f0 = st.forward_begin(), nf = forward_type[b].size();
+          for (std::size_t s = f0; s < f0 + nf; ++s) end_a.push_back(i), end_b.push_back(static_cast<int>(i + st.step(s)));
+          m.connection_class.insert(m.connection_class.end(), forward_class[b].begin(), forward_class[b].end());
+          length_types.insert(length_types.end(), forward_type[b].begin(), forward_type[b].end());
+          m.written_count += nf;
+          continue;
+        }
+      }
       const int b = neighbours(a);
       const BoxGeometry& box = m.shape.body(b);
       int rank_of_b = 0;  // position of the connection among a's forward ones

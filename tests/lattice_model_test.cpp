@@ -92,6 +92,9 @@ void expect_same(const Built& bx, const Built& by) {
   EXPECT_EQ(y.table.rest_length_column().type, nullptr);
   EXPECT_LE(x.table.length_types(), 13u * static_cast<std::size_t>(x.shape.bodies()));
   for (int c = 0; c < x.connections(); ++c) ASSERT_EQ(x.l0(c), y.l0(c)) << "connection " << c;
+  // The classes too: the lattice's walk takes an interior molecule's from its stencil, the explicit path its body's.
+  ASSERT_EQ(x.connection_class.size(), y.connection_class.size());
+  for (int c = 0; c < x.connections(); ++c) ASSERT_EQ(x.connection_class[c], y.connection_class[c]) << "connection " << c;
   // The explicit path computes each tetrahedron's volume from its corners (round-off differs cell to cell); the
   // lattice path uses h_x h_y h_z / 6 for all.
   ASSERT_EQ(xi.tetra_volume.size(), yi.tetra_volume.size());

@@ -77,6 +77,11 @@ public:
     if (inside) lowest = g + step_.front(), highest = g + step_.back();
     return inside;
   }
+  // An interior molecule's forward neighbours (higher ids) are the stencil's last `forward` directions, as the
+  // steps increase: from direction forward_begin() on, id g + step(s), class connection_class(s).
+  std::size_t forward_begin() const { return step_.size() - static_cast<std::size_t>(forward_); }
+  std::int64_t step(std::size_t s) const { return step_[s]; }
+  ConnectionClass connection_class(std::size_t s) const { return cls_[s]; }
   // Molecule g's neighbour count and how many of them have higher ids, without the list: from the stencil inside,
   // from the list (left in `out`) near a face. The set-up's counting passes need no more.
   void counts(std::int64_t g, std::vector<Neighbour>& out, int& degree, int& forward) const {

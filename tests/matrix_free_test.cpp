@@ -393,6 +393,11 @@ TEST(MatrixFree, ShellEqualsAssembledCellTerm) { compare_operators(cells, false)
 // Cubic cells at nu > 1/4: the cell term is its volumetric part alone, whose blocks are in closed form.
 // Their product keeps no state (F recomputed from the positions on every product), the other cells' F and
 // mu J^(-2/3) per cell (10 doubles a cell): the comparison above runs the former.
+const Term* cell_term_of(const RunResult& r) {
+  for (const auto& t : r.forces->terms())
+    if (t->has_tangent_state()) return t.get();
+  return nullptr;
+}
 TEST(MatrixFree, ShellEqualsAssembledVolumetricCells) {
   std::string cubic = cells;
   cubic.replace(cubic.find("[1e-3, 1.2e-3, 0.9e-3]"), 22, "[1e-3, 1e-3, 1e-3]");
@@ -400,9 +405,7 @@ TEST(MatrixFree, ShellEqualsAssembledVolumetricCells) {
   const std::string* texts[2] = {&cubic, &cells};
   for (const std::string* text : texts) {
     auto r = run(*text, PETSC_COMM_WORLD, {}, false);
-    const Term* cell = nullptr;
-    for (const auto& t : r->forces->terms())
-      if (t->has_tangent_state()) cell = t.get();
+    const Term* cell = cell_term_of(*r);
     ASSERT_NE(cell, nullptr);
     if (text == &cubic) EXPECT_EQ(cell->tangent_state_size(), 1u);
     else EXPECT_GT(cell->tangent_state_size(), 1u);
@@ -422,9 +425,7 @@ TEST(MatrixFree, CellProductInTheSpringsSweepEqualsTwoPasses) {
   const std::string* texts[2] = {&cubic, &cells};
   for (const std::string* text : texts) {
     auto r = run(*text, PETSC_COMM_WORLD, {}, false);
-    const Term* cell = nullptr;
-    for (const auto& t : r->forces->terms())
-      if (t->has_tangent_state()) cell = t.get();
+    const Term* cell = cell_term_of(*r);
     ASSERT_NE(cell, nullptr);
     ASSERT_TRUE(cell->tangent_by_rows());
     MatrixFreeTangent shell(r->model, *r->forces);

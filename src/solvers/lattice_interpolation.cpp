@@ -78,22 +78,21 @@ PetscErrorCode mult_add(Mat P, Vec c, Vec f, Vec out) {
   PetscFunctionReturn(0);
 }
 
-// c = P^T f: each fine value spread over its coarse nodes, the ghosts' shares added to their owners.
-PetscErrorCode mult_transpose(Mat P, Vec f, Vec c) {
+// c = P^T f with f's values given by value(i, k) (held components 0): each fine value spread over its coarse nodes,
+// the ghosts' shares added to their owners.
+template <class Value>
+PetscErrorCode spread_transpose(Interpolation* ip, Value value, Vec c) {
   PetscFunctionBeginUser;
-  Interpolation* ip = context(P);
   PetscCall(VecZeroEntries(c));
   PetscCall(VecZeroEntries(ip->ghosts));
-  const PetscScalar* r;
   PetscScalar *u, *g;
-  PetscCall(VecGetArrayRead(f, &r));
   PetscCall(VecGetArray(c, &u));
   PetscCall(VecGetArray(ip->ghosts, &g));
   std::size_t e = 0;
   for (std::size_t i = 0; i < ip->node.size(); ++i) {
     const int n = ip->node[i] & 15, held = ip->node[i] >> 4;
     double v[3];
-    for (int k = 0; k < 3; ++k) v[k] = held >> k & 1 ? 0.0 : r[3 * i + k];
+    for (int k = 0; k < 3; ++k) v[k] = held >> k & 1 ? 0.0 : value(i, k);
     for (int q = 0; q < n; ++q, ++e) {
       const std::int32_t at = ip->at[e] >> 3, mask = ip->at[e] & 7;
       PetscScalar* to = at < ip->nc ? u + at : g + (at - ip->nc);
@@ -108,9 +107,17 @@ PetscErrorCode mult_transpose(Mat P, Vec f, Vec c) {
   }
   PetscCall(VecRestoreArray(ip->ghosts, &g));
   PetscCall(VecRestoreArray(c, &u));
-  PetscCall(VecRestoreArrayRead(f, &r));
   PetscCall(VecScatterBegin(ip->scatter, ip->ghosts, c, ADD_VALUES, SCATTER_REVERSE));
   PetscCall(VecScatterEnd(ip->scatter, ip->ghosts, c, ADD_VALUES, SCATTER_REVERSE));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode mult_transpose(Mat P, Vec f, Vec c) {
+  PetscFunctionBeginUser;
+  const PetscScalar* r;
+  PetscCall(VecGetArrayRead(f, &r));
+  PetscCall(spread_transpose(context(P), [r](std::size_t i, int k) { return r[3 * i + k]; }, c));
+  PetscCall(VecRestoreArrayRead(f, &r));
   PetscFunctionReturn(0);
 }
 
@@ -184,30 +191,8 @@ PetscErrorCode interpolation_shell(MPI_Comm comm, const std::vector<std::uint8_t
 
 PetscErrorCode interpolation_column_sums(Mat P, Vec c) {
   PetscFunctionBeginUser;
-  // mult_transpose's sums with every fine value 1 (held components 0): no fine vector to make and fill.
-  Interpolation* ip = context(P);
-  PetscCall(VecZeroEntries(c));
-  PetscCall(VecZeroEntries(ip->ghosts));
-  PetscScalar *u, *g;
-  PetscCall(VecGetArray(c, &u));
-  PetscCall(VecGetArray(ip->ghosts, &g));
-  std::size_t e = 0;
-  for (std::size_t i = 0; i < ip->node.size(); ++i) {
-    const int n = ip->node[i] & 15, held = ip->node[i] >> 4;
-    double v[3];
-    for (int k = 0; k < 3; ++k) v[k] = held >> k & 1 ? 0.0 : 1.0;
-    for (int q = 0; q < n; ++q, ++e) {
-      const std::int32_t at = ip->at[e] >> 3, mask = ip->at[e] & 7;
-      PetscScalar* to = at < ip->nc ? u + at : g + (at - ip->nc);
-      const double w = ip->weights[ip->which[e]];
-      for (int k = 0, m = 0; k < 3; ++k)
-        if (mask >> k & 1) to[m++] += w * v[k];
-    }
-  }
-  PetscCall(VecRestoreArray(ip->ghosts, &g));
-  PetscCall(VecRestoreArray(c, &u));
-  PetscCall(VecScatterBegin(ip->scatter, ip->ghosts, c, ADD_VALUES, SCATTER_REVERSE));
-  PetscCall(VecScatterEnd(ip->scatter, ip->ghosts, c, ADD_VALUES, SCATTER_REVERSE));
+  // mult_transpose's sums with every fine value 1: no fine vector to make and fill.
+  PetscCall(spread_transpose(context(P), [](std::size_t, int) { return 1.0; }, c));
   PetscFunctionReturn(0);
 }
 

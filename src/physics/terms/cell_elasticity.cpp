@@ -160,6 +160,30 @@ struct RowRest {
   double offset[3], h[3];
   long ijk[3];  // the lattice index of the block's corner 0
 };
+// The four corner rows' displacements x - X of a row block, interleaved as x; with rest, X is the lattice's
+// (BoxGeometry::rest_position's arithmetic: offset + (double) index * h, per axis), not read.
+__attribute__((always_inline)) inline void row_displacements(int n, const int* __restrict base,
+                                                             const int* __restrict offset, const RowRest* rest,
+                                                             const double* __restrict x, const double* __restrict X,
+                                                             double (*__restrict out)[3 * (kCellBlock + 1)]) {
+  if (rest) {
+    alignas(64) double Xx[kCellBlock + 1];
+    for (int j = 0; j < n + 1; ++j) Xx[j] = rest->offset[0] + static_cast<double>(rest->ijk[0] + j) * rest->h[0];
+    for (int r = 0; r < 4; ++r) {
+      const double Xy = rest->offset[1] + static_cast<double>(rest->ijk[1] + (r & 1)) * rest->h[1];
+      const double Xz = rest->offset[2] + static_cast<double>(rest->ijk[2] + (r >> 1)) * rest->h[2];
+      const double* __restrict xr = x + 3 * (base[0] + offset[2 * r]);
+      double* __restrict u = out[r];
+      for (int j = 0; j < n + 1; ++j)
+        u[3 * j] = xr[3 * j] - Xx[j], u[3 * j + 1] = xr[3 * j + 1] - Xy, u[3 * j + 2] = xr[3 * j + 2] - Xz;
+    }
+  } else {
+    for (int r = 0; r < 4; ++r) {
+      const int s = 3 * (base[0] + offset[2 * r]);
+      for (int j = 0; j < 3 * (n + 1); ++j) out[r][j] = x[s + j] - X[s + j];
+    }
+  }
+}
 TISSUE_CELL_CLONES
 void cell_block_forces(int n, const int* __restrict base, const int* __restrict offset, bool rows,
                        const RowRest* rest, const double* __restrict x, const double* __restrict X,
@@ -178,24 +202,7 @@ void cell_block_forces(int n, const int* __restrict base, const int* __restrict 
       for (int o = 0; o < 3 * static_cast<int>(sizeof(double)) * kCellBlock; o += 64)
         __builtin_prefetch(xp + o, 0), __builtin_prefetch(fp + o, 1);
     }
-    if (rest) {
-      // BoxGeometry::rest_position's arithmetic: offset + (double) index * h, per axis.
-      alignas(64) double Xx[kCellBlock + 1];
-      for (int j = 0; j < n + 1; ++j) Xx[j] = rest->offset[0] + static_cast<double>(rest->ijk[0] + j) * rest->h[0];
-      for (int r = 0; r < 4; ++r) {
-        const double Xy = rest->offset[1] + static_cast<double>(rest->ijk[1] + (r & 1)) * rest->h[1];
-        const double Xz = rest->offset[2] + static_cast<double>(rest->ijk[2] + (r >> 1)) * rest->h[2];
-        const double* __restrict xr = x + 3 * (base[0] + offset[2 * r]);
-        double* __restrict u = ur[r];
-        for (int j = 0; j < n + 1; ++j)
-          u[3 * j] = xr[3 * j] - Xx[j], u[3 * j + 1] = xr[3 * j + 1] - Xy, u[3 * j + 2] = xr[3 * j + 2] - Xz;
-      }
-    } else {
-      for (int r = 0; r < 4; ++r) {
-        const int s = 3 * (base[0] + offset[2 * r]);
-        for (int j = 0; j < 3 * (n + 1); ++j) ur[r][j] = x[s + j] - X[s + j];
-      }
-    }
+    row_displacements(n, base, offset, rest, x, X, ur);
     row_gradient(ur[0], ur[1], ur[2], ur[3], n, gx, gy, gz, F);
   } else {
     for (int d = 0; d < 3; ++d)
@@ -422,23 +429,7 @@ void volumetric_block_tangent(int n, const int* __restrict base, const int* __re
     for (int r = 0; r < 4; ++r) ur[r] = u + 3 * (base[0] + offset[2 * r]);
     row_gradient(ur[0], ur[1], ur[2], ur[3], n, gx, gy, gz, dF);
     alignas(64) double dr[4][3 * (kCellBlock + 1)];  // the rows' displacements, interleaved as x
-    if (rest) {
-      alignas(64) double Xx[kCellBlock + 1];
-      for (int j = 0; j < n + 1; ++j) Xx[j] = rest->offset[0] + static_cast<double>(rest->ijk[0] + j) * rest->h[0];
-      for (int r = 0; r < 4; ++r) {
-        const double Xy = rest->offset[1] + static_cast<double>(rest->ijk[1] + (r & 1)) * rest->h[1];
-        const double Xz = rest->offset[2] + static_cast<double>(rest->ijk[2] + (r >> 1)) * rest->h[2];
-        const double* __restrict xr = x + 3 * (base[0] + offset[2 * r]);
-        double* __restrict d = dr[r];
-        for (int j = 0; j < n + 1; ++j)
-          d[3 * j] = xr[3 * j] - Xx[j], d[3 * j + 1] = xr[3 * j + 1] - Xy, d[3 * j + 2] = xr[3 * j + 2] - Xz;
-      }
-    } else {
-      for (int r = 0; r < 4; ++r) {
-        const int s = 3 * (base[0] + offset[2 * r]);
-        for (int j = 0; j < 3 * (n + 1); ++j) dr[r][j] = x[s + j] - X[s + j];
-      }
-    }
+    row_displacements(n, base, offset, rest, x, X, dr);
     row_gradient(dr[0], dr[1], dr[2], dr[3], n, gx, gy, gz, G);
   } else {
     for (int d = 0; d < 3; ++d)

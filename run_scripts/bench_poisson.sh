@@ -21,41 +21,16 @@ S1=${S1:-120}
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 DIR=$(mktemp -d)
 trap 'rm -rf "$DIR"' EXIT
-H=0.001
-AREA=$(python3 -c "print((($N - 1) * $H) ** 2)")
-scene() {  # scene KIND -> the common scene text for dynamic or static
-  cat <<TOML
-title = "bench_poisson $1"
-[body]
-molecules = [$N, $N, $N]
-spacing = [$H, $H, $H]
-topology = "face-diagonals"
-youngs_modulus = 1.0e7
-density = 1000.0
-[calibration]
-method = "homogenized"
-[[fix]]
-face = "z-"
-[[load]]
-face = "z+"
-force = [0.0, 0.0, $(python3 -c "print(1.0e7 * 1e-4 * $AREA)")]
-[solver]
-kind = "$1"
-tolerance = 1e-8
-[output]
-directory = "$DIR/out"
-fields = []
-progress = false
-TOML
-}
-scene dynamic > "$DIR/dynamic.toml"
-scene static > "$DIR/static.toml"
+SCENE=run_scripts/scenes/poisson_block.toml
+FORCE=$(python3 -c "print(1.0e7 * 1e-4 * (($N - 1) * 0.001) ** 2)")  # strain 1e-4 on the N^3 block
+# The block of run_scripts/scenes/poisson_block.toml at N^3 (each run adds its kind and options).
+BLOCK=(--set "body.molecules=[$N,$N,$N]" --set "load.0.force=[0,0,$FORCE]" --output "$DIR/out")
 
 cpu() {  # "cpu solver" seconds of one run (the process's user + system; summary.json solver.seconds): $1 steps,
          # then --set arguments
   local steps=$1
   shift
-  /usr/bin/time -f "%U %S" -o "$DIR/time" "$TISSUE" run "$DIR/dynamic.toml" --set solver.steps="$steps" "$@" \
+  /usr/bin/time -f "%U %S" -o "$DIR/time" "$TISSUE" run "$SCENE" "${BLOCK[@]}" --set solver.kind=\"dynamic\" --set solver.steps="$steps" "$@" \
     > "$DIR/log" 2>&1 || { tail -3 "$DIR/log" >&2; exit 1; }
   echo "$(awk '{print $1 + $2}' "$DIR/time") $(python3 -c "import json; print(json.load(open('$DIR/out/summary.json'))['solver']['seconds'])")"
 }
@@ -66,7 +41,7 @@ rate() {  # "steps/s by CPU time, steps/s by the solver's clock": --set argument
   python3 -c "a, b = '$a'.split(), '$b'.split(); print(($S1 - $S0) / (float(b[0]) - float(a[0])), ($S1 - $S0) / (float(b[1]) - float(a[1])))"
 }
 static() {  # "seconds newton krylov" of the static solve: --set arguments
-  "$TISSUE" run "$DIR/static.toml" "$@" > "$DIR/log" 2>&1 || { tail -3 "$DIR/log" >&2; exit 1; }
+  "$TISSUE" run "$SCENE" "${BLOCK[@]}" "$@" > "$DIR/log" 2>&1 || { tail -3 "$DIR/log" >&2; exit 1; }
   python3 -c "import json; s = json.load(open('$DIR/out/summary.json'))['solver']; \
 print(s['seconds'], s['iterations'], s['linear_iterations'])"
 }

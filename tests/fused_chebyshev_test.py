@@ -6,8 +6,8 @@ two work vectors), 1 (one step, straight into x) and 3 (three work vectors, the 
   - every number of the summary's solve equal to the bit: elongation, the measured E and Poisson ratio, the
     residual, Newton and Krylov counts (the same operations in the same order);
   - the fused path was taken: fewer VecAXPBYPCZ calls in -log_view than the old path's (PETSc's Chebyshev step).
-The same with the cell term (a homogenized 16^3 block, clamped base, traction on top, as bench_poisson.sh's static
-row): cubic cells at nu = 0.45 (volumetric only) and 1:1:0.5 cells at nu = 0.3, where the finest interval is not
+The same with the cell term (run_scripts/scenes/poisson_block.toml: a homogenized 16^3 block, clamped base, traction on top,
+bench_poisson.sh's): cubic cells at nu = 0.45 (volumetric only) and 1:1:0.5 cells at nu = 0.3, where the finest interval is not
 Gershgorin's but PETSc's estimate, which the fused smoother takes from a KSPCHEBYSHEV made for it (1, 2, 3 ranks,
 degree 2; degree 3 on 1 rank).
 
@@ -26,31 +26,12 @@ def axpbypcz_calls(stdout):
     return int(m.group(1)) if m else 0
 
 
-CELLS = """title = "fused Chebyshev: cell term"
-[body]
-molecules = [16, 16, 16]
-spacing = [0.001, 0.001, 0.001]
-topology = "face-diagonals"
-youngs_modulus = 1.0e7
-density = 1000.0
-[calibration]
-method = "homogenized"
-[[fix]]
-face = "z-"
-[[load]]
-face = "z+"
-force = [0.0, 0.0, 0.225]
-[solver]
-kind = "static"
-"""
 
 
 def main():
     a, work = arguments_and_work("fused_chebyshev")
     peer = os.path.join(a.source, "run_scripts", "scenes", "peer_tension.toml")
-    cells = os.path.join(work, "cells.toml")
-    with open(cells, "w") as f:
-        f.write(CELLS)
+    cells = os.path.join(a.source, "run_scripts", "scenes", "poisson_block.toml")
     cases = [(peer, "peer", ranks, degree, ["load.0.force=[0,0,-0.4]"]) for ranks in (1, 2, 3) for degree in (2, 1, 3)]
     cases += [(cells, "cells045", ranks, degree, ["body.poisson_ratio=0.45"])
               for ranks, degree in ((1, 2), (2, 2), (3, 2), (1, 3))]

@@ -380,13 +380,15 @@ int main(int argc, char** argv) {
   petsc.push_back(nullptr);
   char** petsc_argv = petsc.data();
   PetscCall(PetscInitialize(&petsc_argc, &petsc_argv, nullptr, nullptr));
-  // Large arrays (model set-up temporaries, tens of MB) in their own mappings, so freeing one gives its memory
-  // back at once: in the heap, freed pages stay resident and raise the peak. Arrays up to 8 MB stay in the heap:
-  // those freed and allocated again between the stages (vectors, per-molecule arrays) then reuse pages already
-  // touched instead of faulting and zeroing fresh ones. Set after MPI start-up, which resets them
-  // (docs/benchmarks.md).
+  // Arrays up to 64 MB in the heap: those freed and allocated again between the stages (vectors, per-molecule
+  // arrays, the set-up's temporaries) then reuse pages already touched instead of faulting and zeroing fresh ones,
+  // and the heap is one region for the huge pages (src/huge_pages.cpp), while a mapping of its own gets them only
+  // on its 2 MB-aligned interior: its two ends, 2 MB on average, are first-touched on 4 kB pages (512 faults for a
+  // 12 MB vector). Larger arrays keep their own mappings, where those ends are a few % at most and freeing gives
+  // the memory back at once (in the heap, freed pages stay resident and raise the peak). Set after MPI start-up,
+  // which resets them (docs/benchmarks.md).
   mallopt(M_MMAP_MAX, 1 << 16);
-  mallopt(M_MMAP_THRESHOLD, 8 << 20);
+  if (mallopt(M_MMAP_THRESHOLD, 64 << 20) == 0) mallopt(M_MMAP_THRESHOLD, 32 << 20);  // glibc's bound may be 32 MB
   const bool root = rank_of(PETSC_COMM_WORLD) == 0;
   int code = 0;
   try {

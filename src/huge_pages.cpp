@@ -107,7 +107,7 @@ bool read_run_scene(int argc, char** argv, char* text, std::size_t size) {
 
 // glibc 2.35-2.37 reads the kernel's mode ("always [madvise] never\n", 23 bytes) into a 24-byte stack buffer and
 // strcmp()s it unterminated: the tunable takes effect only when the stack byte after the text happens to be 0,
-// which it was not in 4 of 10 starts of this program (each such rank then first-touches its ~400 MB on 4 kB
+// which it was not in 6 of 10 starts of this program (each such rank then first-touches its ~400 MB on 4 kB
 // pages: the static 10^6 solve's "slow state", docs/benchmarks.md, branch static18t). So malloc is initialized
 // here, before anything else allocates, from a frame laid over stack bytes just set to 0.
 [[gnu::noinline]] void zero_stack_below() {

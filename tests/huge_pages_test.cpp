@@ -215,7 +215,7 @@ long run_page_faults(const std::vector<std::string>& extra_env) {
   return usage.ru_minflt;
 }
 
-// glibc 2.35-2.37 read the kernel's THP mode unterminated, so the tunable took effect only in some starts (6 of 10
+// glibc 2.35-2.37 read the kernel's THP mode unterminated, so the tunable took effect only in some starts (4 of 10
 // before src/huge_pages.cpp initialized malloc on a zeroed stack). With it in effect, a run first-touches its
 // arrays on 2 MB pages: at 40^3 about 4,400 faults against about 16,400 on 4 kB pages. Every start must show it.
 TEST(HugePages, TheTunableTakesEffectInEveryStart) {

@@ -15,6 +15,7 @@
 #include <sys/stat.h>
 #include <unistd.h>  // defines __GLIBC__ on glibc
 
+#include <cstdlib>
 #include <cstring>
 
 #include "src/huge_pages.hpp"
@@ -104,9 +105,32 @@ bool read_run_scene(int argc, char** argv, char* text, std::size_t size) {
   return true;
 }
 
+// glibc 2.35-2.37 reads the kernel's mode ("always [madvise] never\n", 23 bytes) into a 24-byte stack buffer and
+// strcmp()s it unterminated: the tunable takes effect only when the stack byte after the text happens to be 0,
+// which it was not in 6 of 10 starts of this program (each such rank then first-touches its ~400 MB on 4 kB
+// pages: the static 10^6 solve's "slow state", docs/benchmarks.md, branch static18t). So malloc is initialized
+// here, before anything else allocates, from a frame laid over stack bytes just set to 0.
+[[gnu::noinline]] void zero_stack_below() {
+  volatile char bytes[16384];
+  for (std::size_t i = 0; i < sizeof bytes; ++i) bytes[i] = 0;
+}
+[[gnu::noinline]] void initialize_malloc() {
+  void* volatile first = std::malloc(1);
+  std::free(first);
+}
+void initialize_malloc_on_zeroed_stack(char** envp) {
+  for (std::size_t i = 0; envp != nullptr && envp[i] != nullptr; ++i)
+    if (std::strncmp(envp[i], "GLIBC_TUNABLES=", 15) == 0 && std::strstr(envp[i], "glibc.malloc.hugetlb") != nullptr) {
+      zero_stack_below();
+      initialize_malloc();
+      return;
+    }
+}
+
 // Before any library initializer: `restart` and `fit` re-execute; `run` only when its scene is not known to be
 // smaller than kHugePagesFromMolecules (the second start costs more than the huge pages save on a small scene).
 void reexecute_before_initializers(int argc, char** argv, char** envp) {
+  initialize_malloc_on_zeroed_stack(envp);
   if (argc >= 2 && argv != nullptr && argv[1] != nullptr && std::strcmp(argv[1], "run") == 0) {
     static char text[1 << 16];
     const long long n = tissue::scanned_molecules(argc, argv, read_run_scene(argc, argv, text, sizeof text) ? text : nullptr);

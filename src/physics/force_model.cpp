@@ -544,7 +544,8 @@ struct Stretch {
 }  // namespace
 
 PetscErrorCode ForceModel::apply_tangent(const double* x, double* in, double* out, bool skip_cached,
-                                         SpringKernel::FinalRows final_rows, void* context) const {
+                                         SpringKernel::FinalRows final_rows, void* context,
+                                         const RestStencil* rest) const {
   PetscFunctionBeginUser;
   const int n = model_.owned, local = model_.local;
   // Held components: their rows are the identity's (out = in), their columns zero (in read as 0).
@@ -557,7 +558,10 @@ PetscErrorCode ForceModel::apply_tangent(const double* x, double* in, double* ou
   // Each connection once (one square root), both ends; the ghosts' rows are dropped (their owners compute them).
   // The ghosts' rows go to scratch kept between products (24 B a ghost; a box's ghosts are a few planes).
   tangent_ghost_rows_.resize(3 * static_cast<std::size_t>(local - n));
-  kernel_.tangent(x, in, out, tangent_ghost_rows_.data(), skip_cached ? final_rows : nullptr, context);
+  if (rest)
+    kernel_.rest_tangent(*rest, in, out, tangent_ghost_rows_.data(), skip_cached ? final_rows : nullptr, context);
+  else
+    kernel_.tangent(x, in, out, tangent_ghost_rows_.data(), skip_cached ? final_rows : nullptr, context);
   if (!terms_.empty()) {
     struct Apply {
       const double* in;

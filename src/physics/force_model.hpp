@@ -43,8 +43,10 @@ public:
   // skip_cached: without the terms' blocks, which the caller adds from its own copy (cached_tangent_blocks).
   // final_rows (with skip_cached): called with out's owned rows as the springs' part of them becomes final
   // (SpringKernel::tangent), before the held rows are written, so that a term's product joins the same pass.
+  // rest (x then the rest positions): the springs' part from those constants (SpringKernel::rest_tangent).
   PetscErrorCode apply_tangent(const double* x, double* in, double* out, bool skip_cached = false,
-                               SpringKernel::FinalRows final_rows = nullptr, void* context = nullptr) const;
+                               SpringKernel::FinalRows final_rows = nullptr, void* context = nullptr,
+                               const RestStencil* rest = nullptr) const;
   // J's diagonal (3 * owned).
   PetscErrorCode tangent_diagonal(const double* x, double* diag, bool skip_cached = false) const;
   // Frees the connections by row that tangent_blocks built (76 B a molecule at face diagonals), when no assembled

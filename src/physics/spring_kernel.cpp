@@ -351,8 +351,8 @@ void stencil_tangent(int first, int count, int directions, const int* offset, co
   }
 }
 
-// One direction of a stencil block of the tangent at rest: e_i = K (u_a - u_b) with the direction's constant K
-// (symmetric: RestStencil), masked as tangent_direction.
+// One direction of a stencil block of the tangent at rest: e_i = K (u_a - u_b) with the direction's constant
+// K = a a^T (a = sqrt(k) n: RestStencil), as (a . w) a, masked as tangent_direction.
 template <bool kMasked>
 __attribute__((always_inline)) inline void rest_direction(int n, const double* __restrict ua0,
                                                           const double* __restrict ua1,
@@ -360,11 +360,11 @@ __attribute__((always_inline)) inline void rest_direction(int n, const double* _
                                                           const double* __restrict ub, const double* K,
                                                           const double* __restrict keep, double* __restrict g0,
                                                           double* __restrict g1, double* __restrict g2) {
-  const double k00 = K[0], k01 = K[1], k02 = K[2], k11 = K[4], k12 = K[5], k22 = K[8];
+  const double a0 = K[0], a1 = K[1], a2 = K[2];
   for (int i = 0; i < n; ++i) {
     const double w0 = ua0[i] - ub[3 * i], w1 = ua1[i] - ub[3 * i + 1], w2 = ua2[i] - ub[3 * i + 2];
-    double e0 = k00 * w0 + k01 * w1 + k02 * w2, e1 = k01 * w0 + k11 * w1 + k12 * w2,
-           e2 = k02 * w0 + k12 * w1 + k22 * w2;
+    const double t = a0 * w0 + a1 * w1 + a2 * w2;
+    double e0 = t * a0, e1 = t * a1, e2 = t * a2;
     if constexpr (kMasked) {
       const bool on = keep[i] != 0.0;
       e0 = on ? e0 : 0.0, e1 = on ? e1 : 0.0, e2 = on ? e2 : 0.0;
@@ -373,11 +373,11 @@ __attribute__((always_inline)) inline void rest_direction(int n, const double* _
   }
 }
 
-// stencil_tangent at rest: the same blocks, exceptions and zeroing ahead, K per direction (9 values each) instead
-// of k, l0 and the positions.
+// stencil_tangent at rest: the same blocks, exceptions and zeroing ahead, a = sqrt(k) n per direction (3 values
+// each) instead of k, l0 and the positions.
 TISSUE_CLONES
 void stencil_rest_tangent(int first, int count, int directions, const int* offset, const int* scatter,
-                          const double* K, const StencilException* exceptions, int n_exceptions,
+                          const double* a, const StencilException* exceptions, int n_exceptions,
                           const double* __restrict u, double* __restrict out, double* __restrict ghost, int owned,
                           int max_offset, int* zeroed) {
   alignas(64) double g[kMaxDirections][3][kStencilBlock];
@@ -396,9 +396,9 @@ void stencil_rest_tangent(int first, int count, int directions, const int* offse
     for (int q = 0; q < directions; ++q) {
       const int s = scatter[q], b0 = a0 + offset[s];
       if (masked >> s & 1u)
-        rest_direction<true>(n, us[0], us[1], us[2], u + 3 * b0, K + 9 * s, keep[s], g[s][0], g[s][1], g[s][2]);
+        rest_direction<true>(n, us[0], us[1], us[2], u + 3 * b0, a + 3 * s, keep[s], g[s][0], g[s][1], g[s][2]);
       else
-        rest_direction<false>(n, us[0], us[1], us[2], u + 3 * b0, K + 9 * s, keep[s], g[s][0], g[s][1], g[s][2]);
+        rest_direction<false>(n, us[0], us[1], us[2], u + 3 * b0, a + 3 * s, keep[s], g[s][0], g[s][1], g[s][2]);
       add_to_rows<-1>(b0, n, g[s][0], g[s][1], g[s][2], out, ghost, owned);
     }
     for (int e = e0; e < next_exception; ++e)
@@ -1092,7 +1092,7 @@ void SpringKernel::rest_tangent(const RestStencil& rest, const double* u, double
                 [&](std::size_t q, int first, int count, const StencilException* exceptions, int n, int* zeroed) {
                   const int p = segments_[q].pattern, start = pattern_start_[p];
                   stencil_rest_tangent(first, count, directions_[p], offsets_.data() + start,
-                                       scatter_.data() + start, rest.K.data() + 9 * rest.first[q], exceptions, n, u,
+                                       scatter_.data() + start, rest.a.data() + 3 * rest.first[q], exceptions, n, u,
                                        out, ghost, model_.owned, reach_[p], zeroed);
                 });
 }
@@ -1104,7 +1104,7 @@ RestStencil SpringKernel::rest_stencil() const {
   constexpr double kTolerance = 1e-12;
   for (const Segment& seg : segments_) {
     const int p = seg.pattern, start = pattern_start_[p], directions = directions_[p];
-    rest.first.push_back(static_cast<int>(rest.K.size() / 9));
+    rest.first.push_back(static_cast<int>(rest.a.size() / 3));
     const StencilException* exceptions = exceptions_.data() + seg.first_exception;
     for (int s = 0; s < directions; ++s) {
       // The direction's first spring, then every other checked against it.
@@ -1127,9 +1127,8 @@ RestStencil SpringKernel::rest_stencil() const {
         for (int r = 0; r < 3; ++r)
           if (!(std::abs(v[r] - d[r]) <= scale)) rest.exact = false;
       }
-      const double len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2], k = k_[start + s];
-      for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) rest.K.push_back(found && len2 > 0 ? k * d[r] * d[c] / len2 : 0.0);
+      const double len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]), k = k_[start + s];
+      for (int r = 0; r < 3; ++r) rest.a.push_back(found && len > 0 ? std::sqrt(k) * d[r] / len : 0.0);
     }
   }
   return rest;

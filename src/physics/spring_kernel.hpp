@@ -87,12 +87,12 @@ struct StencilException {
 };
 
 // The connections' tangent at the rest positions as constants (SpringKernel::rest_stencil): per stencil segment and
-// direction of its pattern, K = k n n^T with n the direction's unit vector at rest, the same for every spring of the
-// direction. At rest l = l0, so the geometric part k (1 - l0 / l) (I - n n^T) is zero, and the product needs neither
-// the positions nor a square root or a division: e = K (u_a - u_b), 9 multiply-adds a spring.
+// direction of its pattern, K = k n n^T = a a^T (a = sqrt(k) n) with n the direction's unit vector at rest, the same
+// for every spring of the direction. At rest l = l0, so the geometric part k (1 - l0 / l) (I - n n^T) is zero, and
+// the product needs neither the positions nor a square root or a division: e = (a . (u_a - u_b)) a.
 struct RestStencil {
-  std::vector<double> K;   // 9 per segment direction, segments in order, each its pattern's directions in order
-  std::vector<int> first;  // per segment: its first direction's index (K + 9 * index)
+  std::vector<double> a;   // 3 per segment direction, segments in order, each its pattern's directions in order
+  std::vector<int> first;  // per segment: its first direction's index (a + 3 * index)
   // Every stencil spring's rest separation is its direction's and its length its l0, to 1e-12 relative (a lattice
   // at rest): otherwise the constants are not the tangent at rest, and rest_tangent must not be used.
   bool exact = false;

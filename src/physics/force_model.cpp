@@ -778,14 +778,16 @@ PetscErrorCode ForceModel::connection_blocks_unless(const double* x, Term::Block
   for (int i = 0; i < n; ++i) {
     const int first = tangent_.conn_start[i], count = tangent_.conn_start[i + 1] - first;
     ends.resize(count), inputs.resize(5 * static_cast<std::size_t>(count));
+    const BoxGeometry& box = shape.part(model_.id[i]);
+    const bool lattice = at_rest && !box.unstructured();
+    const auto ii = lattice ? box.index(model_.id[i]) : std::array<long, 3>{};
     // What Stretch and connection_row read, in their order.
     for (int q = 0; q < count; ++q) {
       const int c = tangent_.row_conns[first + q];
       const int j = model_.end_a[c] == i ? model_.end_b[c] : model_.end_a[c];
       double* in = inputs.data() + 5 * q;
-      const BoxGeometry& box = shape.part(model_.id[i]);
-      if (at_rest && model_.body[i] == model_.body[j] && !box.unstructured()) {
-        const auto ii = box.index(model_.id[i]), ij = box.index(model_.id[j]);
+      if (lattice && model_.body[i] == model_.body[j]) {
+        const auto ij = box.index(model_.id[j]);
         for (int r = 0; r < 3; ++r) in[r] = static_cast<double>(ij[r] - ii[r]) * box.h[r];
       } else {
         for (int r = 0; r < 3; ++r) in[r] = x[3 * j + r] - x[3 * i + r];

@@ -544,7 +544,8 @@ struct Stretch {
 }  // namespace
 
 PetscErrorCode ForceModel::apply_tangent(const double* x, double* in, double* out, bool skip_cached,
-                                         SpringKernel::FinalRows final_rows, void* context) const {
+                                         SpringKernel::FinalRows final_rows, void* context,
+                                         const RestStencil* rest) const {
   PetscFunctionBeginUser;
   const int n = model_.owned, local = model_.local;
   // Held components: their rows are the identity's (out = in), their columns zero (in read as 0).
@@ -557,7 +558,10 @@ PetscErrorCode ForceModel::apply_tangent(const double* x, double* in, double* ou
   // Each connection once (one square root), both ends; the ghosts' rows are dropped (their owners compute them).
   // The ghosts' rows go to scratch kept between products (24 B a ghost; a box's ghosts are a few planes).
   tangent_ghost_rows_.resize(3 * static_cast<std::size_t>(local - n));
-  kernel_.tangent(x, in, out, tangent_ghost_rows_.data(), skip_cached ? final_rows : nullptr, context);
+  if (rest)
+    kernel_.rest_tangent(*rest, in, out, tangent_ghost_rows_.data(), skip_cached ? final_rows : nullptr, context);
+  else
+    kernel_.tangent(x, in, out, tangent_ghost_rows_.data(), skip_cached ? final_rows : nullptr, context);
   if (!terms_.empty()) {
     struct Apply {
       const double* in;
@@ -763,23 +767,59 @@ PetscErrorCode ForceModel::connection_blocks_unless(const double* x, Term::Block
   PetscCheck(terms_.empty(), model_.comm, PETSC_ERR_SUP, "connection_blocks_unless: the force model has terms");
   const int n = model_.owned;
   if (static_cast<int>(tangent_.conn_start.size()) != n + 1) tangent_.create_rows(model_);
+  // At the rest positions, a box lattice's separations from its lattice offsets, ((i' - i) h_x, ...): the doubles
+  // each rest length was made from (BoxGeometry::rest_distance), the same for every connection of an offset. The
+  // positions' differences vary in the last bits from place to place wherever h is not a power of two, and then
+  // no row of a class had its first row's inputs (LatticeGalerkin's skip); the blocks differ at round-off.
+  const bool at_rest = std::equal(x, x + 3 * static_cast<std::size_t>(model_.local), model_.rest.begin());
+  const Body& shape = model_.shape;
   std::vector<int> ends;
   std::vector<double> inputs;
   for (int i = 0; i < n; ++i) {
     const int first = tangent_.conn_start[i], count = tangent_.conn_start[i + 1] - first;
     ends.resize(count), inputs.resize(5 * static_cast<std::size_t>(count));
+    const BoxGeometry& box = shape.part(model_.id[i]);
+    const bool lattice = at_rest && !box.unstructured();
+    const auto ii = lattice ? box.index(model_.id[i]) : std::array<long, 3>{};
     // What Stretch and connection_row read, in their order.
     for (int q = 0; q < count; ++q) {
       const int c = tangent_.row_conns[first + q];
       const int j = model_.end_a[c] == i ? model_.end_b[c] : model_.end_a[c];
       double* in = inputs.data() + 5 * q;
-      for (int r = 0; r < 3; ++r) in[r] = x[3 * j + r] - x[3 * i + r];
+      if (lattice && model_.body[i] == model_.body[j]) {
+        const auto ij = box.index(model_.id[j]);
+        for (int r = 0; r < 3; ++r) in[r] = static_cast<double>(ij[r] - ii[r]) * box.h[r];
+      } else {
+        for (int r = 0; r < 3; ++r) in[r] = x[3 * j + r] - x[3 * i + r];
+      }
       in[3] = model_.k(c), in[4] = model_.l0(c);
       ends[q] = j;
     }
     if (known(known_ctx, i, ends.data(), inputs.data(), count)) continue;
-    PetscCall(connection_row(x, i, add, ctx));
+    PetscCall(connection_row_of(i, ends.data(), inputs.data(), count, add, ctx));
   }
+  PetscFunctionReturn(0);
+}
+
+// connection_row's arithmetic from the row's inputs (Stretch's d, k, l0; connection_blocks_unless).
+PetscErrorCode ForceModel::connection_row_of(int i, const int* ends, const double* inputs, int count, Term::BlockAdd add,
+                                             void* ctx) const {
+  PetscFunctionBeginUser;
+  double self[9] = {};
+  for (int q = 0; q < count; ++q) {
+    const double* d = inputs + 5 * q;
+    const double len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2], k = d[3], geo = 1.0 - d[4] / std::sqrt(len2);
+    double minus[9];
+    for (int r = 0; r < 3; ++r)
+      for (int s = r; s < 3; ++s) {
+        const double nn = d[r] * d[s] / len2;
+        const double K = k * (nn + geo * ((r == s ? 1.0 : 0.0) - nn));
+        minus[3 * r + s] = minus[3 * s + r] = -K;
+      }
+    for (int e = 0; e < 9; ++e) self[e] -= minus[e];
+    PetscCall(add(ctx, i, ends[q], minus));
+  }
+  PetscCall(add(ctx, i, i, self));
   PetscFunctionReturn(0);
 }
 

@@ -43,8 +43,10 @@ public:
   // skip_cached: without the terms' blocks, which the caller adds from its own copy (cached_tangent_blocks).
   // final_rows (with skip_cached): called with out's owned rows as the springs' part of them becomes final
   // (SpringKernel::tangent), before the held rows are written, so that a term's product joins the same pass.
+  // rest (x then the rest positions): the springs' part from those constants (SpringKernel::rest_tangent).
   PetscErrorCode apply_tangent(const double* x, double* in, double* out, bool skip_cached = false,
-                               SpringKernel::FinalRows final_rows = nullptr, void* context = nullptr) const;
+                               SpringKernel::FinalRows final_rows = nullptr, void* context = nullptr,
+                               const RestStencil* rest = nullptr) const;
   // J's diagonal (3 * owned).
   PetscErrorCode tangent_diagonal(const double* x, double* diag, bool skip_cached = false) const;
   // Frees the connections by row that tangent_blocks built (76 B a molecule at face diagonals), when no assembled
@@ -72,8 +74,9 @@ public:
   PetscErrorCode tangent_blocks(const double* x, Term::BlockAdd add, void* ctx) const;
   // tangent_blocks without terms (has_terms() false), each owned row first shown to known(known_ctx, i, ends,
   // inputs, n): what its blocks are computed from alone, per connection in the row's order its other end and 5
-  // doubles (d = x_j - x_i, k, l0). Rows with equal inputs have equal blocks, to the bit; a row known answers true
-  // for is not streamed (LatticeGalerkin's stream: a box lattice's rows at its reference state).
+  // doubles (d = x_j - x_i, k, l0; at the rest positions a box lattice's d from the lattice offsets, the same
+  // doubles for every connection of an offset). Rows with equal inputs have equal blocks, to the bit; a row known
+  // answers true for is not streamed (LatticeGalerkin's stream: a box lattice's rows at its reference state).
   using RowKnown = bool (*)(void* ctx, int i, const int* ends, const double* inputs, int n);
   PetscErrorCode connection_blocks_unless(const double* x, Term::BlockAdd add, void* ctx, RowKnown known,
                                           void* known_ctx) const;
@@ -183,6 +186,8 @@ private:
   PetscErrorCode connection_blocks(const double* x, Term::BlockAdd add, void* ctx) const;
   // Owned molecule i's connection row (the diagonal block last); the rows made (create_rows).
   PetscErrorCode connection_row(const double* x, int i, Term::BlockAdd add, void* ctx) const;
+  PetscErrorCode connection_row_of(int i, const int* ends, const double* inputs, int count, Term::BlockAdd add,
+                                   void* ctx) const;
   // The tangent's block-row pattern and CSR storage (src/physics/tangent.hpp), built by create_tangent.
   mutable TangentStorage tangent_;
   // Terms whose tangent has rows of ghosts (Term::tangent_has_ghost_rows): the matrix-free product's and the

@@ -351,6 +351,65 @@ void stencil_tangent(int first, int count, int directions, const int* offset, co
   }
 }
 
+// One direction of a stencil block of the tangent at rest: e_i = K (u_a - u_b) with the direction's constant
+// K = a a^T (a = sqrt(k) n: RestStencil), as (a . w) a, masked as tangent_direction.
+template <bool kMasked>
+__attribute__((always_inline)) inline void rest_direction(int n, const double* __restrict ua0,
+                                                          const double* __restrict ua1,
+                                                          const double* __restrict ua2,
+                                                          const double* __restrict ub, const double* K,
+                                                          const double* __restrict keep, double* __restrict g0,
+                                                          double* __restrict g1, double* __restrict g2) {
+  const double a0 = K[0], a1 = K[1], a2 = K[2];
+  for (int i = 0; i < n; ++i) {
+    const double w0 = ua0[i] - ub[3 * i], w1 = ua1[i] - ub[3 * i + 1], w2 = ua2[i] - ub[3 * i + 2];
+    const double t = a0 * w0 + a1 * w1 + a2 * w2;
+    double e0 = t * a0, e1 = t * a1, e2 = t * a2;
+    if constexpr (kMasked) {
+      const bool on = keep[i] != 0.0;
+      e0 = on ? e0 : 0.0, e1 = on ? e1 : 0.0, e2 = on ? e2 : 0.0;
+    }
+    g0[i] = e0, g1[i] = e1, g2[i] = e2;
+  }
+}
+
+// stencil_tangent at rest: the same blocks, exceptions and zeroing ahead, a = sqrt(k) n per direction (3 values
+// each) instead of k, l0 and the positions.
+TISSUE_CLONES
+void stencil_rest_tangent(int first, int count, int directions, const int* offset, const int* scatter,
+                          const double* a, const StencilException* exceptions, int n_exceptions,
+                          const double* __restrict u, double* __restrict out, double* __restrict ghost, int owned,
+                          int max_offset, int* zeroed) {
+  alignas(64) double g[kMaxDirections][3][kStencilBlock];
+  alignas(64) double keep[kMaxDirections][kStencilBlock];
+  for (int s = 0; s < directions; ++s) std::fill(keep[s], keep[s] + kStencilBlock, 1.0);
+  int next_exception = 0;
+  for (int a0 = first; a0 < first + count; a0 += kStencilBlock) {
+    const int n = std::min(kStencilBlock, first + count - a0);
+    const int e0 = next_exception;
+    const std::uint32_t masked = begin_block(a0, n, directions, exceptions, n_exceptions, next_exception, keep,
+                                             out, Interlaced{}, owned, max_offset, zeroed);
+    const double* __restrict ua = u + 3 * a0;
+    alignas(64) double us[3][kStencilBlock];
+    for (int i = 0; i < n; ++i)
+      for (int r = 0; r < 3; ++r) us[r][i] = ua[3 * i + r];
+    for (int q = 0; q < directions; ++q) {
+      const int s = scatter[q], b0 = a0 + offset[s];
+      if (masked >> s & 1u)
+        rest_direction<true>(n, us[0], us[1], us[2], u + 3 * b0, a + 3 * s, keep[s], g[s][0], g[s][1], g[s][2]);
+      else
+        rest_direction<false>(n, us[0], us[1], us[2], u + 3 * b0, a + 3 * s, keep[s], g[s][0], g[s][1], g[s][2]);
+      add_to_rows<-1>(b0, n, g[s][0], g[s][1], g[s][2], out, ghost, owned);
+    }
+    for (int e = e0; e < next_exception; ++e)
+      for (int s = 0; s < directions; ++s) keep[s][exceptions[e].molecule - a0] = 1.0;
+    alignas(64) double s0[kStencilBlock] = {}, s1[kStencilBlock] = {}, s2[kStencilBlock] = {};
+    for (int s = 0; s < directions; ++s)
+      for (int i = 0; i < n; ++i) s0[i] += g[s][0][i], s1[i] += g[s][1][i], s2[i] += g[s][2][i];
+    add_to_rows<1>(a0, n, s0, s1, s2, out, ghost, owned);
+  }
+}
+
 TISSUE_CLONES
 void stencil_forces_interlaced(int first, int count, int directions, const int* offset, const int* scatter,
                                const double* k, const double* l0, const StencilException* exceptions,
@@ -961,8 +1020,9 @@ void SpringKernel::sweep(const double* x, double* f, Layout at, FinalRows final_
   finish(m.owned);
 }
 
-void SpringKernel::tangent(const double* x, const double* u, double* out, double* ghost, FinalRows final_rows,
-                           void* context) const {
+template <class Stencil>
+void SpringKernel::tangent_sweep(const double* x, const double* u, double* out, double* ghost, FinalRows final_rows,
+                                 void* context, Stencil stencil) const {
   const LocalModel& m = model_;
   std::fill(ghost, ghost + 3 * static_cast<std::size_t>(m.local - m.owned), 0.0);
   int zeroed = 0;  // out's rows below it are zeroed (just ahead of their first write, as in forces())
@@ -988,22 +1048,20 @@ void SpringKernel::tangent(const double* x, const double* u, double* out, double
     done = below;
   };
   int c = 0;
-  for (const Segment& seg : segments_) {
+  for (std::size_t q = 0; q < segments_.size(); ++q) {
+    const Segment& seg = segments_[q];
     if (c < seg.first_connection) {
       zero_ahead(out, Interlaced{}, zeroed, seg.generic_reach);
       generic(c, seg.first_connection, seg.generic_at);
       finish(std::min(seg.first_molecule, seg.later));
     }
-    const int p = seg.pattern, start = pattern_start_[p];
     const StencilException* exceptions = exceptions_.data() + seg.first_exception;
     const int chunk = final_rows ? kChunk : seg.molecules;  // a multiple of the blocks: the same blocks
     for (int m0 = 0, e0 = 0; m0 < seg.molecules; m0 += chunk) {
       const int count = std::min(chunk, seg.molecules - m0), end = seg.first_molecule + m0 + count;
       int e1 = e0;
       while (e1 < seg.exceptions && exceptions[e1].molecule < end) ++e1;
-      stencil_tangent(seg.first_molecule + m0, count, directions_[p], offsets_.data() + start,
-                      scatter_.data() + start, k_.data() + start, l0_.data() + start, exceptions + e0, e1 - e0, x, u,
-                      out, ghost, m.owned, reach_[p], &zeroed);
+      stencil(q, seg.first_molecule + m0, count, exceptions + e0, e1 - e0, &zeroed);
       e0 = e1;
       finish(std::min(end, seg.later));
     }
@@ -1015,6 +1073,65 @@ void SpringKernel::tangent(const double* x, const double* u, double* out, double
   }
   zero_ahead(out, Interlaced{}, zeroed, m.owned);
   finish(m.owned);
+}
+
+void SpringKernel::tangent(const double* x, const double* u, double* out, double* ghost, FinalRows final_rows,
+                           void* context) const {
+  tangent_sweep(x, u, out, ghost, final_rows, context,
+                [&](std::size_t q, int first, int count, const StencilException* exceptions, int n, int* zeroed) {
+                  const int p = segments_[q].pattern, start = pattern_start_[p];
+                  stencil_tangent(first, count, directions_[p], offsets_.data() + start, scatter_.data() + start,
+                                  k_.data() + start, l0_.data() + start, exceptions, n, x, u, out, ghost,
+                                  model_.owned, reach_[p], zeroed);
+                });
+}
+
+void SpringKernel::rest_tangent(const RestStencil& rest, const double* u, double* out, double* ghost,
+                                FinalRows final_rows, void* context) const {
+  tangent_sweep(model_.rest.data(), u, out, ghost, final_rows, context,
+                [&](std::size_t q, int first, int count, const StencilException* exceptions, int n, int* zeroed) {
+                  const int p = segments_[q].pattern, start = pattern_start_[p];
+                  stencil_rest_tangent(first, count, directions_[p], offsets_.data() + start,
+                                       scatter_.data() + start, rest.a.data() + 3 * rest.first[q], exceptions, n, u,
+                                       out, ghost, model_.owned, reach_[p], zeroed);
+                });
+}
+
+RestStencil SpringKernel::rest_stencil() const {
+  RestStencil rest;
+  rest.exact = true;
+  const double* X = model_.rest.data();
+  constexpr double kTolerance = 1e-12;
+  for (const Segment& seg : segments_) {
+    const int p = seg.pattern, start = pattern_start_[p], directions = directions_[p];
+    rest.first.push_back(static_cast<int>(rest.a.size() / 3));
+    const StencilException* exceptions = exceptions_.data() + seg.first_exception;
+    for (int s = 0; s < directions; ++s) {
+      // The direction's first spring, then every other checked against it.
+      double d[3] = {0.0, 0.0, 0.0};
+      bool found = false;
+      for (int i = 0, e = 0; i < seg.molecules; ++i) {
+        const int a = seg.first_molecule + i;
+        while (e < seg.exceptions && exceptions[e].molecule < a) ++e;
+        if (e < seg.exceptions && exceptions[e].molecule == a && !(exceptions[e].present >> s & 1u)) continue;
+        const int b = a + offsets_[start + s];
+        double v[3];
+        for (int r = 0; r < 3; ++r) v[r] = X[3 * b + r] - X[3 * a + r];
+        if (!found) {
+          for (int r = 0; r < 3; ++r) d[r] = v[r];
+          found = true;
+          const double len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+          if (!(std::abs(len - l0_[start + s]) <= kTolerance * l0_[start + s])) rest.exact = false;
+        }
+        const double scale = kTolerance * l0_[start + s];
+        for (int r = 0; r < 3; ++r)
+          if (!(std::abs(v[r] - d[r]) <= scale)) rest.exact = false;
+      }
+      const double len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]), k = k_[start + s];
+      for (int r = 0; r < 3; ++r) rest.a.push_back(found && len > 0 ? std::sqrt(k) * d[r] / len : 0.0);
+    }
+  }
+  return rest;
 }
 
 }  // namespace tissue

@@ -86,6 +86,18 @@ struct StencilException {
   std::uint32_t present;  // bit s: the molecule has the pattern's direction s
 };
 
+// The connections' tangent at the rest positions as constants (SpringKernel::rest_stencil): per stencil segment and
+// direction of its pattern, K = k n n^T = a a^T (a = sqrt(k) n) with n the direction's unit vector at rest, the same
+// for every spring of the direction. At rest l = l0, so the geometric part k (1 - l0 / l) (I - n n^T) is zero, and
+// the product needs neither the positions nor a square root or a division: e = (a . (u_a - u_b)) a.
+struct RestStencil {
+  std::vector<double> a;   // 3 per segment direction, segments in order, each its pattern's directions in order
+  std::vector<int> first;  // per segment: its first direction's index (a + 3 * index)
+  // Every stencil spring's rest separation is its direction's and its length its l0, to 1e-12 relative (a lattice
+  // at rest): otherwise the constants are not the tangent at rest, and rest_tangent must not be used.
+  bool exact = false;
+};
+
 class SpringKernel {
 public:
   // Finds the stencil segments when the model's connections are typed (k, l0 final); otherwise all generic.
@@ -123,6 +135,14 @@ public:
   // blocks, the same bits), so that a term can add its part while they are in cache (the cell term's product).
   void tangent(const double* x, const double* u, double* out, double* ghost, FinalRows final_rows = nullptr,
                void* context = nullptr) const;
+  // The constants of the tangent at the rest positions (model.rest), found from the first spring of each segment's
+  // direction and checked against every other (RestStencil::exact).
+  RestStencil rest_stencil() const;
+  // tangent() at the rest positions from those constants (the generic connections, a lattice's row ends, from the
+  // rest positions as tangent() computes them): the same rows, handed over in the same chunks; equal to tangent()
+  // at x = rest to round-off (the geometric part's 1 - l0 / l of order 1e-16 is left out).
+  void rest_tangent(const RestStencil& rest, const double* u, double* out, double* ghost,
+                    FinalRows final_rows = nullptr, void* context = nullptr) const;
 
 private:
   struct Segment {
@@ -158,6 +178,11 @@ private:
     std::uint32_t full = 0;  // the bits of the n directions
   };
   Backward backward(const Segment& seg) const;
+  // tangent()'s sweep with the stencil segments' chunks computed by stencil(seg, first molecule, count, exceptions,
+  // how many, zeroed) and the generic connections from x.
+  template <class Stencil>
+  void tangent_sweep(const double* x, const double* u, double* out, double* ghost, FinalRows final_rows,
+                     void* context, Stencil stencil) const;
   // Each row's present springs for rows [r0, r0 + n) of a pull segment (n <= kForceBlock; the rows on one side of
   // the segment's end and of each first + offset), from its exceptions; e_back, e_own: the exception cursors.
   void pull_bits(const Segment& seg, const Backward& bw, int r0, int n, int* e_back, int& e_own, std::uint32_t* pb,

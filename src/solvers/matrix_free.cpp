@@ -6,9 +6,11 @@
 
 namespace tissue {
 
-MatrixFreeTangent::MatrixFreeTangent(const LocalModel& model, const ForceModel& forces, double* scratch)
+MatrixFreeTangent::MatrixFreeTangent(const LocalModel& model, const ForceModel& forces, double* scratch,
+                                     const RestStencil* rest)
     : model_(model),
       forces_(forces),
+      rest_(rest),
       x_(model.rest.data()),
       cached_(forces.has_cached_tangent()),
       by_state_(cached_ && std::all_of(forces.terms().begin(), forces.terms().end(),
@@ -126,9 +128,9 @@ PetscErrorCode MatrixFreeTangent::mult(Mat J, Vec in, Vec out) {
       Pass& p = *static_cast<Pass*>(context);
       p.next = p.term->apply_tangent_state_below(p.x, p.state, p.u, end, p.next, p.out);
     };
-    PetscCall(self->forces_.apply_tangent(self->x_, w, y, self->cached_, rows, &pass));
+    PetscCall(self->forces_.apply_tangent(self->x_, w, y, self->cached_, rows, &pass, self->rest_));
   } else {
-    PetscCall(self->forces_.apply_tangent(self->x_, w, y, self->cached_));
+    PetscCall(self->forces_.apply_tangent(self->x_, w, y, self->cached_, nullptr, nullptr, self->rest_));
   }
   if (self->by_state_) {
     // w's held components are zero now (apply_tangent); the held rows keep the identity's values it wrote.

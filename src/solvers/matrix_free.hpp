@@ -25,7 +25,10 @@ public:
   // scratch (optional): 3 * model.local doubles that nothing reads across a product (the Newton solve's force
   // array: each residual evaluation writes it whole before reading it), used as the products' ghosted input
   // instead of an array of the shell's own (24 B a molecule).
-  MatrixFreeTangent(const LocalModel& model, const ForceModel& forces, double* scratch = nullptr);
+  // rest (kept by the caller, exact: SpringKernel::rest_stencil): the tangent at the rest positions, the springs'
+  // part from its constants (src/solvers/rest_tangent.hpp); set_positions(model.rest) once, then never again.
+  MatrixFreeTangent(const LocalModel& model, const ForceModel& forces, double* scratch = nullptr,
+                    const RestStencil* rest = nullptr);
   ~MatrixFreeTangent();
   MatrixFreeTangent(const MatrixFreeTangent&) = delete;
   MatrixFreeTangent& operator=(const MatrixFreeTangent&) = delete;
@@ -46,6 +49,7 @@ private:
   PetscErrorCode cache_blocks();
   const LocalModel& model_;
   const ForceModel& forces_;
+  const RestStencil* rest_;
   const double* x_;
   std::vector<double> own_;  // the input's storage when no scratch is given
   Vec in_ = nullptr;         // the input with its ghosts (a ghosted vector over scratch or own_)

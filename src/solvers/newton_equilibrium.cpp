@@ -21,6 +21,7 @@
 #include "src/solvers/lattice_galerkin.hpp"
 #include "src/solvers/lattice_mg.hpp"
 #include "src/solvers/matrix_free.hpp"
+#include "src/solvers/rest_tangent.hpp"
 #include "src/solvers/volume_smoother.hpp"
 #include "src/solvers/molecule_report.hpp"
 #include "src/solvers/newton_equilibrium.hpp"
@@ -51,6 +52,8 @@ struct Context {
   LatticeGalerkin* galerkin = nullptr;
   // The matrix-free tangent (solver.operator = "matrix-free"): J is its shell, and no fine matrix exists.
   MatrixFreeTangent* shell = nullptr;
+  // The finest level's operator at rest (rest_tangent.hpp; null: J, as PCMG takes it).
+  RestTangent* rest = nullptr;
   // The matrix-free finest level's Chebyshev interval from Gershgorin's bound (fine_chebyshev), and the lower end
   // as a fraction of the upper (-static_chebyshev_fraction).
   bool gershgorin = false, estimating = true;
@@ -326,6 +329,7 @@ PetscErrorCode tangent(SNES snes, Vec X, Mat J, Mat P, void* p) {
     bool rebuild;
     PetscCall(rebuild_pending(snes, &pc, &rebuild));
     if (rebuild) {
+      if (ctx->rest) PetscCall(ctx->rest->use(pc, ctx->shell->positions(), J));
       PetscCall(ctx->galerkin->update(*ctx->forces, ctx->shell->positions(), pc));
       if (ctx->gershgorin) PetscCall(fine_chebyshev(ctx, pc));
       ctx->forces->release_block_rows();  // not needed again before the next rebuild
@@ -431,6 +435,7 @@ struct NewtonEquilibrium::Impl {
   bool by_default = false;  // matrix-free because solver.operator was not given: no note when it does not apply
   std::unique_ptr<LatticeGalerkin> galerkin;
   std::unique_ptr<MatrixFreeTangent> shell;  // kept to the end once made (PETSc objects may still refer to it)
+  std::unique_ptr<RestTangent> rest;          // likewise
   PetscErrorCode use_matrix_free(bool user_pc, bool user_lag, LatticeLevels& hierarchy);
   double reference = 1.0, tolerance = 0.0;
   Reuse reuse;
@@ -626,6 +631,8 @@ PetscErrorCode NewtonEquilibrium::Impl::use_matrix_free(bool user_pc, bool user_
     PetscCall(shell->create(&J));
     ctx.shell = shell.get();
     ctx.galerkin = galerkin.get();
+    PetscCall(RestTangent::make(model, forces, state.f.data(), static_cast<bool>(ctx.hooks->refresh), &rest));
+    ctx.rest = rest.get();
     PetscCall(PCMGSetGalerkin(pc, PC_MG_GALERKIN_NONE));
     PetscCall(PetscInfo(pc, "matrix-free tangent\n"));
     // The user's smoother options keep PETSc's way on every level.
@@ -754,6 +761,7 @@ PetscErrorCode NewtonEquilibrium::Impl::solve(long steps) {
       lattice_mg = false;
       if (ctx.shell) {
         ctx.shell = nullptr;
+        ctx.rest = nullptr;
         Mat assembled;
         PetscCall(forces.create_tangent(&assembled));
         PetscCall(SNESSetJacobian(snes, assembled, assembled, tangent, &ctx));

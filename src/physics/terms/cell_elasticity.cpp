@@ -417,13 +417,37 @@ __attribute__((always_inline)) inline void cof_of(const double F[9], double cof[
 // Row blocks on a lattice (rest given) compute X as cell_block_forces does (the same doubles as the model's rest
 // positions), so the kernel reads x, which the springs' product has just read (the fused pass: MatrixFreeTangent),
 // where a state of 80 B a cell, or of d, would be streamed on every application. An inverted cell takes F = I.
+// at_rest (x is the rest positions: the finest level's rest tangent, src/solvers/rest_tangent.hpp): F = I exactly,
+// so cof F = I, J = 1, W' = 0 and dP = kappa tr(dF) I, the same numbers without x, G, cof or dcof.
 TISSUE_CELL_CLONES
 void volumetric_block_tangent(int n, const int* __restrict base, const int* __restrict offset, bool rows,
                               const RowRest* rest, const double* __restrict u, const double* __restrict x,
                               const double* __restrict X, double kappa, double volume, const double g[3], int owned,
-                              double* __restrict out) {
+                              double* __restrict out, bool at_rest) {
   alignas(64) double dF[9][kCellBlock], G[9][kCellBlock], dP[9][kCellBlock];
   const double gx = g[0], gy = g[1], gz = g[2];
+  if (at_rest) {
+    if (rows) {
+      const double* ur[4];
+      for (int r = 0; r < 4; ++r) ur[r] = u + 3 * (base[0] + offset[2 * r]);
+      row_gradient(ur[0], ur[1], ur[2], ur[3], n, gx, gy, gz, dF);
+    } else {
+      for (int d = 0; d < 3; ++d)
+        for (int i = 0; i < n; ++i) {
+          double v[8];
+          for (int c = 0; c < 8; ++c) v[c] = u[3 * (base[i] + offset[c]) + d];
+          corner_gradient(v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], gx, gy, gz, dF[3 * d][i],
+                          dF[3 * d + 1][i], dF[3 * d + 2][i]);
+        }
+    }
+    const double stiff = 0.5 * kappa * 2.0;  // half (1 + 1 / J^2) at J = 1, as below
+    for (int i = 0; i < n; ++i) {
+      const double dvol = stiff * (dF[0][i] + dF[4][i] + dF[8][i]);
+      for (int q = 0; q < 9; ++q) dP[q][i] = q % 4 == 0 ? dvol : 0.0;
+    }
+    add_cell_products(dP, n, volume, gx, gy, gz, rows, base, offset, owned, out);
+    return;
+  }
   if (rows) {
     const double* ur[4];
     for (int r = 0; r < 4; ++r) ur[r] = u + 3 * (base[0] + offset[2 * r]);
@@ -1358,8 +1382,9 @@ private:
       RowRest rest;
       const bool computed = b.rows && lattice_rest_;
       if (computed) row_rest(b, rest);
+      // x is the rest array itself for the rest tangent (MatrixFreeTangent at rest): F = I, the short form.
       volumetric_block_tangent(b.n, base, pattern, b.rows, computed ? &rest : nullptr, u, x, m_.rest.data(),
-                               kind.moduli.kappa, geo.volume, g, m_.owned, out);
+                               kind.moduli.kappa, geo.volume, g, m_.owned, out, x == m_.rest.data());
       return;
     }
     cell_block_tangent(b.n, base, pattern, b.rows, u, state + w * static_cast<std::size_t>(b.first),

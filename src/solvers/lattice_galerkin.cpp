@@ -577,7 +577,11 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     }
   // Row classes: rows of one class (the same axis classes) whose blocks are equal to the bit have the same box T
   // (sum_blocks: the same operations on the same numbers), which is then summed once for the class. On a box
-  // lattice at its reference state (the first tangent of a solve) nearly every row equals its class's first.
+  // lattice at its reference state (the first tangent of a solve) nearly every row equals one of a few rows of
+  // its class: a class keeps up to kVariants distinct rows (variants, chained by next), because its first row
+  // may be an exception (a row next to a held face has masked blocks; the class of the planes between coarse
+  // planes then starts on the plane next to it, and with one row a class every other row of that class, half the
+  // lattice, was streamed and summed again).
   struct RowClass {
     std::uint32_t present = 0;
     std::vector<double> src;  // the class's first row's blocks (kSlots of them, absent ones zero)
@@ -590,8 +594,10 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     bool has_inputs = false;
     std::vector<int> slots;  // each connection's neighbour's slot
     std::vector<double> inputs;
+    int next = -1;  // the class's next variant
   };
-  int created = -1;  // the class the last scatter made, if it made one
+  constexpr int kVariants = 4;  // a deformed state's rows are all distinct: a few tries a row, then the general way
+  int created = -1;  // the variant the last scatter made or used, if it has no inputs yet
   constexpr std::size_t kMaxClasses = 8192;  // a pending contribution is 8 class + k in 16 bits
   std::vector<RowClass> row_classes;
   std::vector<std::vector<int>> class_at(nb);  // [b][(x class * ny + y class) * nz + z class] -> row_classes
@@ -663,9 +669,9 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
   };
   // Row i (level l, planes p) of level l's operator, its blocks src by stencil slot (present: which), into the
   // rows of the coarse nodes I that i interpolates from.
-  // known: the row's blocks are its class's first row's (equal inputs), so the class's sums are taken unseen.
+  // known >= 0: the row's blocks are that variant's first row's (equal inputs), so its sums are taken unseen.
   auto scatter = [&](int b, const std::array<int, 3>& p, std::uint32_t present, const double* src,
-                     bool known = false) -> PetscErrorCode {
+                     int known = -1) -> PetscErrorCode {
     const BoxGeometry& box = shape.body(b);
     const std::array<const AxisWeights*, 3> wi{&weights[b][0][p[0]], &weights[b][1][p[1]], &weights[b][2][p[2]]};
     std::array<int, 3> c0, cls;
@@ -690,16 +696,16 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
         for (int z = 0; z < wi[2]->n; ++z, ++nrows) {
           const int I[3] = {wi[0]->at[x], wi[1]->at[y], wi[2]->at[z]};
           w[nrows] = wi[0]->w[x] * wi[1]->w[y] * wi[2]->w[z];
-          int* known = nullptr;
+          int* seen = nullptr;
           if (!rb.r.empty())
-            known = &rb.r[(static_cast<std::size_t>(I[0] - rb.lo[0]) * rb.n[1] + (I[1] - rb.lo[1])) * rb.n[2] +
-                          (I[2] - rb.lo[2])];
-          if (known && *known >= 0) {
-            rows[nrows] = *known;
+            seen = &rb.r[(static_cast<std::size_t>(I[0] - rb.lo[0]) * rb.n[1] + (I[1] - rb.lo[1])) * rb.n[2] +
+                         (I[2] - rb.lo[2])];
+          if (seen && *seen >= 0) {
+            rows[nrows] = *seen;
           } else {
             rows[nrows] = acc.find_or_add(box.id(planes[l + 1][b][0][I[0]], planes[l + 1][b][1][I[1]],
                                                  planes[l + 1][b][2][I[2]]));
-            if (known) *known = rows[nrows];
+            if (seen) *seen = rows[nrows];
           }
           // J - I along each axis is -1, 0 or 1 (a fine neighbour's enclosing planes are at most one coarse
           // plane from the node's own), so slot = the box index shifted by the node's place in the box.
@@ -713,16 +719,18 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     int& at = class_at[b][(static_cast<std::size_t>(cls[0]) * axis_classes[b][1].size() + cls[1]) *
                               axis_classes[b][2].size() +
                           cls[2]];
-    int e = -1;
-    if (at >= 0 && known) {
-      e = at;
-    } else if (at >= 0) {
+    int e = known;
+    int variants = 0, tail = -1;
+    for (int v = at; e < 0 && v >= 0; v = row_classes[v].next, ++variants) {
       // The whole rows at once (one call instead of one a slot): their absent slots are zero on every path, and
       // a difference there would only send the row the general way.
-      const RowClass& rc = row_classes[at];
-      if (rc.present == present && std::memcmp(rc.src.data(), src, sizeof(double) * kSlots * kBlock) == 0) e = at;
-    } else if (row_classes.size() < kMaxClasses) {
-      at = static_cast<int>(row_classes.size());
+      const RowClass& rc = row_classes[v];
+      if (rc.present == present && std::memcmp(rc.src.data(), src, sizeof(double) * kSlots * kBlock) == 0) e = v;
+      tail = v;
+    }
+    if (e < 0 && variants < kVariants && row_classes.size() < kMaxClasses) {
+      const int made = static_cast<int>(row_classes.size());
+      (tail >= 0 ? row_classes[tail].next : at) = made;
       RowClass& rc = row_classes.emplace_back();
       rc.present = present;
       rc.src.assign(src, src + kSlots * kBlock);
@@ -730,9 +738,10 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
       rc.touched = sum_blocks(present, src, steps, rc.T.data());
       PetscCall(check_touched(rc.touched, steps));
       rc.w = w, rc.shift = shift;
-      e = at;
-      created = at;
+      e = made;
     }
+    // A variant with no inputs yet takes this row's, when they were kept (flush): equal inputs, equal blocks.
+    if (e >= 0 && known < 0 && !row_classes[e].has_inputs) created = e;
     if (e >= 0) {
       for (int k = 0; k < nrows; ++k) {
         const int r = rows[k];
@@ -902,19 +911,22 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
                                   axis_class_of[b][1][p[1]]) *
                                      axis_classes[b][2].size() +
                                  axis_class_of[b][2][p[2]]];
-      if (at < 0) {  // this row may start the class
+      int variants = 0;
+      for (int v = at; v >= 0; v = row_classes[v].next, ++variants) {
+        const RowClass& rc = row_classes[v];
+        if (!rc.has_inputs || static_cast<int>(rc.slots.size()) != n ||
+            !std::equal(rc.slots.begin(), rc.slots.end(), slots.begin()) ||
+            std::memcmp(rc.inputs.data(), inputs, sizeof(double) * 5 * n) != 0)
+          continue;
+        known_error = scatter(b, p, rc.present, rc.src.data(), v);
+        return true;
+      }
+      if (variants < kVariants) {  // this row may start the class or a variant of it
         last.row = i;
         last.slots.assign(slots.begin(), slots.begin() + n);
         last.inputs.assign(inputs, inputs + 5 * n);
-        return false;
       }
-      const RowClass& rc = row_classes[at];
-      if (!rc.has_inputs || static_cast<int>(rc.slots.size()) != n ||
-          !std::equal(rc.slots.begin(), rc.slots.end(), slots.begin()) ||
-          std::memcmp(rc.inputs.data(), inputs, sizeof(double) * 5 * n) != 0)
-        return false;
-      known_error = scatter(b, p, rc.present, rc.src.data(), true);
-      return true;
+      return false;
     };
     using Known = decltype(known);
     auto ask = [](void* ctx, int i, const int* ends, const double* inputs, int n) -> bool {

@@ -120,6 +120,29 @@ __attribute__((always_inline)) inline void add_row_corners(const double (&q)[9][
   }
 }
 
+// add_row_corners for the F = I form's Q (V0 dP g with dP = dvol I: component d's only nonzero column is d), given
+// as q[d][i] = -V0 dvol g_d: the same sums with the zero columns' terms dropped (x + (-0) is x; the +0 terms
+// could only change the sign of an exact zero).
+__attribute__((always_inline)) inline void add_row_corners_at_rest(const double (&q)[3][kCellBlock], int n,
+                                                                   const int* __restrict base,
+                                                                   const int* __restrict offset, int owned,
+                                                                   double* __restrict f) {
+  alignas(64) double at[3 * kCellBlock], next[3 * kCellBlock];
+  for (int r = 0; r < 4; ++r) {
+    const double y = (r & 1) ? -1.0 : 1.0, z = (r >> 1) ? -1.0 : 1.0;
+    for (int i = 0; i < n; ++i) {
+      at[3 * i] = q[0][i], next[3 * i] = -q[0][i];
+      at[3 * i + 1] = next[3 * i + 1] = y * q[1][i];
+      at[3 * i + 2] = next[3 * i + 2] = z * q[2][i];
+    }
+    const int s = base[0] + offset[2 * r];
+    const int touched = std::min(n + 1, owned - s);  // the row's owned molecules: s .. s + touched - 1
+    double* __restrict fr = f + 3 * s;
+    for (int j = 3; j < 3 * touched; ++j) fr[j] += next[j - 3];
+    for (int j = 0; j < 3 * std::min(n, touched); ++j) fr[j] += at[j];
+  }
+}
+
 // A tangent product's last step, for n cells' dP (overwritten): Q = V0 dP g per column (in dP's place); corner c's
 // row s_x q0 + s_y q1 + s_z q2, cell_block_forces's sums with the opposite sign, added to the owned corners of out.
 __attribute__((always_inline)) inline void add_cell_products(double (&dP)[9][kCellBlock], int n, double volume,
@@ -428,9 +451,26 @@ void volumetric_block_tangent(int n, const int* __restrict base, const int* __re
   const double gx = g[0], gy = g[1], gz = g[2];
   if (at_rest) {
     if (rows) {
-      const double* ur[4];
-      for (int r = 0; r < 4; ++r) ur[r] = u + 3 * (base[0] + offset[2 * r]);
-      row_gradient(ur[0], ur[1], ur[2], ur[3], n, gx, gy, gz, dF);
+      // Only tr dF is read: dF's diagonal (row_gradient's entries 0, 4, 8), then the diagonal Q's corner sums.
+      const double* r0 = u + 3 * (base[0] + offset[0]);
+      const double* r1 = u + 3 * (base[0] + offset[2]);
+      const double* r2 = u + 3 * (base[0] + offset[4]);
+      const double* r3 = u + 3 * (base[0] + offset[6]);
+      alignas(64) double diag[3][kCellBlock], q[3][kCellBlock];
+      for (int d = 0; d < 3; ++d)
+        for (int i = 0; i < n; ++i) {
+          const int a = 3 * i + d, b = 3 * (i + 1) + d;
+          double e[3];
+          corner_gradient(r0[a], r0[b], r1[a], r1[b], r2[a], r2[b], r3[a], r3[b], gx, gy, gz, e[0], e[1], e[2]);
+          diag[d][i] = e[d];
+        }
+      const double stiff = 0.5 * kappa * 2.0;  // as below
+      for (int i = 0; i < n; ++i) {
+        const double dvol = stiff * (diag[0][i] + diag[1][i] + diag[2][i]);
+        q[0][i] = -volume * dvol * gx, q[1][i] = -volume * dvol * gy, q[2][i] = -volume * dvol * gz;
+      }
+      add_row_corners_at_rest(q, n, base, offset, owned, out);
+      return;
     } else {
       for (int d = 0; d < 3; ++d)
         for (int i = 0; i < n; ++i) {
@@ -975,14 +1015,17 @@ public:
   }
   bool tangent_state_fast() const override { return state_width() == 10; }
   // state[0]: the width w it was made with (a history may start between the state and a product: begin_step).
-  // Volumetric-only cells (volumetric()) keep nothing (width 0): each product recomputes F from the positions the
-  // state was made at (volumetric_block_tangent).
+  // Volumetric-only cells (volumetric()) keep nothing (width 0, or -1 at the rest positions): each product
+  // recomputes F from the positions the state was made at (volumetric_block_tangent).
   std::size_t tangent_state_size() const override {
     return 1 + (volumetric() ? 0 : state_width() * static_cast<std::size_t>(cells_));
   }
   void tangent_state(const double* x, double* state_with_width) const override {
     if (volumetric()) {
-      state_with_width[0] = 0;
+      // -1: x is the rest positions to the bit (the first Newton iterate of a solve from rest), so every product
+      // at x takes the F = I form, the same numbers as the general one at F = I.
+      const bool at_rest = x == m_.rest.data() || std::equal(m_.rest.begin(), m_.rest.end(), x);
+      state_with_width[0] = at_rest ? -1 : 0;
       return;
     }
     const int w = state_width();
@@ -1037,7 +1080,7 @@ public:
   void add_tangent_state_diagonal(const double* x, const double* state_with_width, double* diag) const override {
     const int w = static_cast<int>(state_with_width[0]);
     const double* state = state_with_width + 1;
-    if (w == 0) {
+    if (w <= 0) {
       // F from the displacements x - X with the product's arithmetic (corner_gradient), then the closed form below.
       for (int k = 0; k < cells_; ++k) {
         int corner[8];
@@ -1370,7 +1413,8 @@ private:
     blocks_.shrink_to_fit();
   }
 
-  // Block b's product (state of width w: 0 volumetric-only, from x; 10 F and mu J^(-2/3) a cell; 81 dP/dF).
+  // Block b's product (state of width w: 0 volumetric-only, from x, -1 the same at the rest positions; 10 F and
+  // mu J^(-2/3) a cell; 81 dP/dF).
   void block_tangent(const Block& b, int w, const double* x, const double* state, const double* u,
                      double* out) const {
     const Kind& kind = kinds_[b.kind];
@@ -1378,13 +1422,13 @@ private:
     const double g[3] = {geo.g[1][0], geo.g[2][1], geo.g[4][2]};
     const int* base = base_.data() + b.first;
     const int* pattern = patterns_[b.pattern].data();
-    if (w == 0) {
+    if (w <= 0) {
       RowRest rest;
       const bool computed = b.rows && lattice_rest_;
       if (computed) row_rest(b, rest);
       // x is the rest array itself for the rest tangent (MatrixFreeTangent at rest): F = I, the short form.
       volumetric_block_tangent(b.n, base, pattern, b.rows, computed ? &rest : nullptr, u, x, m_.rest.data(),
-                               kind.moduli.kappa, geo.volume, g, m_.owned, out, x == m_.rest.data());
+                               kind.moduli.kappa, geo.volume, g, m_.owned, out, w < 0 || x == m_.rest.data());
       return;
     }
     cell_block_tangent(b.n, base, pattern, b.rows, u, state + w * static_cast<std::size_t>(b.first),

@@ -120,26 +120,42 @@ __attribute__((always_inline)) inline void add_row_corners(const double (&q)[9][
   }
 }
 
-// add_row_corners for the F = I form's Q (V0 dP g with dP = dvol I: component d's only nonzero column is d), given
-// as q[d][i] = -V0 dvol g_d: the same sums with the zero columns' terms dropped (x + (-0) is x; the +0 terms
-// could only change the sign of an exact zero).
-__attribute__((always_inline)) inline void add_row_corners_at_rest(const double (&q)[3][kCellBlock], int n,
+// The F = I form's corner signs for add_row_corners' rows (bit 0 of r: the y+ rows, bit 1: the z+ rows): Q = V0 dP g
+// with dP = dvol I has one nonzero column per component, so a cell's corner at molecule i ("at", e = 0) adds
+// (q_x, s_y q_y, s_z q_z) and its corner at molecule i + 1 ("next", e = 1) adds (-q_x, s_y q_y, s_z q_z):
+// add_row_corners' sums with the zero columns' terms dropped (x + (-0) is x; their +0 could only change the sign of
+// an exact zero). Repeated over the x, y, z entries of a row's molecules.
+struct RestCornerSigns {
+  double s[4][2][3 * kCellBlock];
+};
+constexpr RestCornerSigns rest_corner_signs() {
+  RestCornerSigns t{};
+  for (int r = 0; r < 4; ++r)
+    for (int e = 0; e < 2; ++e)
+      for (int k = 0; k < 3 * kCellBlock; ++k) {
+        const int d = k % 3;
+        t.s[r][e][k] = d == 0 ? (e ? -1.0 : 1.0) : d == 1 ? ((r & 1) ? -1.0 : 1.0) : ((r >> 1) ? -1.0 : 1.0);
+      }
+  return t;
+}
+inline constexpr RestCornerSigns kRestCornerSigns = rest_corner_signs();
+
+// add_row_corners for the F = I form, Q interleaved as the molecules (Q[3i + d] = cell i's q_d): each owned
+// molecule of a row takes its cell before (next) and then its cell after (at), in one pass.
+__attribute__((always_inline)) inline void add_row_corners_at_rest(const double* __restrict Q, int n,
                                                                    const int* __restrict base,
                                                                    const int* __restrict offset, int owned,
                                                                    double* __restrict f) {
-  alignas(64) double at[3 * kCellBlock], next[3 * kCellBlock];
   for (int r = 0; r < 4; ++r) {
-    const double y = (r & 1) ? -1.0 : 1.0, z = (r >> 1) ? -1.0 : 1.0;
-    for (int i = 0; i < n; ++i) {
-      at[3 * i] = q[0][i], next[3 * i] = -q[0][i];
-      at[3 * i + 1] = next[3 * i + 1] = y * q[1][i];
-      at[3 * i + 2] = next[3 * i + 2] = z * q[2][i];
-    }
+    const double* __restrict at = kRestCornerSigns.s[r][0];
+    const double* __restrict next = kRestCornerSigns.s[r][1];
     const int s = base[0] + offset[2 * r];
     const int touched = std::min(n + 1, owned - s);  // the row's owned molecules: s .. s + touched - 1
+    const int m = 3 * std::min(n, touched), t = 3 * touched;
     double* __restrict fr = f + 3 * s;
-    for (int j = 3; j < 3 * touched; ++j) fr[j] += next[j - 3];
-    for (int j = 0; j < 3 * std::min(n, touched); ++j) fr[j] += at[j];
+    for (int k = 0; k < std::min(3, m); ++k) fr[k] += at[k] * Q[k];
+    for (int k = 3; k < m; ++k) fr[k] = (fr[k] + next[k] * Q[k - 3]) + at[k] * Q[k];
+    for (int k = std::max(3, m); k < t; ++k) fr[k] += next[k] * Q[k - 3];
   }
 }
 
@@ -451,25 +467,27 @@ void volumetric_block_tangent(int n, const int* __restrict base, const int* __re
   const double gx = g[0], gy = g[1], gz = g[2];
   if (at_rest) {
     if (rows) {
-      // Only tr dF is read: dF's diagonal (row_gradient's entries 0, 4, 8), then the diagonal Q's corner sums.
+      // Only tr dF is read (dF's diagonal), then the diagonal Q's corner sums.
       const double* r0 = u + 3 * (base[0] + offset[0]);
       const double* r1 = u + 3 * (base[0] + offset[2]);
       const double* r2 = u + 3 * (base[0] + offset[4]);
       const double* r3 = u + 3 * (base[0] + offset[6]);
-      alignas(64) double diag[3][kCellBlock], q[3][kCellBlock];
-      for (int d = 0; d < 3; ++d)
-        for (int i = 0; i < n; ++i) {
-          const int a = 3 * i + d, b = 3 * (i + 1) + d;
-          double e[3];
-          corner_gradient(r0[a], r0[b], r1[a], r1[b], r2[a], r2[b], r3[a], r3[b], gx, gy, gz, e[0], e[1], e[2]);
-          diag[d][i] = e[d];
-        }
+      alignas(64) double tr[kCellBlock], Q[3 * kCellBlock];
+      for (int i = 0; i < n; ++i) {  // corner_gradient's entries a of x, b of y, c of z
+        const int a = 3 * i, b = 3 * (i + 1);
+        const double tx = ((r0[b] - r0[a]) + (r1[b] - r1[a]) + (r2[b] - r2[a]) + (r3[b] - r3[a])) * gx;
+        const double ty = ((r1[a + 1] - r0[a + 1]) + (r1[b + 1] - r0[b + 1]) + (r3[a + 1] - r2[a + 1]) +
+                           (r3[b + 1] - r2[b + 1])) * gy;
+        const double tz = ((r2[a + 2] - r0[a + 2]) + (r2[b + 2] - r0[b + 2]) + (r3[a + 2] - r1[a + 2]) +
+                           (r3[b + 2] - r1[b + 2])) * gz;
+        tr[i] = tx + ty + tz;
+      }
       const double stiff = 0.5 * kappa * 2.0;  // as below
       for (int i = 0; i < n; ++i) {
-        const double dvol = stiff * (diag[0][i] + diag[1][i] + diag[2][i]);
-        q[0][i] = -volume * dvol * gx, q[1][i] = -volume * dvol * gy, q[2][i] = -volume * dvol * gz;
+        const double sv = -volume * (stiff * tr[i]);  // add_cell_products' -volume dP g, dP = dvol I
+        Q[3 * i] = sv * gx, Q[3 * i + 1] = sv * gy, Q[3 * i + 2] = sv * gz;
       }
-      add_row_corners_at_rest(q, n, base, offset, owned, out);
+      add_row_corners_at_rest(Q, n, base, offset, owned, out);
       return;
     } else {
       for (int d = 0; d < 3; ++d)

@@ -88,6 +88,8 @@ std::string with(std::string text, const std::string& from, const std::string& t
 const std::string springs_mm = with(springs, "[1.0, 1.0, 1.0]", "[1e-3, 1.2e-3, 0.9e-3]");
 // Cubic cells at nu = 0.45: volumetric only (the F = I form), row blocks of 20 cells and gathered ones.
 const std::string cubic = with(with(cells, "[1e-3, 1.2e-3, 0.9e-3]", "[1e-3, 1e-3, 1e-3]"), "[9, 7, 11]", "[21, 9, 13]");
+// The same with rows of 66 cells: full row blocks (kCellBlock = 64 cells, 65 molecules a row) and short gathered ones.
+const std::string cubic_long = with(cubic, "[21, 9, 13]", "[67, 4, 5]");
 
 double relative(Vec a, Vec b) {  // |a - b| / |b|
   Vec d;
@@ -157,6 +159,7 @@ void compare_at_rest(const std::string& text) {
 TEST(RestTangent, EqualsNewtonTangentAtRestSprings) { compare_at_rest(springs); }
 TEST(RestTangent, EqualsNewtonTangentAtRestSpringsNonIntegerSpacing) { compare_at_rest(springs_mm); }
 TEST(RestTangent, EqualsNewtonTangentAtRestVolumetricCells) { compare_at_rest(cubic); }
+TEST(RestTangent, EqualsNewtonTangentAtRestVolumetricCellsLongRows) { compare_at_rest(cubic_long); }
 TEST(RestTangent, EqualsNewtonTangentAtRestGeneralCells) { compare_at_rest(cells); }
 
 TEST(RestTangent, RefusedWithHistoryOrOff) {

@@ -126,13 +126,13 @@ __attribute__((always_inline)) inline void add_row_corners(const double (&q)[9][
 // add_row_corners' sums with the zero columns' terms dropped (x + (-0) is x; their +0 could only change the sign of
 // an exact zero). Repeated over the x, y, z entries of a row's molecules.
 struct RestCornerSigns {
-  double s[4][2][3 * kCellBlock];
+  double s[4][2][3 * (kCellBlock + 1)];  // a row block's n + 1 molecules
 };
 constexpr RestCornerSigns rest_corner_signs() {
   RestCornerSigns t{};
   for (int r = 0; r < 4; ++r)
     for (int e = 0; e < 2; ++e)
-      for (int k = 0; k < 3 * kCellBlock; ++k) {
+      for (int k = 0; k < 3 * (kCellBlock + 1); ++k) {
         const int d = k % 3;
         t.s[r][e][k] = d == 0 ? (e ? -1.0 : 1.0) : d == 1 ? ((r & 1) ? -1.0 : 1.0) : ((r >> 1) ? -1.0 : 1.0);
       }

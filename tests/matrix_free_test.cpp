@@ -411,7 +411,11 @@ TEST(MatrixFree, ShellEqualsAssembledVolumetricCells) {
     else EXPECT_GT(cell->tangent_state_size(), 1u);
     std::vector<double> state(cell->tangent_state_size());
     cell->tangent_state(r->model.rest.data(), state.data());
-    EXPECT_EQ(state[0], text == &cubic ? 0.0 : 10.0);
+    EXPECT_EQ(state[0], text == &cubic ? -1.0 : 10.0);  // -1: volumetric at the rest positions (the F = I form)
+    std::vector<double> x = r->model.rest;
+    if (!x.empty()) x[0] += 1e-9;  // one coordinate off rest: the general form
+    cell->tangent_state(x.data(), state.data());
+    if (!x.empty()) EXPECT_EQ(state[0], text == &cubic ? 0.0 : 10.0);
   }
 }
 // The shell's product runs the cell term's blocks inside the springs' sweep, each once the springs' part of its

@@ -120,6 +120,45 @@ __attribute__((always_inline)) inline void add_row_corners(const double (&q)[9][
   }
 }
 
+// The F = I form's corner signs for add_row_corners' rows (bit 0 of r: the y+ rows, bit 1: the z+ rows): Q = V0 dP g
+// with dP = dvol I has one nonzero column per component, so a cell's corner at molecule i ("at", e = 0) adds
+// (q_x, s_y q_y, s_z q_z) and its corner at molecule i + 1 ("next", e = 1) adds (-q_x, s_y q_y, s_z q_z):
+// add_row_corners' sums with the zero columns' terms dropped (x + (-0) is x; their +0 could only change the sign of
+// an exact zero). Repeated over the x, y, z entries of a row's molecules.
+struct RestCornerSigns {
+  double s[4][2][3 * (kCellBlock + 1)];  // a row block's n + 1 molecules
+};
+constexpr RestCornerSigns rest_corner_signs() {
+  RestCornerSigns t{};
+  for (int r = 0; r < 4; ++r)
+    for (int e = 0; e < 2; ++e)
+      for (int k = 0; k < 3 * (kCellBlock + 1); ++k) {
+        const int d = k % 3;
+        t.s[r][e][k] = d == 0 ? (e ? -1.0 : 1.0) : d == 1 ? ((r & 1) ? -1.0 : 1.0) : ((r >> 1) ? -1.0 : 1.0);
+      }
+  return t;
+}
+inline constexpr RestCornerSigns kRestCornerSigns = rest_corner_signs();
+
+// add_row_corners for the F = I form, Q interleaved as the molecules (Q[3i + d] = cell i's q_d): each owned
+// molecule of a row takes its cell before (next) and then its cell after (at), in one pass.
+__attribute__((always_inline)) inline void add_row_corners_at_rest(const double* __restrict Q, int n,
+                                                                   const int* __restrict base,
+                                                                   const int* __restrict offset, int owned,
+                                                                   double* __restrict f) {
+  for (int r = 0; r < 4; ++r) {
+    const double* __restrict at = kRestCornerSigns.s[r][0];
+    const double* __restrict next = kRestCornerSigns.s[r][1];
+    const int s = base[0] + offset[2 * r];
+    const int touched = std::min(n + 1, owned - s);  // the row's owned molecules: s .. s + touched - 1
+    const int m = 3 * std::min(n, touched), t = 3 * touched;
+    double* __restrict fr = f + 3 * s;
+    for (int k = 0; k < std::min(3, m); ++k) fr[k] += at[k] * Q[k];
+    for (int k = 3; k < m; ++k) fr[k] = (fr[k] + next[k] * Q[k - 3]) + at[k] * Q[k];
+    for (int k = std::max(3, m); k < t; ++k) fr[k] += next[k] * Q[k - 3];
+  }
+}
+
 // A tangent product's last step, for n cells' dP (overwritten): Q = V0 dP g per column (in dP's place); corner c's
 // row s_x q0 + s_y q1 + s_z q2, cell_block_forces's sums with the opposite sign, added to the owned corners of out.
 __attribute__((always_inline)) inline void add_cell_products(double (&dP)[9][kCellBlock], int n, double volume,
@@ -428,9 +467,28 @@ void volumetric_block_tangent(int n, const int* __restrict base, const int* __re
   const double gx = g[0], gy = g[1], gz = g[2];
   if (at_rest) {
     if (rows) {
-      const double* ur[4];
-      for (int r = 0; r < 4; ++r) ur[r] = u + 3 * (base[0] + offset[2 * r]);
-      row_gradient(ur[0], ur[1], ur[2], ur[3], n, gx, gy, gz, dF);
+      // Only tr dF is read (dF's diagonal), then the diagonal Q's corner sums.
+      const double* r0 = u + 3 * (base[0] + offset[0]);
+      const double* r1 = u + 3 * (base[0] + offset[2]);
+      const double* r2 = u + 3 * (base[0] + offset[4]);
+      const double* r3 = u + 3 * (base[0] + offset[6]);
+      alignas(64) double tr[kCellBlock], Q[3 * kCellBlock];
+      for (int i = 0; i < n; ++i) {  // corner_gradient's entries a of x, b of y, c of z
+        const int a = 3 * i, b = 3 * (i + 1);
+        const double tx = ((r0[b] - r0[a]) + (r1[b] - r1[a]) + (r2[b] - r2[a]) + (r3[b] - r3[a])) * gx;
+        const double ty = ((r1[a + 1] - r0[a + 1]) + (r1[b + 1] - r0[b + 1]) + (r3[a + 1] - r2[a + 1]) +
+                           (r3[b + 1] - r2[b + 1])) * gy;
+        const double tz = ((r2[a + 2] - r0[a + 2]) + (r2[b + 2] - r0[b + 2]) + (r3[a + 2] - r1[a + 2]) +
+                           (r3[b + 2] - r1[b + 2])) * gz;
+        tr[i] = tx + ty + tz;
+      }
+      const double stiff = 0.5 * kappa * 2.0;  // as below
+      for (int i = 0; i < n; ++i) {
+        const double sv = -volume * (stiff * tr[i]);  // add_cell_products' -volume dP g, dP = dvol I
+        Q[3 * i] = sv * gx, Q[3 * i + 1] = sv * gy, Q[3 * i + 2] = sv * gz;
+      }
+      add_row_corners_at_rest(Q, n, base, offset, owned, out);
+      return;
     } else {
       for (int d = 0; d < 3; ++d)
         for (int i = 0; i < n; ++i) {
@@ -975,14 +1033,17 @@ public:
   }
   bool tangent_state_fast() const override { return state_width() == 10; }
   // state[0]: the width w it was made with (a history may start between the state and a product: begin_step).
-  // Volumetric-only cells (volumetric()) keep nothing (width 0): each product recomputes F from the positions the
-  // state was made at (volumetric_block_tangent).
+  // Volumetric-only cells (volumetric()) keep nothing (width 0, or -1 at the rest positions): each product
+  // recomputes F from the positions the state was made at (volumetric_block_tangent).
   std::size_t tangent_state_size() const override {
     return 1 + (volumetric() ? 0 : state_width() * static_cast<std::size_t>(cells_));
   }
   void tangent_state(const double* x, double* state_with_width) const override {
     if (volumetric()) {
-      state_with_width[0] = 0;
+      // -1: x is the rest positions to the bit (the first Newton iterate of a solve from rest), so every product
+      // at x takes the F = I form, the same numbers as the general one at F = I.
+      const bool at_rest = x == m_.rest.data() || std::equal(m_.rest.begin(), m_.rest.end(), x);
+      state_with_width[0] = at_rest ? -1 : 0;
       return;
     }
     const int w = state_width();
@@ -1037,7 +1098,7 @@ public:
   void add_tangent_state_diagonal(const double* x, const double* state_with_width, double* diag) const override {
     const int w = static_cast<int>(state_with_width[0]);
     const double* state = state_with_width + 1;
-    if (w == 0) {
+    if (w <= 0) {
       // F from the displacements x - X with the product's arithmetic (corner_gradient), then the closed form below.
       for (int k = 0; k < cells_; ++k) {
         int corner[8];
@@ -1370,7 +1431,8 @@ private:
     blocks_.shrink_to_fit();
   }
 
-  // Block b's product (state of width w: 0 volumetric-only, from x; 10 F and mu J^(-2/3) a cell; 81 dP/dF).
+  // Block b's product (state of width w: 0 volumetric-only, from x, -1 the same at the rest positions; 10 F and
+  // mu J^(-2/3) a cell; 81 dP/dF).
   void block_tangent(const Block& b, int w, const double* x, const double* state, const double* u,
                      double* out) const {
     const Kind& kind = kinds_[b.kind];
@@ -1378,13 +1440,13 @@ private:
     const double g[3] = {geo.g[1][0], geo.g[2][1], geo.g[4][2]};
     const int* base = base_.data() + b.first;
     const int* pattern = patterns_[b.pattern].data();
-    if (w == 0) {
+    if (w <= 0) {
       RowRest rest;
       const bool computed = b.rows && lattice_rest_;
       if (computed) row_rest(b, rest);
       // x is the rest array itself for the rest tangent (MatrixFreeTangent at rest): F = I, the short form.
       volumetric_block_tangent(b.n, base, pattern, b.rows, computed ? &rest : nullptr, u, x, m_.rest.data(),
-                               kind.moduli.kappa, geo.volume, g, m_.owned, out, x == m_.rest.data());
+                               kind.moduli.kappa, geo.volume, g, m_.owned, out, w < 0 || x == m_.rest.data());
       return;
     }
     cell_block_tangent(b.n, base, pattern, b.rows, u, state + w * static_cast<std::size_t>(b.first),

@@ -801,6 +801,17 @@ PetscErrorCode ForceModel::connection_blocks_unless(const double* x, Term::Block
   PetscFunctionReturn(0);
 }
 
+// -K of a spring's tangent block, K = k (n n^T + geo (I - n n^T)) with n n^T = d d^T / |d|^2: symmetric to the bit
+// (d[r] d[s] = d[s] d[r] exactly), so its upper triangle only, 6 divisions.
+static inline void minus_spring_block(const double* d, double len2, double k, double geo, double minus[9]) {
+  for (int r = 0; r < 3; ++r)
+    for (int s = r; s < 3; ++s) {
+      const double nn = d[r] * d[s] / len2;
+      const double K = k * (nn + geo * ((r == s ? 1.0 : 0.0) - nn));
+      minus[3 * r + s] = minus[3 * s + r] = -K;
+    }
+}
+
 // connection_row's arithmetic from the row's inputs (Stretch's d, k, l0; connection_blocks_unless).
 PetscErrorCode ForceModel::connection_row_of(int i, const int* ends, const double* inputs, int count, Term::BlockAdd add,
                                              void* ctx) const {
@@ -810,12 +821,7 @@ PetscErrorCode ForceModel::connection_row_of(int i, const int* ends, const doubl
     const double* d = inputs + 5 * q;
     const double len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2], k = d[3], geo = 1.0 - d[4] / std::sqrt(len2);
     double minus[9];
-    for (int r = 0; r < 3; ++r)
-      for (int s = r; s < 3; ++s) {
-        const double nn = d[r] * d[s] / len2;
-        const double K = k * (nn + geo * ((r == s ? 1.0 : 0.0) - nn));
-        minus[3 * r + s] = minus[3 * s + r] = -K;
-      }
+    minus_spring_block(d, len2, k, geo, minus);
     for (int e = 0; e < 9; ++e) self[e] -= minus[e];
     PetscCall(add(ctx, i, ends[q], minus));
   }
@@ -832,14 +838,8 @@ PetscErrorCode ForceModel::connection_row(const double* x, int i, Term::BlockAdd
     const Stretch st(model_, x, i, j, c);
     const double* d = st.d;
     const double len2 = st.len2, k = st.k, geo = st.geo;
-    // The block is symmetric to the bit (d[r] d[s] = d[s] d[r] exactly): its upper triangle only, 6 divisions.
     double minus[9];
-    for (int r = 0; r < 3; ++r)
-      for (int s = r; s < 3; ++s) {
-        const double nn = d[r] * d[s] / len2;
-        const double K = k * (nn + geo * ((r == s ? 1.0 : 0.0) - nn));
-        minus[3 * r + s] = minus[3 * s + r] = -K;
-      }
+    minus_spring_block(d, len2, k, geo, minus);
     for (int e = 0; e < 9; ++e) self[e] -= minus[e];  // += K, exactly
     PetscCall(add(ctx, i, j, minus));
   }

@@ -24,6 +24,7 @@
 #include "src/solvers/lattice_mg.hpp"
 #include "src/solvers/matrix_free.hpp"
 #include "tests/pipeline.hpp"
+#include "tests/tangent_scenes.hpp"
 
 using namespace tissue;
 using tissue::test_pipeline::RunResult;
@@ -31,42 +32,9 @@ using tissue::test_pipeline::run;
 
 namespace {
 
-// Every scene: a roller face and a clamped face (0-3 free components a molecule).
-const std::string fixes = R"(
-[[fix]]
-face = "z-"
-mode = "roller"
-[[fix]]
-face = "x+"
-mode = "clamped"
-[solver]
-kind = "static"
-)";
-
-const std::string springs = R"(
-title = "matrix-free: springs"
-[body]
-molecules = [10, 7, 12]
-spacing = [1.0, 1.0, 1.0]
-topology = "face-diagonals"
-material = "custom"
-youngs_modulus = 2.5
-[calibration]
-method = "manual"
-stiffness = { edge = 1.0, face = 0.7 }
-)" + fixes;
-
-const std::string cells = R"(
-title = "matrix-free: cell term"
-[body]
-molecules = [9, 7, 11]
-spacing = [1e-3, 1.2e-3, 0.9e-3]
-topology = "face-diagonals"
-youngs_modulus = 1e4
-poisson_ratio = 0.45
-[calibration]
-method = "homogenized"
-)" + fixes;
+using tangent_scenes::cells;
+using tangent_scenes::fixes;
+using tangent_scenes::springs;
 
 const std::string fibres = R"(
 title = "matrix-free: fibres"

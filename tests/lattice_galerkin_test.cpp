@@ -12,6 +12,7 @@
 #include "src/solvers/lattice_galerkin.hpp"
 #include "src/solvers/lattice_mg.hpp"
 #include "tests/pipeline.hpp"
+#include "tests/tangent_scenes.hpp"
 
 using namespace tissue;
 using tissue::test_pipeline::RunResult;
@@ -19,26 +20,8 @@ using tissue::test_pipeline::run;
 
 namespace {
 
-const char* scene = R"(
-title = "lattice Galerkin"
-[body]
-molecules = [10, 7, 12]
-spacing = [1.0, 1.0, 1.0]
-topology = "face-diagonals"
-material = "custom"
-youngs_modulus = 2.5
-[calibration]
-method = "manual"
-stiffness = { edge = 1.0, face = 0.7 }
-[[fix]]
-face = "z-"
-mode = "roller"
-[[fix]]
-face = "x+"
-mode = "clamped"
-[solver]
-kind = "static"
-)";
+// The box of tests/tangent_scenes.hpp (springs at unit spacing, a roller and a clamped face).
+const std::string scene = tangent_scenes::springs;
 
 // || A - B ||_F / || B ||_F.
 double relative_difference(Mat A, Mat B) {
@@ -161,7 +144,7 @@ TEST(LatticeGalerkin, StreamGershgorinBoundEqualsForceModelsAndAssembledRows) {
 // vectorised path for wholly free nodes and the masked one at the roller and clamped faces.
 // Level 1's shell at positions moved by `amplitude` (0: the rest positions, where its rows are nearly all equal to
 // the bit and kept once) against PETSc's product of the assembled tangent.
-void compare_level_one_shell(double amplitude, const char* scene_text = scene) {
+void compare_level_one_shell(double amplitude, const std::string& scene_text = scene) {
   const auto rp = run(scene_text, PETSC_COMM_WORLD, {}, false);
   const RunResult& r = *rp;
   std::vector<double> x(r.model.rest);
@@ -226,14 +209,14 @@ TEST(LatticeGalerkin, LevelOneShellAtRestEqualsPetscTripleProduct) { compare_lev
 TEST(LatticeGalerkin, LevelOneShellAtRestNonIntegerSpacing) {
   std::string mm = scene;
   mm.replace(mm.find("[1.0, 1.0, 1.0]"), 15, "[1e-3, 1.2e-3, 0.9e-3]");
-  compare_level_one_shell(0.0, mm.c_str());
+  compare_level_one_shell(0.0, mm);
 }
 
 // The same box with the cell term (homogenized at nu = 0.45: cubic cells, the volumetric part alone). A cell's
 // block K_ab = V0 (W'' (cof F g_a)(cof F g_b)^T + W' [F (g_a x g_b)]_x) is not symmetric (only K_ba = K_ab^T), so
 // the shell's product reads each block's columns from its transposed copy; at rest (W' = 0) the rank-one part
 // alone is still not symmetric.
-const char* cell_scene = R"(
+const std::string cell_scene = R"(
 title = "lattice Galerkin, cells"
 [body]
 molecules = [10, 7, 12]
@@ -243,15 +226,7 @@ youngs_modulus = 2.5
 poisson_ratio = 0.45
 [calibration]
 method = "homogenized"
-[[fix]]
-face = "z-"
-mode = "roller"
-[[fix]]
-face = "x+"
-mode = "clamped"
-[solver]
-kind = "static"
-)";
+)" + tangent_scenes::fixes;
 
 TEST(LatticeGalerkin, LevelOneShellWithCellsEqualsPetscTripleProduct) { compare_level_one_shell(0.08, cell_scene); }
 TEST(LatticeGalerkin, LevelOneShellWithCellsAtRestEqualsPetscTripleProduct) {

@@ -15,6 +15,7 @@
 #include "src/physics/force_model.hpp"
 #include "src/solvers/volume_smoother.hpp"
 #include "tests/pipeline.hpp"
+#include "tests/tangent_scenes.hpp"
 
 using namespace tissue;
 using tissue::test_pipeline::run;
@@ -31,15 +32,7 @@ youngs_modulus = 1e4
 poisson_ratio = 0.45
 [calibration]
 method = "homogenized"
-[[fix]]
-face = "z-"
-mode = "roller"
-[[fix]]
-face = "x+"
-mode = "clamped"
-[solver]
-kind = "static"
-)";
+)" + tangent_scenes::fixes;
 
 // M = D + B^T K B from the tangent A (assembled at rest) and the cells.
 Mat woodbury_matrix(const test_pipeline::RunResult& r, Mat A, const Term::VolumeCoupling& c) {

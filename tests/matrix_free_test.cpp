@@ -35,6 +35,7 @@ namespace {
 using tangent_scenes::cells;
 using tangent_scenes::fixes;
 using tangent_scenes::springs;
+using tangent_scenes::visco;
 
 const std::string fibres = R"(
 title = "matrix-free: fibres"
@@ -51,22 +52,6 @@ poisson_ratio = 0.3
 shear_modulus = 1e4
 [calibration]
 method = "homogenized"
-)" + fixes;
-
-const std::string visco = R"(
-title = "matrix-free: viscoelastic"
-[body]
-molecules = [8, 7, 9]
-spacing = [1.0, 1.0, 1.0]
-topology = "face-diagonals"
-material = "custom"
-youngs_modulus = 2.5
-[body.viscoelastic]
-gamma = [0.8, 0.3]
-tau = [0.5, 4.0]
-[calibration]
-method = "manual"
-stiffness = { edge = 1.0, face = 0.7 }
 )" + fixes;
 
 // The rest positions moved by a smooth displacement (each molecule's from its own rest position, so ghosts agree

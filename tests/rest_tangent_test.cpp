@@ -34,21 +34,7 @@ using tangent_scenes::cells;
 using tangent_scenes::fixes;
 using tangent_scenes::springs;
 
-const std::string visco = R"(
-title = "rest tangent: viscoelastic"
-[body]
-molecules = [8, 7, 9]
-spacing = [1.0, 1.0, 1.0]
-topology = "face-diagonals"
-material = "custom"
-youngs_modulus = 2.5
-[body.viscoelastic]
-gamma = [0.8, 0.3]
-tau = [0.5, 4.0]
-[calibration]
-method = "manual"
-stiffness = { edge = 1.0, face = 0.7 }
-)" + fixes;
+using tangent_scenes::visco;
 
 std::string with(std::string text, const std::string& from, const std::string& to) {
   return text.replace(text.find(from), from.size(), to);

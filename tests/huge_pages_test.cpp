@@ -101,14 +101,11 @@ TEST(HugePages, NoReexecutionWhenAsked) {
 }
 
 #ifdef TISSUE_BINARY
-// The running image's environment: `tissue run FIFO` blocks reading its scene from a named pipe, so its
-// /proc/PID/environ can be read before it finishes; then it gets an empty file (exit 2, bad input).
-std::string running_environment(const std::vector<std::string>& extra_env, std::string* name = nullptr) {
-  const std::string fifo = "huge_pages_test_" + std::to_string(::getpid()) + ".toml";
-  ::unlink(fifo.c_str());
-  if (::mkfifo(fifo.c_str(), 0600) != 0) return "<mkfifo failed>";
+// Starts `tissue ARGS` in a child process, its output to /dev/null, with this process's environment less the
+// tunable, TISSUE_HUGE_PAGES and MPI's variables (a singleton, not a rank of this test's job) plus extra_env.
+pid_t launch(const std::vector<std::string>& args, const std::vector<std::string>& extra_env) {
   const pid_t pid = ::fork();
-  if (pid == 0) {
+  if (pid != 0) return pid;
     std::vector<std::string> env_text;
     for (char** e = environ; *e; ++e) {
       const std::string s = *e;
@@ -117,12 +114,29 @@ std::string running_environment(const std::vector<std::string>& extra_env, std::
         env_text.push_back(s);
     }
     for (const auto& s : extra_env) env_text.push_back(s);
-    Args env(env_text), argv({TISSUE_BINARY, "run", fifo, "--output", fifo + ".out"});
-    const int null = ::open("/dev/null", O_WRONLY);
-    ::dup2(null, 1), ::dup2(null, 2);
-    ::execve(TISSUE_BINARY, argv.get(), env.get());
-    std::_Exit(127);
-  }
+  std::vector<std::string> argv_text{TISSUE_BINARY};
+  argv_text.insert(argv_text.end(), args.begin(), args.end());
+  Args env(env_text), argv(argv_text);
+  const int null = ::open("/dev/null", O_WRONLY);
+  ::dup2(null, 1), ::dup2(null, 2);
+  ::execve(TISSUE_BINARY, argv.get(), env.get());
+  std::_Exit(127);
+}
+
+// Whether the kernel grants transparent huge pages to madvise (what the tunable asks for).
+bool huge_pages_on_request() {
+  std::ifstream mode("/sys/kernel/mm/transparent_hugepage/enabled");
+  const std::string text((std::istreambuf_iterator<char>(mode)), std::istreambuf_iterator<char>());
+  return text.find("[madvise]") != std::string::npos;
+}
+
+// The running image's environment: `tissue run FIFO` blocks reading its scene from a named pipe, so its
+// /proc/PID/environ can be read before it finishes; then it gets an empty file (exit 2, bad input).
+std::string running_environment(const std::vector<std::string>& extra_env, std::string* name = nullptr) {
+  const std::string fifo = "huge_pages_test_" + std::to_string(::getpid()) + ".toml";
+  ::unlink(fifo.c_str());
+  if (::mkfifo(fifo.c_str(), 0600) != 0) return "<mkfifo failed>";
+  const pid_t pid = launch({"run", fifo, "--output", fifo + ".out"}, extra_env);
   // The FIFO opens for writing once the program (re-executed or not) opens its scene; poll, so that a program
   // that stops before that fails the test instead of hanging it.
   int writer = -1, status = 0;
@@ -171,9 +185,7 @@ TEST(HugePages, TheRunningImageCarriesTheTunable) {
   int rank = 0;
   MPI_Comm_rank(MPI_COMM_WORLD, &rank);
   if (rank != 0) GTEST_SKIP() << "one rank runs the program";
-  std::ifstream mode("/sys/kernel/mm/transparent_hugepage/enabled");
-  const std::string text((std::istreambuf_iterator<char>(mode)), std::istreambuf_iterator<char>());
-  if (text.find("[madvise]") == std::string::npos) GTEST_SKIP() << "the kernel does not grant huge pages on request";
+  if (!huge_pages_on_request()) GTEST_SKIP() << "the kernel does not grant huge pages on request";
   // The re-executed process keeps its name (pgrep, top and job scripts find it by name).
   std::string name;
   EXPECT_EQ(running_environment({}, &name), "GLIBC_TUNABLES=glibc.malloc.hugetlb=1");
@@ -188,24 +200,10 @@ TEST(HugePages, TheRunningImageCarriesTheTunable) {
 // its environment without the tunable plus extra_env; -1 when it did not exit 0.
 long run_page_faults(const std::vector<std::string>& extra_env) {
   const std::string out = "huge_pages_test_" + std::to_string(::getpid()) + ".out";
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    std::vector<std::string> env_text;
-    for (char** e = environ; *e; ++e) {
-      const std::string s = *e;
-      if (s.rfind("GLIBC_TUNABLES=", 0) != 0 && s.rfind("TISSUE_HUGE_PAGES=", 0) != 0 && s.rfind("OMPI_", 0) != 0 &&
-          s.rfind("PMIX_", 0) != 0)
-        env_text.push_back(s);
-    }
-    for (const auto& s : extra_env) env_text.push_back(s);
-    Args env(env_text), argv({TISSUE_BINARY, "run", std::string(TISSUE_SOURCE_DIR) + "/run_scripts/scenes/peer_tension.toml",
-                              "--set", "body.molecules=[40,40,40]", "--set", "load.0.force=[0,0,-1.6]", "--set",
-                              "solver.tolerance=1e-8", "--set", "output.fields=[]", "--output", out});
-    const int null = ::open("/dev/null", O_WRONLY);
-    ::dup2(null, 1), ::dup2(null, 2);
-    ::execve(TISSUE_BINARY, argv.get(), env.get());
-    std::_Exit(127);
-  }
+  const pid_t pid = launch({"run", std::string(TISSUE_SOURCE_DIR) + "/run_scripts/scenes/peer_tension.toml", "--set",
+                           "body.molecules=[40,40,40]", "--set", "load.0.force=[0,0,-1.6]", "--set",
+                           "solver.tolerance=1e-8", "--set", "output.fields=[]", "--output", out},
+                          extra_env);
   int status = 0;
   struct rusage usage {};
   const bool waited = ::wait4(pid, &status, 0, &usage) == pid;
@@ -222,9 +220,7 @@ TEST(HugePages, TheTunableTakesEffectInEveryStart) {
   int rank = 0;
   MPI_Comm_rank(MPI_COMM_WORLD, &rank);
   if (rank != 0) GTEST_SKIP() << "one rank runs the program";
-  std::ifstream mode("/sys/kernel/mm/transparent_hugepage/enabled");
-  const std::string text((std::istreambuf_iterator<char>(mode)), std::istreambuf_iterator<char>());
-  if (text.find("[madvise]") == std::string::npos) GTEST_SKIP() << "the kernel does not grant huge pages on request";
+  if (!huge_pages_on_request()) GTEST_SKIP() << "the kernel does not grant huge pages on request";
   const long off = run_page_faults({"TISSUE_HUGE_PAGES=off"});
   ASSERT_GT(off, 0);
   for (int start = 0; start < 8; ++start) {

@@ -268,6 +268,30 @@ PetscErrorCode rebuild_pending(SNES snes, PC* pc, bool* rebuild) {
   PetscFunctionReturn(0);
 }
 
+// The levels between the finest and the coarsest: PETSc's Chebyshev-Jacobi with its estimate (setup_lattice_mg's)
+// becomes the fused one estimating the same way (fused_chebyshev.hpp: the same numbers to the bit), so that each
+// step is the product and one pass over the level's vectors instead of four. With the cells a level's call is 4
+// steps (use_volume_smoother) over vectors too large for the cache at 10^6 (level 1: 3 MB each). Once: a level
+// already fused keeps its estimate's state (it estimates again when its operator changes, as PETSc's does).
+PetscErrorCode fuse_coarse_chebyshev(PC pc, PetscInt levels) {
+  PetscFunctionBeginUser;
+  for (PetscInt l = 1; l + 1 < levels; ++l) {
+    KSP smoother;
+    PetscBool chebyshev = PETSC_FALSE;
+    PetscCall(PCMGGetSmoother(pc, l, &smoother));
+    PetscCall(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(smoother), KSPCHEBYSHEV, &chebyshev));
+    if (!chebyshev) continue;
+    PC jacobi;
+    PetscCall(register_fused_chebyshev());
+    PetscCall(KSPSetType(smoother, kFusedChebyshev));
+    PetscCall(KSPGetPC(smoother, &jacobi));
+    PetscCall(PCSetType(jacobi, PCNONE));  // its own D^-1
+    PetscCall(fused_chebyshev_estimate(smoother, kChebyshevEstimate[0], kChebyshevEstimate[1], kChebyshevEstimate[2],
+                                       kChebyshevEstimate[3], kChebyshevEstimateSteps));
+  }
+  PetscFunctionReturn(0);
+}
+
 // The finest level's Chebyshev interval [f G, G] from Gershgorin's bound G on the Jacobi-scaled tangent
 // (ForceModel::jacobi_gershgorin, one pass over the connections, no storage) instead of PETSc's estimate: no
 // estimator CG on the finest level (its work vectors, 4 a molecule, and 6 products at every rebuild). Where the
@@ -277,6 +301,7 @@ PetscErrorCode fine_chebyshev(Context* ctx, PC pc) {
   PetscInt levels;
   KSP smoother;
   PetscCall(PCMGGetLevels(pc, &levels));
+  if (ctx->fused) PetscCall(fuse_coarse_chebyshev(pc, levels));
   PetscCall(PCMGGetSmoother(pc, levels - 1, &smoother));
   double bound = 0.0;
   bool exact = false;

@@ -528,29 +528,23 @@ void volumetric_block_tangent(int n, const int* __restrict base, const int* __re
       }
   }
   // An inverted cell takes F = I (the residual is NaN already): found in a pass of its own, so that the lanes'
-  // arithmetic below has no branch and vectorizes. The pass keeps cof F and J for the lanes (cof I and 1 for an
-  // inverted cell, by the same expressions), which the second then reads instead of computing them again.
-  alignas(64) double Js[kCellBlock], cofs[9][kCellBlock];
+  // arithmetic below has no branch and vectorizes.
+  alignas(64) double Js[kCellBlock];
   for (int i = 0; i < n; ++i) {
     double F[9], cof[9];
     for (int q = 0; q < 9; ++q) F[q] = G[q][i] + (q % 4 == 0 ? 1.0 : 0.0);
     cof_of(F, cof);
     Js[i] = F[0] * cof[0] + F[1] * cof[1] + F[2] * cof[2];
-    for (int q = 0; q < 9; ++q) cofs[q][i] = cof[q];
   }
   for (int i = 0; i < n; ++i)
-    if (!(Js[i] > 0)) {
-      double F[9], cof[9];
-      for (int q = 0; q < 9; ++q) G[q][i] = 0.0, F[q] = 0.0 + (q % 4 == 0 ? 1.0 : 0.0);
-      cof_of(F, cof);
-      Js[i] = F[0] * cof[0] + F[1] * cof[1] + F[2] * cof[2];
-      for (int q = 0; q < 9; ++q) cofs[q][i] = cof[q];
-    }
+    if (!(Js[i] > 0))
+      for (int q = 0; q < 9; ++q) G[q][i] = 0.0;
   const double half = 0.5 * kappa;
   for (int i = 0; i < n; ++i) {
     double F[9], d[9], cof[9];
-    for (int q = 0; q < 9; ++q) F[q] = G[q][i] + (q % 4 == 0 ? 1.0 : 0.0), d[q] = dF[q][i], cof[q] = cofs[q][i];
-    const double J = Js[i];
+    for (int q = 0; q < 9; ++q) F[q] = G[q][i] + (q % 4 == 0 ? 1.0 : 0.0), d[q] = dF[q][i];
+    cof_of(F, cof);
+    const double J = F[0] * cof[0] + F[1] * cof[1] + F[2] * cof[2];
     double dcof[9];
     dcof_of(F, d, dcof);
     double dJ = 0;

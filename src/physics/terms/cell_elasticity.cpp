@@ -313,6 +313,11 @@ void cell_block_forces(int n, const int* __restrict base, const int* __restrict 
     add_row_corners(q, n, base, offset, owned, f);
     return;
   }
+  alignas(64) int along[kCellBlock];  // a row block's cells' bases (it is given base[0] only: Block::base0)
+  if (rows) {
+    for (int i = 0; i < n; ++i) along[i] = base[0] + i;
+    base = along;
+  }
   for (int i = 0; i < n; ++i) {
     if (!(J[i] > 0)) {
       // An inverted cell: its energy is infinite; NaN forces make every solver's guard stop or cut back.
@@ -1468,8 +1473,8 @@ private:
     RowRest rest;
     const bool computed = b.rows && lattice_rest_;
     if (computed) row_rest(b, rest);
-    cell_block_forces(b.n, base_.data() + k, patterns_[b.pattern].data(), b.rows, computed ? &rest : nullptr, x,
-                      m_.rest.data(), kind.moduli, geo.volume, g, m_.owned, f);
+    cell_block_forces(b.n, b.rows ? &b.base0 : base_.data() + k, patterns_[b.pattern].data(), b.rows,
+                      computed ? &rest : nullptr, x, m_.rest.data(), kind.moduli, geo.volume, g, m_.owned, f);
   }
 
   // Cells whose law is its volumetric part alone, W = kappa/4 (J^2 - 1 - 2 ln J) (mu_c = 0, no virtual diagonals,

@@ -72,6 +72,22 @@ def main():
             check(calls["fused"] == 0 < calls["petsc"],
                   f"{what}: the fused smoothers ran on every level (VecAXPBYPCZ calls {calls['fused']} == 0 < "
                   f"{calls['petsc']})")
+    # A level's own smoother option (-mg_levels_1_ksp_type) keeps that level PETSc's: its VecAXPBYPCZ calls are back,
+    # and the numbers are the fused run's.
+    out = os.path.join(work, "cells045_24_own_level")
+    r = tissue(a.build, 1, "run", cells, "--set", "body.poisson_ratio=0.45", "--set", "body.molecules=[24,24,24]",
+               "--set", "load.0.force=[0,0,0.529]", "--set", "solver.tolerance=1e-8", "--set", "output.fields=[]",
+               "--set", "output.progress=false", "--output", out, "--", "-mg_levels_1_ksp_type", "chebyshev",
+               "-log_view")
+    fused_out = os.path.join(work, "cells045_24_fused_np1_d0", "summary.json")
+    if check(r.returncode == 0 and os.path.exists(fused_out), f"own level option: exit {r.returncode}"):
+        with open(os.path.join(out, "summary.json")) as f:
+            own = json.load(f)
+        with open(fused_out) as f:
+            fused = json.load(f)
+        check(axpbypcz_calls(r.stdout) > 0, "own level option: level 1 is PETSc's (VecAXPBYPCZ calls)")
+        check(own["elongation"] == fused["elongation"] and own["solver"]["residual"] == fused["solver"]["residual"],
+              "own level option: the same numbers")
     return report()
 
 

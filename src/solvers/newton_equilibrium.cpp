@@ -14,6 +14,7 @@
 #include <cmath>
 #include <cstring>
 #include <memory>
+#include <string>
 #include <utility>
 
 #include "src/solvers/fused_chebyshev.hpp"
@@ -281,6 +282,18 @@ PetscErrorCode fuse_coarse_chebyshev(PC pc, PetscInt levels) {
     PetscCall(PCMGGetSmoother(pc, l, &smoother));
     PetscCall(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(smoother), KSPCHEBYSHEV, &chebyshev));
     if (!chebyshev) continue;
+    // A level's own smoother options (-mg_levels_N_...; the ones for every level keep all of them PETSc's, see
+    // use_matrix_free) keep that level PETSc's.
+    PetscBool own = PETSC_FALSE;
+    for (const char* option : {"ksp_type", "pc_type", "ksp_chebyshev_eigenvalues", "ksp_chebyshev_esteig",
+                               "esteig_ksp_type", "esteig_ksp_max_it", "ksp_chebyshev_kind",
+                               "ksp_chebyshev_esteig_noisy", "pc_jacobi_type", "pc_jacobi_abs"}) {
+      const std::string name = "-mg_levels_" + std::to_string(l) + "_" + option;
+      PetscBool has = PETSC_FALSE;
+      PetscCall(PetscOptionsHasName(nullptr, nullptr, name.c_str(), &has));
+      own = own || has ? PETSC_TRUE : PETSC_FALSE;
+    }
+    if (own) continue;
     PC jacobi;
     PetscCall(register_fused_chebyshev());
     PetscCall(KSPSetType(smoother, kFusedChebyshev));

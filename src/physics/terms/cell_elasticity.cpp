@@ -1401,8 +1401,8 @@ private:
   // kind, pattern: its cells' (kind_, pattern_); ijk: a row block's corner 0's lattice index (row_rest). Kept here
   // so that a product or force pass over the blocks reads no per-cell array and no molecule id (a cache miss a
   // block at 10^6 molecules).
-  // base0: the block's first cell's base_ (a row block's products read no other: base_ itself, 4 B a cell, is out
-  // of the cache after a product's vectors stream by, and its one line a block missed at 10^6).
+  // base0: the block's first cell's base_ (a row block's products and forces read no other: base_ itself, 4 B a
+  // cell, is out of the cache after a product's vectors stream by, and its one line a block missed at 10^6).
   struct Block {
     int first, n, reach, base0;
     bool rows;

@@ -14,6 +14,7 @@
 #include <cmath>
 #include <cstring>
 #include <memory>
+#include <string>
 #include <utility>
 
 #include "src/solvers/fused_chebyshev.hpp"
@@ -268,6 +269,42 @@ PetscErrorCode rebuild_pending(SNES snes, PC* pc, bool* rebuild) {
   PetscFunctionReturn(0);
 }
 
+// The levels between the finest and the coarsest: PETSc's Chebyshev-Jacobi with its estimate (setup_lattice_mg's)
+// becomes the fused one estimating the same way (fused_chebyshev.hpp: the same numbers to the bit), so that each
+// step is the product and one pass over the level's vectors instead of four. With the cells a level's call is 4
+// steps (use_volume_smoother) over vectors too large for the cache at 10^6 (level 1: 3 MB each). Once: a level
+// already fused keeps its estimate's state (it estimates again when its operator changes, as PETSc's does).
+PetscErrorCode fuse_coarse_chebyshev(PC pc, PetscInt levels) {
+  PetscFunctionBeginUser;
+  for (PetscInt l = 1; l + 1 < levels; ++l) {
+    KSP smoother;
+    PetscBool chebyshev = PETSC_FALSE;
+    PetscCall(PCMGGetSmoother(pc, l, &smoother));
+    PetscCall(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(smoother), KSPCHEBYSHEV, &chebyshev));
+    if (!chebyshev) continue;
+    // A level's own smoother options (-mg_levels_N_...; the ones for every level keep all of them PETSc's, see
+    // use_matrix_free) keep that level PETSc's.
+    PetscBool own = PETSC_FALSE;
+    for (const char* option : {"ksp_type", "pc_type", "ksp_chebyshev_eigenvalues", "ksp_chebyshev_esteig",
+                               "esteig_ksp_type", "esteig_ksp_max_it", "ksp_chebyshev_kind",
+                               "ksp_chebyshev_esteig_noisy", "pc_jacobi_type", "pc_jacobi_abs"}) {
+      const std::string name = "-mg_levels_" + std::to_string(l) + "_" + option;
+      PetscBool has = PETSC_FALSE;
+      PetscCall(PetscOptionsHasName(nullptr, nullptr, name.c_str(), &has));
+      own = own || has ? PETSC_TRUE : PETSC_FALSE;
+    }
+    if (own) continue;
+    PC jacobi;
+    PetscCall(register_fused_chebyshev());
+    PetscCall(KSPSetType(smoother, kFusedChebyshev));
+    PetscCall(KSPGetPC(smoother, &jacobi));
+    PetscCall(PCSetType(jacobi, PCNONE));  // its own D^-1
+    PetscCall(fused_chebyshev_estimate(smoother, kChebyshevEstimate[0], kChebyshevEstimate[1], kChebyshevEstimate[2],
+                                       kChebyshevEstimate[3], kChebyshevEstimateSteps));
+  }
+  PetscFunctionReturn(0);
+}
+
 // The finest level's Chebyshev interval [f G, G] from Gershgorin's bound G on the Jacobi-scaled tangent
 // (ForceModel::jacobi_gershgorin, one pass over the connections, no storage) instead of PETSc's estimate: no
 // estimator CG on the finest level (its work vectors, 4 a molecule, and 6 products at every rebuild). Where the
@@ -277,6 +314,7 @@ PetscErrorCode fine_chebyshev(Context* ctx, PC pc) {
   PetscInt levels;
   KSP smoother;
   PetscCall(PCMGGetLevels(pc, &levels));
+  if (ctx->fused) PetscCall(fuse_coarse_chebyshev(pc, levels));
   PetscCall(PCMGGetSmoother(pc, levels - 1, &smoother));
   double bound = 0.0;
   bool exact = false;

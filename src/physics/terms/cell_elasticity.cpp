@@ -313,6 +313,11 @@ void cell_block_forces(int n, const int* __restrict base, const int* __restrict 
     add_row_corners(q, n, base, offset, owned, f);
     return;
   }
+  alignas(64) int along[kCellBlock];  // a row block's cells' bases (it is given base[0] only: Block::base0)
+  if (rows) {
+    for (int i = 0; i < n; ++i) along[i] = base[0] + i;
+    base = along;
+  }
   for (int i = 0; i < n; ++i) {
     if (!(J[i] > 0)) {
       // An inverted cell: its energy is infinite; NaN forces make every solver's guard stop or cut back.
@@ -1396,8 +1401,10 @@ private:
   // kind, pattern: its cells' (kind_, pattern_); ijk: a row block's corner 0's lattice index (row_rest). Kept here
   // so that a product or force pass over the blocks reads no per-cell array and no molecule id (a cache miss a
   // block at 10^6 molecules).
+  // base0: the block's first cell's base_ (a row block's products and forces read no other: base_ itself, 4 B a
+  // cell, is out of the cache after a product's vectors stream by, and its one line a block missed at 10^6).
   struct Block {
-    int first, n, reach;
+    int first, n, reach, base0;
     bool rows;
     int kind, pattern;
     std::array<long, 3> ijk;
@@ -1425,7 +1432,7 @@ private:
           if (base_[i] + p[c] < m_.owned) reach = std::max(reach, base_[i] + p[c] + 1);
       const std::array<long, 3> ijk =
           rows ? m_.shape.body(kinds_[kind_[k]].body).index(m_.id[base_[k]]) : std::array<long, 3>{0, 0, 0};
-      blocks_.push_back({k, n, reach, rows, kind_[k], pattern_[k], ijk});
+      blocks_.push_back({k, n, reach, base_[k], rows, kind_[k], pattern_[k], ijk});
       k += n;
     }
     blocks_.shrink_to_fit();
@@ -1438,7 +1445,7 @@ private:
     const Kind& kind = kinds_[b.kind];
     const Geometry& geo = geometry_[kind.body];
     const double g[3] = {geo.g[1][0], geo.g[2][1], geo.g[4][2]};
-    const int* base = base_.data() + b.first;
+    const int* base = b.rows ? &b.base0 : base_.data() + b.first;  // a row block's kernels read base[0] only
     const int* pattern = patterns_[b.pattern].data();
     if (w <= 0) {
       RowRest rest;
@@ -1466,8 +1473,8 @@ private:
     RowRest rest;
     const bool computed = b.rows && lattice_rest_;
     if (computed) row_rest(b, rest);
-    cell_block_forces(b.n, base_.data() + k, patterns_[b.pattern].data(), b.rows, computed ? &rest : nullptr, x,
-                      m_.rest.data(), kind.moduli, geo.volume, g, m_.owned, f);
+    cell_block_forces(b.n, b.rows ? &b.base0 : base_.data() + k, patterns_[b.pattern].data(), b.rows,
+                      computed ? &rest : nullptr, x, m_.rest.data(), kind.moduli, geo.volume, g, m_.owned, f);
   }
 
   // Cells whose law is its volumetric part alone, W = kappa/4 (J^2 - 1 - 2 ln J) (mu_c = 0, no virtual diagonals,

@@ -730,7 +730,7 @@ PetscErrorCode ForceModel::tangent_blocks(const double* x, Term::BlockAdd add, v
   if (static_cast<int>(tangent_.conn_start.size()) != n + 1) tangent_.create_rows(model_);
   // A molecule's connection row just before the terms' first run of its row, so that a consumer summing a row
   // at a time (LatticeGalerkin's stream) takes the springs' and the cells' blocks as one run, one scatter a row.
-  // At the rest positions the springs' rows from the lattice offsets (row_inputs), as connection_blocks_unless's:
+  // At the rest positions the springs' rows from the lattice offsets (row_inputs), as tangent_blocks_unless's:
   // then a box lattice's interior rows are equal to the bit (the cell term's are at rest: F = I exactly), and
   // LatticeGalerkin sums one row of each class instead of every row.
   struct Merge {
@@ -804,19 +804,31 @@ int ForceModel::row_inputs(const double* x, int i, bool at_rest, std::vector<int
   return count;
 }
 
-PetscErrorCode ForceModel::connection_blocks_unless(const double* x, Term::BlockAdd add, void* ctx, RowKnown known,
-                                                    void* known_ctx) const {
+PetscErrorCode ForceModel::tangent_blocks_unless(const double* x, Term::BlockAdd add, void* ctx, RowKnown known,
+                                                 void* known_ctx) const {
   PetscFunctionBeginUser;
-  PetscCheck(terms_.empty(), model_.comm, PETSC_ERR_SUP, "connection_blocks_unless: the force model has terms");
   const int n = model_.owned;
   if (static_cast<int>(tangent_.conn_start.size()) != n + 1) tangent_.create_rows(model_);
   const bool rest = at_rest(x);
-  std::vector<int> ends;
-  std::vector<double> inputs;
+  bool rows = terms_.empty() || rest;
+  for (const auto& t : terms_) rows = rows && t->rest_rows();
+  if (!rows) PetscFunctionReturn(tangent_blocks(x, add, ctx));
+  // A row's ends and inputs: its connections' (5 doubles each), then each term's columns and key.
+  std::vector<int> ends, columns;
+  std::vector<double> inputs, key;
   for (int i = 0; i < n; ++i) {
     const int count = row_inputs(x, i, rest, ends, inputs);
-    if (known(known_ctx, i, ends.data(), inputs.data(), count)) continue;
+    if (!terms_.empty()) {
+      columns.clear(), key.clear();
+      for (const auto& t : terms_) t->rest_row(i, columns, key);
+      ends.insert(ends.end(), columns.begin(), columns.end());
+      inputs.insert(inputs.end(), key.begin(), key.end());
+    }
+    if (known(known_ctx, i, ends.data(), static_cast<int>(ends.size()), inputs.data(),
+              static_cast<int>(inputs.size())))
+      continue;
     PetscCall(connection_row_of(i, ends.data(), inputs.data(), count, add, ctx));
+    for (const auto& t : terms_) PetscCall(t->add_rest_row(i, add, ctx));
   }
   PetscFunctionReturn(0);
 }
@@ -832,7 +844,7 @@ static inline void minus_spring_block(const double* d, double len2, double k, do
     }
 }
 
-// connection_row's arithmetic from the row's inputs (Stretch's d, k, l0; connection_blocks_unless).
+// connection_row's arithmetic from the row's inputs (Stretch's d, k, l0; tangent_blocks_unless).
 PetscErrorCode ForceModel::connection_row_of(int i, const int* ends, const double* inputs, int count, Term::BlockAdd add,
                                              void* ctx) const {
   PetscFunctionBeginUser;

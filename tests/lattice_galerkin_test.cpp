@@ -317,3 +317,13 @@ TEST(LatticeGalerkin, EveryLevelWithCellsAtRestNonIntegerSpacing) {
   compare_every_level(0.0, mm.c_str());
 }
 TEST(LatticeGalerkin, EveryLevelWithCellsAtIterate) { compare_every_level(0.08, cell_scene); }
+// Two kinds of cells whose springs are alike (a region of nu = 0.4 with E = 2.5 x 1.4 / 1.45: the same shear
+// modulus, which the springs carry, and another kappa, which the cells carry), so that only the cell term's key
+// (each cell's kind) tells the rows of the two sides apart.
+TEST(LatticeGalerkin, EveryLevelWithTwoCellKindsAtRest) {
+  std::string two = cell_scene;
+  two.replace(two.find("[1.0, 1.0, 1.0]"), 15, "[1.2e-3, 1.2e-3, 1.2e-3]");
+  two.replace(two.find("[calibration]"), 13,
+              "[[body.region]]\nlo = [0.0, 0.0, 0.0]\nhi = [4.0e-3, 1.0, 1.0]\nyoungs_modulus = 2.413793103448276\npoisson_ratio = 0.4\n[calibration]");
+  compare_every_level(0.0, two.c_str());
+}

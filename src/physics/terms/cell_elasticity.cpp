@@ -842,6 +842,7 @@ public:
     const std::size_t R = ring_;
     std::vector<double> ring(81 * R);
     VolumetricBlocks reuse[8];
+    int hint[8] = {-2, -2, -2, -2, -2, -2, -2, -2};  // add_row's last cell found for each corner
     for (int k = 0; k < cells_; ++k) {
       double* slot = &ring[81 * (static_cast<std::size_t>(k) % R)];
       if (!(volumetric_only(k) ? volumetric_state(k, x, slot) : stress_tangent(k, x, slot)))
@@ -856,7 +857,7 @@ public:
         bool last = true;
         for (int d = 0; d < 3; ++d) last = last && (!(c >> d & 1) || b[d] == box.n[d] - 2);
         if (!last) continue;
-        const PetscErrorCode ierr = add_row(corner[c], k, ring.data(), add, ctx, reuse);
+        const PetscErrorCode ierr = add_row(corner[c], k, ring.data(), add, ctx, reuse, hint);
         if (ierr) return ierr;
       }
     }
@@ -909,7 +910,7 @@ public:
 
   // Molecule m's row of the tangent from its cells (the last one is cell `last`; their dP/dF in the ring).
   PetscErrorCode add_row(int m, int last, const double* ring, BlockAdd add, void* ctx,
-                         VolumetricBlocks* reuse) const {
+                         VolumetricBlocks* reuse, int* hint) const {
     const BoxGeometry& box = m_.shape.body(kinds_[kind_[last]].body);
     const auto ijk = box.index(m_.id[m]);
     double K[27][9];
@@ -922,14 +923,21 @@ public:
       for (int d = 0; d < 3; ++d) q[d] = ijk[d] - (a >> d & 1), inside = inside && q[d] >= 0 && q[d] <= box.n[d] - 2;
       if (!inside) continue;
       const std::int64_t id = box.id(q[0], q[1], q[2]);
-      // Among the ring's cells (ids increasing with the index) up to `last`.
+      // Among the ring's cells (ids increasing with the index) up to `last`: the one after the last found for
+      // corner a (the previous row's, nearly always), else a binary search.
       int lo = std::max(0, last - static_cast<int>(ring_) + 1), hi = last + 1;
-      while (lo < hi) {
-        const int mid = (lo + hi) / 2;
-        if (m_.id[base_[mid]] < id) lo = mid + 1;
-        else hi = mid;
+      const int next = hint[a] + 1;
+      if (next >= lo && next < hi && m_.id[base_[next]] == id) {
+        lo = next;
+      } else {
+        while (lo < hi) {
+          const int mid = (lo + hi) / 2;
+          if (m_.id[base_[mid]] < id) lo = mid + 1;
+          else hi = mid;
+        }
       }
       const int k = lo;
+      hint[a] = k;
       PetscCheck(k <= last && m_.id[base_[k]] == id, PETSC_COMM_SELF, PETSC_ERR_PLIB,
                  "cell term: a molecule's cell is not among the last cells kept");
       const double* D = ring + 81 * (static_cast<std::size_t>(k) % ring_);

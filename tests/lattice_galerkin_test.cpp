@@ -204,7 +204,7 @@ void compare_level_one_shell(double amplitude, const std::string& scene_text = s
 TEST(LatticeGalerkin, LevelOneShellEqualsPetscTripleProduct) { compare_level_one_shell(0.08); }
 TEST(LatticeGalerkin, LevelOneShellAtRestEqualsPetscTripleProduct) { compare_level_one_shell(0.0); }
 // At rest on a lattice of non-integer spacings (1 mm, 1.2 mm, 0.9 mm): the stream's separations come from the
-// lattice offsets (ForceModel::connection_blocks_unless), the matrix's from the positions, which differ from place
+// lattice offsets (ForceModel::tangent_blocks_unless), the matrix's from the positions, which differ from place
 // to place in the last bits: equal to round-off.
 TEST(LatticeGalerkin, LevelOneShellAtRestNonIntegerSpacing) {
   std::string mm = scene;
@@ -231,4 +231,74 @@ method = "homogenized"
 TEST(LatticeGalerkin, LevelOneShellWithCellsEqualsPetscTripleProduct) { compare_level_one_shell(0.08, cell_scene); }
 TEST(LatticeGalerkin, LevelOneShellWithCellsAtRestEqualsPetscTripleProduct) {
   compare_level_one_shell(0.0, cell_scene);
+}
+// At rest on a non-integer spacing with cells (cubic: the volumetric law alone, whose rest rows are keyed): each row is shown to the stream as its springs' inputs and the cell
+// term's key (ForceModel::tangent_blocks_unless, Term::rest_row), and rows equal to their class's first are not
+// computed at all; the springs' separations from the lattice offsets, the matrix's from the positions: equal to
+// round-off. The roller and clamped faces make rows whose cells have held corners (masked, their own classes).
+TEST(LatticeGalerkin, LevelOneShellWithCellsAtRestNonIntegerSpacing) {
+  std::string mm = cell_scene;
+  mm.replace(mm.find("[1.0, 1.0, 1.0]"), 15, "[1.2e-3, 1.2e-3, 1.2e-3]");
+  compare_level_one_shell(0.0, mm.c_str());
+}
+// Every level's operator (assembled per level, as update(forces, x, pc) without the shell) against PETSc's triple
+// products from the assembled tangent, with cells at rest and at an iterate: the rest rows' skip on every level.
+void compare_every_level(double amplitude, const char* scene_text) {
+  const auto rp = run(scene_text, PETSC_COMM_WORLD, {}, false);
+  const RunResult& r = *rp;
+  std::vector<double> x(r.model.rest);
+  for (int i = 0; i < r.model.local; ++i)
+    for (int d = 0; d < 3; ++d)
+      x[3 * i + d] += amplitude * std::sin(0.7 * x[3 * i + (d + 1) % 3] + 0.3 * d + x[3 * i + d]);
+  Mat J;
+  ASSERT_EQ(r.forces->create_tangent(&J), 0);
+  ASSERT_EQ(r.forces->assemble_tangent(x.data(), J), 0);
+  PC ours_pc, matrix_pc;
+  ASSERT_EQ(PCCreate(PETSC_COMM_WORLD, &ours_pc), 0);
+  ASSERT_EQ(PCCreate(PETSC_COMM_WORLD, &matrix_pc), 0);
+  PetscInt levels = 0, matrix_levels = 0;
+  LatticeLevels hierarchy, unused;
+  ASSERT_EQ(setup_lattice_mg(r.model, r.forces->held(), ours_pc, 40, &levels, &hierarchy, false), 0);
+  ASSERT_EQ(setup_lattice_mg(r.model, r.forces->held(), matrix_pc, 40, &matrix_levels, &unused, false), 0);
+  ASSERT_GE(levels, 3);
+  ASSERT_EQ(matrix_levels, levels);
+  LatticeGalerkin galerkin(r.model, r.forces->held(), std::move(hierarchy));
+  ASSERT_EQ(galerkin.update(*r.forces, x.data(), ours_pc), 0);
+  Mat fine = J;
+  ASSERT_EQ(PetscObjectReference(reinterpret_cast<PetscObject>(fine)), 0);
+  for (PetscInt l = levels - 1; l >= 1; --l) {  // PCMG's levels from the coarsest: l - 1 is one coarser
+    Mat P, reference, ours;
+    KSP smoother;
+    ASSERT_EQ(PCMGGetInterpolation(matrix_pc, l, &P), 0);
+    ASSERT_EQ(MatPtAP(fine, P, MAT_INITIAL_MATRIX, PETSC_DEFAULT, &reference), 0);
+    ASSERT_EQ(PCMGGetSmoother(ours_pc, l - 1, &smoother), 0);
+    ASSERT_EQ(KSPGetOperators(smoother, &ours, nullptr), 0);
+    PetscInt rows_ref, rows_ours;
+    MatGetSize(reference, &rows_ref, nullptr);
+    MatGetSize(ours, &rows_ours, nullptr);
+    ASSERT_EQ(rows_ours, rows_ref) << "level " << l - 1;
+    EXPECT_LT(relative_difference(ours, reference), 1e-13) << "level " << l - 1 << ", amplitude " << amplitude;
+    MatDestroy(&fine);
+    fine = reference;
+  }
+  MatDestroy(&fine);
+  PCDestroy(&ours_pc);
+  PCDestroy(&matrix_pc);
+  MatDestroy(&J);
+}
+TEST(LatticeGalerkin, EveryLevelWithCellsAtRestNonIntegerSpacing) {
+  std::string mm = cell_scene;
+  mm.replace(mm.find("[1.0, 1.0, 1.0]"), 15, "[1.2e-3, 1.2e-3, 1.2e-3]");
+  compare_every_level(0.0, mm.c_str());
+}
+TEST(LatticeGalerkin, EveryLevelWithCellsAtIterate) { compare_every_level(0.08, cell_scene); }
+// Two kinds of cells whose springs are alike (a region of nu = 0.4 with E = 2.5 x 1.4 / 1.45: the same shear
+// modulus, which the springs carry, and another kappa, which the cells carry), so that only the cell term's key
+// (each cell's kind) tells the rows of the two sides apart.
+TEST(LatticeGalerkin, EveryLevelWithTwoCellKindsAtRest) {
+  std::string two = cell_scene;
+  two.replace(two.find("[1.0, 1.0, 1.0]"), 15, "[1.2e-3, 1.2e-3, 1.2e-3]");
+  two.replace(two.find("[calibration]"), 13,
+              "[[body.region]]\nlo = [0.0, 0.0, 0.0]\nhi = [4.0e-3, 1.0, 1.0]\nyoungs_modulus = 2.413793103448276\npoisson_ratio = 0.4\n[calibration]");
+  compare_every_level(0.0, two.c_str());
 }

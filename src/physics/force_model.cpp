@@ -730,6 +730,9 @@ PetscErrorCode ForceModel::tangent_blocks(const double* x, Term::BlockAdd add, v
   if (static_cast<int>(tangent_.conn_start.size()) != n + 1) tangent_.create_rows(model_);
   // A molecule's connection row just before the terms' first run of its row, so that a consumer summing a row
   // at a time (LatticeGalerkin's stream) takes the springs' and the cells' blocks as one run, one scatter a row.
+  // At the rest positions the springs' rows from the lattice offsets (row_inputs), as tangent_blocks_unless's:
+  // then a box lattice's interior rows are equal to the bit (the cell term's are at rest: F = I exactly), and
+  // LatticeGalerkin sums one row of each class instead of every row.
   struct Merge {
     const ForceModel& forces;
     const double* x;
@@ -737,11 +740,19 @@ PetscErrorCode ForceModel::tangent_blocks(const double* x, Term::BlockAdd add, v
     void* ctx;
     std::vector<std::uint8_t> done;
     int row = -1;
-  } merge{*this, x, add, ctx, std::vector<std::uint8_t>(n, 0)};
+    bool at_rest;
+    std::vector<int> ends;
+    std::vector<double> inputs;
+    PetscErrorCode connections(int i) {
+      if (!at_rest) return forces.connection_row(x, i, add, ctx);
+      const int count = forces.row_inputs(x, i, true, ends, inputs);
+      return forces.connection_row_of(i, ends.data(), inputs.data(), count, add, ctx);
+    }
+  } merge{*this, x, add, ctx, std::vector<std::uint8_t>(n, 0), -1, at_rest(x), {}, {}};
   auto merged = [](void* p, int i, int j, const double K[9]) -> PetscErrorCode {
     auto& m = *static_cast<Merge*>(p);
     if (i != m.row && i < static_cast<int>(m.done.size()) && !m.done[i]) {
-      PetscCall(m.forces.connection_row(m.x, i, m.add, m.ctx));
+      PetscCall(m.connections(i));
       m.done[i] = 1;
     }
     m.row = i;
@@ -749,7 +760,7 @@ PetscErrorCode ForceModel::tangent_blocks(const double* x, Term::BlockAdd add, v
   };
   for (const auto& t : terms_) PetscCall(t->add_tangent(x, merged, &merge));
   for (int i = 0; i < n; ++i)
-    if (!merge.done[i]) PetscCall(connection_row(x, i, add, ctx));
+    if (!merge.done[i]) PetscCall(merge.connections(i));
   PetscFunctionReturn(0);
 }
 
@@ -761,42 +772,63 @@ PetscErrorCode ForceModel::connection_blocks(const double* x, Term::BlockAdd add
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode ForceModel::connection_blocks_unless(const double* x, Term::BlockAdd add, void* ctx, RowKnown known,
-                                                    void* known_ctx) const {
-  PetscFunctionBeginUser;
-  PetscCheck(terms_.empty(), model_.comm, PETSC_ERR_SUP, "connection_blocks_unless: the force model has terms");
-  const int n = model_.owned;
-  if (static_cast<int>(tangent_.conn_start.size()) != n + 1) tangent_.create_rows(model_);
+bool ForceModel::at_rest(const double* x) const {
+  return std::equal(x, x + 3 * static_cast<std::size_t>(model_.local), model_.rest.begin());
+}
+
+int ForceModel::row_inputs(const double* x, int i, bool at_rest, std::vector<int>& ends,
+                           std::vector<double>& inputs) const {
+  const int first = tangent_.conn_start[i], count = tangent_.conn_start[i + 1] - first;
+  ends.resize(count), inputs.resize(5 * static_cast<std::size_t>(count));
   // At the rest positions, a box lattice's separations from its lattice offsets, ((i' - i) h_x, ...): the doubles
   // each rest length was made from (BoxGeometry::rest_distance), the same for every connection of an offset. The
   // positions' differences vary in the last bits from place to place wherever h is not a power of two, and then
   // no row of a class had its first row's inputs (LatticeGalerkin's skip); the blocks differ at round-off.
-  const bool at_rest = std::equal(x, x + 3 * static_cast<std::size_t>(model_.local), model_.rest.begin());
-  const Body& shape = model_.shape;
-  std::vector<int> ends;
-  std::vector<double> inputs;
-  for (int i = 0; i < n; ++i) {
-    const int first = tangent_.conn_start[i], count = tangent_.conn_start[i + 1] - first;
-    ends.resize(count), inputs.resize(5 * static_cast<std::size_t>(count));
-    const BoxGeometry& box = shape.part(model_.id[i]);
-    const bool lattice = at_rest && !box.unstructured();
-    const auto ii = lattice ? box.index(model_.id[i]) : std::array<long, 3>{};
-    // What Stretch and connection_row read, in their order.
-    for (int q = 0; q < count; ++q) {
-      const int c = tangent_.row_conns[first + q];
-      const int j = model_.end_a[c] == i ? model_.end_b[c] : model_.end_a[c];
-      double* in = inputs.data() + 5 * q;
-      if (lattice && model_.body[i] == model_.body[j]) {
-        const auto ij = box.index(model_.id[j]);
-        for (int r = 0; r < 3; ++r) in[r] = static_cast<double>(ij[r] - ii[r]) * box.h[r];
-      } else {
-        for (int r = 0; r < 3; ++r) in[r] = x[3 * j + r] - x[3 * i + r];
-      }
-      in[3] = model_.k(c), in[4] = model_.l0(c);
-      ends[q] = j;
+  const BoxGeometry& box = model_.shape.part(model_.id[i]);
+  const bool lattice = at_rest && !box.unstructured();
+  const auto ii = lattice ? box.index(model_.id[i]) : std::array<long, 3>{};
+  // What Stretch and connection_row read, in their order.
+  for (int q = 0; q < count; ++q) {
+    const int c = tangent_.row_conns[first + q];
+    const int j = model_.end_a[c] == i ? model_.end_b[c] : model_.end_a[c];
+    double* in = inputs.data() + 5 * q;
+    if (lattice && model_.body[i] == model_.body[j]) {
+      const auto ij = box.index(model_.id[j]);
+      for (int r = 0; r < 3; ++r) in[r] = static_cast<double>(ij[r] - ii[r]) * box.h[r];
+    } else {
+      for (int r = 0; r < 3; ++r) in[r] = x[3 * j + r] - x[3 * i + r];
     }
-    if (known(known_ctx, i, ends.data(), inputs.data(), count)) continue;
+    in[3] = model_.k(c), in[4] = model_.l0(c);
+    ends[q] = j;
+  }
+  return count;
+}
+
+PetscErrorCode ForceModel::tangent_blocks_unless(const double* x, Term::BlockAdd add, void* ctx, RowKnown known,
+                                                 void* known_ctx) const {
+  PetscFunctionBeginUser;
+  const int n = model_.owned;
+  if (static_cast<int>(tangent_.conn_start.size()) != n + 1) tangent_.create_rows(model_);
+  const bool rest = at_rest(x);
+  bool rows = terms_.empty() || rest;
+  for (const auto& t : terms_) rows = rows && t->rest_rows();
+  if (!rows) PetscFunctionReturn(tangent_blocks(x, add, ctx));
+  // A row's ends and inputs: its connections' (5 doubles each), then each term's columns and key.
+  std::vector<int> ends, columns;
+  std::vector<double> inputs, key;
+  for (int i = 0; i < n; ++i) {
+    const int count = row_inputs(x, i, rest, ends, inputs);
+    if (!terms_.empty()) {
+      columns.clear(), key.clear();
+      for (const auto& t : terms_) t->rest_row(i, columns, key);
+      ends.insert(ends.end(), columns.begin(), columns.end());
+      inputs.insert(inputs.end(), key.begin(), key.end());
+    }
+    if (known(known_ctx, i, ends.data(), static_cast<int>(ends.size()), inputs.data(),
+              static_cast<int>(inputs.size())))
+      continue;
     PetscCall(connection_row_of(i, ends.data(), inputs.data(), count, add, ctx));
+    for (const auto& t : terms_) PetscCall(t->add_rest_row(i, add, ctx));
   }
   PetscFunctionReturn(0);
 }
@@ -812,7 +844,7 @@ static inline void minus_spring_block(const double* d, double len2, double k, do
     }
 }
 
-// connection_row's arithmetic from the row's inputs (Stretch's d, k, l0; connection_blocks_unless).
+// connection_row's arithmetic from the row's inputs (Stretch's d, k, l0; tangent_blocks_unless).
 PetscErrorCode ForceModel::connection_row_of(int i, const int* ends, const double* inputs, int count, Term::BlockAdd add,
                                              void* ctx) const {
   PetscFunctionBeginUser;

@@ -70,16 +70,20 @@ public:
   PetscErrorCode jacobi_gershgorin(const double* x, double* bound, bool* exact) const;
   // Every 3x3 block of -dF/dx (owned rows, local columns, held components not masked): the terms' in their own
   // order, each molecule's connection row (the diagonal block last) just before the terms' first block of its row,
-  // then the connection rows no term named, in owned order. Blocks may repeat.
+  // then the connection rows no term named, in owned order. Blocks may repeat. At the rest positions the
+  // connection rows are tangent_blocks_unless's (a box lattice's from its lattice offsets: round-off apart).
   PetscErrorCode tangent_blocks(const double* x, Term::BlockAdd add, void* ctx) const;
-  // tangent_blocks without terms (has_terms() false), each owned row first shown to known(known_ctx, i, ends,
-  // inputs, n): what its blocks are computed from alone, per connection in the row's order its other end and 5
-  // doubles (d = x_j - x_i, k, l0; at the rest positions a box lattice's d from the lattice offsets, the same
-  // doubles for every connection of an offset). Rows with equal inputs have equal blocks, to the bit; a row known
-  // answers true for is not streamed (LatticeGalerkin's stream: a box lattice's rows at its reference state).
-  using RowKnown = bool (*)(void* ctx, int i, const int* ends, const double* inputs, int n);
-  PetscErrorCode connection_blocks_unless(const double* x, Term::BlockAdd add, void* ctx, RowKnown known,
-                                          void* known_ctx) const;
+  // tangent_blocks with each owned row first shown to known(known_ctx, i, ends, n, inputs, m): what its blocks are
+  // computed from alone: its connections' other ends in the row's order, each with 5 doubles (d = x_j - x_i, k,
+  // l0; at the rest positions a box lattice's d from the lattice offsets, the same doubles for every connection of
+  // an offset), then each term's columns and key (Term::rest_row). Rows with equal inputs and ends at the same
+  // lattice offsets have equal blocks, to the bit; a row known answers true for is not streamed (LatticeGalerkin's
+  // stream: a box lattice's rows at its reference state). Springs only, or at the rest positions when every term
+  // has rest rows (Term::rest_rows; then each streamed row's connection row and its terms' blocks together, in
+  // owned order); otherwise tangent_blocks, known never asked.
+  using RowKnown = bool (*)(void* ctx, int i, const int* ends, int n, const double* inputs, int m);
+  PetscErrorCode tangent_blocks_unless(const double* x, Term::BlockAdd add, void* ctx, RowKnown known,
+                                       void* known_ctx) const;
   // Collective: the smallest time step bound the terms impose by themselves (infinity: none; Term::critical_time_step).
   double terms_critical_time_step() const;
   // Adds each term's force scale per owned molecule (N) to scale (the residual's round-off floor).
@@ -188,6 +192,11 @@ private:
   PetscErrorCode connection_row(const double* x, int i, Term::BlockAdd add, void* ctx) const;
   PetscErrorCode connection_row_of(int i, const int* ends, const double* inputs, int count, Term::BlockAdd add,
                                    void* ctx) const;
+  // Whether x is the rest positions to the bit (every local molecule's).
+  bool at_rest(const double* x) const;
+  // Owned molecule i's connection row's inputs (tangent_blocks_unless), ends and inputs resized to its count,
+  // which is returned; at_rest: a box lattice's separations from its lattice offsets.
+  int row_inputs(const double* x, int i, bool at_rest, std::vector<int>& ends, std::vector<double>& inputs) const;
   // The tangent's block-row pattern and CSR storage (src/physics/tangent.hpp), built by create_tangent.
   mutable TangentStorage tangent_;
   // Terms whose tangent has rows of ghosts (Term::tangent_has_ghost_rows): the matrix-free product's and the

@@ -101,6 +101,14 @@ public:
   // Terms whose tangent blocks join only corners of one lattice cell (one body, neighbours in the 27-point
   // stencil): the lattice multigrid's check of the pattern (LatticeGalerkin::applies) computes none of them.
   virtual bool tangent_within_cells() const { return false; }
+  // Terms whose tangent blocks at the rest positions (x the rest array to the bit) are known row by row: rest_row
+  // appends owned row i's columns (local, in add_rest_row's order) and a key, such that rows with equal keys and
+  // columns at the same lattice offsets have equal blocks to the bit; add_rest_row adds row i's blocks as
+  // add_tangent adds them at rest (the same sums in the same order). ForceModel::tangent_blocks_unless shows a row
+  // to its consumer before computing it (LatticeGalerkin's skip of rows equal to their class's first).
+  virtual bool rest_rows() const { return false; }
+  virtual void rest_row(int i, std::vector<int>& columns, std::vector<double>& key) const {}
+  virtual PetscErrorCode add_rest_row(int i, BlockAdd add, void* ctx) const { return 0; }
   // Terms whose tangent holds one rank-one volume coupling per lattice cell, k (b . u)^2 with b the cell's one-point
   // divergence on its 8 corners (b = +-g per axis, corner c's signs the bits of c): the cell term's volumetric part
   // at rest. Fills the cells with an owned corner (8 local corners each, corner c = (c & 1, c >> 1 & 1, c >> 2 & 1)),

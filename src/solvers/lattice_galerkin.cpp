@@ -589,10 +589,10 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     std::uint64_t touched = 0;
     std::array<double, 8> w{};
     std::array<int, 8> shift{};
-    // The first row's inputs (ForceModel::connection_blocks_unless) when it and its neighbours are wholly free
+    // The first row's inputs (ForceModel::tangent_blocks_unless) when it and its neighbours are wholly free
     // and within the stencil: a row of the class with the same inputs has the same blocks, not streamed at all.
     bool has_inputs = false;
-    std::vector<int> slots;  // each connection's neighbour's slot
+    std::vector<int> slots;  // each end's slot (the connections' neighbours, then the terms' columns)
     std::vector<double> inputs;
     int next = -1;  // the class's next variant
   };
@@ -881,12 +881,12 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     auto add = [](void* ctx, int i, int j, const double K[9]) -> PetscErrorCode {
       return (*static_cast<Put*>(ctx))(i, j, K);
     };
-    // Springs only: each row's inputs first; a row whose inputs are its class's first row's (to the bit, and every
-    // molecule of both wholly free and within the stencil) is not streamed: its blocks, Gershgorin sums and so
-    // its contributions are the first row's. The rows come in the same order either way, so the coarse rows sum
-    // the same numbers in the same order.
+    // Each row's inputs first (springs only, or at rest with terms that have rest rows); a row whose inputs are its
+    // class's first row's (to the bit, and every molecule of both wholly free and within the stencil) is not
+    // streamed: its blocks, Gershgorin sums and so its contributions are the first row's. The rows come in the
+    // same order either way, so the coarse rows sum the same numbers in the same order.
     PetscErrorCode known_error = 0;
-    auto known = [&](int i, const int* ends, const double* inputs, int n) -> bool {
+    auto known = [&](int i, const int* ends, int n, const double* inputs, int m) -> bool {
       if (known_error) return true;  // reported after the stream
       // The row before it first (its contributions come first; it may make the class this row's inputs meet).
       known_error = flush();
@@ -894,8 +894,8 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
       if (known_error) return true;
       if (held[3 * i] | held[3 * i + 1] | held[3 * i + 2]) return false;
       const int b = model_.body[i];
-      std::array<int, kSlots> slots;
-      if (n > kSlots) return false;
+      std::array<int, 64> slots;  // the springs' ends and the terms' columns (a cell row's 27)
+      if (n > 64) return false;
       for (int q = 0; q < n; ++q) {
         const int j = ends[q];
         const unsigned e0 = static_cast<unsigned>(ijk[j][0] - ijk[i][0] + 1),
@@ -914,9 +914,9 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
       int variants = 0;
       for (int v = at; v >= 0; v = row_classes[v].next, ++variants) {
         const RowClass& rc = row_classes[v];
-        if (!rc.has_inputs || static_cast<int>(rc.slots.size()) != n ||
+        if (!rc.has_inputs || static_cast<int>(rc.slots.size()) != n || static_cast<int>(rc.inputs.size()) != m ||
             !std::equal(rc.slots.begin(), rc.slots.end(), slots.begin()) ||
-            std::memcmp(rc.inputs.data(), inputs, sizeof(double) * 5 * n) != 0)
+            std::memcmp(rc.inputs.data(), inputs, sizeof(double) * m) != 0)
           continue;
         known_error = scatter(b, p, rc.present, rc.src.data(), v);
         return true;
@@ -924,18 +924,15 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
       if (variants < kVariants) {  // this row may start the class or a variant of it
         last.row = i;
         last.slots.assign(slots.begin(), slots.begin() + n);
-        last.inputs.assign(inputs, inputs + 5 * n);
+        last.inputs.assign(inputs, inputs + m);
       }
       return false;
     };
     using Known = decltype(known);
-    auto ask = [](void* ctx, int i, const int* ends, const double* inputs, int n) -> bool {
-      return (*static_cast<Known*>(ctx))(i, ends, inputs, n);
+    auto ask = [](void* ctx, int i, const int* ends, int n, const double* inputs, int m) -> bool {
+      return (*static_cast<Known*>(ctx))(i, ends, n, inputs, m);
     };
-    if (stream->forces->has_terms())
-      PetscCall(stream->forces->tangent_blocks(stream->x, add, &put));
-    else
-      PetscCall(stream->forces->connection_blocks_unless(stream->x, add, &put, ask, &known));
+    PetscCall(stream->forces->tangent_blocks_unless(stream->x, add, &put, ask, &known));
     PetscCall(known_error);
     PetscCall(flush());
     jacobi_bound_ = bound;

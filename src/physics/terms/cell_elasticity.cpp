@@ -847,6 +847,7 @@ public:
     const std::size_t R = ring_;
     std::vector<double> ring(81 * R);
     VolumetricBlocks reuse[8];
+    int hint[8] = {-2, -2, -2, -2, -2, -2, -2, -2};  // add_row's last cell found for each corner
     for (int k = 0; k < cells_; ++k) {
       double* slot = &ring[81 * (static_cast<std::size_t>(k) % R)];
       if (!(volumetric_only(k) ? volumetric_state(k, x, slot) : stress_tangent(k, x, slot)))
@@ -861,7 +862,7 @@ public:
         bool last = true;
         for (int d = 0; d < 3; ++d) last = last && (!(c >> d & 1) || b[d] == box.n[d] - 2);
         if (!last) continue;
-        const PetscErrorCode ierr = add_row(corner[c], k, ring.data(), add, ctx, reuse);
+        const PetscErrorCode ierr = add_row(corner[c], k, ring.data(), add, ctx, reuse, hint);
         if (ierr) return ierr;
       }
     }
@@ -914,7 +915,7 @@ public:
 
   // Molecule m's row of the tangent from its cells (the last one is cell `last`; their dP/dF in the ring).
   PetscErrorCode add_row(int m, int last, const double* ring, BlockAdd add, void* ctx,
-                         VolumetricBlocks* reuse) const {
+                         VolumetricBlocks* reuse, int* hint) const {
     const BoxGeometry& box = m_.shape.body(kinds_[kind_[last]].body);
     const auto ijk = box.index(m_.id[m]);
     double K[27][9];
@@ -927,14 +928,21 @@ public:
       for (int d = 0; d < 3; ++d) q[d] = ijk[d] - (a >> d & 1), inside = inside && q[d] >= 0 && q[d] <= box.n[d] - 2;
       if (!inside) continue;
       const std::int64_t id = box.id(q[0], q[1], q[2]);
-      // Among the ring's cells (ids increasing with the index) up to `last`.
+      // Among the ring's cells (ids increasing with the index) up to `last`: the one after the last found for
+      // corner a (the previous row's, nearly always), else a binary search.
       int lo = std::max(0, last - static_cast<int>(ring_) + 1), hi = last + 1;
-      while (lo < hi) {
-        const int mid = (lo + hi) / 2;
-        if (m_.id[base_[mid]] < id) lo = mid + 1;
-        else hi = mid;
+      const int next = hint[a] + 1;
+      if (next >= lo && next < hi && m_.id[base_[next]] == id) {
+        lo = next;
+      } else {
+        while (lo < hi) {
+          const int mid = (lo + hi) / 2;
+          if (m_.id[base_[mid]] < id) lo = mid + 1;
+          else hi = mid;
+        }
       }
       const int k = lo;
+      hint[a] = k;
       PetscCheck(k <= last && m_.id[base_[k]] == id, PETSC_COMM_SELF, PETSC_ERR_PLIB,
                  "cell term: a molecule's cell is not among the last cells kept");
       const double* D = ring + 81 * (static_cast<std::size_t>(k) % ring_);
@@ -952,21 +960,7 @@ public:
         Kb = last_a.Kb;
         last_a.body = body;
         std::memcpy(last_a.state, D, sizeof last_a.state);
-        // K_ab = V0 (W'' (cof g_a) (x) (cof g_b) + W' [F (g_a x g_b)]_x): d cof_ij / dF_kl = e_ikm e_jln F_mn
-        // contracted with g_a's j and g_b's l is the skew matrix e_ikm w_m, w = F (g_a x g_b).
-        // cof g_b of the cell's 8 corners kept with its state (volumetric_state), g_a x g_b with the geometry.
-        const double *F = D, w1 = D[18], w2 = D[19], *cg = D + 20;
-        const double* ca = cg + 3 * a;
-        for (int b = 0; b < 8; ++b) {
-          const double *cross = geo.cross[a][b], *cb = cg + 3 * b;
-          double w[3];
-          for (int i = 0; i < 3; ++i)
-            w[i] = w1 * (F[3 * i] * cross[0] + F[3 * i + 1] * cross[1] + F[3 * i + 2] * cross[2]);
-          const double skew[9] = {0, w[2], -w[1], -w[2], 0, w[0], w[1], -w[0], 0};
-          for (int i = 0; i < 3; ++i)
-            for (int kk = 0; kk < 3; ++kk)
-              Kb[b][3 * i + kk] = geo.volume * (w2 * ca[i] * cb[kk] + skew[3 * i + kk]);
-        }
+        volumetric_blocks(D, body, a, Kb);
       } else {
         // Dg[kl][i] = sum_j D[kl][ij] g_a[j]; K_ab[i][k] = V0 sum_l Dg[kl][i] g_b[l]: -d f_a / d x_b
         double Dg[9][3];
@@ -999,6 +993,132 @@ public:
     }
     return 0;
   }
+
+  // A volumetric-only cell's blocks K_ab (b = 0..7) for its corner a from its state D (volumetric_state).
+  void volumetric_blocks(const double* D, int body, int a, double (*Kb)[9]) const {
+    const Geometry& geo = geometry_[body];
+    // K_ab = V0 (W'' (cof g_a) (x) (cof g_b) + W' [F (g_a x g_b)]_x): d cof_ij / dF_kl = e_ikm e_jln F_mn
+    // contracted with g_a's j and g_b's l is the skew matrix e_ikm w_m, w = F (g_a x g_b).
+    // cof g_b of the cell's 8 corners kept with its state (volumetric_state), g_a x g_b with the geometry.
+    const double *F = D, w1 = D[18], w2 = D[19], *cg = D + 20;
+    const double* ca = cg + 3 * a;
+    for (int b = 0; b < 8; ++b) {
+      const double *cross = geo.cross[a][b], *cb = cg + 3 * b;
+      double w[3];
+      for (int i = 0; i < 3; ++i) w[i] = w1 * (F[3 * i] * cross[0] + F[3 * i + 1] * cross[1] + F[3 * i + 2] * cross[2]);
+      const double skew[9] = {0, w[2], -w[1], -w[2], 0, w[0], w[1], -w[0], 0};
+      for (int i = 0; i < 3; ++i)
+        for (int kk = 0; kk < 3; ++kk) Kb[b][3 * i + kk] = geo.volume * (w2 * ca[i] * cb[kk] + skew[3 * i + kk]);
+    }
+  }
+
+  // At the rest positions every volumetric-only cell's state is F = I exactly (the displacements are +0), so a
+  // cell's blocks for its corner a depend on its kind alone (rest_blocks_), and a row's on which of its 8 cells
+  // exist and their kinds: the row's key. Every cell of the rank volumetric-only, ids increasing with the index.
+  bool rest_rows() const override {
+    if (!rest_checked_) {
+      rest_checked_ = true;
+      bool ok = lattice_rest_;
+      for (int k = 1; ok && k < cells_; ++k) ok = m_.id[base_[k - 1]] < m_.id[base_[k]];
+      rest_body_.assign(m_.shape.bodies(), 0);
+      std::vector<int> example(kinds_.size(), -1);
+      for (int k = 0; k < cells_; ++k) {
+        rest_body_[kinds_[kind_[k]].body] = 1;
+        if (example[kind_[k]] < 0) example[kind_[k]] = k;
+      }
+      rest_blocks_.assign(kinds_.size() * 8 * 8 * 9, 0.0);
+      for (std::size_t t = 0; ok && t < kinds_.size(); ++t) {
+        if (example[t] < 0) continue;
+        double D[81];
+        const Moduli& mo = kinds_[t].moduli;  // volumetric_only's, but for plain(), which may change
+        ok = mo.mu == 0 && mo.alpha[0] == 0 && mo.alpha[1] == 0 && mo.alpha[2] == 0 &&
+             volumetric_state(example[t], m_.rest.data(), D);
+        for (int a = 0; ok && a < 8; ++a)
+          volumetric_blocks(D, kinds_[t].body, a, reinterpret_cast<double(*)[9]>(&rest_blocks_[(t * 8 + a) * 72]));
+      }
+      rest_ok_ = ok;
+    }
+    return rest_ok_ && plain();
+  }
+  // Owned molecule i's cell with i as corner a, -1 when the lattice has none (the cells' ids increase with the
+  // index: the last found cell for the same corner, or the next, before a binary search).
+  int cell_at(const BoxGeometry& box, const std::array<long, 3>& ijk, int a) const {
+    long q[3];
+    for (int d = 0; d < 3; ++d) {
+      q[d] = ijk[d] - (a >> d & 1);
+      if (q[d] < 0 || q[d] > box.n[d] - 2) return -1;
+    }
+    const std::int64_t id = box.id(q[0], q[1], q[2]);
+    int& h = rest_hint_[a];
+    if (h + 1 < cells_ && m_.id[base_[h + 1]] == id) return ++h;
+    if (h < cells_ && m_.id[base_[h]] == id) return h;
+    int lo = 0, hi = cells_;
+    while (lo < hi) {
+      const int mid = (lo + hi) / 2;
+      if (m_.id[base_[mid]] < id) lo = mid + 1;
+      else hi = mid;
+    }
+    if (lo == cells_ || m_.id[base_[lo]] != id) return -1;
+    return h = lo;
+  }
+  // add_row's sums at rest from rest_blocks_; key: the kind of each cell (a = 7 .. 0, -1 none).
+  template <class Emit>
+  void rest_row_blocks(int i, Emit emit, double* key) const {
+    const int body = m_.body[i];
+    if (!rest_body_[body]) return;
+    const BoxGeometry& box = m_.shape.body(body);
+    const auto ijk = box.index(m_.id[i]);
+    for (int a = 7; a >= 0; --a) {
+      const int k = cell_at(box, ijk, a);
+      if (key) key[7 - a] = k < 0 ? -1.0 : kind_[k];
+      if (k >= 0) emit(a, k);
+    }
+  }
+  void rest_row(int i, std::vector<int>& columns, std::vector<double>& key) const override {
+    const std::size_t at = key.size();
+    key.resize(at + 8, -1.0);
+    std::uint32_t present = 0;
+    int column[27];
+    rest_row_blocks(i, [&](int a, int k) {
+      int corner[8];
+      corners(k, corner);
+      for (int b = 0; b < 8; ++b) {
+        const int slot = 13 + ((b & 1) - (a & 1)) + 3 * ((b >> 1 & 1) - (a >> 1 & 1)) + 9 * ((b >> 2 & 1) - (a >> 2 & 1));
+        column[slot] = corner[b], present |= 1u << slot;
+      }
+    }, key.data() + at);
+    for (std::uint32_t rest = present; rest; rest &= rest - 1) columns.push_back(column[__builtin_ctz(rest)]);
+  }
+  PetscErrorCode add_rest_row(int i, BlockAdd add, void* ctx) const override {
+    double K[27][9];
+    int column[27];
+    std::uint32_t present = 0;
+    rest_row_blocks(i, [&](int a, int k) {
+      int corner[8];
+      corners(k, corner);
+      const double* Kb = &rest_blocks_[(static_cast<std::size_t>(kind_[k]) * 8 + a) * 72];
+      for (int b = 0; b < 8; ++b) {  // as add_row
+        const int slot = 13 + ((b & 1) - (a & 1)) + 3 * ((b >> 1 & 1) - (a >> 1 & 1)) + 9 * ((b >> 2 & 1) - (a >> 2 & 1));
+        double* to = K[slot];
+        if (present >> slot & 1) {
+          for (int e = 0; e < 9; ++e) to[e] += Kb[9 * b + e];
+        } else {
+          for (int e = 0; e < 9; ++e) to[e] = Kb[9 * b + e];
+          column[slot] = corner[b], present |= 1u << slot;
+        }
+      }
+    }, nullptr);
+    for (std::uint32_t rest = present; rest; rest &= rest - 1) {
+      const int slot = __builtin_ctz(rest);
+      const PetscErrorCode ierr = add(ctx, i, column[slot], K[slot]);
+      if (ierr) return ierr;
+    }
+    return 0;
+  }
+  mutable bool rest_checked_ = false, rest_ok_ = false;
+  mutable std::vector<std::uint8_t> rest_body_;  // per body: whether it has cells here
+  mutable std::vector<double> rest_blocks_;      // per kind and corner a: K_ab at rest, b = 0..7
+  mutable std::array<int, 8> rest_hint_{};
 
   // The matrix-free product (cell_block_tangent), from a state per cell kept for a Newton iteration: plain cells
   // in blocks (no fibres, no history running) F and mu J^(-2/3), 80 B a cell, the derivative of the stress along

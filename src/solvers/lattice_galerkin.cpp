@@ -19,6 +19,12 @@ namespace tissue {
 
 namespace {
 
+// Frees a container's storage: `c = {}` assigns an empty list and keeps the capacity (and a map's buckets).
+template <class C>
+void free_storage(C& c) {
+  C().swap(c);
+}
+
 constexpr int kSlots = 27;  // a 27-point stencil: offsets -1, 0, 1 along each axis
 constexpr int kBlock = 9;   // a 3x3 block, row-major
 
@@ -382,8 +388,8 @@ LatticeGalerkin::LatticeGalerkin(const LocalModel& model, const std::vector<std:
     : model_(model), held_(held), levels_(std::move(levels)), csr_(levels_.planes.size()),
       coarse_(levels_.planes.size(), nullptr) {
   // Level 0's nodes are all owned molecules in order, and its numbering is the tangent's: not kept (memory).
-  levels_.owned_nodes[0] = {};
-  levels_.base[0] = {};
+  free_storage(levels_.owned_nodes[0]);
+  free_storage(levels_.base[0]);
 }
 
 void LatticeGalerkin::index_molecules() const {
@@ -449,7 +455,7 @@ PetscErrorCode LatticeGalerkin::applies(Mat fine, bool* ok) const {
     }
     PetscCall(MatRestoreRowIJ(part, 0, PETSC_FALSE, PETSC_FALSE, &rows, &ia, &ja, &done));
   }
-  ijk_ = {};
+  free_storage(ijk_);
   int mine = good ? 1 : 0, all = 0;
   PetscCallMPI(MPI_Allreduce(&mine, &all, 1, MPI_INT, MPI_MIN, model_.comm));
   *ok = all == 1;
@@ -471,7 +477,7 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Stream* stream, c
     PetscCall(stencil_operator(num, acc));
   else
     PetscCall(fill_coarse_matrix(l, num, acc, dnnz, onnz));
-  acc.index = {};
+  free_storage(acc.index);
   next = std::move(acc);
   PetscFunctionReturn(0);
 }
@@ -1331,7 +1337,7 @@ PetscErrorCode LatticeGalerkin::applies(const ForceModel& forces, const double* 
       if (i < model_.owned || j < model_.owned) (void)put(i, j, nullptr);
     });
   }
-  ijk_ = {};
+  free_storage(ijk_);
   int mine = good ? 1 : 0, all = 0;
   PetscCallMPI(MPI_Allreduce(&mine, &all, 1, MPI_INT, MPI_MIN, model_.comm));
   *ok = all == 1;
@@ -1367,7 +1373,7 @@ PetscErrorCode LatticeGalerkin::update(Mat fine, const Stream* stream, PC pc) {
     const double mine = jacobi_bound_;
     PetscCallMPI(MPI_Allreduce(&mine, &jacobi_bound_, 1, MPI_DOUBLE, MPI_MAX, model_.comm));
   }
-  ijk_ = {};
+  free_storage(ijk_);
   PetscCall(PetscLogEventEnd(galerkin_event(), pc, fine, 0, 0));
   PetscFunctionReturn(0);
 }
@@ -1496,10 +1502,10 @@ void LatticeGalerkin::halve_level_one() {
   const auto from = (reinterpret_cast<std::uintptr_t>(a + kept * kRow) + page - 1) / page * page;
   const auto to = reinterpret_cast<std::uintptr_t>(a + op.rows.a.size()) / page * page;
   if (to > from + (1u << 20)) (void)madvise(reinterpret_cast<void*>(from), to - from, MADV_DONTNEED);
-  op.rows.index = {};
-  op.rows.present = {};
-  op.rows.at = {};
-  op.rows.refs = {};
+  free_storage(op.rows.index);
+  free_storage(op.rows.present);
+  free_storage(op.rows.at);
+  free_storage(op.rows.refs);
   // A spring's block is symmetric to the bit and so is every weighted sum of them; a term's blocks need not be.
   op.symmetric = true;
   for (std::size_t c = 0; c < nodes && op.symmetric; ++c) {
@@ -1518,7 +1524,7 @@ void LatticeGalerkin::halve_level_one() {
   // columns from a transposed copy of the kept rows, 3 padding values for the last block's unused lane, when they
   // are at most a quarter of the rows (a box lattice at rest: its few distinct rows); otherwise (a deformed
   // state, nearly every row distinct) no copy, and the product gathers the columns from the rows.
-  op.columns = {};
+  free_storage(op.columns);
   if (!op.symmetric && 4 * kept <= rows) {
     op.columns.assign(kept * kRow + 3, 0.0);
     for (std::size_t b = 0; b < kept * kHalf; ++b)

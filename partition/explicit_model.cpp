@@ -231,7 +231,8 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationIn
           for (std::size_t t = 0; t < mesh.tets.size(); ++t)
             read[i].region[t] = mesh.tet_region[t] < 0 ? -1 : spec_of[mesh.tet_region[t]];
         }
-        mesh.nodes = {}, mesh.tet_region = {}, mesh.surfaces = {};
+        decltype(mesh.nodes)().swap(mesh.nodes), decltype(mesh.tet_region)().swap(mesh.tet_region);  // not `= {}`:
+        decltype(mesh.surfaces)().swap(mesh.surfaces);  // that keeps the capacity
         count[i] = static_cast<std::int64_t>(read[i].molecules.points.size());
         if (count[i] > std::numeric_limits<std::int32_t>::max())
           throw std::runtime_error("the body has more molecules than 32-bit PETSc indices can address");
@@ -242,7 +243,7 @@ LocalModel build_explicit_model(const Scene& scene, MPI_Comm comm, CalibrationIn
         mesh = TetMesh();
         total_volume[i] = read[i].molecules.total_volume;
         for (auto& f : read[i].molecules.faces) f.body = i, faces.push_back(std::move(f));
-        read[i].molecules.faces = {};
+        decltype(read[i].molecules.faces)().swap(read[i].molecules.faces);
       } else {
         count[i] = static_cast<std::int64_t>(spec.molecules[0]) * spec.molecules[1] * spec.molecules[2];
       }

@@ -18,6 +18,8 @@ GhostedVector::GhostedVector(const LocalModel& model, int width) {
   std::vector<PetscInt> ghosts = model.block.slice(model.owned, model.local);
   check(VecCreateGhostBlock(model.comm, width, width * model.owned, PETSC_DECIDE, static_cast<PetscInt>(ghosts.size()),
                             ghosts.data(), &vec_), "VecCreateGhostBlock");
+  // Its local-to-global map (a PetscInt a local molecule) serves VecSetValuesLocal only, which nothing here calls.
+  check(VecSetLocalToGlobalMapping(vec_, nullptr), "VecSetLocalToGlobalMapping");
   // The local form stays open for the vector's lifetime: the kernels read and write it directly.
   check(VecGhostGetLocalForm(vec_, &local_), "VecGhostGetLocalForm");
   check(VecGetArray(local_, &array_), "VecGetArray");

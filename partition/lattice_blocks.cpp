@@ -161,14 +161,14 @@ std::vector<int> partition_lattice_blocks(const Body& shape, MPI_Comm comm, int 
       mine.push_back(std::min(u, v) * nv + std::max(u, v)), mine.push_back(row[k]);
     }
   }
-  dense = {};
+  decltype(dense)().swap(dense);
   int count = static_cast<int>(mine.size());
   std::vector<int> counts(size), displs(size + 1, 0);
   MPI_Gather(&count, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, comm);
   for (int r = 0; r < size; ++r) displs[r + 1] = displs[r] + counts[r];
   std::vector<std::int64_t> all(rank == 0 ? displs[size] : 0);
   MPI_Gatherv(mine.data(), count, MPI_INT64_T, all.data(), counts.data(), displs.data(), MPI_INT64_T, 0, comm);
-  mine = {};
+  decltype(mine)().swap(mine);
 
   std::vector<int> block_part(nv, 0);
   long edge_cut = 0;
@@ -181,7 +181,7 @@ std::vector<int> partition_lattice_blocks(const Body& shape, MPI_Comm comm, int 
     // with both directions of every edge.
     std::unordered_map<std::int64_t, std::int64_t> merged;
     for (std::size_t i = 0; i < all.size(); i += 2) merged[all[i]] += all[i + 1];
-    all = {};
+    decltype(all)().swap(all);
     std::vector<idx_t> xadj(nv + 1, 0), vwgt(nv);
     for (const auto& [key, w] : merged) ++xadj[key / nv + 1], ++xadj[key % nv + 1];
     for (std::int64_t v = 0; v < nv; ++v) xadj[v + 1] += xadj[v], vwgt[v] = static_cast<idx_t>(blocks.molecules(v));
@@ -191,7 +191,7 @@ std::vector<int> partition_lattice_blocks(const Body& shape, MPI_Comm comm, int 
       adjncy[fill[u]] = v, adjwgt[fill[u]++] = static_cast<idx_t>(w);
       adjncy[fill[v]] = u, adjwgt[fill[v]++] = static_cast<idx_t>(w);
     }
-    merged = {};
+    decltype(merged)().swap(merged);
     // Neighbours in increasing order: the graph, and so METIS's answer, does not depend on the hash order.
     for (std::int64_t v = 0; v < nv; ++v) {
       std::vector<std::pair<idx_t, idx_t>> row;

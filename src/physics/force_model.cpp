@@ -637,8 +637,9 @@ PetscErrorCode ForceModel::tangent_diagonal(const double* x, double* diag, bool 
 
 void ForceModel::release_block_rows() const {
   if (!tangent_.row_start.empty()) return;  // create_tangent's pattern: the assembled tangent's
-  tangent_.conn_start = {};
-  tangent_.row_conns = {};
+  // swap, not `= {}`: assigning an empty list keeps the capacity (35 MB a rank at 10^6, held through the solve).
+  std::vector<int>().swap(tangent_.conn_start);
+  std::vector<int>().swap(tangent_.row_conns);
 }
 
 bool ForceModel::has_cached_tangent() const {

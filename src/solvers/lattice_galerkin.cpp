@@ -19,6 +19,12 @@ namespace tissue {
 
 namespace {
 
+// Frees a container's storage: `c = {}` assigns an empty list and keeps the capacity (and a map's buckets).
+template <class C>
+void free_storage(C& c) {
+  C().swap(c);
+}
+
 constexpr int kSlots = 27;  // a 27-point stencil: offsets -1, 0, 1 along each axis
 constexpr int kBlock = 9;   // a 3x3 block, row-major
 
@@ -279,7 +285,10 @@ struct LatticeGalerkin::Rows {
     // The copies about to be written, faulted in a batch at a time (one call instead of one trap a page) within
     // the reserve only: nothing beyond what the rows are about to use becomes resident.
     if (copy >= populated && a.capacity() >= (copy + 1) * kRow) {
-      const std::size_t batch = std::max<std::size_t>(1024, a.capacity() / kRow / 16);
+      // Doubling from 1024 copies (2 MB) up to 1/16 of the reserve: a rank whose rows are nearly all shared (48
+      // copies at 10^6) faults 2 MB, not 8.
+      const std::size_t batch =
+          std::min(std::max<std::size_t>(1024, populated), std::max<std::size_t>(1024, a.capacity() / kRow / 16));
       const std::size_t end = std::min(a.capacity() / kRow, copy + batch);
       populate(a.data() + copy * kRow, sizeof(double) * (end - copy) * kRow);
       populated = end;
@@ -382,8 +391,8 @@ LatticeGalerkin::LatticeGalerkin(const LocalModel& model, const std::vector<std:
     : model_(model), held_(held), levels_(std::move(levels)), csr_(levels_.planes.size()),
       coarse_(levels_.planes.size(), nullptr) {
   // Level 0's nodes are all owned molecules in order, and its numbering is the tangent's: not kept (memory).
-  levels_.owned_nodes[0] = {};
-  levels_.base[0] = {};
+  free_storage(levels_.owned_nodes[0]);
+  free_storage(levels_.base[0]);
 }
 
 void LatticeGalerkin::index_molecules() const {
@@ -449,7 +458,7 @@ PetscErrorCode LatticeGalerkin::applies(Mat fine, bool* ok) const {
     }
     PetscCall(MatRestoreRowIJ(part, 0, PETSC_FALSE, PETSC_FALSE, &rows, &ia, &ja, &done));
   }
-  ijk_ = {};
+  free_storage(ijk_);
   int mine = good ? 1 : 0, all = 0;
   PetscCallMPI(MPI_Allreduce(&mine, &all, 1, MPI_INT, MPI_MIN, model_.comm));
   *ok = all == 1;
@@ -471,7 +480,7 @@ PetscErrorCode LatticeGalerkin::coarsen(int l, Mat fine, const Stream* stream, c
     PetscCall(stencil_operator(num, acc));
   else
     PetscCall(fill_coarse_matrix(l, num, acc, dnnz, onnz));
-  acc.index = {};
+  free_storage(acc.index);
   next = std::move(acc);
   PetscFunctionReturn(0);
 }
@@ -1328,7 +1337,7 @@ PetscErrorCode LatticeGalerkin::applies(const ForceModel& forces, const double* 
       if (i < model_.owned || j < model_.owned) (void)put(i, j, nullptr);
     });
   }
-  ijk_ = {};
+  free_storage(ijk_);
   int mine = good ? 1 : 0, all = 0;
   PetscCallMPI(MPI_Allreduce(&mine, &all, 1, MPI_INT, MPI_MIN, model_.comm));
   *ok = all == 1;
@@ -1364,7 +1373,7 @@ PetscErrorCode LatticeGalerkin::update(Mat fine, const Stream* stream, PC pc) {
     const double mine = jacobi_bound_;
     PetscCallMPI(MPI_Allreduce(&mine, &jacobi_bound_, 1, MPI_DOUBLE, MPI_MAX, model_.comm));
   }
-  ijk_ = {};
+  free_storage(ijk_);
   PetscCall(PetscLogEventEnd(galerkin_event(), pc, fine, 0, 0));
   PetscFunctionReturn(0);
 }
@@ -1491,12 +1500,16 @@ void LatticeGalerkin::halve_level_one() {
                   copies);
   const std::uintptr_t page = static_cast<std::uintptr_t>(sysconf(_SC_PAGESIZE));
   const auto from = (reinterpret_cast<std::uintptr_t>(a + kept * kRow) + page - 1) / page * page;
-  const auto to = reinterpret_cast<std::uintptr_t>(a + op.rows.a.size()) / page * page;
+  // Up to the last copy populate faulted in ahead (writable's batch: 1/16 of the reserve, 8 MB a rank at 10^6),
+  // not only the copies written: on a rank with few copies that batch was most of the rows' resident pages.
+  const std::size_t faulted = std::max(op.rows.a.size(), op.rows.populated * Rows::kRow);
+  const auto to = reinterpret_cast<std::uintptr_t>(a + faulted) / page * page;
   if (to > from + (1u << 20)) (void)madvise(reinterpret_cast<void*>(from), to - from, MADV_DONTNEED);
-  op.rows.index = {};
-  op.rows.present = {};
-  op.rows.at = {};
-  op.rows.refs = {};
+  op.rows.populated = 0;  // (nothing is written to them again; were it, writable would fault them in anew)
+  free_storage(op.rows.index);
+  free_storage(op.rows.present);
+  free_storage(op.rows.at);
+  free_storage(op.rows.refs);
   // A spring's block is symmetric to the bit and so is every weighted sum of them; a term's blocks need not be.
   op.symmetric = true;
   for (std::size_t c = 0; c < nodes && op.symmetric; ++c) {
@@ -1515,7 +1528,7 @@ void LatticeGalerkin::halve_level_one() {
   // columns from a transposed copy of the kept rows, 3 padding values for the last block's unused lane, when they
   // are at most a quarter of the rows (a box lattice at rest: its few distinct rows); otherwise (a deformed
   // state, nearly every row distinct) no copy, and the product gathers the columns from the rows.
-  op.columns = {};
+  free_storage(op.columns);
   if (!op.symmetric && 4 * kept <= rows) {
     op.columns.assign(kept * kRow + 3, 0.0);
     for (std::size_t b = 0; b < kept * kHalf; ++b)

@@ -355,6 +355,28 @@ PetscErrorCode fine_chebyshev(Context* ctx, PC pc) {
   PetscFunctionReturn(0);
 }
 
+// PCMG's finest residual r (PCSetUp_MG would make one of its own, 24 B a molecule) is the first of the fused
+// finest smoother's work vectors, both made here before the first set-up: the smoother uses them only inside its
+// own solve, PCMG's r lives from the residual after the pre-smoothing to its restriction (the line search, which
+// borrows the same two, only after the linear solve). Nothing when the smoother has its vectors already (later
+// rebuilds), is not the fused one or wants a third (max_it > 2: its set-up then makes its own, r stays apart).
+PetscErrorCode share_finest_residual(PC pc, Mat J) {
+  PetscFunctionBeginUser;
+  PetscInt levels;
+  KSP smoother;
+  PetscBool fused = PETSC_FALSE;
+  PetscCall(PCMGGetLevels(pc, &levels));
+  if (levels < 2) PetscFunctionReturn(0);
+  PetscCall(PCMGGetSmoother(pc, levels - 1, &smoother));
+  PetscCall(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(smoother), kFusedChebyshev, &fused));
+  if (!fused || smoother->nwork > 0 || smoother->max_it > 2) PetscFunctionReturn(0);
+  PetscCall(PetscMalloc1(2, &smoother->work));  // KSP frees them with VecDestroyVecs, as its own
+  PetscCall(MatCreateVecs(J, &smoother->work[0], &smoother->work[1]));
+  smoother->nwork = 2;
+  PetscCall(PCMGSetR(pc, levels - 1, smoother->work[0]));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode tangent(SNES snes, Vec X, Mat J, Mat P, void* p) {
   PetscFunctionBeginUser;
   auto* ctx = static_cast<Context*>(p);
@@ -370,6 +392,7 @@ PetscErrorCode tangent(SNES snes, Vec X, Mat J, Mat P, void* p) {
       if (ctx->rest) PetscCall(ctx->rest->use(pc, ctx->shell->positions(), J));
       PetscCall(ctx->galerkin->update(*ctx->forces, ctx->shell->positions(), pc));
       if (ctx->gershgorin) PetscCall(fine_chebyshev(ctx, pc));
+      PetscCall(share_finest_residual(pc, J));
       ctx->forces->release_block_rows();  // not needed again before the next rebuild
     }
     PetscFunctionReturn(0);

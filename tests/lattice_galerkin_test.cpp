@@ -239,11 +239,11 @@ TEST(LatticeGalerkin, LevelOneShellWithCellsAtRestEqualsPetscTripleProduct) {
 TEST(LatticeGalerkin, LevelOneShellWithCellsAtRestNonIntegerSpacing) {
   std::string mm = cell_scene;
   mm.replace(mm.find("[1.0, 1.0, 1.0]"), 15, "[1.2e-3, 1.2e-3, 1.2e-3]");
-  compare_level_one_shell(0.0, mm.c_str());
+  compare_level_one_shell(0.0, mm);
 }
 // Every level's operator (assembled per level, as update(forces, x, pc) without the shell) against PETSc's triple
 // products from the assembled tangent, with cells at rest and at an iterate: the rest rows' skip on every level.
-void compare_every_level(double amplitude, const char* scene_text) {
+void compare_every_level(double amplitude, const std::string& scene_text) {
   const auto rp = run(scene_text, PETSC_COMM_WORLD, {}, false);
   const RunResult& r = *rp;
   std::vector<double> x(r.model.rest);
@@ -289,7 +289,7 @@ void compare_every_level(double amplitude, const char* scene_text) {
 TEST(LatticeGalerkin, EveryLevelWithCellsAtRestNonIntegerSpacing) {
   std::string mm = cell_scene;
   mm.replace(mm.find("[1.0, 1.0, 1.0]"), 15, "[1.2e-3, 1.2e-3, 1.2e-3]");
-  compare_every_level(0.0, mm.c_str());
+  compare_every_level(0.0, mm);
 }
 TEST(LatticeGalerkin, EveryLevelWithCellsAtIterate) { compare_every_level(0.08, cell_scene); }
 // Two kinds of cells whose springs are alike (a region of nu = 0.4 with E = 2.5 x 1.4 / 1.45: the same shear
@@ -300,5 +300,5 @@ TEST(LatticeGalerkin, EveryLevelWithTwoCellKindsAtRest) {
   two.replace(two.find("[1.0, 1.0, 1.0]"), 15, "[1.2e-3, 1.2e-3, 1.2e-3]");
   two.replace(two.find("[calibration]"), 13,
               "[[body.region]]\nlo = [0.0, 0.0, 0.0]\nhi = [4.0e-3, 1.0, 1.0]\nyoungs_modulus = 2.413793103448276\npoisson_ratio = 0.4\n[calibration]");
-  compare_every_level(0.0, two.c_str());
+  compare_every_level(0.0, two);
 }

@@ -336,7 +336,7 @@ public:
       molecule[i] = static_cast<std::int64_t>(mesh_.nodes.size());
       mesh_.nodes.push_back(position(i));
     }
-    used = {}, model_.coords = {};
+    std::vector<std::int64_t>().swap(used), std::vector<double>().swap(model_.coords);  // freed (`= {}` keeps the capacity)
     for (auto& T : mesh_.tets)
       for (auto& i : T) i = molecule[i];
     auto label = [&](int dim, int t) {

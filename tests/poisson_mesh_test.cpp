@@ -8,9 +8,9 @@
 //  - the term's force against a finite difference of its energy, its tangent against one of its force (on one rank
 //    column by column; on 1-3 ranks along a direction, with the matrix-free product and the diagonal: the
 //    patches' rank-one blocks reach two rings, so rows of ghosts are assembled off-process);
-//  - less volumetric locking (nodal averaging): a Gmsh cantilever 10 x 1 x 1 (h = 0.34) at nu = 0.499 deflects
-//    within 15 % of the nu = 0.25 one (the issue asks 5 %: not reached at this resolution; the per-tetrahedron
-//    volumetric part deflected 0.31 of it), both within 30 % of Timoshenko's closed form (linear tetrahedra three deep are stiff in bending);
+//  - no volumetric locking (nodal averaging): a Gmsh cantilever 10 x 1 x 1 at nu = 0.499 deflects within 15 % of
+//    the nu = 0.25 one at h = 0.34 and within the issue's 5 % at h = 0.12 (the per-tetrahedron volumetric part
+//    deflected 0.31 of it at h = 0.34), both within 30 % of Timoshenko's closed form;
 //  - forces at a large deformation bit for bit those of one rank on any partition, and the static solution to
 //    1e-10 of the one-rank one;
 //  - the critical time step is a lower bound of the stability limit within 2.5x.
@@ -189,17 +189,18 @@ TEST(PoissonMesh, TangentOnEveryRankCount) {
   }
 }
 
-// Nodal averaging takes most of the locking away: a 10 x 1 x 1 Gmsh beam (tests/meshes/beam.geo, h = 0.34, 587
-// molecules) clamped at x-, a tip load on x+; the tip's mean deflection at nu = 0.499 is 0.875 of the nu = 0.25
-// one (asked: within 15 %; the issue's 5 % needs a finer mesh: 0.72 at h = 0.5; the per-tetrahedron volumetric
-// part deflected 0.31 of it here, and 0.16 of its own nu = 0.25 deflection at h = 0.5), and both are within 30 % of Timoshenko's P L^3 / (3 E I) +
-// P L / (k G A), k = 10 (1 + nu) / (12 + 11 nu) (0.84 and 0.73: linear tetrahedra three deep are stiff in bending
-// at any nu, and the clamp is stiffer than the beam theory's).
-TEST(PoissonMesh, CantileverDoesNotLock) {
+// Nodal averaging takes the locking away as the mesh is refined: a 10 x 1 x 1 Gmsh beam (tests/meshes/beam.geo)
+// clamped at x-, a tip load on x+; the tip's mean deflection at nu = 0.499 over the nu = 0.25 one is 0.72 at
+// h = 0.5, 0.875 at h = 0.34 (587 molecules), 0.945 at h = 0.17 and 0.962 at h = 0.12 (6,560 molecules: the issue's
+// 5 %); the per-tetrahedron volumetric part deflected 0.31 of it at h = 0.34. Both deflections are within 30 % of
+// Timoshenko's P L^3 / (3 E I) + P L / (k G A), k = 10 (1 + nu) / (12 + 11 nu) (0.84 and 0.73 at h = 0.34: linear
+// tetrahedra three deep are stiff in bending at any nu, and the clamp is stiffer than the beam theory's).
+// body: the [body] lines of the beam's mesh; returns the deflection ratio 0.499 / 0.25.
+double cantilever_ratio(const std::string& body) {
   const double P = 1e-4, L = 10, I = 1.0 / 12, A = 1;
   auto tip = [&](double nu) {
     Case c;
-    c.body = "shape = \"mesh\"\nfile = \"" + std::string(TISSUE_SOURCE_DIR) + "/tests/meshes/beam_h0.34.msh\"\n";
+    c.body = body;
     c.nu = nu;
     std::string text = scene_text(c);
     const std::string fix = "face = \"z-\"\nmode = \"roller\"", load = "face = \"z+\"";
@@ -223,7 +224,20 @@ TEST(PoissonMesh, CantileverDoesNotLock) {
   };
   const double quarter = tip(0.25), near_half = tip(0.499);
   EXPECT_GT(quarter, 0.0);
-  EXPECT_NEAR(near_half / quarter, 1.0, 0.15);
+  return near_half / quarter;
+}
+
+TEST(PoissonMesh, CantileverDoesNotLock) {
+  const std::string body = "shape = \"mesh\"\nfile = \"" + std::string(TISSUE_SOURCE_DIR) + "/tests/meshes/beam_h0.34.msh\"\n";
+  EXPECT_NEAR(cantilever_ratio(body), 1.0, 0.15);
+}
+
+// The issue's 5 % on the beam meshed at run time at h = 0.12 (its .geo, mesh_size; ~20 s of two solves, so
+// tests/CMakeLists.txt runs it at 2 ranks only: the rank counts' agreement is SameOnEveryRankCount's).
+TEST(PoissonMesh, FineCantileverWithinFivePercent) {
+  const std::string body = "shape = \"mesh\"\nfile = \"" + std::string(TISSUE_SOURCE_DIR) +
+                           "/tests/meshes/beam.geo\"\nmesh_size = 0.12\n";
+  EXPECT_NEAR(cantilever_ratio(body), 1.0, 0.05);
 }
 
 TEST(PoissonMesh, SameOnEveryRankCount) {

@@ -7,6 +7,8 @@
 #include <petscksp.h>
 
 #include <cmath>
+#include <memory>
+#include <vector>
 
 #include "src/physics/force_model.hpp"
 #include "src/solvers/lattice_galerkin.hpp"
@@ -144,37 +146,58 @@ TEST(LatticeGalerkin, StreamGershgorinBoundEqualsForceModelsAndAssembledRows) {
 // vectorised path for wholly free nodes and the masked one at the roller and clamped faces.
 // Level 1's shell at positions moved by `amplitude` (0: the rest positions, where its rows are nearly all equal to
 // the bit and kept once) against PETSc's product of the assembled tangent.
-void compare_level_one_shell(double amplitude, const std::string& scene_text = scene) {
-  const auto rp = run(scene_text, PETSC_COMM_WORLD, {}, false);
-  const RunResult& r = *rp;
-  std::vector<double> x(r.model.rest);
+// The tangent J at the rest positions moved by `amplitude`, our hierarchy with LatticeGalerkin's coarse operators
+// (level 1 kept as its stencil rows behind a shell when level_one_as_stencil) and PETSc's with the same
+// interpolations as matrices, for the comparisons below.
+struct TwoHierarchies {
+  std::unique_ptr<RunResult> run;
+  std::vector<double> x;
+  Mat J = nullptr;
+  PC ours = nullptr, matrix = nullptr;
+  PetscInt levels = 0;
+  std::unique_ptr<LatticeGalerkin> galerkin;  // our coarse operators (the shell's rows)
+  ~TwoHierarchies() {
+    PCDestroy(&ours);
+    PCDestroy(&matrix);
+    MatDestroy(&J);
+  }
+};
+void build_hierarchies(double amplitude, const std::string& scene_text, bool level_one_as_stencil, TwoHierarchies* h) {
+  h->run = run(scene_text, PETSC_COMM_WORLD, {}, false);
+  const RunResult& r = *h->run;
+  h->x = r.model.rest;
   for (int i = 0; i < r.model.local; ++i)
     for (int d = 0; d < 3; ++d)
-      x[3 * i + d] += amplitude * std::sin(0.7 * x[3 * i + (d + 1) % 3] + 0.3 * d + x[3 * i + d]);
-  Mat J;
-  ASSERT_EQ(r.forces->create_tangent(&J), 0);
-  ASSERT_EQ(r.forces->assemble_tangent(x.data(), J), 0);
-  PC shell_pc, matrix_pc;
-  ASSERT_EQ(PCCreate(PETSC_COMM_WORLD, &shell_pc), 0);
-  ASSERT_EQ(PCCreate(PETSC_COMM_WORLD, &matrix_pc), 0);
-  PetscInt levels = 0, matrix_levels = 0;
+      h->x[3 * i + d] += amplitude * std::sin(0.7 * h->x[3 * i + (d + 1) % 3] + 0.3 * d + h->x[3 * i + d]);
+  ASSERT_EQ(r.forces->create_tangent(&h->J), 0);
+  ASSERT_EQ(r.forces->assemble_tangent(h->x.data(), h->J), 0);
+  ASSERT_EQ(PCCreate(PETSC_COMM_WORLD, &h->ours), 0);
+  ASSERT_EQ(PCCreate(PETSC_COMM_WORLD, &h->matrix), 0);
+  PetscInt matrix_levels = 0;
   LatticeLevels hierarchy, unused;
-  ASSERT_EQ(setup_lattice_mg(r.model, r.forces->held(), shell_pc, 40, &levels, &hierarchy, true), 0);
-  ASSERT_EQ(setup_lattice_mg(r.model, r.forces->held(), matrix_pc, 40, &matrix_levels, &unused, false), 0);
-  ASSERT_GE(levels, 3);
-  ASSERT_EQ(matrix_levels, levels);
-  LatticeGalerkin galerkin(r.model, r.forces->held(), std::move(hierarchy));
-  galerkin.keep_level_one_as_stencil();
-  ASSERT_EQ(galerkin.update(*r.forces, x.data(), shell_pc), 0);
+  ASSERT_EQ(setup_lattice_mg(r.model, r.forces->held(), h->ours, 40, &h->levels, &hierarchy, level_one_as_stencil), 0);
+  ASSERT_EQ(setup_lattice_mg(r.model, r.forces->held(), h->matrix, 40, &matrix_levels, &unused, false), 0);
+  ASSERT_GE(h->levels, 3);
+  ASSERT_EQ(matrix_levels, h->levels);
+  h->galerkin = std::make_unique<LatticeGalerkin>(r.model, r.forces->held(), std::move(hierarchy));
+  if (level_one_as_stencil) h->galerkin->keep_level_one_as_stencil();
+  ASSERT_EQ(h->galerkin->update(*r.forces, h->x.data(), h->ours), 0);
+}
+
+void compare_level_one_shell(double amplitude, const std::string& scene_text = scene) {
+  TwoHierarchies h;
+  build_hierarchies(amplitude, scene_text, true, &h);
+  if (::testing::Test::HasFatalFailure()) return;
+  const PetscInt levels = h.levels;
   KSP smoother;
   Mat ours, P, reference;
-  ASSERT_EQ(PCMGGetSmoother(shell_pc, levels - 2, &smoother), 0);  // level 1 (PCMG counts from the coarsest)
+  ASSERT_EQ(PCMGGetSmoother(h.ours, levels - 2, &smoother), 0);  // level 1 (PCMG counts from the coarsest)
   ASSERT_EQ(KSPGetOperators(smoother, &ours, nullptr), 0);
   MatType type;
   ASSERT_EQ(MatGetType(ours, &type), 0);
   EXPECT_STREQ(type, MATSHELL);
-  ASSERT_EQ(PCMGGetInterpolation(matrix_pc, levels - 1, &P), 0);
-  ASSERT_EQ(MatPtAP(J, P, MAT_INITIAL_MATRIX, PETSC_DEFAULT, &reference), 0);
+  ASSERT_EQ(PCMGGetInterpolation(h.matrix, levels - 1, &P), 0);
+  ASSERT_EQ(MatPtAP(h.J, P, MAT_INITIAL_MATRIX, PETSC_DEFAULT, &reference), 0);
   Vec u, y_ours, y_ref;
   ASSERT_EQ(MatCreateVecs(reference, &u, &y_ref), 0);
   ASSERT_EQ(VecDuplicate(y_ref, &y_ours), 0);
@@ -196,9 +219,6 @@ void compare_level_one_shell(double amplitude, const std::string& scene_text = s
   VecDestroy(&y_ours);
   VecDestroy(&y_ref);
   MatDestroy(&reference);
-  PCDestroy(&shell_pc);
-  PCDestroy(&matrix_pc);
-  MatDestroy(&J);
 }
 
 TEST(LatticeGalerkin, LevelOneShellEqualsPetscTripleProduct) { compare_level_one_shell(0.08); }
@@ -244,27 +264,12 @@ TEST(LatticeGalerkin, LevelOneShellWithCellsAtRestNonIntegerSpacing) {
 // Every level's operator (assembled per level, as update(forces, x, pc) without the shell) against PETSc's triple
 // products from the assembled tangent, with cells at rest and at an iterate: the rest rows' skip on every level.
 void compare_every_level(double amplitude, const std::string& scene_text) {
-  const auto rp = run(scene_text, PETSC_COMM_WORLD, {}, false);
-  const RunResult& r = *rp;
-  std::vector<double> x(r.model.rest);
-  for (int i = 0; i < r.model.local; ++i)
-    for (int d = 0; d < 3; ++d)
-      x[3 * i + d] += amplitude * std::sin(0.7 * x[3 * i + (d + 1) % 3] + 0.3 * d + x[3 * i + d]);
-  Mat J;
-  ASSERT_EQ(r.forces->create_tangent(&J), 0);
-  ASSERT_EQ(r.forces->assemble_tangent(x.data(), J), 0);
-  PC ours_pc, matrix_pc;
-  ASSERT_EQ(PCCreate(PETSC_COMM_WORLD, &ours_pc), 0);
-  ASSERT_EQ(PCCreate(PETSC_COMM_WORLD, &matrix_pc), 0);
-  PetscInt levels = 0, matrix_levels = 0;
-  LatticeLevels hierarchy, unused;
-  ASSERT_EQ(setup_lattice_mg(r.model, r.forces->held(), ours_pc, 40, &levels, &hierarchy, false), 0);
-  ASSERT_EQ(setup_lattice_mg(r.model, r.forces->held(), matrix_pc, 40, &matrix_levels, &unused, false), 0);
-  ASSERT_GE(levels, 3);
-  ASSERT_EQ(matrix_levels, levels);
-  LatticeGalerkin galerkin(r.model, r.forces->held(), std::move(hierarchy));
-  ASSERT_EQ(galerkin.update(*r.forces, x.data(), ours_pc), 0);
-  Mat fine = J;
+  TwoHierarchies h;
+  build_hierarchies(amplitude, scene_text, false, &h);
+  if (::testing::Test::HasFatalFailure()) return;
+  const PetscInt levels = h.levels;
+  PC ours_pc = h.ours, matrix_pc = h.matrix;
+  Mat fine = h.J;
   ASSERT_EQ(PetscObjectReference(reinterpret_cast<PetscObject>(fine)), 0);
   for (PetscInt l = levels - 1; l >= 1; --l) {  // PCMG's levels from the coarsest: l - 1 is one coarser
     Mat P, reference, ours;
@@ -282,9 +287,6 @@ void compare_every_level(double amplitude, const std::string& scene_text) {
     fine = reference;
   }
   MatDestroy(&fine);
-  PCDestroy(&ours_pc);
-  PCDestroy(&matrix_pc);
-  MatDestroy(&J);
 }
 TEST(LatticeGalerkin, EveryLevelWithCellsAtRestNonIntegerSpacing) {
   std::string mm = cell_scene;

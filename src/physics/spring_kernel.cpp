@@ -505,20 +505,24 @@ private:
   mutable int w0_ = 0, w1_ = 0;
 };
 
-// A pull row's present springs (bit q: the q-th backward / own forward one; at most 13 directions).
-using PullBits = std::uint32_t;
+// A pull row's present springs (bit q: the q-th backward / own forward one; at most 13 directions). 64 bits, as
+// wide as a double: the compiler vectorizes pull_body over 8 rows a zmm iteration (32 bits: 16 rows in two zmm
+// registers a value, twice the spills), which ran faster (docs/benchmarks.md, kern18l).
+using PullBits = std::uint64_t;
 
 // The pull form (SpringKernel::pull_segment): each row's force summed in registers from every spring on it, its
 // backward ones (end b: from the molecules at offset bo[q] below, by decreasing offset, i.e. by increasing end a)
 // subtracted from the row's value so far, then the sum of its own forward ones (end a, in direction order) added,
 // the row written once: the additions the push form does, in its order, on the same operands (a backward spring's
 // separation is x_b - x_a as the push form computes it), so the same bits; every spring is computed twice, from each
-// end, and no row is updated twice (docs/benchmarks.md). x and f point at the piece's first row (three streams
+// end (but kRingBack's: below), and no row is updated twice (docs/benchmarks.md). x and f point at the piece's first row (three streams
 // each). Masked with one select on k (l - l0) / l, as the push form: bit q of pb[i] (of pf[i]) says whether
 // backward spring q (forward spring s) of row i exists; a missing one subtracts or adds +-0.0, which leaves the
 // sums' bits as they are (neither is ever -0.0). kOwn: the rows are the segment's molecules (their own sums).
-// Always masked, also where every spring is present: the compiler vectorizes the masked loop over more rows an
-// iteration (the bits' narrower lanes), which ran faster than the unmasked loop (docs/benchmarks.md, kern18k).
+// Always masked, also where every spring is present (the unmasked loop ran slower: docs/benchmarks.md, kern18k).
+// kRingBack (bits q) and kRingOwn (bits s), the force ring: own spring s's force sc (x_b - x_a) is stored at
+// wf_[3 s + c][i] as the own sum adds it, and backward spring q reads it at rb_[3 q + c][i] (end a's row) instead
+// of computing it again: the same product, so the same bits (a missing one subtracts +0.0 instead of +-0.0).
 template <int D, bool kOwn, unsigned kRingBack = 0u, unsigned kRingOwn = 0u>
 __attribute__((always_inline)) inline void pull_body(int n, const double* __restrict x0, const double* __restrict x1,
                                                      const double* __restrict x2, double* __restrict f0,

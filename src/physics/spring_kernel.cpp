@@ -90,7 +90,7 @@ constexpr int kChunk = 8 * kForceBlock, kLargestRing = 1 << 16;
 // kRingFarthest] (a lattice's in-plane ones) read their force from where end a's own sum stored it, kRingRows rows
 // of it (slid back when full: the farthest offset's rows copied once every ~kRingRows rows). kRingNearest keeps
 // the reads of a vector of rows clear of its own writes (pull_body's ivdep).
-constexpr int kRingNearest = 32, kRingFarthest = 512, kRingRows = 2048, kRingDirections = 3;
+constexpr int kRingNearest = 32, kRingFarthest = 512, kRingRows = 1024, kRingDirections = 3;
 static_assert(kRingFarthest + kForceBlock <= kRingRows, "a piece fits the ring above the farthest offset's rows");
 alignas(64) constexpr double kNoRingRows[kForceBlock] = {};  // the ring's reads where no end a is in the segment
 
@@ -619,7 +619,6 @@ TISSUE_CLONES void pull_rows3_ring(const PullPiece& p) { pull_dispatch<3, kRing3
 bool pull_directions(int d) { return d == 3 || d == 9 || d == 13; }
 // Whether a kernel takes the force ring for these directions (pull_ring).
 bool pull_ring_kernel(int d, unsigned back, unsigned own) {
-  static_assert(kRingDirections >= 3, "the ring holds every kernel's ring directions");
   return (d == 9 && back == kRing9Back && own == kRing9Own) || (d == 3 && back == kRing3Back && own == kRing3Own);
 }
 void pull_rows(int d, const PullPiece& p) {
@@ -941,6 +940,30 @@ void SpringKernel::pull_marks(Segment& seg) {
   seg.marks = static_cast<int>(marks_.size()) - seg.first_mark;
 }
 
+// The force ring's directions of a pull segment: the nearest backward ones whose offsets lie in [kRingNearest,
+// kRingFarthest] (by increasing offset), three of the face-diagonals lattice's (in-plane: N - 1, N, N + 1) and one
+// of the rectangular one's (N), when a kernel takes that set (pull_ring_kernel); q: their backward indices, far:
+// the largest offset.
+bool SpringKernel::pull_ring(const Segment& seg, const Backward& bw, int* q, int& n, int& far) const {
+  n = 0, far = 0;
+  const int directions = directions_[seg.pattern], most = directions == 9 ? 3 : directions == 3 ? 1 : 0;
+  if (pull_ring_rows_.empty()) return false;
+  unsigned back = 0, own = 0;
+  for (int t = bw.n - 1; t >= 0 && n < most; --t)
+    if (bw.offset[t] >= kRingNearest && bw.offset[t] <= kRingFarthest)
+      back |= 1u << t, own |= 1u << bw.s[t], far = std::max(far, bw.offset[t]), q[n++] = t;
+  return pull_ring_kernel(directions, back, own);
+}
+
+int SpringKernel::pull_ring_segments() const {
+  int count = 0;
+  for (const Segment& seg : segments_) {
+    int q[kRingDirections], n = 0, far = 0;
+    count += pull_directions(directions_[seg.pattern]) && seg.molecules >= kChunk && pull_ring(seg, backward(seg), q, n, far);
+  }
+  return count;
+}
+
 // A segment in the pull form (pull_body): its rows [first, first + molecules + P) below the owned count, P its
 // largest offset to an owned row, in pieces of at most kForceBlock rows (within one turn of a ring, on one side of
 // the segment's end and of each first + offset, below which a direction has no spring on the piece's rows). A row
@@ -963,12 +986,8 @@ void SpringKernel::pull_segment(const Segment& seg, const double* x, double* f, 
   int piece_bo[kMaxDirections];
   // The force ring: the in-plane springs computed once, at end a (its own sum stores each force), and read back at
   // end b kRingNearest or more rows later (a ring of a few kB: in L1), instead of computed again there.
-  unsigned ring_back = 0, ring_own = 0;
-  int ring_far = 0, ring_base = first, ring_q[kPullDirections], ring_n = 0;
-  for (int q = 0; q < bw.n; ++q)
-    if (bw.offset[q] >= kRingNearest && bw.offset[q] <= kRingFarthest)
-      ring_back |= 1u << q, ring_own |= 1u << bw.s[q], ring_far = std::max(ring_far, bw.offset[q]), ring_q[ring_n++] = q;
-  const bool ring = pull_ring_ && !pull_ring_rows_.empty() && pull_ring_kernel(directions, ring_back, ring_own);
+  int ring_base = first, ring_q[kRingDirections], ring_n = 0, ring_far = 0;
+  const bool ring = pull_ring_ && pull_ring(seg, bw, ring_q, ring_n, ring_far);
   const double* rb[3 * kMaxDirections] = {};
   double* wf[3 * kMaxDirections] = {};
   double* ring_rows = pull_ring_rows_.data();

@@ -129,6 +129,8 @@ public:
   // Whether the pull form reads a lattice's in-plane springs from a ring of the forces their end a computed (each
   // computed once) or computes them again at end b: the same bits either way; on by default, off for tests.
   void set_pull_ring(bool on) { pull_ring_ = on; }
+  // How many segments the pull form sums with the force ring (when on).
+  int pull_ring_segments() const;
   // The connections' tangent applied to u (the matrix-free Newton tangent's springs, ForceModel::apply_tangent):
   // each connection's K (u_a - u_b) added to end a's row and subtracted from end b's, K = k [n n^T + (1 - l0/l)
   // (I - n n^T)] at x (local, ghosts up to date), on the same segments as forces(): per direction a constant k
@@ -192,6 +194,8 @@ private:
                  std::uint32_t* pf) const;
   // Fills marks_ for a pull segment (once, in the constructor).
   void pull_marks(Segment& seg);
+  // The force ring's directions of a pull segment (spring_kernel.cpp); false: none (no kernel for them).
+  bool pull_ring(const Segment& seg, const Backward& bw, int* q, int& n, int& far) const;
   template <class Layout, class Finish>
   void pull_segment(const Segment& seg, const double* x, double* f, Layout at, int& zeroed, Finish& finish,
                     const ReadAhead* ahead) const;

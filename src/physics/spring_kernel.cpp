@@ -505,10 +505,10 @@ private:
   mutable int w0_ = 0, w1_ = 0;
 };
 
-// A pull row's present springs (bit q: the q-th backward / own forward one; at most 13 directions). 64 bits, as
-// wide as a double: the compiler vectorizes pull_body over 8 rows a zmm iteration (32 bits: 16 rows in two zmm
-// registers a value, twice the spills), which ran faster (docs/benchmarks.md, kern18l).
-using PullBits = std::uint64_t;
+// A pull row's present springs (bit q: the q-th backward / own forward one; at most 13 directions). 32 bits: the
+// compiler vectorizes pull_body over 16 rows a zmm iteration (two registers a double); 64-bit bits (8 rows, half
+// the spills) ran faster at 40^3 but slower at 10^6 (docs/benchmarks.md, kern18l).
+using PullBits = std::uint32_t;
 
 // The pull form (SpringKernel::pull_segment): each row's force summed in registers from every spring on it, its
 // backward ones (end b: from the molecules at offset bo[q] below, by decreasing offset, i.e. by increasing end a)

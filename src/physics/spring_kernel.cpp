@@ -515,10 +515,10 @@ using PullBits = std::uint32_t;
 // subtracted from the row's value so far, then the sum of its own forward ones (end a, in direction order) added,
 // the row written once: the additions the push form does, in its order, on the same operands (a backward spring's
 // separation is x_b - x_a as the push form computes it), so the same bits; every spring is computed twice, from each
-// end (but kRingBack's: below), and no row is updated twice (docs/benchmarks.md). x and f point at the piece's first row (three streams
-// each). Masked with one select on k (l - l0) / l, as the push form: bit q of pb[i] (of pf[i]) says whether
-// backward spring q (forward spring s) of row i exists; a missing one subtracts or adds +-0.0, which leaves the
-// sums' bits as they are (neither is ever -0.0). kOwn: the rows are the segment's molecules (their own sums).
+// end (but kRingBack's: below), and no row is updated twice (docs/benchmarks.md). x and f point at the piece's
+// first row (three streams each). Masked with one select on k (l - l0) / l, as the push form: bit q of pb[i] (of
+// pf[i]) says whether backward spring q (forward spring s) of row i exists; a missing one subtracts or adds +-0.0,
+// which leaves the sums' bits as they are (neither is ever -0.0). kOwn: the rows are the segment's molecules (their own sums).
 // Always masked, also where every spring is present (the unmasked loop ran slower: docs/benchmarks.md, kern18k).
 // kRingBack (bits q) and kRingOwn (bits s), the force ring: own spring s's force sc (x_b - x_a) is stored at
 // wf_[3 s + c][i] as the own sum adds it, and backward spring q reads it at rb_[3 q + c][i] (end a's row) instead
@@ -593,7 +593,7 @@ struct PullPiece {
   const PullBits *pb, *pf;
   bool own;
   // The force ring (pull_ring): backward q's three components at rb[3 q + c] (the piece's first row's end a),
-  // own direction s's at wf[3 s + c] (the piece's first row); ring: which masks (0: no ring).
+  // own direction s's at wf[3 s + c] (the piece's first row); ring: whether the piece uses them.
   const double* const* rb = nullptr;
   double* const* wf = nullptr;
   int ring = 0;
@@ -815,7 +815,8 @@ SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
   for (Segment& seg : segments_)
     if (pull_directions(directions_[seg.pattern]) && seg.molecules >= kChunk) {
       pull_marks(seg);
-      if (pull_ring_rows_.empty()) pull_ring_rows_.assign(static_cast<std::size_t>(3 * kRingDirections) * kRingRows, 0.0);
+      if (pull_ring_rows_.empty())
+        pull_ring_rows_.assign(static_cast<std::size_t>(3 * kRingDirections) * kRingRows, 0.0);
     }
   marks_.shrink_to_fit();
   // The ring's rows: the sweep with final_rows (sweep(), the same steps without the arithmetic) holds rows
@@ -959,7 +960,8 @@ int SpringKernel::pull_ring_segments() const {
   int count = 0;
   for (const Segment& seg : segments_) {
     int q[kRingDirections], n = 0, far = 0;
-    count += pull_directions(directions_[seg.pattern]) && seg.molecules >= kChunk && pull_ring(seg, backward(seg), q, n, far);
+    count += pull_directions(directions_[seg.pattern]) && seg.molecules >= kChunk &&
+             pull_ring(seg, backward(seg), q, n, far);
   }
   return count;
 }
@@ -985,7 +987,8 @@ void SpringKernel::pull_segment(const Segment& seg, const double* x, double* f, 
   const PullMark *mark = marks_.data() + seg.first_mark, *marks_end = mark + seg.marks;
   int piece_bo[kMaxDirections];
   // The force ring: the in-plane springs computed once, at end a (its own sum stores each force), and read back at
-  // end b kRingNearest or more rows later (a ring of a few kB: in L1), instead of computed again there.
+  // end b kRingNearest or more rows later (the live rows, the farthest offset and a piece: ~16 kB at N = 100, in
+  // L1), instead of computed again there.
   int ring_base = first, ring_q[kRingDirections], ring_n = 0, ring_far = 0;
   const bool ring = pull_ring_ && pull_ring(seg, bw, ring_q, ring_n, ring_far);
   const double* rb[3 * kMaxDirections] = {};

@@ -518,7 +518,8 @@ using PullBits = std::uint32_t;
 // end (but kRingBack's: below), and no row is updated twice (docs/benchmarks.md). x and f point at the piece's
 // first row (three streams each). Masked with one select on k (l - l0) / l, as the push form: bit q of pb[i] (of
 // pf[i]) says whether backward spring q (forward spring s) of row i exists; a missing one subtracts or adds +-0.0,
-// which leaves the sums' bits as they are (neither is ever -0.0). kOwn: the rows are the segment's molecules (their own sums).
+// which leaves the sums' bits as they are (neither is ever -0.0). kOwn: the rows are the segment's molecules
+// (their own sums).
 // Always masked, also where every spring is present (the unmasked loop ran slower: docs/benchmarks.md, kern18k).
 // kRingBack (bits q) and kRingOwn (bits s), the force ring: own spring s's force sc (x_b - x_a) is stored at
 // wf_[3 s + c][i] as the own sum adds it, and backward spring q reads it at rb_[3 q + c][i] (end a's row) instead

@@ -299,7 +299,9 @@ stiffness = { edge = 100.0, face = 50.0 }
 // The stencil segments (end b = end a + a fixed offset, k and l0 per direction; missing directions masked)
 // against the generic kernel on the same connections, untyped: the same bits on every owned molecule, on every
 // partition (1, 2 and 3 ranks). `one_rank_share`: the least share of the connections in segments on one rank.
-void expect_stencil_equals_generic(const char* body, double one_rank_share) {
+// rings: how many segments the pull form's force ring ran on (SpringKernel::pull_ring_segments).
+void expect_stencil_equals_generic(const char* body, double one_rank_share, int* rings_out = nullptr) {
+  int rings = 0;
   const Scene scene = parse_scene(std::string(solver) + body, "stencil.toml");
   CalibrationInputs inputs;
   LocalModel generic = build_local_model(scene, PETSC_COMM_WORLD, inputs);
@@ -378,12 +380,16 @@ void expect_stencil_equals_generic(const char* body, double one_rank_share) {
     int next = 0;
     bool ok = true;
   };
-  for (const bool pull : {false, true}) {
+  // The pull form with and without its force ring (the in-plane springs computed once, at end a).
+  for (const int form_id : {0, 1, 2}) {
+    const bool pull = form_id > 0;
     std::vector<double> xs_spoiled = xs;
     std::fill(fs.begin(), fs.end(), nan);
     StreamCheck stream_check{&first, &fs, &xs_spoiled, stride};
     SpringKernel form(typed);
     form.set_pull(pull);
+    form.set_pull_ring(form_id == 2);
+    if (form_id == 2) rings = form.pull_ring_segments();
     form.forces_streams(xs_spoiled.data(), fs.data(), stride, [](void* context, int begin, int end) {
       StreamCheck& c = *static_cast<StreamCheck*>(context);
       c.ok = c.ok && begin == c.next && end > begin;
@@ -394,15 +400,15 @@ void expect_stencil_equals_generic(const char* body, double one_rank_share) {
         }
       c.next = end;
     }, &stream_check);
-    EXPECT_TRUE(stream_check.ok) << (pull ? "pull" : "push");
+    EXPECT_TRUE(stream_check.ok) << form_id;
     EXPECT_EQ(stream_check.next, typed.owned);
+    for (int i = 0; i < typed.owned; ++i)
+      for (int d = 0; d < 3; ++d) ASSERT_EQ(fs[d * stride + i], first[3 * i + d]) << form_id << " " << i;
   }
   generic_kernel.forces_streams(xs.data(), gs.data(), stride, nullptr, nullptr);
   for (int i = 0; i < typed.owned; ++i)
-    for (int d = 0; d < 3; ++d) {
-      ASSERT_EQ(fs[d * stride + i], first[3 * i + d]) << i;
-      ASSERT_EQ(gs[d * stride + i], first[3 * i + d]) << i;
-    }
+    for (int d = 0; d < 3; ++d) ASSERT_EQ(gs[d * stride + i], first[3 * i + d]) << i;
+  if (rings_out) *rings_out = rings;
 }
 
 // A lattice's connection ends as runs of rows (what the lattice build keeps for the dynamic solver): every end,
@@ -553,6 +559,24 @@ TEST(SpringKernel, LongRowsEqualGenericKernelBitForBit) {
   std::string long_rows = kOneMaterial;
   long_rows.replace(long_rows.find("[13, 11, 30]"), 12, "[70, 5, 6]");
   expect_stencil_equals_generic(long_rows.c_str(), 0.95);
+}
+
+// Rows of 40 molecules in planes of 40 x 4 (offsets 39, 40, 41 in the plane, 159-201 across): the pull form reads
+// the in-plane springs from its force ring (their end a's forces) on one rank; the same bits as the generic kernel
+// (and as the pull form without the ring) at 1, 2 and 3 ranks, with the ring's slides (2,080 rows a plane's
+// segment, a ring of 1,024) and its first rows (no end a in the segment) on the way. Also the rectangular lattice,
+// whose ring holds one direction.
+TEST(SpringKernel, PullFormsForceRingEqualsGenericKernelBitForBit) {
+  for (const char* topology : {"face-diagonals", "rectangular"}) {
+    std::string body = kOneMaterial;
+    body.replace(body.find("[13, 11, 30]"), 12, "[40, 4, 13]");
+    body.replace(body.find("face-diagonals"), 14, topology);
+    int rings = 0;
+    expect_stencil_equals_generic(body.c_str(), 0.9, &rings);
+    int size = 1;
+    MPI_Comm_size(PETSC_COMM_WORLD, &size);
+    if (size == 1) EXPECT_GT(rings, 0) << topology;
+  }
 }
 
 // The coarse (blocked) lattice partition: every molecule of a block in the block's part, every part non-empty and

@@ -86,6 +86,13 @@ constexpr int kForceBlock = 128;
 // With final_rows, the sweep goes in chunks of molecules so that a chunk's rows are handed over while still in
 // cache (sweep()); the largest ring forces_ring uses (rows: 1.5 MB).
 constexpr int kChunk = 8 * kForceBlock, kLargestRing = 1 << 16;
+// The pull form's force ring (SpringKernel::pull_segment): backward springs of offsets in [kRingNearest,
+// kRingFarthest] (a lattice's in-plane ones) read their force from where end a's own sum stored it, kRingRows rows
+// of it (slid back when full: the farthest offset's rows copied once every ~kRingRows rows). kRingNearest keeps
+// the reads of a vector of rows clear of its own writes (pull_body's ivdep).
+constexpr int kRingNearest = 32, kRingFarthest = 512, kRingRows = 1024, kRingDirections = 3;
+static_assert(kRingFarthest + kForceBlock <= kRingRows, "a piece fits the ring above the farthest offset's rows");
+alignas(64) constexpr double kNoRingRows[kForceBlock] = {};  // the ring's reads where no end a is in the segment
 
 // One direction of a stencil block: the springs from molecules a0 .. a0 + n - 1 to a0 + offset; their forces go
 // into end b's rows at once and into g for end a's sum. Masked: a spring whose keep[i] is 0 gives +0.0 (a select,
@@ -498,7 +505,9 @@ private:
   mutable int w0_ = 0, w1_ = 0;
 };
 
-// A pull row's present springs (bit q: the q-th backward / own forward one; at most 13 directions).
+// A pull row's present springs (bit q: the q-th backward / own forward one; at most 13 directions). 32 bits: the
+// compiler vectorizes pull_body over 16 rows a zmm iteration (two registers a double); 64-bit bits (8 rows, half
+// the spills) ran faster at 40^3 but slower at 10^6 (docs/benchmarks.md, kern18l).
 using PullBits = std::uint32_t;
 
 // The pull form (SpringKernel::pull_segment): each row's force summed in registers from every spring on it, its
@@ -506,28 +515,48 @@ using PullBits = std::uint32_t;
 // subtracted from the row's value so far, then the sum of its own forward ones (end a, in direction order) added,
 // the row written once: the additions the push form does, in its order, on the same operands (a backward spring's
 // separation is x_b - x_a as the push form computes it), so the same bits; every spring is computed twice, from each
-// end, and no row is updated twice (docs/benchmarks.md). x and f point at the piece's first row (three streams
-// each). Masked with one select on k (l - l0) / l, as the push form: bit q of pb[i] (of pf[i]) says whether
-// backward spring q (forward spring s) of row i exists; a missing one subtracts or adds +-0.0, which leaves the
-// sums' bits as they are (neither is ever -0.0). kOwn: the rows are the segment's molecules (their own sums).
-// Always masked, also where every spring is present: the compiler vectorizes the masked loop over more rows an
-// iteration (the bits' narrower lanes), which ran faster than the unmasked loop (docs/benchmarks.md, kern18k).
-template <int D, bool kOwn>
+// end (but kRingBack's: below), and no row is updated twice (docs/benchmarks.md). x and f point at the piece's
+// first row (three streams each). Masked with one select on k (l - l0) / l, as the push form: bit q of pb[i] (of
+// pf[i]) says whether backward spring q (forward spring s) of row i exists; a missing one subtracts or adds +-0.0,
+// which leaves the sums' bits as they are (neither is ever -0.0). kOwn: the rows are the segment's molecules
+// (their own sums).
+// Always masked, also where every spring is present (the unmasked loop ran slower: docs/benchmarks.md, kern18k).
+// kRingBack (bits q) and kRingOwn (bits s), the force ring: own spring s's force sc (x_b - x_a) is stored at
+// wf_[3 s + c][i] as the own sum adds it, and backward spring q reads it at rb_[3 q + c][i] (end a's row) instead
+// of computing it again: the same product, so the same bits (a missing one subtracts +0.0 instead of +-0.0).
+template <int D, bool kOwn, unsigned kRingBack = 0u, unsigned kRingOwn = 0u>
 __attribute__((always_inline)) inline void pull_body(int n, const double* __restrict x0, const double* __restrict x1,
                                                      const double* __restrict x2, double* __restrict f0,
                                                      double* __restrict f1, double* __restrict f2, const int* bo_,
                                                      const double* bk_, const double* bl_, const int* fo_,
                                                      const double* fk_, const double* fl_,
                                                      const PullBits* __restrict pb,
-                                                     const PullBits* __restrict pf) {
+                                                     const PullBits* __restrict pf, const double* const* rb_ = nullptr,
+                                                     double* const* wf_ = nullptr) {
   int bo[D], fo[D];
   double bk[D], bl[D], fk[D], fl[D];
   for (int q = 0; q < D; ++q) bo[q] = bo_[q], bk[q] = bk_[q], bl[q] = bl_[q], fo[q] = fo_[q], fk[q] = fk_[q], fl[q] = fl_[q];
+  // The force ring (kRingBack, kRingOwn: pull_ring): backward spring q's force read where its end a stored it.
+  const double* rb[D][3] = {};
+  double* wf[D][3] = {};
+  for (int q = 0; q < D; ++q)
+    for (int c = 0; c < 3; ++c) {
+      if (kRingBack >> q & 1u) rb[q][c] = rb_[3 * q + c];
+      if (kRingOwn >> q & 1u) wf[q][c] = wf_[3 * q + c];
+    }
+  // The ring's reads lie at least kRingNearest rows below its writes: no dependence within a vector's rows.
+#pragma GCC ivdep
   for (int i = 0; i < n; ++i) {
     const double y0 = x0[i], y1 = x1[i], y2 = x2[i];
     double a0 = f0[i], a1 = f1[i], a2 = f2[i];
 #pragma GCC unroll 32
     for (int q = 0; q < D; ++q) {
+      if (kRingBack >> q & 1u) {  // sc (x_b - x_a), as end a's own sum computed it (and stored it)
+        const bool on = pb[i] >> q & 1u;
+        const double g0 = on ? rb[q][0][i] : 0.0, g1 = on ? rb[q][1][i] : 0.0, g2 = on ? rb[q][2][i] : 0.0;
+        a0 -= g0, a1 -= g1, a2 -= g2;
+        continue;
+      }
       const int j = i - bo[q];
       const double d0 = y0 - x0[j], d1 = y1 - x1[j], d2 = y2 - x2[j];
       const double len = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
@@ -544,7 +573,9 @@ __attribute__((always_inline)) inline void pull_body(int n, const double* __rest
         const double len = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
         double sc = fk[s] * (len - fl[s]) / len;
         sc = (pf[i] >> s & 1u) ? sc : 0.0;
-        o0 += sc * d0, o1 += sc * d1, o2 += sc * d2;
+        const double g0 = sc * d0, g1 = sc * d1, g2 = sc * d2;
+        if (kRingOwn >> s & 1u) wf[s][0][i] = g0, wf[s][1][i] = g1, wf[s][2][i] = g2;
+        o0 += g0, o1 += g1, o2 += g2;
       }
       a0 += o0, a1 += o1, a2 += o2;
     }
@@ -562,24 +593,39 @@ struct PullPiece {
   const double *bk, *bl, *fk, *fl;
   const PullBits *pb, *pf;
   bool own;
+  // The force ring (pull_ring): backward q's three components at rb[3 q + c] (the piece's first row's end a),
+  // own direction s's at wf[3 s + c] (the piece's first row); ring: whether the piece uses them.
+  const double* const* rb = nullptr;
+  double* const* wf = nullptr;
+  int ring = 0;
 };
-template <int D>
+template <int D, unsigned kRingBack = 0u, unsigned kRingOwn = 0u>
 __attribute__((always_inline)) inline void pull_dispatch(const PullPiece& p) {
   if (p.own)
-    pull_body<D, true>(p.n, p.x[0], p.x[1], p.x[2], p.f[0], p.f[1], p.f[2], p.bo, p.bk, p.bl, p.fo, p.fk, p.fl, p.pb,
-                       p.pf);
+    pull_body<D, true, kRingBack, kRingOwn>(p.n, p.x[0], p.x[1], p.x[2], p.f[0], p.f[1], p.f[2], p.bo, p.bk, p.bl,
+                                            p.fo, p.fk, p.fl, p.pb, p.pf, p.rb, p.wf);
   else
-    pull_body<D, false>(p.n, p.x[0], p.x[1], p.x[2], p.f[0], p.f[1], p.f[2], p.bo, p.bk, p.bl, p.fo, p.fk, p.fl, p.pb,
-                        p.pf);
+    pull_body<D, false, kRingBack, kRingOwn>(p.n, p.x[0], p.x[1], p.x[2], p.f[0], p.f[1], p.f[2], p.bo, p.bk, p.bl,
+                                             p.fo, p.fk, p.fl, p.pb, p.pf, p.rb, p.wf);
 }
 TISSUE_CLONES void pull_rows3(const PullPiece& p) { pull_dispatch<3>(p); }
 TISSUE_CLONES void pull_rows9(const PullPiece& p) { pull_dispatch<9>(p); }
 TISSUE_CLONES void pull_rows13(const PullPiece& p) { pull_dispatch<13>(p); }
+// The force ring's direction sets (backward bits, own bits) that have a kernel: the in-plane directions N - 1, N,
+// N + 1 of the face-diagonals lattice (backward 5-7 of 9 by decreasing offset; own 1-3 by increasing offset) and
+// N of the rectangular one.
+constexpr unsigned kRing9Back = 0xE0u, kRing9Own = 0x0Eu, kRing3Back = 0x2u, kRing3Own = 0x2u;
+TISSUE_CLONES void pull_rows9_ring(const PullPiece& p) { pull_dispatch<9, kRing9Back, kRing9Own>(p); }
+TISSUE_CLONES void pull_rows3_ring(const PullPiece& p) { pull_dispatch<3, kRing3Back, kRing3Own>(p); }
 bool pull_directions(int d) { return d == 3 || d == 9 || d == 13; }
+// Whether a kernel takes the force ring for these directions (pull_ring).
+bool pull_ring_kernel(int d, unsigned back, unsigned own) {
+  return (d == 9 && back == kRing9Back && own == kRing9Own) || (d == 3 && back == kRing3Back && own == kRing3Own);
+}
 void pull_rows(int d, const PullPiece& p) {
-  if (d == 9) pull_rows9(p);
+  if (d == 9) p.ring ? pull_rows9_ring(p) : pull_rows9(p);
   else if (d == 13) pull_rows13(p);
-  else pull_rows3(p);
+  else p.ring ? pull_rows3_ring(p) : pull_rows3(p);
 }
 
 }  // namespace
@@ -768,7 +814,11 @@ SpringKernel::SpringKernel(const LocalModel& model) : model_(model) {
     c = seg->first_connection;
   }
   for (Segment& seg : segments_)
-    if (pull_directions(directions_[seg.pattern]) && seg.molecules >= kChunk) pull_marks(seg);
+    if (pull_directions(directions_[seg.pattern]) && seg.molecules >= kChunk) {
+      pull_marks(seg);
+      if (pull_ring_rows_.empty())
+        pull_ring_rows_.assign(static_cast<std::size_t>(3 * kRingDirections) * kRingRows, 0.0);
+    }
   marks_.shrink_to_fit();
   // The ring's rows: the sweep with final_rows (sweep(), the same steps without the arithmetic) holds rows
   // [done, zeroed) live; the ring must hold the widest such window.
@@ -892,6 +942,31 @@ void SpringKernel::pull_marks(Segment& seg) {
   seg.marks = static_cast<int>(marks_.size()) - seg.first_mark;
 }
 
+// The force ring's directions of a pull segment: the nearest backward ones whose offsets lie in [kRingNearest,
+// kRingFarthest] (by increasing offset), three of the face-diagonals lattice's (in-plane: N - 1, N, N + 1) and one
+// of the rectangular one's (N), when a kernel takes that set (pull_ring_kernel); q: their backward indices, far:
+// the largest offset.
+bool SpringKernel::pull_ring(const Segment& seg, const Backward& bw, int* q, int& n, int& far) const {
+  n = 0, far = 0;
+  const int directions = directions_[seg.pattern], most = directions == 9 ? 3 : directions == 3 ? 1 : 0;
+  if (pull_ring_rows_.empty()) return false;
+  unsigned back = 0, own = 0;
+  for (int t = bw.n - 1; t >= 0 && n < most; --t)
+    if (bw.offset[t] >= kRingNearest && bw.offset[t] <= kRingFarthest)
+      back |= 1u << t, own |= 1u << bw.s[t], far = std::max(far, bw.offset[t]), q[n++] = t;
+  return pull_ring_kernel(directions, back, own);
+}
+
+int SpringKernel::pull_ring_segments() const {
+  int count = 0;
+  for (const Segment& seg : segments_) {
+    int q[kRingDirections], n = 0, far = 0;
+    count += pull_directions(directions_[seg.pattern]) && seg.molecules >= kChunk &&
+             pull_ring(seg, backward(seg), q, n, far);
+  }
+  return count;
+}
+
 // A segment in the pull form (pull_body): its rows [first, first + molecules + P) below the owned count, P its
 // largest offset to an owned row, in pieces of at most kForceBlock rows (within one turn of a ring, on one side of
 // the segment's end and of each first + offset, below which a direction has no spring on the piece's rows). A row
@@ -912,6 +987,14 @@ void SpringKernel::pull_segment(const Segment& seg, const double* x, double* f, 
   std::fill(pb, pb + kForceBlock, bw.full), std::fill(pf, pf + kForceBlock, all);
   const PullMark *mark = marks_.data() + seg.first_mark, *marks_end = mark + seg.marks;
   int piece_bo[kMaxDirections];
+  // The force ring: the in-plane springs computed once, at end a (its own sum stores each force), and read back at
+  // end b kRingNearest or more rows later (the live rows, the farthest offset and a piece: ~16 kB at N = 100, in
+  // L1), instead of computed again there.
+  int ring_base = first, ring_q[kRingDirections], ring_n = 0, ring_far = 0;
+  const bool ring = pull_ring_ && pull_ring(seg, bw, ring_q, ring_n, ring_far);
+  const double* rb[3 * kMaxDirections] = {};
+  double* wf[3 * kMaxDirections] = {};
+  double* ring_rows = pull_ring_rows_.data();
   auto handed = [&](int below) { return below >= model_.owned ? model_.owned : below - reach; };
   // Rows past the segment's end that the next segments or generic connections still touch stay live (`later` counts
   // only the generic ones: the push form never hands over a row past a segment's end).
@@ -936,9 +1019,27 @@ void SpringKernel::pull_segment(const Segment& seg, const double* x, double* f, 
         for (int r = 0; r < ahead->streams; ++r)
           for (int i = a0; i < a1; i += 8) __builtin_prefetch(ahead->rows[r] + i, 0, 2);
       }
+      if (ring) {
+        if (r0 + n - ring_base > kRingRows) {  // slide: keep the rows the farthest offset still reads
+          const int keep = r0 - ring_far;
+          for (int c = 0; c < 3 * ring_n; ++c) {
+            double* col = ring_rows + static_cast<std::size_t>(c) * kRingRows;
+            std::copy(col + (keep - ring_base), col + (r0 - ring_base), col);
+          }
+          ring_base = keep;
+        }
+        for (int t = 0; t < ring_n; ++t) {
+          const int q = ring_q[t], o = bw.offset[q], s = bw.s[q];
+          for (int c = 0; c < 3; ++c) {
+            double* col = ring_rows + static_cast<std::size_t>(3 * t + c) * kRingRows;
+            rb[3 * q + c] = r0 >= first + o ? col + (r0 - o - ring_base) : kNoRingRows;
+            wf[3 * s + c] = col + (r0 - ring_base);
+          }
+        }
+      }
       const PullPiece piece{n,        {x + at(r0, 0), x + at(r0, 1), x + at(r0, 2)},
                             {f + at.f(r0, 0), f + at.f(r0, 1), f + at.f(r0, 2)},
-                            piece_bo, offset, bw.k, bw.l0, k, l0, pb, pf, own};
+                            piece_bo, offset, bw.k, bw.l0, k, l0, pb, pf, own, rb, wf, ring ? 1 : 0};
       pull_rows(directions, piece);
       for (const PullMark* t = piece_marks; t < mark; ++t) pb[t->row - r0] = bw.full, pf[t->row - r0] = all;
     }

@@ -126,6 +126,11 @@ public:
   // both of its ends, the row written once) or in the push form (each spring once, added to both ends' rows):
   // the same bits either way; the pull form is the default (docs/benchmarks.md), the push form kept for tests.
   void set_pull(bool on) { pull_ = on; }
+  // Whether the pull form reads a lattice's in-plane springs from a ring of the forces their end a computed (each
+  // computed once) or computes them again at end b: the same bits either way; on by default, off for tests.
+  void set_pull_ring(bool on) { pull_ring_ = on; }
+  // How many segments the pull form sums with the force ring (when on).
+  int pull_ring_segments() const;
   // The connections' tangent applied to u (the matrix-free Newton tangent's springs, ForceModel::apply_tangent):
   // each connection's K (u_a - u_b) added to end a's row and subtracted from end b's, K = k [n n^T + (1 - l0/l)
   // (I - n n^T)] at x (local, ghosts up to date), on the same segments as forces(): per direction a constant k
@@ -189,6 +194,8 @@ private:
                  std::uint32_t* pf) const;
   // Fills marks_ for a pull segment (once, in the constructor).
   void pull_marks(Segment& seg);
+  // The force ring's directions of a pull segment (spring_kernel.cpp); false: none (no kernel for them).
+  bool pull_ring(const Segment& seg, const Backward& bw, int* q, int& n, int& far) const;
   template <class Layout, class Finish>
   void pull_segment(const Segment& seg, const double* x, double* f, Layout at, int& zeroed, Finish& finish,
                     const ReadAhead* ahead) const;
@@ -218,6 +225,8 @@ private:
   int tail_at_ = 0;
   int ring_rows_ = 0;
   bool pull_ = true;
+  bool pull_ring_ = true;
+  mutable std::vector<double> pull_ring_rows_;  // the pull form's force ring (pull_segment), 3 a direction
 };
 
 // The diagonal of n connections' tangent blocks, K_rr = k (g + (1 - g) d_r^2 / |d|^2) with g = 1 - l0 / |d|, from d

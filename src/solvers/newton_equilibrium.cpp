@@ -65,6 +65,13 @@ struct Context {
   // 0.2: on the peer problem at 97,336 molecules the Krylov iterations of the estimate's [0.1, 1.1] x lambda
   // (15) with 0.15 and 0.2; 16 with 0.1 and 0.3, 17 with 0.05 (the bound exceeds lambda_max by about 1.3x).
   double chebyshev_fraction = 0.2;
+  // The last residual evaluation (residual()): the output vector's id and state just after it was written, and the
+  // load factor; valid until the next Newton step (see same_as_last).
+  bool reuse = true;  // -static_reuse_residual false: evaluate every time
+  bool last_valid = false;
+  PetscObjectId last_id = 0;
+  PetscObjectState last_state = 0;
+  double last_load = 0.0;
   // What a callback threw on this rank. An exception must not cross PETSc's C frames, and this rank must not leave
   // SNES while the others go on in its collectives: the callback keeps it, SNES ends the solve on every rank
   // (see residual()), and the ranks agree on it after SNESSolve.
@@ -138,17 +145,66 @@ PetscErrorCode evaluate_forces(Context* ctx, Vec X) {
   PetscFunctionReturn(0);
 }
 
+// Whether R still holds the last evaluation's residual at X on every rank (agreed): the same output vector, not
+// written since, the same load factor, no failure, and X the positions evaluated, to the bit. The cp line search
+// (the cells' energy line search) evaluates at lambda = 1 for its secant step and then again at the lambda it
+// takes; where that is 1 (a Newton step that lands on the solution) the second evaluation is the first's point.
+PetscErrorCode same_as_last(Context* ctx, Vec X, Vec R, bool* same) {
+  PetscFunctionBeginUser;
+  *same = false;
+  if (!ctx->reuse || !ctx->last_valid) PetscFunctionReturn(0);  // alike on every rank (the same evaluations)
+  PetscObjectId id;
+  PetscObjectState state;
+  PetscCall(PetscObjectGetId(reinterpret_cast<PetscObject>(R), &id));
+  PetscCall(PetscObjectStateGet(reinterpret_cast<PetscObject>(R), &state));
+  int here = !ctx->error && id == ctx->last_id && state == ctx->last_state && ctx->load_factor == ctx->last_load;
+  if (here) {
+    const PetscScalar* xs;
+    PetscCall(VecGetArrayRead(X, &xs));
+    here = std::memcmp(xs, ctx->state->x.array(), sizeof(double) * 3 * ctx->model->owned) == 0;
+    PetscCall(VecRestoreArrayRead(X, &xs));
+  }
+  int everywhere = 0;
+  PetscCallMPI(MPI_Allreduce(&here, &everywhere, 1, MPI_INT, MPI_MIN, ctx->model->comm));
+  *same = everywhere != 0;
+  PetscFunctionReturn(0);
+}
+
 // R(x) = -(connection forces + applied forces), zero on held components: SNES drives it to zero.
 PetscErrorCode residual(SNES, Vec X, Vec R, void* p) {
   PetscFunctionBeginUser;
   auto* ctx = static_cast<Context*>(p);
-  PetscCall(evaluate_forces(ctx, X));
+  bool same = false;
+  PetscCall(same_as_last(ctx, X, R, &same));
+  ctx->last_valid = false;
+  if (same) {
+    // The evaluation's result is R already (the positions and their ghosts are in the state); the state's forces,
+    // which the products use as scratch, are R's negation again (exact, zeros' signs included). The fault point
+    // counts it as an evaluation.
+    const std::exception_ptr error = attempt([&] { fault_point("static", ctx->model->comm); });
+    if (!error) {
+      const PetscScalar* r;
+      PetscCall(VecGetArrayRead(R, &r));
+      for (int i = 0; i < 3 * ctx->model->owned; ++i) ctx->state->f[i] = -r[i];
+      PetscCall(VecRestoreArrayRead(R, &r));
+      ctx->last_valid = true;  // R and its state are unchanged
+      PetscCall(PetscInfo(nullptr, "static: the residual at the last evaluation's positions kept\n"));
+      PetscFunctionReturn(0);
+    }
+    ctx->error = error;  // R gets the NaN below
+  } else {
+    PetscCall(evaluate_forces(ctx, X));
+  }
   PetscScalar* r;
   PetscCall(VecGetArray(R, &r));
   // A rank whose evaluation failed hands SNES a NaN residual: its norm is NaN on every rank, so every rank's SNES
   // stops at this iteration (DIVERGED_FNORM_NAN) and reaches the agreement after SNESSolve together.
   for (int i = 0; i < 3 * ctx->model->owned; ++i) r[i] = ctx->error ? NAN : -ctx->state->f[i];
   PetscCall(VecRestoreArray(R, &r));
+  PetscCall(PetscObjectGetId(reinterpret_cast<PetscObject>(R), &ctx->last_id));
+  PetscCall(PetscObjectStateGet(reinterpret_cast<PetscObject>(R), &ctx->last_state));
+  ctx->last_load = ctx->load_factor;
+  ctx->last_valid = true;
   PetscFunctionReturn(0);
 }
 
@@ -159,6 +215,7 @@ PetscErrorCode before_newton_step(SNES snes, PetscInt step) {
   void* p;
   PetscCall(SNESGetApplicationContext(snes, &p));
   auto* ctx = static_cast<Context*>(p);
+  ctx->last_valid = false;  // a refresh below changes the forces at the same positions
   if (ctx->hooks->refresh) {
     Vec X;
     PetscCall(SNESGetSolution(snes, &X));
@@ -642,6 +699,11 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
   if (lattice_mg || gamg_reuse) {
     PetscCall(SNESSetLagPreconditioner(snes, -2));
     PetscCall(SNESSetLagPreconditionerPersists(snes, PETSC_TRUE));
+  }
+  {
+    PetscBool reuse = PETSC_TRUE;
+    PetscCall(PetscOptionsGetBool(nullptr, nullptr, "-static_reuse_residual", &reuse, nullptr));
+    ctx.reuse = reuse == PETSC_TRUE;
   }
   if (forces.energy_line_search()) {  // cell energies (TermStyle::energy_line_search); -snes_linesearch_type wins
     SNESLineSearch line_search;

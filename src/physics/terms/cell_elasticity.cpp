@@ -1223,7 +1223,23 @@ public:
   void add_tangent_state_diagonal(const double* x, const double* state_with_width, double* diag) const override {
     const int w = static_cast<int>(state_with_width[0]);
     const double* state = state_with_width + 1;
-    if (w <= 0) {
+    if (w < 0) {
+      // x is the rest positions to the bit (the finest level's rest tangent): F = I, so cof F = I, J = 1 and
+      // add_volumetric_diagonal's terms are V0 kappa/2 (1 + 1) g_a,i^2, the same doubles without x, F or cof.
+      for (int k = 0; k < cells_; ++k) {
+        int corner[8];
+        corners(k, corner);
+        const Geometry& geo = geometry_[kinds_[kind_[k]].body];
+        const double w2 = geo.volume * (0.5 * kinds_[kind_[k]].moduli.kappa * (1.0 + 1.0));
+        for (int a = 0; a < 8; ++a) {
+          if (corner[a] >= m_.owned) continue;
+          const double* g = geo.g[a];
+          for (int i = 0; i < 3; ++i) diag[3 * corner[a] + i] += w2 * (g[i] * g[i]);
+        }
+      }
+      return;
+    }
+    if (w == 0) {
       // F from the displacements x - X with the product's arithmetic (corner_gradient), then the closed form below.
       for (int k = 0; k < cells_; ++k) {
         int corner[8];

@@ -72,6 +72,7 @@ struct Context {
   PetscObjectId last_id = 0;
   PetscObjectState last_state = 0;
   double last_load = 0.0;
+  KSP krylov = nullptr;  // the outer Krylov solve's (idle_vectors)
   // What a callback threw on this rank. An exception must not cross PETSc's C frames, and this rank must not leave
   // SNES while the others go on in its collectives: the callback keeps it, SNES ends the solve on every rank
   // (see residual()), and the ranks agree on it after SNESSolve.
@@ -362,6 +363,28 @@ PetscErrorCode fuse_coarse_chebyshev(PC pc, PetscInt levels) {
   PetscFunctionReturn(0);
 }
 
+// The vectors idle while the multigrid is set up (fused_chebyshev_idle, for the finest level's estimate): the outer
+// CG's work vectors (PCSetUp runs inside its KSPSetUp, after they are made and before its iterations) and the
+// finest smoother's (PCMG's finest residual among them), which the smoothing and, after the linear solve, the line
+// search use.
+PetscErrorCode idle_vectors(void* p, PetscInt max, PetscInt* count, Vec* vecs) {
+  PetscFunctionBeginUser;
+  auto* ctx = static_cast<Context*>(p);
+  *count = 0;
+  PetscBool cg = PETSC_FALSE;
+  PetscCall(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(ctx->krylov), KSPCG, &cg));
+  if (cg)
+    for (PetscInt i = 0; i < ctx->krylov->nwork && *count < max; ++i) vecs[(*count)++] = ctx->krylov->work[i];
+  PC pc;
+  PetscInt levels;
+  KSP smoother;
+  PetscCall(KSPGetPC(ctx->krylov, &pc));
+  PetscCall(PCMGGetLevels(pc, &levels));
+  PetscCall(PCMGGetSmoother(pc, levels - 1, &smoother));
+  for (PetscInt i = 0; i < smoother->nwork && *count < max; ++i) vecs[(*count)++] = smoother->work[i];
+  PetscFunctionReturn(0);
+}
+
 // The finest level's Chebyshev interval [f G, G] from Gershgorin's bound G on the Jacobi-scaled tangent
 // (ForceModel::jacobi_gershgorin, one pass over the connections, no storage) instead of PETSc's estimate: no
 // estimator CG on the finest level (its work vectors, 4 a molecule, and 6 products at every rebuild). Where the
@@ -401,6 +424,7 @@ PetscErrorCode fine_chebyshev(Context* ctx, PC pc) {
       PetscCall(PCSetType(jacobi, PCNONE));
       PetscCall(fused_chebyshev_estimate(smoother, kChebyshevEstimate[0], kChebyshevEstimate[1],
                                          kChebyshevEstimate[2], kChebyshevEstimate[3], kChebyshevEstimateSteps));
+      if (ctx->krylov) PetscCall(fused_chebyshev_idle(smoother, idle_vectors, ctx));
       ctx->fused_estimating = true;
     } else {
       PetscCall(KSPSetType(smoother, KSPCHEBYSHEV));  // the estimate needs PETSc's (a no-op when it is already)
@@ -601,6 +625,7 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
   PetscCall(SNESSetApplicationContext(snes, &ctx));
   PetscCall(SNESSetUpdate(snes, before_newton_step));
   PetscCall(SNESGetKSP(snes, &ksp));
+  ctx.krylov = ksp;
   PetscCall(KSPSetType(ksp, KSPCG));
   PetscCall(KSPGetPC(ksp, &pc));
   // The preconditioner: geometric multigrid on the lattice (lattice_mg.hpp) unless the user names one

@@ -72,7 +72,7 @@ struct Context {
   PetscObjectId last_id = 0;
   PetscObjectState last_state = 0;
   double last_load = 0.0;
-  KSP krylov = nullptr;  // the outer Krylov solve's (idle_vectors)
+  KSP krylov = nullptr;  // the outer Krylov solve's (idle_vectors; null with -static_estimate_on_idle false)
   // What a callback threw on this rank. An exception must not cross PETSc's C frames, and this rank must not leave
   // SNES while the others go on in its collectives: the callback keeps it, SNES ends the solve on every rank
   // (see residual()), and the ranks agree on it after SNESSolve.
@@ -625,7 +625,11 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
   PetscCall(SNESSetApplicationContext(snes, &ctx));
   PetscCall(SNESSetUpdate(snes, before_newton_step));
   PetscCall(SNESGetKSP(snes, &ksp));
-  ctx.krylov = ksp;
+  {
+    PetscBool idle = PETSC_TRUE;
+    PetscCall(PetscOptionsGetBool(nullptr, nullptr, "-static_estimate_on_idle", &idle, nullptr));
+    if (idle) ctx.krylov = ksp;
+  }
   PetscCall(KSPSetType(ksp, KSPCG));
   PetscCall(KSPGetPC(ksp, &pc));
   // The preconditioner: geometric multigrid on the lattice (lattice_mg.hpp) unless the user names one

@@ -1061,6 +1061,14 @@ public:
     if (lo == cells_ || m_.id[base_[lo]] != id) return -1;
     return h = lo;
   }
+  // The stencil slot (0..26, 13 the row's own) of corner b of a cell whose corner a is the row's molecule.
+  static constexpr std::array<std::array<std::uint8_t, 8>, 8> kCornerSlot = [] {
+    std::array<std::array<std::uint8_t, 8>, 8> t{};
+    for (int a = 0; a < 8; ++a)
+      for (int b = 0; b < 8; ++b)
+        t[a][b] = static_cast<std::uint8_t>(13 + ((b & 1) - (a & 1)) + 3 * ((b >> 1 & 1) - (a >> 1 & 1)) + 9 * ((b >> 2 & 1) - (a >> 2 & 1)));
+    return t;
+  }();
   // add_row's sums at rest from rest_blocks_; key: the kind of each cell (a = 7 .. 0, -1 none).
   template <class Emit>
   void rest_row_blocks(int i, Emit emit, double* key) const {
@@ -1083,7 +1091,7 @@ public:
       int corner[8];
       corners(k, corner);
       for (int b = 0; b < 8; ++b) {
-        const int slot = 13 + ((b & 1) - (a & 1)) + 3 * ((b >> 1 & 1) - (a >> 1 & 1)) + 9 * ((b >> 2 & 1) - (a >> 2 & 1));
+        const int slot = kCornerSlot[a][b];
         column[slot] = corner[b], present |= 1u << slot;
       }
     }, key.data() + at);
@@ -1098,7 +1106,7 @@ public:
       corners(k, corner);
       const double* Kb = &rest_blocks_[(static_cast<std::size_t>(kind_[k]) * 8 + a) * 72];
       for (int b = 0; b < 8; ++b) {  // as add_row
-        const int slot = 13 + ((b & 1) - (a & 1)) + 3 * ((b >> 1 & 1) - (a >> 1 & 1)) + 9 * ((b >> 2 & 1) - (a >> 2 & 1));
+        const int slot = kCornerSlot[a][b];
         double* to = K[slot];
         if (present >> slot & 1) {
           for (int e = 0; e < 9; ++e) to[e] += Kb[9 * b + e];

@@ -66,7 +66,7 @@ struct Context {
   // (15) with 0.15 and 0.2; 16 with 0.1 and 0.3, 17 with 0.05 (the bound exceeds lambda_max by about 1.3x).
   double chebyshev_fraction = 0.2;
   // The last residual evaluation (residual()): the output vector's id and state just after it was written, and the
-  // load factor; valid until the next Newton step (see same_as_last).
+  // load factor; valid within one SNESSolve, until the next Newton step (see same_as_last).
   bool reuse = true;  // -static_reuse_residual false: evaluate every time
   bool last_valid = false;
   PetscObjectId last_id = 0;
@@ -853,6 +853,9 @@ PetscErrorCode NewtonEquilibrium::Impl::solve(long steps) {
     }
     // Agreed (partition/agreement.hpp): a callback's failure on one rank, or SNESSolve's own error return on one
     // rank, is the same one-line error on every rank here, before the fall-backs below decide anything.
+    // A solve's forces at given positions are its own (a quasi-static step's history and time): none kept from
+    // the last solve's evaluations.
+    ctx.last_valid = false;
     const PetscErrorCode solved = SNESSolve(snes, nullptr, X);
     agree(model.comm, [&] {
       if (ctx.error) std::rethrow_exception(std::exchange(ctx.error, nullptr));

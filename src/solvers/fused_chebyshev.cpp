@@ -1,10 +1,51 @@
 #include "src/solvers/fused_chebyshev.hpp"
 
 #include <petsc/private/kspimpl.h>  // a KSP type's operations and data
+#include <petsc/private/vecimpl.h>  // a vector's duplicate operation
+
+#include <algorithm>
+#include <vector>
 
 namespace tissue {
 
 namespace {
+
+// The estimate's work vectors on idle arrays (fused_chebyshev_idle): the template the estimate's KSPs duplicate
+// hands out, in order, vectors of the type PETSc would make (MatCreateVecs' standard type) placed on the arrays;
+// once they are used up, vectors made as PETSc makes them. Set only during an estimate (one at a time).
+struct IdlePool {
+  MPI_Comm comm;
+  PetscInt n, N, bs;
+  bool seq;
+  std::vector<PetscScalar*> arrays;
+  std::size_t next = 0;
+};
+IdlePool* pool = nullptr;
+
+PetscErrorCode pooled_duplicate(Vec, Vec* out);
+
+PetscErrorCode pooled_vector(PetscScalar* array, Vec* out) {
+  PetscFunctionBeginUser;
+  if (pool->seq)
+    PetscCall(VecCreateSeqWithArray(pool->comm, pool->bs, pool->n, array, out));
+  else
+    PetscCall(VecCreateMPIWithArray(pool->comm, pool->bs, pool->n, pool->N, array, out));
+  PetscCall(VecSetOperation(*out, VECOP_DUPLICATE, reinterpret_cast<void (*)(void)>(pooled_duplicate)));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode pooled_duplicate(Vec v, Vec* out) {
+  PetscFunctionBeginUser;
+  if (pool && pool->next < pool->arrays.size()) {
+    PetscCall(pooled_vector(pool->arrays[pool->next++], out));
+  } else {  // as VecDuplicate_Seq/_MPI make it (zeroed)
+    PetscCall(VecCreate(PetscObjectComm(reinterpret_cast<PetscObject>(v)), out));
+    PetscCall(VecSetSizes(*out, v->map->n, v->map->N));
+    PetscCall(VecSetBlockSize(*out, v->map->bs));
+    PetscCall(VecSetType(*out, reinterpret_cast<PetscObject>(v)->type_name));
+  }
+  PetscFunctionReturn(0);
+}
 
 struct Data {
   PetscReal emax, emin;  // the interval, as KSPChebyshevSetEigenvalues sets it (0: not set)
@@ -18,7 +59,65 @@ struct Data {
   PetscInt steps;
   PetscObjectId est_ids[2];
   PetscObjectState est_states[2];
+  IdleVectors idle;  // fused_chebyshev_idle
+  void* idle_ctx;
 };
+
+constexpr PetscInt kMaxIdle = 8;
+
+// The pool for an estimate on P (its vectors' standard type, size and block size) from the idle vectors of that local
+// size, their arrays got (given back by release_pool); agreed on every rank of P, so that the estimate's KSPs make
+// their vectors alike. Empty when P's vectors are not of the standard type.
+PetscErrorCode make_pool(Data* d, Mat P, IdlePool* out, Vec* sources, PetscInt* nsources) {
+  PetscFunctionBeginUser;
+  *nsources = 0;
+  MPI_Comm comm = PetscObjectComm(reinterpret_cast<PetscObject>(P));
+  PetscMPIInt size;
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  VecType type;
+  PetscCall(MatGetVecType(P, &type));
+  PetscBool standard = PETSC_FALSE, same = PETSC_FALSE;
+  PetscCall(PetscStrcmp(type, VECSTANDARD, &standard));
+  PetscCall(PetscStrcmp(type, size == 1 ? VECSEQ : VECMPI, &same));
+  standard = standard || same ? PETSC_TRUE : PETSC_FALSE;
+  PetscInt rows, cols, bs;
+  PetscCall(MatGetLocalSize(P, &rows, &cols));
+  PetscCall(MatGetSize(P, nullptr, &out->N));
+  PetscCall(MatGetBlockSizes(P, nullptr, &bs));
+  out->comm = comm, out->n = cols, out->bs = bs, out->seq = size == 1;
+  Vec found[kMaxIdle];
+  PetscInt count = 0;
+  if (d->idle && standard) PetscCall(d->idle(d->idle_ctx, kMaxIdle, &count, found));
+  std::vector<PetscScalar*> arrays;
+  for (PetscInt i = 0; i < count; ++i) {
+    PetscInt n;
+    PetscCall(VecGetLocalSize(found[i], &n));
+    if (n != cols) continue;
+    PetscScalar* a;
+    PetscCall(VecGetArray(found[i], &a));
+    if (std::find(arrays.begin(), arrays.end(), a) != arrays.end()) {
+      PetscCall(VecRestoreArray(found[i], &a));
+      continue;
+    }
+    arrays.push_back(a);
+    sources[(*nsources)++] = found[i];
+  }
+  int mine = static_cast<int>(arrays.size()), all = 0;
+  PetscCallMPI(MPI_Allreduce(&mine, &all, 1, MPI_INT, MPI_MIN, comm));
+  arrays.resize(static_cast<std::size_t>(all));
+  out->arrays = std::move(arrays);
+  if (d->idle) PetscCall(PetscInfo(nullptr, "fused Chebyshev: the estimate's work vectors on %d idle arrays\n", all));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode release_pool(Vec* sources, PetscInt nsources) {
+  PetscFunctionBeginUser;
+  for (PetscInt i = 0; i < nsources; ++i) {
+    PetscScalar* a = nullptr;
+    PetscCall(VecRestoreArray(sources[i], &a));
+  }
+  PetscFunctionReturn(0);
+}
 
 PetscErrorCode set_eigenvalues(KSP ksp, PetscReal emax, PetscReal emin) {
   PetscFunctionBeginUser;
@@ -79,7 +178,23 @@ PetscErrorCode estimate(KSP ksp) {
              "fused Chebyshev: PETSc made no eigenvalue estimator");
   PetscCall(KSPSetType(estimator, KSPCG));
   PetscCall(KSPSetTolerances(estimator, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, d->steps));
-  PetscCall(KSPSetUp(reference));  // the estimate
+  // The estimate's work vectors: the reference's are duplicates of its solution vector when it has one, the
+  // estimator's of its solution (the reference's first): both from the pool's template.
+  IdlePool idle;
+  Vec sources[kMaxIdle];
+  PetscInt nsources = 0;
+  PetscCall(make_pool(d, P, &idle, sources, &nsources));
+  if (!idle.arrays.empty()) {
+    pool = &idle;
+    PetscCall(pooled_vector(idle.arrays[0], &reference->vec_sol));  // a template only: never read or written
+  }
+  const PetscErrorCode estimated = KSPSetUp(reference);  // the estimate
+  pool = nullptr;
+  if (estimated) {
+    PetscCall(KSPDestroy(&reference));
+    PetscCall(release_pool(sources, nsources));
+    PetscCall(estimated);
+  }
   PetscInt n, found;
   PetscCall(KSPGetIterationNumber(estimator, &n));
   PetscReal *re, *im;
@@ -88,7 +203,8 @@ PetscErrorCode estimate(KSP ksp) {
   PetscReal min = PETSC_MAX_REAL, max = PETSC_MIN_REAL;
   for (PetscInt i = 0; i < found; ++i) min = PetscMin(min, re[i]), max = PetscMax(max, re[i]);
   PetscCall(PetscFree2(re, im));
-  PetscCall(KSPDestroy(&reference));
+  PetscCall(KSPDestroy(&reference));  // the pooled vectors with it, before their arrays are given back
+  PetscCall(release_pool(sources, nsources));
   d->emin = d->tform[0] * min + d->tform[1] * max;
   d->emax = d->tform[2] * min + d->tform[3] * max;
   for (int q = 0; q < 2; ++q) d->est_ids[q] = ids[q], d->est_states[q] = states[q];
@@ -276,6 +392,17 @@ PetscErrorCode fused_chebyshev_estimate(KSP ksp, PetscReal a, PetscReal b, Petsc
   data->steps = steps;
   data->emax = data->emin = 0;  // none until the first estimate
   data->est_ids[0] = data->est_ids[1] = 0;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode fused_chebyshev_idle(KSP ksp, IdleVectors idle, void* ctx) {
+  PetscFunctionBeginUser;
+  PetscBool fused;
+  PetscCall(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(ksp), kFusedChebyshev, &fused));
+  PetscCheck(fused, PetscObjectComm(reinterpret_cast<PetscObject>(ksp)), PETSC_ERR_ARG_WRONG,
+             "fused_chebyshev_idle: not a %s", kFusedChebyshev);
+  auto* data = static_cast<Data*>(ksp->data);
+  data->idle = idle, data->idle_ctx = ctx;
   PetscFunctionReturn(0);
 }
 

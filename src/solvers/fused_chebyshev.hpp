@@ -22,5 +22,12 @@ PetscErrorCode register_fused_chebyshev();
 // smoothing after it, are those of PETSc's KSPCHEBYSHEV so configured, to the bit. The estimator's vectors live
 // only during the estimate.
 PetscErrorCode fused_chebyshev_estimate(KSP ksp, PetscReal a, PetscReal b, PetscReal c, PetscReal d, PetscInt steps);
+// Fills vecs (up to max) with vectors whose values nobody needs while the smoother is set up; *count of them.
+using IdleVectors = PetscErrorCode (*)(void* ctx, PetscInt max, PetscInt* count, Vec* vecs);
+// Not collective. When an estimate runs, `idle` is asked for such vectors (the outer Krylov method's work vectors
+// before its iterations, the level's own); the estimate's work vectors (PETSc's estimator makes six of the level's
+// size, each first touched for it alone) are placed on the arrays of those of the level's size, the rest made as
+// before. Every number is the same (the same vector type and operations, on other memory).
+PetscErrorCode fused_chebyshev_idle(KSP ksp, IdleVectors idle, void* ctx);
 
 }  // namespace tissue

@@ -65,6 +65,14 @@ struct Context {
   // 0.2: on the peer problem at 97,336 molecules the Krylov iterations of the estimate's [0.1, 1.1] x lambda
   // (15) with 0.15 and 0.2; 16 with 0.1 and 0.3, 17 with 0.05 (the bound exceeds lambda_max by about 1.3x).
   double chebyshev_fraction = 0.2;
+  // The last residual evaluation (residual()): the output vector's id and state just after it was written, and the
+  // load factor; valid within one SNESSolve, until the next Newton step (see same_as_last).
+  bool reuse = true;  // -static_reuse_residual false: evaluate every time
+  bool last_valid = false;
+  PetscObjectId last_id = 0;
+  PetscObjectState last_state = 0;
+  double last_load = 0.0;
+  KSP krylov = nullptr;  // the outer Krylov solve's (idle_vectors; null with -static_estimate_on_idle false)
   // What a callback threw on this rank. An exception must not cross PETSc's C frames, and this rank must not leave
   // SNES while the others go on in its collectives: the callback keeps it, SNES ends the solve on every rank
   // (see residual()), and the ranks agree on it after SNESSolve.
@@ -138,17 +146,66 @@ PetscErrorCode evaluate_forces(Context* ctx, Vec X) {
   PetscFunctionReturn(0);
 }
 
+// Whether R still holds the last evaluation's residual at X on every rank (agreed): the same output vector, not
+// written since, the same load factor, no failure, and X the positions evaluated, to the bit. The cp line search
+// (the cells' energy line search) evaluates at lambda = 1 for its secant step and then again at the lambda it
+// takes; where that is 1 (a Newton step that lands on the solution) the second evaluation is the first's point.
+PetscErrorCode same_as_last(Context* ctx, Vec X, Vec R, bool* same) {
+  PetscFunctionBeginUser;
+  *same = false;
+  if (!ctx->reuse || !ctx->last_valid) PetscFunctionReturn(0);  // alike on every rank (the same evaluations)
+  PetscObjectId id;
+  PetscObjectState state;
+  PetscCall(PetscObjectGetId(reinterpret_cast<PetscObject>(R), &id));
+  PetscCall(PetscObjectStateGet(reinterpret_cast<PetscObject>(R), &state));
+  int here = !ctx->error && id == ctx->last_id && state == ctx->last_state && ctx->load_factor == ctx->last_load;
+  if (here) {
+    const PetscScalar* xs;
+    PetscCall(VecGetArrayRead(X, &xs));
+    here = std::memcmp(xs, ctx->state->x.array(), sizeof(double) * 3 * ctx->model->owned) == 0;
+    PetscCall(VecRestoreArrayRead(X, &xs));
+  }
+  int everywhere = 0;
+  PetscCallMPI(MPI_Allreduce(&here, &everywhere, 1, MPI_INT, MPI_MIN, ctx->model->comm));
+  *same = everywhere != 0;
+  PetscFunctionReturn(0);
+}
+
 // R(x) = -(connection forces + applied forces), zero on held components: SNES drives it to zero.
 PetscErrorCode residual(SNES, Vec X, Vec R, void* p) {
   PetscFunctionBeginUser;
   auto* ctx = static_cast<Context*>(p);
-  PetscCall(evaluate_forces(ctx, X));
+  bool same = false;
+  PetscCall(same_as_last(ctx, X, R, &same));
+  ctx->last_valid = false;
+  if (same) {
+    // The evaluation's result is R already (the positions and their ghosts are in the state); the state's forces,
+    // which the products use as scratch, are R's negation again (exact, zeros' signs included). The fault point
+    // counts it as an evaluation.
+    const std::exception_ptr error = attempt([&] { fault_point("static", ctx->model->comm); });
+    if (!error) {
+      const PetscScalar* r;
+      PetscCall(VecGetArrayRead(R, &r));
+      for (int i = 0; i < 3 * ctx->model->owned; ++i) ctx->state->f[i] = -r[i];
+      PetscCall(VecRestoreArrayRead(R, &r));
+      ctx->last_valid = true;  // R and its state are unchanged
+      PetscCall(PetscInfo(nullptr, "static: the residual at the last evaluation's positions kept\n"));
+      PetscFunctionReturn(0);
+    }
+    ctx->error = error;  // R gets the NaN below
+  } else {
+    PetscCall(evaluate_forces(ctx, X));
+  }
   PetscScalar* r;
   PetscCall(VecGetArray(R, &r));
   // A rank whose evaluation failed hands SNES a NaN residual: its norm is NaN on every rank, so every rank's SNES
   // stops at this iteration (DIVERGED_FNORM_NAN) and reaches the agreement after SNESSolve together.
   for (int i = 0; i < 3 * ctx->model->owned; ++i) r[i] = ctx->error ? NAN : -ctx->state->f[i];
   PetscCall(VecRestoreArray(R, &r));
+  PetscCall(PetscObjectGetId(reinterpret_cast<PetscObject>(R), &ctx->last_id));
+  PetscCall(PetscObjectStateGet(reinterpret_cast<PetscObject>(R), &ctx->last_state));
+  ctx->last_load = ctx->load_factor;
+  ctx->last_valid = true;
   PetscFunctionReturn(0);
 }
 
@@ -159,6 +216,7 @@ PetscErrorCode before_newton_step(SNES snes, PetscInt step) {
   void* p;
   PetscCall(SNESGetApplicationContext(snes, &p));
   auto* ctx = static_cast<Context*>(p);
+  ctx->last_valid = false;  // a refresh below changes the forces at the same positions
   if (ctx->hooks->refresh) {
     Vec X;
     PetscCall(SNESGetSolution(snes, &X));
@@ -305,6 +363,28 @@ PetscErrorCode fuse_coarse_chebyshev(PC pc, PetscInt levels) {
   PetscFunctionReturn(0);
 }
 
+// The vectors idle while the multigrid is set up (fused_chebyshev_idle, for the finest level's estimate): the outer
+// CG's work vectors (PCSetUp runs inside its KSPSetUp, after they are made and before its iterations) and the
+// finest smoother's (PCMG's finest residual among them), which the smoothing and, after the linear solve, the line
+// search use.
+PetscErrorCode idle_vectors(void* p, PetscInt max, PetscInt* count, Vec* vecs) {
+  PetscFunctionBeginUser;
+  auto* ctx = static_cast<Context*>(p);
+  *count = 0;
+  PetscBool cg = PETSC_FALSE;
+  PetscCall(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(ctx->krylov), KSPCG, &cg));
+  if (cg)
+    for (PetscInt i = 0; i < ctx->krylov->nwork && *count < max; ++i) vecs[(*count)++] = ctx->krylov->work[i];
+  PC pc;
+  PetscInt levels;
+  KSP smoother;
+  PetscCall(KSPGetPC(ctx->krylov, &pc));
+  PetscCall(PCMGGetLevels(pc, &levels));
+  PetscCall(PCMGGetSmoother(pc, levels - 1, &smoother));
+  for (PetscInt i = 0; i < smoother->nwork && *count < max; ++i) vecs[(*count)++] = smoother->work[i];
+  PetscFunctionReturn(0);
+}
+
 // The finest level's Chebyshev interval [f G, G] from Gershgorin's bound G on the Jacobi-scaled tangent
 // (ForceModel::jacobi_gershgorin, one pass over the connections, no storage) instead of PETSc's estimate: no
 // estimator CG on the finest level (its work vectors, 4 a molecule, and 6 products at every rebuild). Where the
@@ -344,6 +424,7 @@ PetscErrorCode fine_chebyshev(Context* ctx, PC pc) {
       PetscCall(PCSetType(jacobi, PCNONE));
       PetscCall(fused_chebyshev_estimate(smoother, kChebyshevEstimate[0], kChebyshevEstimate[1],
                                          kChebyshevEstimate[2], kChebyshevEstimate[3], kChebyshevEstimateSteps));
+      if (ctx->krylov) PetscCall(fused_chebyshev_idle(smoother, idle_vectors, ctx));
       ctx->fused_estimating = true;
     } else {
       PetscCall(KSPSetType(smoother, KSPCHEBYSHEV));  // the estimate needs PETSc's (a no-op when it is already)
@@ -544,6 +625,11 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
   PetscCall(SNESSetApplicationContext(snes, &ctx));
   PetscCall(SNESSetUpdate(snes, before_newton_step));
   PetscCall(SNESGetKSP(snes, &ksp));
+  {
+    PetscBool idle = PETSC_TRUE;
+    PetscCall(PetscOptionsGetBool(nullptr, nullptr, "-static_estimate_on_idle", &idle, nullptr));
+    if (idle) ctx.krylov = ksp;
+  }
   PetscCall(KSPSetType(ksp, KSPCG));
   PetscCall(KSPGetPC(ksp, &pc));
   // The preconditioner: geometric multigrid on the lattice (lattice_mg.hpp) unless the user names one
@@ -642,6 +728,11 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
   if (lattice_mg || gamg_reuse) {
     PetscCall(SNESSetLagPreconditioner(snes, -2));
     PetscCall(SNESSetLagPreconditionerPersists(snes, PETSC_TRUE));
+  }
+  {
+    PetscBool reuse = PETSC_TRUE;
+    PetscCall(PetscOptionsGetBool(nullptr, nullptr, "-static_reuse_residual", &reuse, nullptr));
+    ctx.reuse = reuse == PETSC_TRUE;
   }
   if (forces.energy_line_search()) {  // cell energies (TermStyle::energy_line_search); -snes_linesearch_type wins
     SNESLineSearch line_search;
@@ -762,6 +853,9 @@ PetscErrorCode NewtonEquilibrium::Impl::solve(long steps) {
     }
     // Agreed (partition/agreement.hpp): a callback's failure on one rank, or SNESSolve's own error return on one
     // rank, is the same one-line error on every rank here, before the fall-backs below decide anything.
+    // A solve's forces at given positions are its own (a quasi-static step's history and time): none kept from
+    // the last solve's evaluations.
+    ctx.last_valid = false;
     const PetscErrorCode solved = SNESSolve(snes, nullptr, X);
     agree(model.comm, [&] {
       if (ctx.error) std::rethrow_exception(std::exchange(ctx.error, nullptr));

@@ -1061,6 +1061,14 @@ public:
     if (lo == cells_ || m_.id[base_[lo]] != id) return -1;
     return h = lo;
   }
+  // The stencil slot (0..26, 13 the row's own) of corner b of a cell whose corner a is the row's molecule.
+  static constexpr std::array<std::array<std::uint8_t, 8>, 8> kCornerSlot = [] {
+    std::array<std::array<std::uint8_t, 8>, 8> t{};
+    for (int a = 0; a < 8; ++a)
+      for (int b = 0; b < 8; ++b)
+        t[a][b] = static_cast<std::uint8_t>(13 + ((b & 1) - (a & 1)) + 3 * ((b >> 1 & 1) - (a >> 1 & 1)) + 9 * ((b >> 2 & 1) - (a >> 2 & 1)));
+    return t;
+  }();
   // add_row's sums at rest from rest_blocks_; key: the kind of each cell (a = 7 .. 0, -1 none).
   template <class Emit>
   void rest_row_blocks(int i, Emit emit, double* key) const {
@@ -1083,7 +1091,7 @@ public:
       int corner[8];
       corners(k, corner);
       for (int b = 0; b < 8; ++b) {
-        const int slot = 13 + ((b & 1) - (a & 1)) + 3 * ((b >> 1 & 1) - (a >> 1 & 1)) + 9 * ((b >> 2 & 1) - (a >> 2 & 1));
+        const int slot = kCornerSlot[a][b];
         column[slot] = corner[b], present |= 1u << slot;
       }
     }, key.data() + at);
@@ -1098,7 +1106,7 @@ public:
       corners(k, corner);
       const double* Kb = &rest_blocks_[(static_cast<std::size_t>(kind_[k]) * 8 + a) * 72];
       for (int b = 0; b < 8; ++b) {  // as add_row
-        const int slot = 13 + ((b & 1) - (a & 1)) + 3 * ((b >> 1 & 1) - (a >> 1 & 1)) + 9 * ((b >> 2 & 1) - (a >> 2 & 1));
+        const int slot = kCornerSlot[a][b];
         double* to = K[slot];
         if (present >> slot & 1) {
           for (int e = 0; e < 9; ++e) to[e] += Kb[9 * b + e];
@@ -1223,7 +1231,23 @@ public:
   void add_tangent_state_diagonal(const double* x, const double* state_with_width, double* diag) const override {
     const int w = static_cast<int>(state_with_width[0]);
     const double* state = state_with_width + 1;
-    if (w <= 0) {
+    if (w < 0) {
+      // x is the rest positions to the bit (the finest level's rest tangent): F = I, so cof F = I, J = 1 and
+      // add_volumetric_diagonal's terms are V0 kappa/2 (1 + 1) g_a,i^2, the same doubles without x, F or cof.
+      for (int k = 0; k < cells_; ++k) {
+        int corner[8];
+        corners(k, corner);
+        const Geometry& geo = geometry_[kinds_[kind_[k]].body];
+        const double w2 = geo.volume * (0.5 * kinds_[kind_[k]].moduli.kappa * (1.0 + 1.0));
+        for (int a = 0; a < 8; ++a) {
+          if (corner[a] >= m_.owned) continue;
+          const double* g = geo.g[a];
+          for (int i = 0; i < 3; ++i) diag[3 * corner[a] + i] += w2 * (g[i] * g[i]);
+        }
+      }
+      return;
+    }
+    if (w == 0) {
       // F from the displacements x - X with the product's arithmetic (corner_gradient), then the closed form below.
       for (int k = 0; k < cells_; ++k) {
         int corner[8];

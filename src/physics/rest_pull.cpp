@@ -25,7 +25,7 @@ class Table {
 public:
   explicit Table(std::size_t cap) : cap_(cap) {}
   // The entry of a spring (type, rest separation d), made on first sight; -1 past the cap. guess: an entry to try
-  // first (the same position in the previous row's run hits almost always).
+  // first (the last one of the spring's type and offset hits almost always).
   int find(int type, const double* d, double k, double l0, int guess) {
     if (guess >= 0 && matches(entries_[guess], type, d, l0)) return guess;
     std::uint64_t key = static_cast<std::uint64_t>(type);
@@ -157,6 +157,20 @@ void listed_rows(int begin, int end, const int* start, const int* other, const s
   }
 }
 
+// f(c, a, b) for every connection in order, the ends decoded a window at a time (ConnectionEnd::decode: no run
+// search a value, whatever the two ends' storage).
+template <class F>
+void each_connection(const LocalModel& model, F&& f) {
+  constexpr int kWindow = 4096;
+  const int nc = model.connections();
+  int a[kWindow], b[kWindow];
+  for (int c0 = 0; c0 < nc; c0 += kWindow) {
+    const int c1 = std::min(nc, c0 + kWindow);
+    model.end_a.decode(c0, c1, a), model.end_b.decode(c0, c1, b);
+    for (int c = c0; c < c1; ++c) f(c, a[c - c0], b[c - c0]);
+  }
+}
+
 }  // namespace
 
 std::unique_ptr<RestPull> RestPull::make(const LocalModel& model) {
@@ -178,7 +192,9 @@ std::unique_ptr<RestPull> RestPull::make(const LocalModel& model) {
   constexpr std::size_t kCandidates = 64;
   std::vector<std::pair<int, int>> run, last_run;
   int last_candidate = -1;
-  std::vector<int> guess;  // the previous run's entries by position
+  // The entry last found for a (type, offset), direct-mapped: a lattice's springs of one direction hit it.
+  constexpr unsigned kSlots = 4096;
+  std::vector<int> guess(kSlots, -1);
   auto close_run = [&]() {
     if (run.empty()) return;
     if (last_candidate >= 0 && run == last_run) {
@@ -197,21 +213,20 @@ std::unique_ptr<RestPull> RestPull::make(const LocalModel& model) {
     run.clear();
   };
   int row = -1;
-  model.end_a.for_each_pair(model.end_b, [&](int c, int a, int b) {
+  each_connection(model, [&](int c, int a, int b) {
     if (!fits) return;
     if (a != row) close_run(), row = a;
-    const int t = kc.type[c], pos = static_cast<int>(run.size());
+    const int t = kc.type[c];
     double d[3];
     for (int r = 0; r < 3; ++r) d[r] = X[3 * static_cast<std::size_t>(b) + r] - X[3 * static_cast<std::size_t>(a) + r];
-    const int e = table.find(t, d, kc.value[t], lc.value[lc.type ? lc.type[c] : c],
-                             pos < static_cast<int>(guess.size()) ? guess[pos] : -1);
+    int& slot = guess[(static_cast<unsigned>(b - a) * 31u + static_cast<unsigned>(t)) & (kSlots - 1)];
+    const int e = table.find(t, d, kc.value[t], lc.value[lc.type ? lc.type[c] : c], slot);
     if (e < 0) {
       fits = false;
       return;
     }
     entry[c] = static_cast<std::uint16_t>(e);
-    if (pos < static_cast<int>(guess.size())) guess[pos] = e;
-    else guess.push_back(e);
+    slot = e;
     run.push_back({b - a, e});
   });
   close_run();
@@ -236,12 +251,12 @@ std::unique_ptr<RestPull> RestPull::make(const LocalModel& model) {
   //    one has another a than the pattern's (a face's type), kOther for any other spring (listed).
   constexpr std::uint32_t kOther = 1u << 31, kVariant = 1u << 30, kFlags = kOther | kVariant;
   std::vector<std::uint32_t> bits(owned, 0u);
+  std::vector<std::int8_t> direction_of(best->pattern.back().first + 1, -1);  // by offset
+  for (int s = 0; s < D; ++s) direction_of[best->pattern[s].first] = static_cast<std::int8_t>(s);
   auto direction = [&](int o) {
-    for (int s = 0; s < D; ++s)
-      if (best->pattern[s].first == o) return s;
-    return -1;
+    return o > 0 && o < static_cast<int>(direction_of.size()) ? static_cast<int>(direction_of[o]) : -1;
   };
-  model.end_a.for_each_pair(model.end_b, [&](int c, int a, int b) {
+  each_connection(model, [&](int c, int a, int b) {
     const int s = direction(b - a);
     const std::uint32_t variant = s >= 0 && best->pattern[s].second != entry[c] ? kVariant : 0u;
     auto mark = [&](int r, std::uint32_t bit) {
@@ -268,7 +283,7 @@ std::unique_ptr<RestPull> RestPull::make(const LocalModel& model) {
     if (r >= owned || (bits[r] & kOther) || (bits[r] & ~kFlags) == full) return -1;
     return static_cast<int>(std::lower_bound(ordinal.begin(), ordinal.end(), r) - ordinal.begin());
   };
-  model.end_a.for_each_pair(model.end_b, [&](int c, int a, int b) {
+  each_connection(model, [&](int c, int a, int b) {
     const int s = direction(b - a);
     if (s < 0) return;
     for (const int r : {a, b}) {
@@ -321,7 +336,7 @@ std::unique_ptr<RestPull> RestPull::make(const LocalModel& model) {
   P.runs_.push_back({owned, kFull, 0, 0});
   P.start_.assign(listed + 1, 0);
   auto listed_row = [&](int r) { return r < owned && (bits[r] & kOther) ? static_cast<int>(bits[r] & ~kOther) : -1; };
-  model.end_a.for_each_pair(model.end_b, [&](int, int a, int b) {
+  each_connection(model, [&](int, int a, int b) {
     if (const int q = listed_row(a); q >= 0) ++P.start_[q + 1];
     if (const int q = listed_row(b); q >= 0) ++P.start_[q + 1];
   });
@@ -329,7 +344,7 @@ std::unique_ptr<RestPull> RestPull::make(const LocalModel& model) {
   P.other_.resize(P.start_[listed]);
   P.which_.resize(P.start_[listed]);
   std::vector<int> fill(P.start_.begin(), P.start_.end() - 1);
-  model.end_a.for_each_pair(model.end_b, [&](int c, int a, int b) {
+  each_connection(model, [&](int c, int a, int b) {
     if (const int q = listed_row(a); q >= 0) P.other_[fill[q]] = b, P.which_[fill[q]++] = entry[c];
     if (const int q = listed_row(b); q >= 0) P.other_[fill[q]] = a, P.which_[fill[q]++] = entry[c];
   });

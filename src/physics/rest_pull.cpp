@@ -269,19 +269,19 @@ std::unique_ptr<RestPull> RestPull::make(const LocalModel& model) {
   const std::uint32_t full = ((1u << D) - 1u) | (((1u << D) - 1u) << 16);
   // 3. The rows with a part of the pattern or other a's (faces, edges, row ends): each direction's a, the same both
   //    ways (else listed), as a variant of the pattern; kept as an ordinal into `tuples` meanwhile.
+  //    Their masks move to `partial_masks`, bits keeps their ordinal (kPartial).
+  constexpr std::uint32_t kPartial = 1u << 29, kOrdinal = kPartial - 1u;
   std::vector<std::uint16_t> tuples;  // D a row: its directions' entries (kNone: absent both ways)
   constexpr std::uint16_t kNone = 0xFFFF;
-  int partial = 0;
+  std::vector<std::uint32_t> partial_masks;
   for (int r = 0; r < owned; ++r)
-    if (!(bits[r] & kOther) && (bits[r] & ~kFlags) != full) ++partial;
-  tuples.assign(static_cast<std::size_t>(partial) * D, kNone);
-  std::vector<int> ordinal;  // the partial rows' ordinals: by binary search on their rows
-  ordinal.reserve(partial);
-  for (int r = 0; r < owned; ++r)
-    if (!(bits[r] & kOther) && (bits[r] & ~kFlags) != full) ordinal.push_back(r);
+    if (!(bits[r] & kOther) && (bits[r] & ~kFlags) != full) {
+      partial_masks.push_back(bits[r] & ~kFlags);
+      bits[r] = kPartial | static_cast<std::uint32_t>(partial_masks.size() - 1);
+    }
+  tuples.assign(partial_masks.size() * D, kNone);
   auto partial_of = [&](int r) {
-    if (r >= owned || (bits[r] & kOther) || (bits[r] & ~kFlags) == full) return -1;
-    return static_cast<int>(std::lower_bound(ordinal.begin(), ordinal.end(), r) - ordinal.begin());
+    return r < owned && (bits[r] & (kPartial | kOther)) == kPartial ? static_cast<int>(bits[r] & kOrdinal) : -1;
   };
   each_connection(model, [&](int c, int a, int b) {
     const int s = direction(b - a);
@@ -298,9 +298,7 @@ std::unique_ptr<RestPull> RestPull::make(const LocalModel& model) {
   // pass below; here (rare: a lattice's full rows are the interior's) it is simply listed.
   for (int r = 0; r < owned; ++r)
     if ((bits[r] & kVariant) && (bits[r] & ~kFlags) == full) bits[r] |= kOther;
-  auto kind_of = [&](std::uint32_t v) {
-    return v & kOther ? kListed : (v & ~kFlags) == full && !(v & kVariant) ? kFull : kMasked;
-  };
+  auto kind_of = [&](std::uint32_t v) { return v & kOther ? kListed : v & kPartial ? kMasked : kFull; };
   for (int r = 0; r < owned; ++r) ++P.counts_[kind_of(bits[r])];
   if (2 * (P.counts_[kFull] + P.counts_[kMasked]) < owned) return nullptr;
   // 4. The runs (a masked run has one variant); the masked rows' masks; the listed rows' ordinals (in bits, kOther
@@ -330,11 +328,16 @@ std::unique_ptr<RestPull> RestPull::make(const LocalModel& model) {
     }
     if (P.runs_.empty() || P.runs_.back().kind != k || P.runs_.back().variant != variant)
       P.runs_.push_back({r, k, k == kMasked ? static_cast<int>(P.masks_.size()) : listed, variant});
-    if (k == kMasked) P.masks_.push_back(bits[r] & ~kFlags);
+    if (k == kMasked) P.masks_.push_back(partial_masks[bits[r] & kOrdinal]);
     if (k == kListed) bits[r] = kOther | static_cast<std::uint32_t>(listed++);
   }
   P.runs_.push_back({owned, kFull, 0, 0});
   P.start_.assign(listed + 1, 0);
+  if (listed == 0) {
+    P.table_.clear();
+    P.masks_.shrink_to_fit(), P.runs_.shrink_to_fit(), P.variants_.shrink_to_fit();
+    return pull;
+  }
   auto listed_row = [&](int r) { return r < owned && (bits[r] & kOther) ? static_cast<int>(bits[r] & ~kOther) : -1; };
   each_connection(model, [&](int, int a, int b) {
     if (const int q = listed_row(a); q >= 0) ++P.start_[q + 1];

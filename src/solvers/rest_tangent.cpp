@@ -32,11 +32,14 @@ PetscErrorCode RestTangent::make(const LocalModel& model, const ForceModel& forc
   PetscBool pull = PETSC_TRUE;
   PetscCall(PetscOptionsGetBool(nullptr, nullptr, "-static_rest_pull", &pull, nullptr));
   if (pull) {
+    const double start = MPI_Wtime();
     rest->stencil_.pull = RestPull::make(model);
     if (const RestPull* p = rest->stencil_.pull.get())
-      PetscCall(PetscInfo(nullptr, "rest product in the pull form: %ld full, %ld masked, %ld listed rows (%ld springs)\n",
+      PetscCall(PetscInfo(nullptr,
+                          "rest product in the pull form: %ld full, %ld masked, %ld listed rows (%ld springs), "
+                          "made in %.3f s\n",
                           p->rows(RestPull::kFull), p->rows(RestPull::kMasked), p->rows(RestPull::kListed),
-                          p->listed_springs()));
+                          p->listed_springs(), MPI_Wtime() - start));
   }
   PetscCall(rest->shell_.create(&rest->P_));
   PetscCall(rest->shell_.set_positions(model.rest.data(), rest->P_));  // the terms' states at rest, once

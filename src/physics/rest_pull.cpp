@@ -157,6 +157,22 @@ void listed_rows(int begin, int end, const int* start, const int* other, const s
   }
 }
 
+// Each connection's table entry while the rows are built: 1 B a connection (a lattice has a few dozen entries),
+// the rare others in a map.
+class Entries {
+public:
+  explicit Entries(int n) : small_(n) {}
+  void set(int c, int e) {
+    small_[c] = static_cast<std::uint8_t>(std::min(e, 255));
+    if (e >= 255) large_[c] = e;
+  }
+  int operator()(int c) const { return small_[c] < 255 ? small_[c] : large_.at(c); }
+
+private:
+  std::vector<std::uint8_t> small_;
+  std::unordered_map<int, int> large_;
+};
+
 // f(c, a, b) for every connection in order, the ends decoded a window at a time (ConnectionEnd::decode: no run
 // search a value, whatever the two ends' storage).
 template <class F>
@@ -179,10 +195,10 @@ std::unique_ptr<RestPull> RestPull::make(const LocalModel& model) {
   if (owned == 0) return nullptr;
   const ConnectionColumn kc = model.table.stiffness_column(), lc = model.table.rest_length_column();
   const double* X = model.rest.data();
-  // 1. Each spring's a (an entry of the table, kept as 2 B a connection until the rows are built), and the rows'
+  // 1. Each spring's a (an entry of the table, kept until the rows are built), and the rows'
   //    most frequent forward pattern ((offset, entry) by increasing offset): the interior's.
   Table table(std::min<std::size_t>(65535, std::max<std::size_t>(1024, owned / 64)));
-  std::vector<std::uint16_t> entry(nc);
+  Entries entry(nc);
   bool fits = true;
   struct Candidate {
     std::vector<std::pair<int, int>> pattern;
@@ -225,7 +241,7 @@ std::unique_ptr<RestPull> RestPull::make(const LocalModel& model) {
       fits = false;
       return;
     }
-    entry[c] = static_cast<std::uint16_t>(e);
+    entry.set(c, e);
     slot = e;
     run.push_back({b - a, e});
   });
@@ -258,7 +274,7 @@ std::unique_ptr<RestPull> RestPull::make(const LocalModel& model) {
   };
   each_connection(model, [&](int c, int a, int b) {
     const int s = direction(b - a);
-    const std::uint32_t variant = s >= 0 && best->pattern[s].second != entry[c] ? kVariant : 0u;
+    const std::uint32_t variant = s >= 0 && best->pattern[s].second != entry(c) ? kVariant : 0u;
     auto mark = [&](int r, std::uint32_t bit) {
       if (r >= owned) return;
       bits[r] |= (s < 0 || (bits[r] & bit)) ? kOther : bit | variant;  // twice the same spring: listed
@@ -290,8 +306,8 @@ std::unique_ptr<RestPull> RestPull::make(const LocalModel& model) {
       const int q = partial_of(r);
       if (q < 0) continue;
       std::uint16_t& t = tuples[static_cast<std::size_t>(q) * D + s];
-      if (t != kNone && t != entry[c]) bits[r] |= kOther;  // two a's in one direction: listed
-      t = entry[c];
+      if (t != kNone && t != entry(c)) bits[r] |= kOther;  // two a's in one direction: listed
+      t = entry(c);
     }
   });
   // A full row whose a's are not all the pattern's is a variant too: found in the same way, from the listed springs'
@@ -348,8 +364,8 @@ std::unique_ptr<RestPull> RestPull::make(const LocalModel& model) {
   P.which_.resize(P.start_[listed]);
   std::vector<int> fill(P.start_.begin(), P.start_.end() - 1);
   each_connection(model, [&](int c, int a, int b) {
-    if (const int q = listed_row(a); q >= 0) P.other_[fill[q]] = b, P.which_[fill[q]++] = entry[c];
-    if (const int q = listed_row(b); q >= 0) P.other_[fill[q]] = a, P.which_[fill[q]++] = entry[c];
+    if (const int q = listed_row(a); q >= 0) P.other_[fill[q]] = b, P.which_[fill[q]++] = entry(c);
+    if (const int q = listed_row(b); q >= 0) P.other_[fill[q]] = a, P.which_[fill[q]++] = entry(c);
   });
   P.table_ = std::move(table.a());
   P.table_.shrink_to_fit(), P.masks_.shrink_to_fit(), P.runs_.shrink_to_fit(), P.variants_.shrink_to_fit();

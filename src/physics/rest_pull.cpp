@@ -15,6 +15,7 @@ namespace {
 #define TISSUE_REST_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
 
 constexpr int kMaxDirections = 16;     // the masks' bits: forward s, backward 16 + s
+constexpr int kMaxPattern = 13;        // 16 + s below make()'s flag bits (29, 30, 31)
 constexpr int kChunk = 1024;           // rows handed to final_rows at a time (in cache still)
 constexpr double kTolerance = 1e-12;   // as SpringKernel::rest_stencil: a rest separation is its direction's
 
@@ -250,7 +251,12 @@ std::unique_ptr<RestPull> RestPull::make(const LocalModel& model) {
   const Candidate* best = nullptr;
   for (const Candidate& cand : candidates) {
     const auto& p = cand.pattern;
-    if (static_cast<int>(p.size()) > kMaxDirections || p.front().first <= 0) continue;
+    // Offsets positive and strictly increasing (a row's connections need not be in that order: direction_of below
+    // is sized by the last offset), and at most 13 directions (backward bit 16 + s below the flags' bits 29-31).
+    if (static_cast<int>(p.size()) > kMaxPattern || p.front().first <= 0) continue;
+    bool increasing = true;
+    for (std::size_t s = 1; s < p.size(); ++s) increasing = increasing && p[s].first > p[s - 1].first;
+    if (!increasing) continue;
     if (!best || cand.rows > best->rows) best = &cand;
   }
   if (!best) return nullptr;

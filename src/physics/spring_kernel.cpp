@@ -1,5 +1,7 @@
 #include "src/physics/spring_kernel.hpp"
 
+#include "src/physics/rest_pull.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <type_traits>
@@ -1189,6 +1191,10 @@ void SpringKernel::tangent(const double* x, const double* u, double* out, double
 
 void SpringKernel::rest_tangent(const RestStencil& rest, const double* u, double* out, double* ghost,
                                 FinalRows final_rows, void* context) const {
+  if (rest.pull) {  // every owned row from its own springs; the ghosts' rows are not needed (their owners')
+    rest.pull->apply(u, out, final_rows, context);
+    return;
+  }
   tangent_sweep(model_.rest.data(), u, out, ghost, final_rows, context,
                 [&](std::size_t q, int first, int count, const StencilException* exceptions, int n, int* zeroed) {
                   const int p = segments_[q].pattern, start = pattern_start_[p];

@@ -19,11 +19,14 @@
 #include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <vector>
 
 #include "partition/local_model.hpp"
 
 namespace tissue {
+
+class RestPull;  // src/physics/rest_pull.hpp
 
 // Where component d (x, y, z) of local molecule i sits in a position or force array: interlaced, as PETSc's blocks
 // hold it (x[3 i + d]), or as three streams, a structure of arrays (x[d * stride + i], stride >= the local
@@ -96,6 +99,8 @@ struct RestStencil {
   // Every stencil spring's rest separation is its direction's and its length its l0, to 1e-12 relative (a lattice
   // at rest): otherwise the constants are not the tangent at rest, and rest_tangent must not be used.
   bool exact = false;
+  // Set (src/solvers/rest_tangent.cpp): rest_tangent's owned rows in the pull form, each row's springs summed once.
+  std::shared_ptr<const RestPull> pull;
 };
 
 class SpringKernel {

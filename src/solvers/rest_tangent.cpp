@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "src/physics/rest_pull.hpp"
+
 namespace tissue {
 
 RestTangent::RestTangent(const LocalModel& model, const ForceModel& forces, double* scratch)
@@ -25,6 +27,20 @@ PetscErrorCode RestTangent::make(const LocalModel& model, const ForceModel& forc
   int mine = rest->stencil_.exact ? 1 : 0, all = 0;
   PetscCallMPI(MPI_Allreduce(&mine, &all, 1, MPI_INT, MPI_MIN, model.comm));
   if (!all) PetscFunctionReturn(0);
+  // The springs' product in the pull form where the rows fit it (RestPull::make, rank by rank; the push form
+  // elsewhere and with -static_rest_pull false).
+  PetscBool pull = PETSC_TRUE;
+  PetscCall(PetscOptionsGetBool(nullptr, nullptr, "-static_rest_pull", &pull, nullptr));
+  if (pull) {
+    const double start = MPI_Wtime();
+    rest->stencil_.pull = RestPull::make(model);
+    if (const RestPull* p = rest->stencil_.pull.get())
+      PetscCall(PetscInfo(nullptr,
+                          "rest product in the pull form: %ld full, %ld masked, %ld listed rows (%ld springs), "
+                          "made in %.3f s\n",
+                          p->rows(RestPull::kFull), p->rows(RestPull::kMasked), p->rows(RestPull::kListed),
+                          p->listed_springs(), MPI_Wtime() - start));
+  }
   PetscCall(rest->shell_.create(&rest->P_));
   PetscCall(rest->shell_.set_positions(model.rest.data(), rest->P_));  // the terms' states at rest, once
   *out = std::move(rest);

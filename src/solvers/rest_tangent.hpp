@@ -3,8 +3,9 @@
 // are the rest tangent's. The finest level's smoother and PCMG's residual there may then use the tangent at rest
 // too, while the outer CG keeps the Newton tangent J: at rest every spring's block is a constant of its stencil
 // direction, k n n^T (l = l0: no geometric part), applied without the positions, square roots or divisions
-// (SpringKernel::rest_tangent), and the terms' products come from their states at rest, made once. The two
-// tangents differ by O(strain), so the Krylov counts do not move at a tissue test's strains.
+// (SpringKernel::rest_tangent; in the pull form, each row's springs summed once, where the rows fit it:
+// src/physics/rest_pull.hpp, off with -static_rest_pull false), and the terms' products come from their states at
+// rest, made once. The two tangents differ by O(strain), so the Krylov counts do not move at a tissue test's strains.
 // Where the hierarchy is rebuilt at any other state (a slow solve's rebuild, later quasi-static steps) the level
 // is J again, as before. Off with -static_rest_smoother false, and where the rest tangent is not what the
 // hierarchy was built from: a term with history or beyond the lattice cells, a calibration that follows the

@@ -53,6 +53,7 @@ void check_tissue_options() {
   fraction("-static_chebyshev_fraction", false);
   boolean("-static_fused_chebyshev");
   boolean("-static_rest_smoother");
+  boolean("-static_rest_pull");
   whole("-static_cell_coarse_steps", 0);
   boolean("-static_volume_smoother");
   whole("-static_volume_smoother_steps", 1);

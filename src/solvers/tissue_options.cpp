@@ -54,6 +54,8 @@ void check_tissue_options() {
   boolean("-static_fused_chebyshev");
   boolean("-static_rest_smoother");
   boolean("-static_rest_pull");
+  boolean("-static_reuse_residual");
+  boolean("-static_estimate_on_idle");
   whole("-static_cell_coarse_steps", 0);
   boolean("-static_volume_smoother");
   whole("-static_volume_smoother_steps", 1);

@@ -1,6 +1,7 @@
 """The python tests' tally: check() counts a passed or failed assertion (printing the failed ones) and returns it, report()
 prints 'N passed, M failed' and gives the exit code; tissue() runs build/tissue under mpirun; arguments_and_work()
-reads a test's --build/--source and gives it an empty work directory."""
+reads a test's --build/--source and gives it an empty work directory; check_same_solve() compares two static runs'
+summaries to the bit."""
 import argparse
 import os
 import shutil
@@ -21,6 +22,17 @@ def check(ok, what):
 def report():
     print(f"{counts['passed']} passed, {counts['failed']} failed")
     return 1 if counts["failed"] else 0
+
+
+def check_same_solve(new, old, what):
+    """Two static runs' summary.json (dicts) give the same solve to the bit: NEW converged, the measured elongation,
+    E and nu, and the solver's residual, Newton and Krylov counts equal."""
+    check(new["solver"]["converged"], f"{what}: converged")
+    for key in ("elongation", "youngs_modulus_measured", "poisson_ratio_measured"):
+        check(new[key] == old[key], f"{what}: {key} {new[key]!r} == {old[key]!r}")
+    for key in ("residual", "iterations", "linear_iterations"):
+        check(new["solver"][key] == old["solver"][key],
+              f"{what}: solver.{key} {new['solver'][key]!r} == {old['solver'][key]!r}")
 
 
 def arguments_and_work(name):

@@ -20,7 +20,7 @@ import re
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from checks import arguments_and_work, check, report, tissue  # noqa: E402
+from checks import arguments_and_work, check, check_same_solve, report, tissue  # noqa: E402
 
 KEPT = "the residual at the last evaluation's positions kept"
 
@@ -54,12 +54,7 @@ def main():
             continue
         what = f"{name}, {ranks} ranks"
         new, old = runs["new"], runs["old"]
-        check(new["solver"]["converged"], f"{what}: converged")
-        for key in ("elongation", "youngs_modulus_measured", "poisson_ratio_measured"):
-            check(new[key] == old[key], f"{what}: {key} {new[key]!r} == {old[key]!r}")
-        for key in ("residual", "iterations", "linear_iterations"):
-            check(new["solver"][key] == old["solver"][key],
-                  f"{what}: solver.{key} {new['solver'][key]!r} == {old['solver'][key]!r}")
+        check_same_solve(new, old, what)
         kept_new = len(re.findall(r"^\[0\] .*" + re.escape(KEPT), out_text["new"], re.M))
         kept_old = len(re.findall(re.escape(KEPT), out_text["old"]))
         if cells:

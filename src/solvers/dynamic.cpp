@@ -320,8 +320,21 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
       expose();
       hooks.checkpoint(s);
     };
+  // With the guards off, the signal check is the only reader of a kReduceEvery-th step's state (a stop writes a
+  // checkpoint of the whole step): its reduction is made before that step instead, so the step drifts on into the
+  // next one's half kick like any other unless a stop was asked for (then it ends at the whole step, as before).
+  // A signal that arrives after the check is seen at the next one, kReduceEvery steps on.
+  const bool check_ahead = !guard.enabled();
   while (state.step < total) {
-    const bool next_unobserved = unobserved(state.step + 1);
+    const long next = state.step + 1;
+    const bool ahead = check_ahead && next % kReduceEvery == 0 && next < total;
+    bool stop_ahead = false;
+    if (ahead) {
+      int mine = stop_requested ? 1 : 0, any = 0;
+      MPI_Allreduce(&mine, &any, 1, MPI_INT, MPI_MAX, model.comm);
+      stop_ahead = any != 0;
+    }
+    const bool next_unobserved = ahead ? unread(next) && !stop_ahead : unobserved(next);
     const bool fused = fuse && unread(state.step + 1);
     // (the layout the last step left: a fused step that ended at an observed state kept the streams)
     if (!drifted) {
@@ -377,7 +390,10 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
     if (hooks.snapshot && scene.output.snapshot_every > 0 && state.step % scene.output.snapshot_every == 0 &&
         state.step < total)
       hooks.snapshot(state);
-    if (state.step < total && step_boundary(scene, model, state, exposed, 16)) {
+    // (after a check ahead: its reduction again only when it said stop, a flag no rank clears, so every rank
+    // stops; else the checkpoint cadence alone)
+    const long signal_every = ahead && !stop_ahead ? 0 : kReduceEvery;
+    if (state.step < total && step_boundary(scene, model, state, exposed, signal_every)) {
       report.interrupted = true;
       break;
     }

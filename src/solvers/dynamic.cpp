@@ -386,20 +386,8 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
   // The state at a whole step, interlaced, for whatever reads it (the guard, a checkpoint): the conversion spends
   // f, so the forces are evaluated again, at the same positions (the ghosts' too: nothing drifted since the
   // step's evaluation), the same bits as the streams' (SpringKernel).
-  // Without guards, when f holds that step's forces as streams (a fused step that ended at the whole step: the
-  // last one), f is converted too, through a scratch of its size for the moment, instead of evaluated again in
-  // the push form on the interlaced blocks (a few steps' worth at 10^6). With the guards on (their kept state
-  // already costs 48 B a molecule) the forces are evaluated again.
-  bool f_streams = false;
   auto expose = [&] {
     if (!streams) return;
-    if (f_streams && !guard.enabled()) {
-      std::vector<double> scratch(3 * static_cast<std::size_t>(local));
-      to_interlaced(x, local, scratch.data()), to_interlaced(v, n, scratch.data());
-      to_interlaced(f, local, scratch.data());
-      streams = false, f_streams = false;
-      return;
-    }
     set_streams(false);
     forces.forces(x, v, f);
   };
@@ -425,9 +413,7 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
       stop_ahead = any != 0;
     }
     const bool next_unobserved = ahead ? unread(next) && !stop_ahead : unobserved(next);
-    // (without guards the last step too: expose() converts its forces)
-    const bool fused = fuse && (unread(next) || (next == total && !guard.enabled()));
-    f_streams = false;
+    const bool fused = fuse && unread(state.step + 1);
     // (the layout the last step left: a fused step that ended at an observed state kept the streams)
     if (!drifted) {
       if (streams) {
@@ -460,7 +446,6 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
       }
       kinetic = step.kinetic;
       drifted = next_unobserved;
-      f_streams = !drifted;  // forces_streams: every row's force at the whole step
     } else {
       if (history) forces.begin_step(dt);  // viscoelastic history: this step's update, committed at its end
       forces.forces(x, v, f);
@@ -478,7 +463,7 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
     ++state.step;
     state.time += dt;
     guard.dynamic_step(0.5 * kinetic);
-    if (state.step == total) expose(), guard.full_check();
+    if (state.step == total) guard.full_check();
     progress.update(state.step, -1, 0, total);
     if (rows > 0 && (state.step % rows == 0 || state.step == total)) hooks.record(state);
     if (hooks.snapshot && scene.output.snapshot_every > 0 && state.step % scene.output.snapshot_every == 0 &&

@@ -420,6 +420,7 @@ void fused_in_a_ring_equals_separate_passes(const char* molecules) {
   auto unguarded = run(springs_only, PETSC_COMM_WORLD, {molecules}, true, perturb);
   ASSERT_EQ(PetscOptionsClearValue(nullptr, "-tissue_guards"), 0);
   expect_same_state(*unguarded, *separate, &all);
+  EXPECT_EQ(unguarded->report.energy_final, separate->report.energy_final);
 }
 
 TEST(Physics, FusedStepInARingEqualsSeparatePassesBitForBit) { fused_in_a_ring_equals_separate_passes(ring_molecules); }

@@ -415,9 +415,36 @@ void fused_in_a_ring_equals_separate_passes(const char* molecules) {
   expect_same_state(*fused, *separate, &all);
   EXPECT_GT(all, 1e-3);
   EXPECT_EQ(fused->report.energy_final, separate->report.energy_final);
+  // Guards off: the signal check is made a step ahead, and every kReduceEvery-th step drifts on in the ring too.
+  ASSERT_EQ(PetscOptionsSetValue(nullptr, "-tissue_guards", "false"), 0);
+  auto unguarded = run(springs_only, PETSC_COMM_WORLD, {molecules}, true, perturb);
+  ASSERT_EQ(PetscOptionsClearValue(nullptr, "-tissue_guards"), 0);
+  expect_same_state(*unguarded, *separate, &all);
+  EXPECT_EQ(unguarded->report.energy_final, separate->report.energy_final);
 }
 
 TEST(Physics, FusedStepInARingEqualsSeparatePassesBitForBit) { fused_in_a_ring_equals_separate_passes(ring_molecules); }
+
+// A stop asked for (the signal handler's flag, on rank 0 only) in a run without guards, whose signal check is
+// made before the kReduceEvery-th step: the run stops there at the whole step, every rank, with the state of the
+// separate passes run for exactly that many steps (a step that drifted on would differ in every x and v).
+TEST(Physics, UnguardedFusedRunStopsAtTheWholeStepOfItsSignalCheck) {
+  int rank = 0;
+  MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+  const std::string steps = "solver.steps=" + std::to_string(tissue::kReduceEvery);
+  auto separate = run(springs_only, PETSC_COMM_WORLD, {ring_molecules, steps, "physics.gravity=[0.0, 0.0, 0.0]"},
+                      true, perturb);
+  ASSERT_EQ(PetscOptionsSetValue(nullptr, "-tissue_guards", "false"), 0);
+  if (rank == 0) tissue::stop_requested = 1;
+  auto stopped = run(springs_only, PETSC_COMM_WORLD, {ring_molecules}, true, perturb);
+  tissue::stop_requested = 0;
+  ASSERT_EQ(PetscOptionsClearValue(nullptr, "-tissue_guards"), 0);
+  EXPECT_TRUE(stopped->report.interrupted);
+  ASSERT_EQ(stopped->state->step, tissue::kReduceEvery);
+  double all = 0;
+  expect_same_state(*stopped, *separate, &all);
+  EXPECT_GT(all, 1e-6);
+}
 
 // The box longest along its rows (the fastest-varying axis): at 2 ranks the partition cuts the rows, and a stencil
 // segment of one rank has a direction into the ghosts' rows (an offset of about the owned count), which once kept

@@ -7,9 +7,12 @@
 // conserves exactly for linear springs; its drift measures the integrator and the nonlinearity, not dt.
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <optional>
 #include <vector>
 
+#include <immintrin.h>
 #include <mpi.h>
 
 #include "partition/ghosted_vector.hpp"
@@ -135,6 +138,71 @@ void kick_kick_drift_only_streams(int n, double dt, const double* __restrict m, 
   }
 }
 
+// The molecules' masses as a byte a molecule (its type: the index of its mass among the rank's distinct masses)
+// and the types' half kicks dt / 2m, for the fused steps' kicks: 1 byte a molecule streamed from
+// memory instead of 8 (a lattice has a few masses: interior, faces, edges, corners). The table's values are the
+// per-molecule expressions' own doubles, so the kicks' bits are unchanged. Empty when a rank has more than
+// kMassTypes distinct masses (the kicks then read m).
+constexpr int kMassTypes = 16;  // two zmm registers of half kicks
+struct MassTypes {
+  std::vector<std::uint8_t> type;
+  double half_kick[kMassTypes] = {};
+  MassTypes(int n, const double* m, double dt) {
+    std::uint64_t bits[kMassTypes];
+    int types = 0, last = 0;
+    std::vector<std::uint8_t> t(static_cast<std::size_t>(n));
+    for (int i = 0; i < n; ++i) {
+      std::uint64_t b;
+      std::memcpy(&b, m + i, sizeof b);  // equal doubles by their bits (the same m, the same half kick)
+      if (types == 0 || bits[last] != b) {
+        last = 0;
+        while (last < types && bits[last] != b) ++last;
+        if (last == types) {
+          if (types == kMassTypes) return;
+          bits[types] = b, half_kick[types] = 0.5 * dt / m[i], ++types;
+        }
+      }
+      t[i] = static_cast<std::uint8_t>(last);
+    }
+    type = std::move(t);
+  }
+};
+
+// kick_kick_drift_only_streams with the half kick by type: the types' half kicks in two zmm registers and each
+// row's picked by its type byte (vpermt2pd: a table lookup without a gather), 8 rows an iteration; the same
+// operations on the same doubles in the same order (no contraction: -ffp-contract=off), so the same bits.
+__attribute__((target("avx512f"))) void kick_kick_drift_only_typed_avx512(
+    int n, double dt, const std::uint8_t* __restrict type, const double* __restrict half_kick,
+    const double* __restrict f0, const double* __restrict f1, const double* __restrict f2, double* __restrict v0,
+    double* __restrict v1, double* __restrict v2, double* __restrict x0, double* __restrict x1,
+    double* __restrict x2) {
+  const __m512d lo = _mm512_loadu_pd(half_kick), hi = _mm512_loadu_pd(half_kick + 8), h = _mm512_set1_pd(dt);
+  const double* f[3] = {f0, f1, f2};
+  double* v[3] = {v0, v1, v2};
+  double* x[3] = {x0, x1, x2};
+  int i = 0;
+  for (; i + 8 <= n; i += 8) {
+    std::uint64_t t8;
+    std::memcpy(&t8, type + i, sizeof t8);
+    // (the zero-masked widening: the same instruction, without GCC 12's false uninitialized warning)
+    const __m512i t = _mm512_maskz_cvtepu8_epi64(0xff, _mm_cvtsi64_si128(static_cast<long long>(t8)));
+    const __m512d kick = _mm512_permutex2var_pd(lo, t, hi);
+    for (int d = 0; d < 3; ++d) {
+      const __m512d kf = _mm512_mul_pd(kick, _mm512_loadu_pd(f[d] + i));
+      const __m512d w = _mm512_add_pd(_mm512_add_pd(_mm512_loadu_pd(v[d] + i), kf), kf);
+      _mm512_storeu_pd(v[d] + i, w);
+      _mm512_storeu_pd(x[d] + i, _mm512_add_pd(_mm512_loadu_pd(x[d] + i), _mm512_mul_pd(h, w)));
+    }
+  }
+  for (; i < n; ++i) {
+    const double kick = half_kick[type[i]];
+    for (int d = 0; d < 3; ++d) {
+      v[d][i] = (v[d][i] + kick * f[d][i]) + kick * f[d][i];
+      x[d][i] += dt * v[d][i];
+    }
+  }
+}
+
 // The half kick to the whole step alone (the step before an observed state) and the half kick and drift that
 // follow it, on the streams: kick() and kick_drift()'s arithmetic, on other addresses.
 TISSUE_CLONES
@@ -181,6 +249,7 @@ struct FusedStreams {
   bool sum;  // whether anything reads the kinetic energy (the guards)
   bool drift;  // false: the step ends at an observed whole step (the half kick to it alone)
   std::size_t ring = 0;  // f's rows in a ring of this many (SpringKernel::forces_ring); 0: f has every row
+  const MassTypes* types = nullptr;  // the unsummed drifting kicks' masses by type (null: from m)
 };
 void fused_rows_streams(void* context, int begin, int end) {
   FusedStreams& s = *static_cast<FusedStreams*>(context);
@@ -193,6 +262,11 @@ void fused_rows_streams(void* context, int begin, int end) {
                                s.kinetic);
     else
       kick_only_streams(end - begin, s.dt, s.m + begin, p.f[0], p.f[1], p.f[2], p.v[0], p.v[1], p.v[2]);
+    return;
+  }
+  if (s.types && !s.sum) {
+    kick_kick_drift_only_typed_avx512(end - begin, s.dt, s.types->type.data() + begin, s.types->half_kick, p.f[0],
+                                      p.f[1], p.f[2], p.v[0], p.v[1], p.v[2], p.x[0], p.x[1], p.x[2]);
     return;
   }
   if (s.sum)
@@ -296,6 +370,10 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
   // whole step keep every row's force in f (the next step's half kick reads it, and the state may be read).
   const std::size_t ring_rows = fuse ? static_cast<std::size_t>(forces.kernel().ring_rows()) : 0;
   std::vector<double> ring(ring_rows ? 3 * (ring_rows + static_cast<std::size_t>(model.local - model.owned)) : 0);
+  // (the kicks by mass type: a run without guards, on a CPU with AVX-512; everywhere else from m)
+  std::optional<MassTypes> mass_types;
+  if (fuse && !guard.enabled() && __builtin_cpu_supports("avx512f")) mass_types.emplace(n, m, dt);
+  const MassTypes* types = mass_types && !mass_types->type.empty() ? &*mass_types : nullptr;
   bool streams = false;  // x, v, f hold three streams each (x and f: stride local, v: stride n)
   auto set_streams = [&](bool on) {
     if (on == streams) return;
@@ -320,8 +398,21 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
       expose();
       hooks.checkpoint(s);
     };
+  // With the guards off, the signal check is the only reader of a kReduceEvery-th step's state (a stop writes a
+  // checkpoint of the whole step): its reduction is made before that step instead, so the step drifts on into the
+  // next one's half kick like any other unless a stop was asked for (then it ends at the whole step, as before).
+  // A signal that arrives after the check is seen at the next one, kReduceEvery steps on.
+  const bool check_ahead = !guard.enabled();
   while (state.step < total) {
-    const bool next_unobserved = unobserved(state.step + 1);
+    const long next = state.step + 1;
+    const bool ahead = check_ahead && next % kReduceEvery == 0 && next < total;
+    bool stop_ahead = false;
+    if (ahead) {
+      int mine = stop_requested ? 1 : 0, any = 0;
+      MPI_Allreduce(&mine, &any, 1, MPI_INT, MPI_MAX, model.comm);
+      stop_ahead = any != 0;
+    }
+    const bool next_unobserved = ahead ? unread(next) && !stop_ahead : unobserved(next);
     const bool fused = fuse && unread(state.step + 1);
     // (the layout the last step left: a fused step that ended at an observed state kept the streams)
     if (!drifted) {
@@ -341,9 +432,10 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
       const std::size_t sl = local, sn = n;
       FusedStreams step{dt, m, {{f, f + sl, f + 2 * sl}, {v, v + sn, v + 2 * sn}, {x, x + sl, x + 2 * sl}}, 0.0,
                         guard.enabled(), next_unobserved};
-      ReadAhead ahead;  // what the kicks read besides f (x: the kernel read it)
-      ahead.rows[0] = m, ahead.rows[1] = v, ahead.rows[2] = v + sn, ahead.rows[3] = v + 2 * sn;
-      ahead.streams = 4, ahead.end = n;
+      ReadAhead ahead;  // what the kicks read besides f (x: the kernel read it; the types: 1 byte a row)
+      if (next_unobserved && types) step.types = types;
+      ahead.rows[0] = v, ahead.rows[1] = v + sn, ahead.rows[2] = v + 2 * sn, ahead.rows[3] = m;
+      ahead.streams = step.types ? 3 : 4, ahead.end = n;
       if (ring_rows && next_unobserved) {
         double* r = ring.data();
         step.at.f[0] = r, step.at.f[1] = r + ring_rows, step.at.f[2] = r + 2 * ring_rows;
@@ -377,7 +469,10 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
     if (hooks.snapshot && scene.output.snapshot_every > 0 && state.step % scene.output.snapshot_every == 0 &&
         state.step < total)
       hooks.snapshot(state);
-    if (state.step < total && step_boundary(scene, model, state, exposed, 16)) {
+    // (after a check ahead: its reduction again only when it said stop, a flag no rank clears, so every rank
+    // stops; else the checkpoint cadence alone)
+    const long signal_every = ahead && !stop_ahead ? 0 : kReduceEvery;
+    if (state.step < total && step_boundary(scene, model, state, exposed, signal_every)) {
       report.interrupted = true;
       break;
     }

@@ -477,14 +477,23 @@ void volumetric_block_tangent(int n, const int* __restrict base, const int* __re
       const double* r1 = u + 3 * (base[0] + offset[2]);
       const double* r2 = u + 3 * (base[0] + offset[4]);
       const double* r3 = u + 3 * (base[0] + offset[6]);
+      // corner_gradient's entries a of x, b of y, c of z, with the same differences in the same order: each row's
+      // molecules read once, not twice (as corner a of cell i and corner b of cell i - 1), the y and z differences
+      // between rows taken once a molecule (each is cell i's and cell i - 1's), and the cells' sums from
+      // contiguous arrays instead of the rows' interleaved components.
+      alignas(64) double ux[4][kCellBlock + 1], dy[2][kCellBlock + 1], dz[2][kCellBlock + 1];
+      for (int j = 0; j <= n; ++j) {
+        const int a = 3 * j;
+        ux[0][j] = r0[a], ux[1][j] = r1[a], ux[2][j] = r2[a], ux[3][j] = r3[a];
+        dy[0][j] = r1[a + 1] - r0[a + 1], dy[1][j] = r3[a + 1] - r2[a + 1];
+        dz[0][j] = r2[a + 2] - r0[a + 2], dz[1][j] = r3[a + 2] - r1[a + 2];
+      }
       alignas(64) double tr[kCellBlock], Q[3 * kCellBlock];
-      for (int i = 0; i < n; ++i) {  // corner_gradient's entries a of x, b of y, c of z
-        const int a = 3 * i, b = 3 * (i + 1);
-        const double tx = ((r0[b] - r0[a]) + (r1[b] - r1[a]) + (r2[b] - r2[a]) + (r3[b] - r3[a])) * gx;
-        const double ty = ((r1[a + 1] - r0[a + 1]) + (r1[b + 1] - r0[b + 1]) + (r3[a + 1] - r2[a + 1]) +
-                           (r3[b + 1] - r2[b + 1])) * gy;
-        const double tz = ((r2[a + 2] - r0[a + 2]) + (r2[b + 2] - r0[b + 2]) + (r3[a + 2] - r1[a + 2]) +
-                           (r3[b + 2] - r1[b + 2])) * gz;
+      for (int i = 0; i < n; ++i) {
+        const double tx = ((ux[0][i + 1] - ux[0][i]) + (ux[1][i + 1] - ux[1][i]) + (ux[2][i + 1] - ux[2][i]) +
+                           (ux[3][i + 1] - ux[3][i])) * gx;
+        const double ty = (dy[0][i] + dy[0][i + 1] + dy[1][i] + dy[1][i + 1]) * gy;
+        const double tz = (dz[0][i] + dz[0][i + 1] + dz[1][i] + dz[1][i + 1]) * gz;
         tr[i] = tx + ty + tz;
       }
       const double stiff = 0.5 * kappa * 2.0;  // as below

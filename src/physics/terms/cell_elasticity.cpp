@@ -157,6 +157,7 @@ __attribute__((always_inline)) inline void add_row_corners_at_rest(const double*
       // The whole row owned (n > 0: a row block): its first molecule's cell after and its last's cell before
       // written out, without the general bounds' loops around the vectorized one.
       fr[0] += at[0] * Q[0], fr[1] += at[1] * Q[1], fr[2] += at[2] * Q[2];
+#pragma GCC unroll 8
       for (int k = 3; k < m; ++k) fr[k] = (fr[k] + next[k] * Q[k - 3]) + at[k] * Q[k];
       fr[m] += next[m] * Q[m - 3], fr[m + 1] += next[m + 1] * Q[m - 2], fr[m + 2] += next[m + 2] * Q[m - 1];
       continue;

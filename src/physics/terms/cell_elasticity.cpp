@@ -115,6 +115,13 @@ __attribute__((always_inline)) inline void add_row_corners(const double (&q)[9][
     const int s = base[0] + offset[2 * r];
     const int touched = std::min(n + 1, owned - s);  // the row's owned molecules: s .. s + touched - 1
     double* __restrict fr = f + 3 * s;
+    if (touched == n + 1) {
+      // The whole row owned: one pass, each molecule's (f + its cell before) + its cell after, the same sums.
+      for (int j = 0; j < 3; ++j) fr[j] += at[j];
+      for (int j = 3; j < 3 * n; ++j) fr[j] = (fr[j] + next[j - 3]) + at[j];
+      for (int j = 3 * n; j < 3 * n + 3; ++j) fr[j] += next[j - 3];
+      continue;
+    }
     for (int j = 3; j < 3 * touched; ++j) fr[j] += next[j - 3];
     for (int j = 0; j < 3 * std::min(n, touched); ++j) fr[j] += at[j];
   }

@@ -115,6 +115,13 @@ __attribute__((always_inline)) inline void add_row_corners(const double (&q)[9][
     const int s = base[0] + offset[2 * r];
     const int touched = std::min(n + 1, owned - s);  // the row's owned molecules: s .. s + touched - 1
     double* __restrict fr = f + 3 * s;
+    if (touched == n + 1) {
+      // The whole row owned: one pass, each molecule's (f + its cell before) + its cell after, the same sums.
+      for (int j = 0; j < 3; ++j) fr[j] += at[j];
+      for (int j = 3; j < 3 * n; ++j) fr[j] = (fr[j] + next[j - 3]) + at[j];
+      for (int j = 3 * n; j < 3 * n + 3; ++j) fr[j] += next[j - 3];
+      continue;
+    }
     for (int j = 3; j < 3 * touched; ++j) fr[j] += next[j - 3];
     for (int j = 0; j < 3 * std::min(n, touched); ++j) fr[j] += at[j];
   }
@@ -153,6 +160,15 @@ __attribute__((always_inline)) inline void add_row_corners_at_rest(const double*
     const int touched = std::min(n + 1, owned - s);  // the row's owned molecules: s .. s + touched - 1
     const int m = 3 * std::min(n, touched), t = 3 * touched;
     double* __restrict fr = f + 3 * s;
+    if (touched == n + 1) {
+      // The whole row owned (n > 0: a row block): its first molecule's cell after and its last's cell before
+      // written out, without the general bounds' loops around the vectorized one.
+      fr[0] += at[0] * Q[0], fr[1] += at[1] * Q[1], fr[2] += at[2] * Q[2];
+#pragma GCC unroll 8
+      for (int k = 3; k < m; ++k) fr[k] = (fr[k] + next[k] * Q[k - 3]) + at[k] * Q[k];
+      fr[m] += next[m] * Q[m - 3], fr[m + 1] += next[m + 1] * Q[m - 2], fr[m + 2] += next[m + 2] * Q[m - 1];
+      continue;
+    }
     for (int k = 0; k < std::min(3, m); ++k) fr[k] += at[k] * Q[k];
     for (int k = 3; k < m; ++k) fr[k] = (fr[k] + next[k] * Q[k - 3]) + at[k] * Q[k];
     for (int k = std::max(3, m); k < t; ++k) fr[k] += next[k] * Q[k - 3];
@@ -463,11 +479,32 @@ __attribute__((always_inline)) inline void cof_of(const double F[9], double cof[
 // where a state of 80 B a cell, or of d, would be streamed on every application. An inverted cell takes F = I.
 // at_rest (x is the rest positions: the finest level's rest tangent, src/solvers/rest_tangent.hpp): F = I exactly,
 // so cof F = I, J = 1, W' = 0 and dP = kappa tr(dF) I, the same numbers without x, G, cof or dcof.
+// The rest form's rows de-interleaved (x, y, z of each molecule) by the last row blocks of one product: rows 1 and 3
+// of the cell row (j, k) are rows 0 and 2 of (j + 1, k), the next block of the same x range. An entry is found by
+// its rows' addresses in u and its length; reset() before every product (u's values change between products).
+struct RestRows {
+  static constexpr int kEntries = 4;  // a lattice row in up to 4 blocks
+  struct Entry {
+    const double* row[2] = {nullptr, nullptr};  // the block's rows 1 and 3 in u
+    int n = -1;
+    alignas(64) double x[2][kCellBlock + 1], y[2][kCellBlock + 1], z[2][kCellBlock + 1];
+  };
+  Entry entry[kEntries];
+  int next = 0;
+  void reset() {
+    for (Entry& e : entry) e.n = -1;
+  }
+};
+// One row's n + 1 molecules into x, y, z.
+__attribute__((always_inline)) inline void split_row(const double* __restrict r, int n, double* __restrict x,
+                                                     double* __restrict y, double* __restrict z) {
+  for (int j = 0; j <= n; ++j) x[j] = r[3 * j], y[j] = r[3 * j + 1], z[j] = r[3 * j + 2];
+}
 TISSUE_CELL_CLONES
 void volumetric_block_tangent(int n, const int* __restrict base, const int* __restrict offset, bool rows,
                               const RowRest* rest, const double* __restrict u, const double* __restrict x,
                               const double* __restrict X, double kappa, double volume, const double g[3], int owned,
-                              double* __restrict out, bool at_rest) {
+                              double* __restrict out, bool at_rest, RestRows* cache) {
   alignas(64) double dF[9][kCellBlock], G[9][kCellBlock], dP[9][kCellBlock];
   const double gx = g[0], gy = g[1], gz = g[2];
   if (at_rest) {
@@ -477,14 +514,47 @@ void volumetric_block_tangent(int n, const int* __restrict base, const int* __re
       const double* r1 = u + 3 * (base[0] + offset[2]);
       const double* r2 = u + 3 * (base[0] + offset[4]);
       const double* r3 = u + 3 * (base[0] + offset[6]);
+      // corner_gradient's entries a of x, b of y, c of z, with the same differences in the same order: each row's
+      // molecules read once, not twice (as corner a of cell i and corner b of cell i - 1), rows 0 and 2 from the
+      // cache when the block before in the same x range split them, and the cells' sums from contiguous arrays
+      // instead of the rows' interleaved components.
+      RestRows::Entry local[2];
+      const RestRows::Entry* hit = nullptr;
+      if (cache)
+        for (const RestRows::Entry& e : cache->entry)
+          if (e.n == n && e.row[0] == r0 && e.row[1] == r2) hit = &e;
+      const double *x0, *y0, *z0, *x2, *y2, *z2;
+      if (hit) {
+        x0 = hit->x[0], y0 = hit->y[0], z0 = hit->z[0], x2 = hit->x[1], y2 = hit->y[1], z2 = hit->z[1];
+      } else {
+        split_row(r0, n, local[0].x[0], local[0].y[0], local[0].z[0]);
+        split_row(r2, n, local[0].x[1], local[0].y[1], local[0].z[1]);
+        x0 = local[0].x[0], y0 = local[0].y[0], z0 = local[0].z[0];
+        x2 = local[0].x[1], y2 = local[0].y[1], z2 = local[0].z[1];
+      }
+      RestRows::Entry* keep = &local[1];
+      if (cache) {
+        if (&cache->entry[cache->next] == hit) cache->next = (cache->next + 1) % RestRows::kEntries;
+        keep = &cache->entry[cache->next];
+        cache->next = (cache->next + 1) % RestRows::kEntries;
+      }
+      split_row(r1, n, keep->x[0], keep->y[0], keep->z[0]);
+      split_row(r3, n, keep->x[1], keep->y[1], keep->z[1]);
+      keep->row[0] = r1, keep->row[1] = r3, keep->n = n;
+      const double *x1 = keep->x[0], *y1 = keep->y[0], *z1 = keep->z[0];
+      const double *x3 = keep->x[1], *y3 = keep->y[1], *z3 = keep->z[1];
+      alignas(64) double dy[2][kCellBlock + 1], dz[2][kCellBlock + 1];
+      for (int j = 0; j <= n; ++j) {
+        dy[0][j] = y1[j] - y0[j], dy[1][j] = y3[j] - y2[j];
+        dz[0][j] = z2[j] - z0[j], dz[1][j] = z3[j] - z1[j];
+      }
+      const double* const ux[4] = {x0, x1, x2, x3};
       alignas(64) double tr[kCellBlock], Q[3 * kCellBlock];
-      for (int i = 0; i < n; ++i) {  // corner_gradient's entries a of x, b of y, c of z
-        const int a = 3 * i, b = 3 * (i + 1);
-        const double tx = ((r0[b] - r0[a]) + (r1[b] - r1[a]) + (r2[b] - r2[a]) + (r3[b] - r3[a])) * gx;
-        const double ty = ((r1[a + 1] - r0[a + 1]) + (r1[b + 1] - r0[b + 1]) + (r3[a + 1] - r2[a + 1]) +
-                           (r3[b + 1] - r2[b + 1])) * gy;
-        const double tz = ((r2[a + 2] - r0[a + 2]) + (r2[b + 2] - r0[b + 2]) + (r3[a + 2] - r1[a + 2]) +
-                           (r3[b + 2] - r1[b + 2])) * gz;
+      for (int i = 0; i < n; ++i) {
+        const double tx = ((ux[0][i + 1] - ux[0][i]) + (ux[1][i + 1] - ux[1][i]) + (ux[2][i + 1] - ux[2][i]) +
+                           (ux[3][i + 1] - ux[3][i])) * gx;
+        const double ty = (dy[0][i] + dy[0][i + 1] + dy[1][i] + dy[1][i + 1]) * gy;
+        const double tz = (dz[0][i] + dz[0][i + 1] + dz[1][i] + dz[1][i + 1]) * gz;
         tr[i] = tx + ty + tz;
       }
       const double stiff = 0.5 * kappa * 2.0;  // as below
@@ -1208,6 +1278,7 @@ public:
     const int w = static_cast<int>(state_with_width[0]);
     const double* state = state_with_width + 1;
     if (!blocks_.empty()) {
+      rest_rows_.reset();  // a new product: u's rows not yet split
       for (const Block& b : blocks_) block_tangent(b, w, x, state, u, out);
       return;
     }
@@ -1225,6 +1296,7 @@ public:
                                 int from, double* out) const override {
     const int w = static_cast<int>(state_with_width[0]);
     const int nb = static_cast<int>(blocks_.size());
+    if (from == 0) rest_rows_.reset();  // a product's first piece: u's rows not yet split
     for (; from < nb && blocks_[from].reach <= below; ++from) block_tangent(blocks_[from], w, x, state_with_width + 1, u, out);
     return from;
   }
@@ -1554,6 +1626,7 @@ private:
     std::array<long, 3> ijk;
   };
   std::vector<Block> blocks_;  // in cell order; empty with fibres (no block ever runs then)
+  mutable RestRows rest_rows_;  // the rest form's split rows within one product (volumetric_block_tangent)
   // add_tangent's ring of dP/dF: the most cells between a molecule's first and last cell (ids x-fastest).
   std::size_t ring_ = 1;
 
@@ -1597,7 +1670,8 @@ private:
       if (computed) row_rest(b, rest);
       // x is the rest array itself for the rest tangent (MatrixFreeTangent at rest): F = I, the short form.
       volumetric_block_tangent(b.n, base, pattern, b.rows, computed ? &rest : nullptr, u, x, m_.rest.data(),
-                               kind.moduli.kappa, geo.volume, g, m_.owned, out, w < 0 || x == m_.rest.data());
+                               kind.moduli.kappa, geo.volume, g, m_.owned, out, w < 0 || x == m_.rest.data(),
+                               &rest_rows_);
       return;
     }
     cell_block_tangent(b.n, base, pattern, b.rows, u, state + w * static_cast<std::size_t>(b.first),

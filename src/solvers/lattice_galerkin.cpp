@@ -6,8 +6,6 @@
 #include <algorithm>
 #include <array>
 #include <climits>
-#include <cmath>
-#include <complex>
 #include <cstdlib>
 #include <cstring>
 #include <unordered_map>
@@ -53,74 +51,6 @@ std::vector<AxisWeights> axis_weights(const std::vector<long>& fine, const std::
 
 int position(const std::vector<long>& planes, long x) {
   return static_cast<int>(std::lower_bound(planes.begin(), planes.end(), x) - planes.begin());
-}
-
-// The largest eigenvalue of a 3x3 Hermitian matrix (the trigonometric form of the cubic's roots).
-double hermitian_max(const std::complex<double> m[3][3]) {
-  const double a = m[0][0].real(), b = m[1][1].real(), c = m[2][2].real();
-  const std::complex<double> d = m[0][1], e = m[1][2], f = m[0][2];
-  const double off = std::norm(d) + std::norm(e) + std::norm(f), q = (a + b + c) / 3;
-  const double p2 = (a - q) * (a - q) + (b - q) * (b - q) + (c - q) * (c - q) + 2 * off;
-  if (!(p2 > 0)) return q;
-  const double p = std::sqrt(p2 / 6), A = (a - q) / p, B = (b - q) / p, C = (c - q) / p;
-  const double det = A * B * C + 2 * (d * e * std::conj(f)).real() / (p * p * p) -
-                     (A * std::norm(e) + B * std::norm(f) + C * std::norm(d)) / (p * p);
-  const double r = std::clamp(det / 2, -1.0, 1.0);
-  return q + 2 * p * std::cos(std::acos(r) / 3);
-}
-
-// The Jacobi-scaled symbol of a translation-invariant row (kSlots blocks by slot): D^-1/2 (sum_s A_s e^(i theta.s))
-// D^-1/2, D the diagonal block's diagonal, its Hermitian part (the row of a symmetric operator: A_-s = A_s^T).
-double symbol_max_at(const double* row, const double* scale, const double theta[3]) {
-  std::complex<double> phase[3][3];
-  for (int a = 0; a < 3; ++a)
-    for (int o = -1; o <= 1; ++o) phase[a][o + 1] = std::polar(1.0, o * theta[a]);
-  std::complex<double> m[3][3] = {};
-  for (int s = 0; s < kSlots; ++s) {
-    const std::complex<double> e = phase[0][s % 3] * phase[1][s / 3 % 3] * phase[2][s / 9];
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c) m[r][c] += row[s * kBlock + 3 * r + c] * e;
-  }
-  std::complex<double> h[3][3];
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) h[r][c] = 0.5 * (m[r][c] + std::conj(m[c][r])) * scale[r] * scale[c];
-  return hermitian_max(h);
-}
-
-// The supremum over theta of symbol_max_at: the largest eigenvalue of D^-1 A for the row's infinite lattice, the
-// part of the Jacobi-scaled spectrum the interior holds (LatticeGalerkin::jacobi_symbol_bound). A grid of theta
-// (theta and -theta give conjugate symbols: theta_x in [0, pi]), then a pattern search from its best points.
-double interior_symbol_max(const double* row) {
-  double scale[3];
-  for (int r = 0; r < 3; ++r) scale[r] = 1.0 / std::sqrt(row[kHalf0 * kBlock + 4 * r]);
-  constexpr int kGrid = 16;
-  const double step = M_PI / kGrid;
-  std::vector<std::pair<double, std::array<double, 3>>> found;
-  for (int i = 0; i <= kGrid; ++i)
-    for (int j = -kGrid; j < kGrid; ++j)
-      for (int k = -kGrid; k < kGrid; ++k) {
-        const double theta[3] = {i * step, j * step, k * step};
-        found.push_back({symbol_max_at(row, scale, theta), {theta[0], theta[1], theta[2]}});
-      }
-  std::partial_sort(found.begin(), found.begin() + 8, found.end(),
-                    [](const auto& x, const auto& y) { return x.first > y.first; });
-  double best = found[0].first;
-  for (int f = 0; f < 8; ++f) {
-    auto [value, theta] = found[f];
-    for (double h = step / 2; h > 1e-7;) {
-      bool moved = false;
-      for (int a = 0; a < 3; ++a)
-        for (int sgn = -1; sgn <= 1; sgn += 2) {
-          std::array<double, 3> t = theta;
-          t[a] += sgn * h;
-          const double v = symbol_max_at(row, scale, t.data());
-          if (v > value) value = v, theta = t, moved = true;
-        }
-      if (!moved) h /= 2;
-    }
-    best = std::max(best, value);
-  }
-  return best;
 }
 
 PetscLogEvent galerkin_event() {
@@ -858,14 +788,6 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     // Gershgorin's bound on the Jacobi-scaled operator, row by row as ForceModel::jacobi_gershgorin sums it (the
     // diagonal and the off-diagonal magnitudes of each free component, in the stream's order; a held row's is 1).
     double diag[3] = {}, off[3] = {}, bound = 1.0;
-    // The interior rows (all 27 blocks, every molecule wholly free) for the largest eigenvalue of their symbol
-    // (interior_symbol_max), kept when every row comes whole in one run at the rest positions
-    // (tangent_blocks_unless's rest rows: the finest smoother's operator, RestTangent or J at rest) and the
-    // interior rows are one row to the bit (a uniform box at rest: its symbol is the interior's spectrum).
-    bool one_run = std::equal(stream->x, stream->x + 3 * static_cast<std::size_t>(model_.local), model_.rest.begin());
-    std::vector<std::uint8_t> flushed(one_run ? model_.owned : 0, 0);
-    std::vector<double> interior;  // the one interior row, kSlots blocks
-    bool row_inside = true;        // every block of the row so far between wholly free molecules of the stencil
     // The last row's inputs (springs only, below), while it may start a class.
     struct Inputs {
       int row = -1;  // the row they are of, when it could start a class (free, within the stencil)
@@ -876,18 +798,6 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
       for (int r = 0; r < 3 && row >= 0; ++r)
         if (!held_[3 * row + r]) bound = std::max(bound, 1.0 + off[r] / diag[r]);
       for (int r = 0; r < 3; ++r) diag[r] = off[r] = 0.0;
-      if (one_run && row >= 0) {
-        one_run = !flushed[row];
-        flushed[row] = 1;
-        if (one_run && row_inside && !(held_[3 * row] | held_[3 * row + 1] | held_[3 * row + 2]) &&
-            present == (1u << kSlots) - 1) {
-          if (interior.empty())
-            interior.assign(blocks.begin(), blocks.begin() + kSlots * kBlock);
-          else
-            one_run = std::equal(interior.begin(), interior.end(), blocks.begin());
-        }
-      }
-      row_inside = true;
       if (row >= 0 && present) {
         created = -1;
         PetscCall(scatter(model_.body[row], ijk_[row], present, blocks.data()));
@@ -940,7 +850,6 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
         }
       }
       const bool free = row_free && !(held[3 * j] | held[3 * j + 1] | held[3 * j + 2]);
-      if (i != j) row_inside = false;  // a held neighbour, or beyond the stencil or the body
       if (free && i != j) {
         for (int r = 0; r < 3; ++r)
           for (int c = 0; c < 3; ++c) off[r] += std::abs(K[3 * r + c]);
@@ -1036,7 +945,6 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     PetscCall(known_error);
     PetscCall(flush());
     jacobi_bound_ = bound;
-    symbol_bound_ = !one_run ? 0.0 : interior.empty() ? -1.0 : interior_symbol_max(interior.data());
     PetscCheck(!off_stencil, PETSC_COMM_SELF, PETSC_ERR_SUP,
                "lattice Galerkin product: the tangent has a block beyond the lattice stencil");
   }
@@ -1464,13 +1372,6 @@ PetscErrorCode LatticeGalerkin::update(Mat fine, const Stream* stream, PC pc) {
   if (stream) {
     const double mine = jacobi_bound_;
     PetscCallMPI(MPI_Allreduce(&mine, &jacobi_bound_, 1, MPI_DOUBLE, MPI_MAX, model_.comm));
-    // 0 on a rank whose rows were not whole (not at rest) or whose interior row differs from another rank's: then 0
-    // on every rank; -1 on a rank with no interior row (it takes the others').
-    double mine_symbol[2] = {symbol_bound_, symbol_bound_ < 0.0 ? -1e300 : -symbol_bound_}, all[2];
-    PetscCallMPI(MPI_Allreduce(mine_symbol, all, 2, MPI_DOUBLE, MPI_MAX, model_.comm));
-    symbol_bound_ = all[0] > 0.0 && all[0] == -all[1] ? all[0] : 0.0;
-    (void)PetscInfo(nullptr, "lattice Galerkin: the Jacobi-scaled fine operator's Gershgorin bound %g, its interior symbol's largest eigenvalue %g\n",
-                    jacobi_bound_, symbol_bound_);
   }
   free_storage(ijk_);
   PetscCall(PetscLogEventEnd(galerkin_event(), pc, fine, 0, 0));

@@ -49,11 +49,6 @@ public:
   // stream (the same numbers as ForceModel::jacobi_gershgorin's own pass when the force model has no terms and no
   // cached tangent, which then need not stream the blocks again).
   double jacobi_bound() const { return jacobi_bound_; }
-  // After update(forces, x, pc): the largest eigenvalue of the Jacobi-scaled fine operator's interior symbol (its
-  // one interior row as an infinite lattice's), when the update streamed every row whole at the rest positions and
-  // every rank's interior rows are one row to the bit (a uniform box at rest); 0 otherwise. With the cell term the
-  // Gershgorin bound is ~2x the largest eigenvalue, this is within a few % of it (docs/benchmarks.md, cells15n).
-  double jacobi_symbol_bound() const { return symbol_bound_; }
 
 private:
   struct Rows;
@@ -92,7 +87,6 @@ private:
   std::vector<Csr> csr_;     // the storage of coarse_ (PETSc does not copy it): destroyed after the matrices
   std::vector<Mat> coarse_;  // coarse_[l]: the operator of level l (l >= 1; coarse_[0] unused)
   bool stencil_level_one_ = false;
-  mutable double symbol_bound_ = 0.0;  // jacobi_symbol_bound's: this rank's while the stream runs, then agreed
   mutable double jacobi_bound_ = 0.0;  // this rank's while the stream runs (accumulate_rows), then every rank's
   std::unique_ptr<StencilOperator> level_one_;  // when level 1 is a shell: its rows, columns and ghost scatter
 };

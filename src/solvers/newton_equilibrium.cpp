@@ -65,10 +65,6 @@ struct Context {
   // 0.2: on the peer problem at 97,336 molecules the Krylov iterations of the estimate's [0.1, 1.1] x lambda
   // (15) with 0.15 and 0.2; 16 with 0.1 and 0.3, 17 with 0.05 (the bound exceeds lambda_max by about 1.3x).
   double chebyshev_fraction = 0.2;
-  // With a term's blocks (the cell term) on a uniform box at rest: the interval from the interior symbol's largest
-  // eigenvalue (LatticeGalerkin::jacobi_symbol_bound) instead of PETSc's estimate (-static_symbol_bound false: the
-  // estimate).
-  bool symbol = true;
   // The last residual evaluation (residual()): the output vector's id and state just after it was written, and the
   // load factor; valid within one SNESSolve, until the next Newton step (see same_as_last).
   bool reuse = true;  // -static_reuse_residual false: evaluate every time
@@ -400,17 +396,10 @@ PetscErrorCode fine_chebyshev(Context* ctx, PC pc) {
   PetscCall(PCMGGetLevels(pc, &levels));
   if (ctx->fused) PetscCall(fuse_coarse_chebyshev(pc, levels));
   PetscCall(PCMGGetSmoother(pc, levels - 1, &smoother));
-  double bound = 0.0, fraction = ctx->chebyshev_fraction;
+  double bound = 0.0;
   bool exact = false;
   if (!ctx->forces->has_terms() && !ctx->forces->has_cached_tangent()) {
     bound = ctx->galerkin->jacobi_bound();  // summed from the coarse operators' block stream just now (no 2nd pass)
-    exact = true;
-  } else if (ctx->symbol && ctx->galerkin->jacobi_symbol_bound() > 0.0) {
-    // A term's blocks (the cell term) on a uniform box at rest: the interior symbol's largest eigenvalue from the
-    // same stream in place of PETSc's estimate (6 products, 5 vectors), the estimate's transform applied to it.
-    const double top = ctx->galerkin->jacobi_symbol_bound();
-    bound = kChebyshevEstimate[3] * top;
-    fraction = kChebyshevEstimate[1] * top / bound;
     exact = true;
   } else {
     PetscCall(ctx->forces->jacobi_gershgorin(ctx->shell->positions(), &bound, &exact));
@@ -425,7 +414,7 @@ PetscErrorCode fine_chebyshev(Context* ctx, PC pc) {
     } else {
       PetscCall(KSPChebyshevEstEigSet(smoother, 0, 0, 0, 0));  // no estimator (it is destroyed)
     }
-    PetscCall(KSPChebyshevSetEigenvalues(smoother, bound, fraction * bound));
+    PetscCall(KSPChebyshevSetEigenvalues(smoother, bound, ctx->chebyshev_fraction * bound));
     ctx->estimating = false;
   } else if (!ctx->estimating || (ctx->fused && !ctx->fused_estimating)) {
     if (ctx->fused) {
@@ -815,9 +804,6 @@ PetscErrorCode NewtonEquilibrium::Impl::use_matrix_free(bool user_pc, bool user_
     // options may need its entries (SOR, ILU, ...).
     if (!user_smoother) galerkin->keep_level_one_as_stencil();
     PetscCall(PetscOptionsGetReal(nullptr, nullptr, "-static_chebyshev_fraction", &ctx.chebyshev_fraction, nullptr));
-    PetscBool symbol = PETSC_TRUE;
-    PetscCall(PetscOptionsGetBool(nullptr, nullptr, "-static_symbol_bound", &symbol, nullptr));
-    ctx.symbol = symbol == PETSC_TRUE;
     PetscBool fused = PETSC_TRUE;
     PetscCall(PetscOptionsGetBool(nullptr, nullptr, "-static_fused_chebyshev", &fused, nullptr));
     ctx.fused = fused == PETSC_TRUE;

@@ -51,7 +51,6 @@ void check_tissue_options() {
   fraction("-static_first_rtol", true);
   fraction("-static_enough_fraction", true);
   fraction("-static_chebyshev_fraction", false);
-  boolean("-static_symbol_bound");
   boolean("-static_fused_chebyshev");
   boolean("-static_rest_smoother");
   boolean("-static_rest_pull");

@@ -154,83 +154,67 @@ using Lanes = double __attribute__((vector_size(32)));
 
 enum class Columns { kRows, kCopy, kGathered };  // where A_ij u_j's columns come from (stencil_product)
 
-// Node c's row (stencil_product).
-template <Columns kColumns>
-__attribute__((always_inline)) inline void stencil_node(std::size_t c, int mask, const PetscInt* first, const int* row,
-                                                        const double* a, const double* columns, const PetscInt* cols,
-                                                        PetscInt n, const double* u, const double* g, double* y,
-                                                        double* h) {
-  const double* blk = a + kHalf * kBlock * static_cast<std::size_t>(row[c]);
-  const double* tblk = columns + kHalf * kBlock * static_cast<std::size_t>(row[c]);
-  const PetscInt* col = cols + kHalf * c;
-  double* to = y + first[c] / 8;
-  double ui[3];
-  for (int m = 0, q = 0; m < 3; ++m) ui[m] = mask >> m & 1 ? u[first[c] / 8 + q++] : 0.0;
-  Lanes acc = {0.0, 0.0, 0.0, 0.0};
-  for (int s = 0; s < kHalf; ++s, blk += kBlock, tblk += kBlock) {
-    if (col[s] < 0) continue;
-    const int jm = static_cast<int>(col[s] & 7);
-    const PetscInt at = col[s] >> 3;
-    const double* src = at < n ? u + at : g + (at - n);
-    if ((mask & jm) == 7) {
-      Lanes r0, r1, r2;
-      std::memcpy(&r0, blk, sizeof r0), std::memcpy(&r1, blk + 3, sizeof r1), std::memcpy(&r2, blk + 6, sizeof r2);
-      if (kColumns == Columns::kCopy) {
-        Lanes c0, c1, c2;
-        std::memcpy(&c0, tblk, sizeof c0), std::memcpy(&c1, tblk + 3, sizeof c1);
-        std::memcpy(&c2, tblk + 6, sizeof c2);
-        acc += c0 * src[0] + c1 * src[1] + c2 * src[2];
-      } else if (kColumns == Columns::kGathered) {
-        const Lanes c0 = {blk[0], blk[3], blk[6], 0.0}, c1 = {blk[1], blk[4], blk[7], 0.0},
-                    c2 = {blk[2], blk[5], blk[8], 0.0};
-        acc += c0 * src[0] + c1 * src[1] + c2 * src[2];
-      } else {
-        acc += r0 * src[0] + r1 * src[1] + r2 * src[2];
-      }
-      if (s == 0) continue;
-      double* back = at < n ? y + at : h + (at - n);
-      const Lanes t = r0 * ui[0] + r1 * ui[1] + r2 * ui[2];
-      back[0] += t[0], back[1] += t[1], back[2] += t[2];
-      continue;
-    }
-    masked_block(blk, s == 0, jm, src, ui, acc, at < n ? y + at : h + (at - n));
-  }
-  for (int k = 0, q = 0; k < 3; ++k)
-    if (mask >> k & 1) to[q++] += acc[k];
-}
-
-// With the transposed copy, a row whose blocks are all symmetric to the bit (same[row], halve_level_one: a box
-// lattice's interior coarse rows with the cell term; the asymmetric ones are near its faces) takes the rows as
-// its columns: the same numbers (lane k computes the same expression either way), 3 loads a block fewer.
 template <Columns kColumns>
 __attribute__((always_inline)) inline void stencil_product(std::size_t nodes, const PetscInt* first, const int* row,
                                                            const double* a, const double* columns,
-                                                           const std::uint8_t* same, const PetscInt* cols, PetscInt n,
-                                                           const double* u, const double* g, double* y, double* h) {
+                                                           const PetscInt* cols, PetscInt n, const double* u,
+                                                           const double* g, double* y, double* h) {
   for (std::size_t c = 0; c < nodes; ++c) {
     const int mask = static_cast<int>(first[c] % 8);
     if (!mask) continue;
-    if (kColumns == Columns::kCopy && same[row[c]])
-      stencil_node<Columns::kRows>(c, mask, first, row, a, a, cols, n, u, g, y, h);
-    else
-      stencil_node<kColumns>(c, mask, first, row, a, columns, cols, n, u, g, y, h);
+    const double* blk = a + kHalf * kBlock * static_cast<std::size_t>(row[c]);
+    const double* tblk = columns + kHalf * kBlock * static_cast<std::size_t>(row[c]);
+    const PetscInt* col = cols + kHalf * c;
+    double* to = y + first[c] / 8;
+    double ui[3];
+    for (int m = 0, q = 0; m < 3; ++m) ui[m] = mask >> m & 1 ? u[first[c] / 8 + q++] : 0.0;
+    Lanes acc = {0.0, 0.0, 0.0, 0.0};
+    for (int s = 0; s < kHalf; ++s, blk += kBlock, tblk += kBlock) {
+      if (col[s] < 0) continue;
+      const int jm = static_cast<int>(col[s] & 7);
+      const PetscInt at = col[s] >> 3;
+      const double* src = at < n ? u + at : g + (at - n);
+      if ((mask & jm) == 7) {
+        Lanes r0, r1, r2;
+        std::memcpy(&r0, blk, sizeof r0), std::memcpy(&r1, blk + 3, sizeof r1), std::memcpy(&r2, blk + 6, sizeof r2);
+        if (kColumns == Columns::kCopy) {
+          Lanes c0, c1, c2;
+          std::memcpy(&c0, tblk, sizeof c0), std::memcpy(&c1, tblk + 3, sizeof c1);
+          std::memcpy(&c2, tblk + 6, sizeof c2);
+          acc += c0 * src[0] + c1 * src[1] + c2 * src[2];
+        } else if (kColumns == Columns::kGathered) {
+          const Lanes c0 = {blk[0], blk[3], blk[6], 0.0}, c1 = {blk[1], blk[4], blk[7], 0.0},
+                      c2 = {blk[2], blk[5], blk[8], 0.0};
+          acc += c0 * src[0] + c1 * src[1] + c2 * src[2];
+        } else {
+          acc += r0 * src[0] + r1 * src[1] + r2 * src[2];
+        }
+        if (s == 0) continue;
+        double* back = at < n ? y + at : h + (at - n);
+        const Lanes t = r0 * ui[0] + r1 * ui[1] + r2 * ui[2];
+        back[0] += t[0], back[1] += t[1], back[2] += t[2];
+        continue;
+      }
+      masked_block(blk, s == 0, jm, src, ui, acc, at < n ? y + at : h + (at - n));
+    }
+    for (int k = 0, q = 0; k < 3; ++k)
+      if (mask >> k & 1) to[q++] += acc[k];
   }
 }
 
 TISSUE_CLONES void symmetric_stencil_product(std::size_t nodes, const PetscInt* first, const int* row,
                                              const double* a, const PetscInt* cols, PetscInt n, const double* u,
                                              const double* g, double* y, double* h) {
-  stencil_product<Columns::kRows>(nodes, first, row, a, a, nullptr, cols, n, u, g, y, h);
+  stencil_product<Columns::kRows>(nodes, first, row, a, a, cols, n, u, g, y, h);
 }
 
 TISSUE_CLONES void general_stencil_product(std::size_t nodes, const PetscInt* first, const int* row,
-                                           const double* a, const double* columns, const std::uint8_t* same,
-                                           const PetscInt* cols, PetscInt n, const double* u, const double* g,
-                                           double* y, double* h) {
+                                           const double* a, const double* columns, const PetscInt* cols, PetscInt n,
+                                           const double* u, const double* g, double* y, double* h) {
   if (columns)
-    stencil_product<Columns::kCopy>(nodes, first, row, a, columns, same, cols, n, u, g, y, h);
+    stencil_product<Columns::kCopy>(nodes, first, row, a, columns, cols, n, u, g, y, h);
   else
-    stencil_product<Columns::kGathered>(nodes, first, row, a, a, nullptr, cols, n, u, g, y, h);
+    stencil_product<Columns::kGathered>(nodes, first, row, a, a, cols, n, u, g, y, h);
 }
 
 // Pages about to be written from scratch, faulted in by one call instead of one trap a 4 kB page at first touch:
@@ -384,7 +368,6 @@ struct LatticeGalerkin::StencilOperator {
   PetscInt n = 0;               // owned unknowns
   bool symmetric = false;       // every block between two wholly free nodes symmetric to the bit (halve_level_one)
   std::vector<double> columns;  // when not, and few distinct rows: their blocks transposed (A_ij u_j's columns)
-  std::vector<std::uint8_t> same;  // with columns, per kept row: every block of it symmetric to the bit
   Vec ghosts = nullptr;         // the neighbours' values owned elsewhere
   Vec shares = nullptr;         // what the transposed blocks add to them (a product's reverse scatter)
   VecScatter scatter = nullptr;
@@ -1546,22 +1529,11 @@ void LatticeGalerkin::halve_level_one() {
   // are at most a quarter of the rows (a box lattice at rest: its few distinct rows); otherwise (a deformed
   // state, nearly every row distinct) no copy, and the product gathers the columns from the rows.
   free_storage(op.columns);
-  free_storage(op.same);
   if (!op.symmetric && 4 * kept <= rows) {
     op.columns.assign(kept * kRow + 3, 0.0);
-    op.same.assign(kept, 1);
     for (std::size_t b = 0; b < kept * kHalf; ++b)
       for (int r = 0; r < 3; ++r)
-        for (int k = 0; k < 3; ++k) {
-          op.columns[b * kBlock + 3 * k + r] = a[b * kBlock + 3 * r + k];
-          if (std::memcmp(a + b * kBlock + 3 * r + k, a + b * kBlock + 3 * k + r, sizeof(double)) != 0)
-            op.same[b / kHalf] = 0;
-        }
-    std::size_t nodes_same = 0, nodes_free = 0;
-    for (std::size_t c = 0; c < nodes; ++c)
-      if (op.first[c] % 8) ++nodes_free, nodes_same += op.same[op.rows.row[c]];
-    (void)PetscInfo(nullptr, "lattice Galerkin: level 1's rows symmetric to the bit: %zu of %zu nodes\n", nodes_same,
-                    nodes_free);
+        for (int k = 0; k < 3; ++k) op.columns[b * kBlock + 3 * k + r] = a[b * kBlock + 3 * r + k];
   }
 }
 
@@ -1587,8 +1559,7 @@ PetscErrorCode LatticeGalerkin::stencil_mult(Mat A, Vec in, Vec out) {
                               op->col.data(), n, u, g, y, h);
   else
     general_stencil_product(op->first.size(), op->first.data(), op->rows.row.data(), op->rows.a.data(),
-                            op->columns.empty() ? nullptr : op->columns.data(), op->same.data(), op->col.data(), n,
-                            u, g, y, h);
+                            op->columns.empty() ? nullptr : op->columns.data(), op->col.data(), n, u, g, y, h);
   PetscCall(VecRestoreArray(op->shares, &h));
   PetscCall(VecRestoreArray(out, &y));
   PetscCall(VecRestoreArrayRead(op->ghosts, &g));

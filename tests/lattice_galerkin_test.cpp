@@ -252,6 +252,13 @@ TEST(LatticeGalerkin, LevelOneShellWithCellsEqualsPetscTripleProduct) { compare_
 TEST(LatticeGalerkin, LevelOneShellWithCellsAtRestEqualsPetscTripleProduct) {
   compare_level_one_shell(0.0, cell_scene);
 }
+// A larger box at rest: mostly interior coarse rows, whose blocks are symmetric to the bit (summed over the cells
+// around a node the rank-one parts cancel in their asymmetric entries), beside the faces' asymmetric ones.
+TEST(LatticeGalerkin, LevelOneShellWithCellsAtRestInteriorRows) {
+  std::string big = cell_scene;
+  big.replace(big.find("[10, 7, 12]"), 11, "[17, 15, 19]");
+  compare_level_one_shell(0.0, big);
+}
 // At rest on a non-integer spacing with cells (cubic: the volumetric law alone, whose rest rows are keyed): each row is shown to the stream as its springs' inputs and the cell
 // term's key (ForceModel::tangent_blocks_unless, Term::rest_row), and rows equal to their class's first are not
 // computed at all; the springs' separations from the lattice offsets, the matrix's from the positions: equal to

@@ -502,6 +502,34 @@ __attribute__((always_inline)) inline void split_row(const double* __restrict r,
                                                      double* __restrict y, double* __restrict z) {
   for (int j = 0; j <= n; ++j) x[j] = r[3 * j], y[j] = r[3 * j + 1], z[j] = r[3 * j + 2];
 }
+// The F = I form's Q from the four corner rows' molecules split into x, y, z (xs[r][j]: row r's molecule j): tr dF
+// with corner_gradient's differences in its order, then Q = -V0 kappa tr dF g.
+__attribute__((always_inline)) inline void rest_split_q(int n, const double* const* xs, const double* const* ys,
+                                                        const double* const* zs, double kappa, double volume,
+                                                        double gx, double gy, double gz, double* __restrict Q) {
+  const double *__restrict y0 = ys[0], *__restrict y1 = ys[1], *__restrict y2 = ys[2], *__restrict y3 = ys[3];
+  const double *__restrict z0 = zs[0], *__restrict z1 = zs[1], *__restrict z2 = zs[2], *__restrict z3 = zs[3];
+  alignas(64) double dy[2][kCellBlock + 1], dz[2][kCellBlock + 1];
+  for (int j = 0; j <= n; ++j) {
+    dy[0][j] = y1[j] - y0[j], dy[1][j] = y3[j] - y2[j];
+    dz[0][j] = z2[j] - z0[j], dz[1][j] = z3[j] - z1[j];
+  }
+  const double* const* ux = xs;
+  alignas(64) double tr[kCellBlock];
+  for (int i = 0; i < n; ++i) {
+    const double tx = ((ux[0][i + 1] - ux[0][i]) + (ux[1][i + 1] - ux[1][i]) + (ux[2][i + 1] - ux[2][i]) +
+                       (ux[3][i + 1] - ux[3][i])) * gx;
+    const double ty = (dy[0][i] + dy[0][i + 1] + dy[1][i] + dy[1][i + 1]) * gy;
+    const double tz = (dz[0][i] + dz[0][i + 1] + dz[1][i] + dz[1][i + 1]) * gz;
+    tr[i] = tx + ty + tz;
+  }
+  const double stiff = 0.5 * kappa * 2.0;  // half (1 + 1 / J^2) at J = 1, as volumetric_block_tangent's
+  for (int i = 0; i < n; ++i) {
+    const double sv = -volume * (stiff * tr[i]);  // add_cell_products' -volume dP g, dP = dvol I
+    Q[3 * i] = sv * gx, Q[3 * i + 1] = sv * gy, Q[3 * i + 2] = sv * gz;
+  }
+}
+
 // The F = I form's Q of a row block's n cells (Q[3i + d] = cell i's -V0 dP g, d's entry; dP = kappa tr(dF) I),
 // interleaved as the molecules: volumetric_block_tangent's rest rows, and the pull form's cell rows (below).
 __attribute__((always_inline)) inline void rest_rows_q(int n, const int* __restrict base,
@@ -539,27 +567,10 @@ __attribute__((always_inline)) inline void rest_rows_q(int n, const int* __restr
   split_row(r1, n, keep->x[0], keep->y[0], keep->z[0]);
   split_row(r3, n, keep->x[1], keep->y[1], keep->z[1]);
   keep->row[0] = r1, keep->row[1] = r3, keep->n = n;
-  const double *x1 = keep->x[0], *y1 = keep->y[0], *z1 = keep->z[0];
-  const double *x3 = keep->x[1], *y3 = keep->y[1], *z3 = keep->z[1];
-  alignas(64) double dy[2][kCellBlock + 1], dz[2][kCellBlock + 1];
-  for (int j = 0; j <= n; ++j) {
-    dy[0][j] = y1[j] - y0[j], dy[1][j] = y3[j] - y2[j];
-    dz[0][j] = z2[j] - z0[j], dz[1][j] = z3[j] - z1[j];
-  }
-  const double* const ux[4] = {x0, x1, x2, x3};
-  alignas(64) double tr[kCellBlock];
-  for (int i = 0; i < n; ++i) {
-    const double tx = ((ux[0][i + 1] - ux[0][i]) + (ux[1][i + 1] - ux[1][i]) + (ux[2][i + 1] - ux[2][i]) +
-                       (ux[3][i + 1] - ux[3][i])) * gx;
-    const double ty = (dy[0][i] + dy[0][i + 1] + dy[1][i] + dy[1][i + 1]) * gy;
-    const double tz = (dz[0][i] + dz[0][i + 1] + dz[1][i] + dz[1][i + 1]) * gz;
-    tr[i] = tx + ty + tz;
-  }
-  const double stiff = 0.5 * kappa * 2.0;  // half (1 + 1 / J^2) at J = 1, as volumetric_block_tangent's
-  for (int i = 0; i < n; ++i) {
-    const double sv = -volume * (stiff * tr[i]);  // add_cell_products' -volume dP g, dP = dvol I
-    Q[3 * i] = sv * gx, Q[3 * i + 1] = sv * gy, Q[3 * i + 2] = sv * gz;
-  }
+  const double* const xs[4] = {x0, keep->x[0], x2, keep->x[1]};
+  const double* const ys[4] = {y0, keep->y[0], y2, keep->y[1]};
+  const double* const zs[4] = {z0, keep->z[0], z2, keep->z[1]};
+  rest_split_q(n, xs, ys, zs, kappa, volume, gx, gy, gz, Q);
 }
 TISSUE_CELL_CLONES
 void volumetric_block_tangent(int n, const int* __restrict base, const int* __restrict offset, bool rows,
@@ -653,6 +664,19 @@ void rest_block_q(int n, const int* __restrict base, const int* __restrict offse
 typedef double V4 __attribute__((vector_size(32)));
 typedef double V4u __attribute__((vector_size(32), aligned(8), may_alias));
 #define TISSUE_LOAD4(p) (*reinterpret_cast<const V4u*>(p))
+
+// The pull form with its molecule rows split once a product (CellElasticity::pull_cells_to): a molecule row into
+// x, y, z, and a block's Q from its four rows' split molecules.
+TISSUE_CELL_CLONES
+void split_molecule_row(const double* __restrict r, int n, double* __restrict x, double* __restrict y,
+                        double* __restrict z) {
+  split_row(r, n, x, y, z);
+}
+TISSUE_CELL_CLONES
+void rest_split_block_q(int n, const double* const* xs, const double* const* ys, const double* const* zs,
+                        double kappa, double volume, const double g[3], double* __restrict Q) {
+  rest_split_q(n, xs, ys, zs, kappa, volume, g[0], g[1], g[2], Q);
+}
 
 // The sign tables' period: 3 components, so a row longer than a block's is taken in chunks of kSignSpan entries
 // (a multiple of 3) whose table index restarts at 3.
@@ -1383,7 +1407,7 @@ public:
     if (!blocks_.empty()) {
       rest_rows_.reset();  // a new product: u's rows not yet split
       if (pulled(w, x)) {
-        pull_computed_ = 0;
+        pull_reset();
         pull_below(u, m_.owned, 0, out);
         return;
       }
@@ -1406,7 +1430,7 @@ public:
     const int nb = static_cast<int>(blocks_.size());
     if (from == 0) rest_rows_.reset();  // a product's first piece: u's rows not yet split
     if (pulled(w, x)) {  // pieces: the pull form's molecule rows
-      if (from == 0) pull_computed_ = 0;
+      if (from == 0) pull_reset();
       return pull_below(u, below, from, out);
     }
     for (; from < nb && blocks_[from].reach <= below; ++from) block_tangent(blocks_[from], w, x, state_with_width + 1, u, out);
@@ -1747,11 +1771,13 @@ private:
   // A cell row: consecutive row blocks that continue each other along x (cells [first_cell, + cells)).
   struct CellRow {
     int first_block, blocks, first_cell, cells;
+    int q_at;  // its Q's offset in pull_ring_
   };
   // A molecule row: molecules [start, start + cells + 1), corner row r[e] of cell row cell_row[e], e < count.
   struct PullRow {
     int start, cells, count;
     int cell_row[4], r[4];
+    int q_at[4];  // their Q's offsets in pull_ring_
   };
   std::vector<CellRow> cell_rows_;
   std::vector<PullRow> pull_rows_;     // those with an owned molecule, by start; empty: the push form
@@ -1759,6 +1785,18 @@ private:
   int ring_rows_ = 0, ring_stride_ = 0;  // the ring's cell rows (slot c % ring_rows_), 3 x its longest row
   mutable std::vector<double> pull_ring_;
   mutable int pull_computed_ = 0;  // this product's cell rows [0, pull_computed_) are in the ring
+  // The molecule rows the needed cell rows read (ghosts' too), split into x, y, z once a product: numbered by
+  // first use (run_start_: first molecule), per cell row its four (run_of_), in a ring of split_rows_ slots
+  // (3 (cells + 1) doubles each); split_holds_: the run a slot holds in this product (-1: none). 0 slots: each
+  // block splits its rows itself (RestRows).
+  std::vector<int> run_of_, run_at_, run_start_;  // run_at_: run_of_'s slot
+  int split_rows_ = 0, split_stride_ = 0;
+  mutable std::vector<double> split_ring_;
+  mutable std::vector<int> split_holds_;
+  void pull_reset() const {
+    pull_computed_ = 0;
+    std::fill(split_holds_.begin(), split_holds_.end(), -1);
+  }
 
   // The rest form with every block a row block (w < 0: the rest state; w = 0 at the rest array itself).
   bool pulled(int w, const double* x) const {
@@ -1769,7 +1807,34 @@ private:
     for (; pull_computed_ <= c; ++pull_computed_) {
       if (!row_needed_[pull_computed_]) continue;
       const CellRow& row = cell_rows_[pull_computed_];
-      double* slot = pull_ring_.data() + static_cast<std::size_t>(pull_computed_ % ring_rows_) * ring_stride_;
+      double* slot = pull_ring_.data() + row.q_at;
+      if (split_rows_ > 0) {
+        // Its four molecule rows from the split ring, each split at its first use in this product.
+        const double *xs[4], *ys[4], *zs[4];
+        const std::size_t len = static_cast<std::size_t>(row.cells) + 1;
+        for (int r = 0; r < 4; ++r) {
+          const std::size_t q = 4 * static_cast<std::size_t>(pull_computed_) + r;
+          const int id = run_of_[q], at = run_at_[q];
+          double* x = split_ring_.data() + static_cast<std::size_t>(at) * split_stride_;
+          if (split_holds_[at] != id) {
+            split_molecule_row(u + 3 * static_cast<std::size_t>(run_start_[id]), row.cells, x, x + len, x + 2 * len);
+            split_holds_[at] = id;
+          }
+          xs[r] = x, ys[r] = x + len, zs[r] = x + 2 * len;
+        }
+        for (int q = row.first_block; q < row.first_block + row.blocks; ++q) {
+          const Block& b = blocks_[q];
+          const Kind& kind = kinds_[b.kind];
+          const Geometry& geo = geometry_[kind.body];
+          const double g[3] = {geo.g[1][0], geo.g[2][1], geo.g[4][2]};
+          const int o = b.first - row.first_cell;
+          const double* bx[4] = {xs[0] + o, xs[1] + o, xs[2] + o, xs[3] + o};
+          const double* by[4] = {ys[0] + o, ys[1] + o, ys[2] + o, ys[3] + o};
+          const double* bz[4] = {zs[0] + o, zs[1] + o, zs[2] + o, zs[3] + o};
+          rest_split_block_q(b.n, bx, by, bz, kind.moduli.kappa, geo.volume, g, slot + 3 * o);
+        }
+        continue;
+      }
       for (int q = row.first_block; q < row.first_block + row.blocks; ++q) {
         const Block& b = blocks_[q];
         const Kind& kind = kinds_[b.kind];
@@ -1789,11 +1854,44 @@ private:
       if (p.start + touched > below) break;
       pull_cells_to(u, p.cell_row[p.count - 1]);
       const double* Q[4];
-      for (int e = 0; e < p.count; ++e)
-        Q[e] = pull_ring_.data() + static_cast<std::size_t>(p.cell_row[e] % ring_rows_) * ring_stride_;
+      for (int e = 0; e < p.count; ++e) Q[e] = pull_ring_.data() + p.q_at[e];
       pull_row_at_rest(Q, p.r, p.count, p.cells, touched, out + 3 * static_cast<std::size_t>(p.start));
     }
     return from;
+  }
+  // The split ring's runs and size, by the cell rows' order of computation (the needed ones); none where a
+  // molecule row is read with two lengths.
+  void make_split_ring() {
+    std::map<int, int> id_of;
+    std::vector<int> run_of(4 * cell_rows_.size(), -1), start, length;
+    int newest = -1, ring = 1;
+    std::size_t longest = 0;
+    for (int c = 0; c < static_cast<int>(cell_rows_.size()); ++c) {
+      if (!row_needed_[c]) continue;
+      const CellRow& row = cell_rows_[c];
+      const Block& b = blocks_[row.first_block];
+      const int* p = patterns_[b.pattern].data();
+      int oldest = newest + 1;
+      for (int r = 0; r < 4; ++r) {
+        const int first = b.base0 + p[2 * r];
+        auto found = id_of.emplace(first, static_cast<int>(start.size()));
+        if (found.second) start.push_back(first), length.push_back(row.cells);
+        const int id = found.first->second;
+        if (length[id] != row.cells) return;
+        run_of[4 * static_cast<std::size_t>(c) + r] = id;
+        newest = std::max(newest, id), oldest = std::min(oldest, id);
+      }
+      ring = std::max(ring, newest - oldest + 1);
+      longest = std::max<std::size_t>(longest, row.cells + 1);
+    }
+    const std::size_t doubles = static_cast<std::size_t>(ring) * 3 * longest;
+    if (doubles > (std::size_t{1} << 22)) return;
+    run_at_.resize(run_of.size());
+    for (std::size_t q = 0; q < run_of.size(); ++q) run_at_[q] = run_of[q] < 0 ? -1 : run_of[q] % ring;
+    run_of_ = std::move(run_of), run_start_ = std::move(start);
+    split_rows_ = ring, split_stride_ = static_cast<int>(3 * longest);
+    split_ring_.assign(doubles, 0.0);
+    split_holds_.assign(ring, -1);
   }
   // The pull form's rows, where every block is a row block and the molecule rows are disjoint (each molecule in
   // one, from the same cell rows as in the push form); otherwise (gathered blocks: a row's last cells, a rank's
@@ -1816,7 +1914,7 @@ private:
           continue;
         }
       }
-      rows.push_back({q, 1, b.first, b.n});
+      rows.push_back({q, 1, b.first, b.n, 0});
     }
     std::map<int, PullRow> by_start;
     for (int c = 0; c < static_cast<int>(rows.size()); ++c) {
@@ -1824,7 +1922,7 @@ private:
       for (int r = 0; r < 4; ++r) {
         const int start = blocks_[rows[c].first_block].base0 + p[2 * r];
         if (start >= m_.owned) continue;
-        auto found = by_start.emplace(start, PullRow{start, rows[c].cells, 0, {}, {}});
+        auto found = by_start.emplace(start, PullRow{start, rows[c].cells, 0, {}, {}, {}});
         PullRow& row = found.first->second;
         if (row.cells != rows[c].cells || row.count == 4 || (row.count > 0 && row.cell_row[row.count - 1] == c))
           return;
@@ -1849,9 +1947,13 @@ private:
     row_needed_.assign(rows.size(), 0);
     for (const PullRow& row : pull)
       for (int e = 0; e < row.count; ++e) row_needed_[row.cell_row[e]] = 1;
+    for (int c = 0; c < static_cast<int>(rows.size()); ++c) rows[c].q_at = (c % ring) * 3 * longest;
+    for (PullRow& row : pull)
+      for (int e = 0; e < row.count; ++e) row.q_at[e] = rows[row.cell_row[e]].q_at;
     cell_rows_ = std::move(rows), pull_rows_ = std::move(pull);
     ring_rows_ = ring, ring_stride_ = 3 * longest;
     pull_ring_.assign(doubles, 0.0);
+    make_split_ring();
     if (PetscInfo(nullptr, "cell term: the rest rows pulled, %zu molecule rows, %zu cell rows, a ring of %d\n",
                   pull_rows_.size(), cell_rows_.size(), ring_rows_))
       throw std::runtime_error("PetscInfo failed");

@@ -1779,18 +1779,18 @@ private:
     int cell_row[4], r[4];
     int q_at[4];  // their Q's offsets in pull_ring_
   };
-  std::vector<CellRow> cell_rows_;
-  std::vector<PullRow> pull_rows_;     // those with an owned molecule, by start; empty: the push form
-  std::vector<char> row_needed_;       // per cell row: some pull row reads it
-  int ring_rows_ = 0, ring_stride_ = 0;  // the ring's cell rows (slot c % ring_rows_), 3 x its longest row
+  mutable std::vector<CellRow> cell_rows_;
+  mutable std::vector<PullRow> pull_rows_;     // those with an owned molecule, by start; empty: the push form
+  mutable std::vector<char> row_needed_;       // per cell row: some pull row reads it
+  mutable int ring_rows_ = 0, ring_stride_ = 0;  // the ring's cell rows (slot c % ring_rows_), 3 x its longest row
   mutable std::vector<double> pull_ring_;
   mutable int pull_computed_ = 0;  // this product's cell rows [0, pull_computed_) are in the ring
   // The molecule rows the needed cell rows read (ghosts' too), split into x, y, z once a product: numbered by
   // first use (run_start_: first molecule), per cell row its four (run_of_), in a ring of split_rows_ slots
   // (3 (cells + 1) doubles each); split_holds_: the run a slot holds in this product (-1: none). 0 slots: each
   // block splits its rows itself (RestRows).
-  std::vector<int> run_of_, run_at_, run_start_;  // run_at_: run_of_'s slot
-  int split_rows_ = 0, split_stride_ = 0;
+  mutable std::vector<int> run_of_, run_at_, run_start_;  // run_at_: run_of_'s slot
+  mutable int split_rows_ = 0, split_stride_ = 0;
   mutable std::vector<double> split_ring_;
   mutable std::vector<int> split_holds_;
   void pull_reset() const {
@@ -1800,8 +1800,13 @@ private:
 
   // The rest form with every block a row block (w < 0: the rest state; w = 0 at the rest array itself).
   bool pulled(int w, const double* x) const {
-    return !pull_rows_.empty() && (w < 0 || (w == 0 && x == m_.rest.data()));
+    if (!(w < 0 || (w == 0 && x == m_.rest.data()))) return false;
+    if (!pull_made_) make_pull(), pull_made_ = true;
+    return !pull_rows_.empty();
   }
+  // The pull form's arrays are made at the first rest product, not with the term: among the set-up's arrays they
+  // raised the 10^6 static solve's peak by 12 MB (docs/benchmarks.md), after it by nothing.
+  mutable bool pull_made_ = false;
   // The cell rows up to c (those needed) into the ring, in order (RestRows' split rows carried block to block).
   void pull_cells_to(const double* u, int c) const {
     for (; pull_computed_ <= c; ++pull_computed_) {
@@ -1861,7 +1866,7 @@ private:
   }
   // The split ring's runs and size, by the cell rows' order of computation (the needed ones); none where a
   // molecule row is read with two lengths.
-  void make_split_ring() {
+  void make_split_ring() const {
     std::map<int, int> id_of;
     std::vector<int> run_of(4 * cell_rows_.size(), -1), start, length;
     int newest = -1, ring = 1;
@@ -1896,7 +1901,7 @@ private:
   // The pull form's rows, where every block is a row block and the molecule rows are disjoint (each molecule in
   // one, from the same cell rows as in the push form); otherwise (gathered blocks: a row's last cells, a rank's
   // edge) pull_rows_ stays empty and the push form runs. -static_cell_pull false: the push form always.
-  void make_pull() {
+  void make_pull() const {
     PetscBool on = PETSC_TRUE;
     if (PetscOptionsGetBool(nullptr, nullptr, "-static_cell_pull", &on, nullptr))
       throw InputError("PETSc options", "-static_cell_pull", "expects true or false");
@@ -1984,7 +1989,6 @@ private:
       k += n;
     }
     blocks_.shrink_to_fit();
-    make_pull();
   }
 
   // Block b's product (state of width w: 0 volumetric-only, from x, -1 the same at the rest positions; 10 F and

@@ -1807,6 +1807,7 @@ private:
   // The pull form's arrays are made at the first rest product, not with the term: among the set-up's arrays they
   // raised the 10^6 static solve's peak by 12 MB (docs/benchmarks.md), after it by nothing.
   mutable bool pull_made_ = false;
+  bool pull_on_ = true;  // -static_cell_pull, read with the term
   // The cell rows up to c (those needed) into the ring, in order (RestRows' split rows carried block to block).
   void pull_cells_to(const double* u, int c) const {
     for (; pull_computed_ <= c; ++pull_computed_) {
@@ -1902,10 +1903,7 @@ private:
   // one, from the same cell rows as in the push form); otherwise (gathered blocks: a row's last cells, a rank's
   // edge) pull_rows_ stays empty and the push form runs. -static_cell_pull false: the push form always.
   void make_pull() const {
-    PetscBool on = PETSC_TRUE;
-    if (PetscOptionsGetBool(nullptr, nullptr, "-static_cell_pull", &on, nullptr))
-      throw InputError("PETSc options", "-static_cell_pull", "expects true or false");
-    if (!on || blocks_.empty()) return;
+    if (!pull_on_ || blocks_.empty()) return;
     for (const Block& b : blocks_)
       if (!b.rows) return;
     std::vector<CellRow> rows;
@@ -1959,9 +1957,9 @@ private:
     ring_rows_ = ring, ring_stride_ = 3 * longest;
     pull_ring_.assign(doubles, 0.0);
     make_split_ring();
-    if (PetscInfo(nullptr, "cell term: the rest rows pulled, %zu molecule rows, %zu cell rows, a ring of %d\n",
-                  pull_rows_.size(), cell_rows_.size(), ring_rows_))
-      throw std::runtime_error("PetscInfo failed");
+    // Inside a product (no error code to return): a failure aborts every rank.
+    PetscCallAbort(PETSC_COMM_SELF, PetscInfo(nullptr, "cell term: the rest rows pulled, %zu molecule rows, %zu cell "
+                                              "rows, a ring of %d\n", pull_rows_.size(), cell_rows_.size(), ring_rows_));
   }
   // add_tangent's ring of dP/dF: the most cells between a molecule's first and last cell (ids x-fastest).
   std::size_t ring_ = 1;
@@ -1989,6 +1987,10 @@ private:
       k += n;
     }
     blocks_.shrink_to_fit();
+    PetscBool on = PETSC_TRUE;
+    if (PetscOptionsGetBool(nullptr, nullptr, "-static_cell_pull", &on, nullptr))
+      throw InputError("PETSc options", "-static_cell_pull", "expects true or false");
+    pull_on_ = on;
   }
 
   // Block b's product (state of width w: 0 volumetric-only, from x, -1 the same at the rest positions; 10 F and

@@ -15,6 +15,7 @@
 #include <petscksp.h>
 
 #include <cmath>
+#include <cstring>
 #include <petsc/private/pcmgimpl.h>  // the finest level's residual operator
 
 #include "src/physics/force_model.hpp"
@@ -52,6 +53,13 @@ const std::string cubic_short = with(cubic, "[21, 9, 13]", "[9, 3, 4]");
 // cell term keeps from one row block for the next (src/physics/terms/cell_elasticity.cpp, RestRows), so a product
 // would find the last product's rows if they were not dropped before it.
 const std::string cubic_tiny = with(cubic, "[21, 9, 13]", "[9, 3, 2]");
+
+// Rows of 99 cells (row blocks of 64 and 35, as at 10^6 molecules) and of 140 (64 + 64 + 12: a cell row of three
+// blocks, longer than the rest form's sign tables' span).
+const std::string cubic_99 = with(cubic, "[21, 9, 13]", "[100, 4, 3]");
+const std::string cubic_140 = with(cubic, "[21, 9, 13]", "[141, 3, 3]");
+// A block cut into whole planes at 2 and 3 ranks (its ranks' rows pulled, ghost rows read).
+const std::string cubic_planes = with(cubic, "[21, 9, 13]", "[24, 24, 24]");
 
 double relative(Vec a, Vec b) {  // |a - b| / |b|
   Vec d;
@@ -116,7 +124,58 @@ void compare_at_rest(const std::string& text) {
   MatDestroy(&J), MatDestroy(&A);
 }
 
+// The cell term's rest product by molecule rows (its pull form, the default where every cell block is a row block)
+// against its push form (-static_cell_pull false: each block adds to its four corner rows), both the rest tangent's
+// whole product, random u: equal to the bit (the same terms in the same order for every molecule).
+// The option is read with the term, its arrays made at the first rest product.
+void pull_equals_push(const std::string& text) {
+  auto a = run(text, PETSC_COMM_WORLD, {}, false);
+  ASSERT_EQ(PetscOptionsSetValue(nullptr, "-static_cell_pull", "false"), 0);
+  auto b = run(text, PETSC_COMM_WORLD, {}, false);
+  ASSERT_EQ(PetscOptionsClearValue(nullptr, "-static_cell_pull"), 0);
+  std::vector<double> sa(3 * static_cast<std::size_t>(a->model.local)), sb(sa.size());
+  std::unique_ptr<RestTangent> ra, rb;
+  ASSERT_EQ(RestTangent::make(a->model, *a->forces, sa.data(), false, &ra), 0);
+  ASSERT_EQ(RestTangent::make(b->model, *b->forces, sb.data(), false, &rb), 0);
+  ASSERT_TRUE(ra && rb) << text;
+  Vec ua, ub, ya, yb;
+  ASSERT_EQ(MatCreateVecs(ra->matrix(), &ua, &ya), 0);
+  ASSERT_EQ(MatCreateVecs(rb->matrix(), &ub, &yb), 0);
+  PetscRandom random;
+  PetscRandomCreate(PETSC_COMM_WORLD, &random);
+  PetscRandomSetInterval(random, -1.0, 1.0);
+  for (int trial = 0; trial < 3; ++trial) {
+    VecSetRandom(ua, random);
+    ASSERT_EQ(VecCopy(ua, ub), 0);
+    ASSERT_EQ(MatMult(ra->matrix(), ua, ya), 0);
+    ASSERT_EQ(MatMult(rb->matrix(), ub, yb), 0);
+    const PetscScalar *pa, *pb;
+    PetscInt n = 0;
+    VecGetLocalSize(ya, &n);
+    VecGetArrayRead(ya, &pa), VecGetArrayRead(yb, &pb);
+    int differ = 0;
+    for (PetscInt i = 0; i < n; ++i) differ += std::memcmp(pa + i, pb + i, sizeof(double)) != 0;
+    VecRestoreArrayRead(ya, &pa), VecRestoreArrayRead(yb, &pb);
+    int all = 0;
+    MPI_Allreduce(&differ, &all, 1, MPI_INT, MPI_SUM, PETSC_COMM_WORLD);
+    EXPECT_EQ(all, 0) << text;
+    PetscReal norm = 0;
+    VecNorm(ya, NORM_2, &norm);
+    EXPECT_GT(norm, 0.0);
+  }
+  PetscRandomDestroy(&random);
+  for (Vec* v : {&ua, &ub, &ya, &yb}) VecDestroy(v);
+}
+
 }  // namespace
+
+TEST(RestTangent, CellPullEqualsPushVolumetricCells) { pull_equals_push(cubic); }
+TEST(RestTangent, CellPullEqualsPushShortRows) { pull_equals_push(cubic_short); }
+TEST(RestTangent, CellPullEqualsPushTwoBlocks) { pull_equals_push(cubic_tiny); }
+TEST(RestTangent, CellPullEqualsPushRowsOf99) { pull_equals_push(cubic_99); }
+TEST(RestTangent, CellPullEqualsPushRowsOf140) { pull_equals_push(cubic_140); }
+TEST(RestTangent, CellPullEqualsPushPlanes) { pull_equals_push(cubic_planes); }
+TEST(RestTangent, EqualsNewtonTangentAtRestVolumetricCellsRowsOf140) { compare_at_rest(cubic_140); }
 
 TEST(RestTangent, EqualsNewtonTangentAtRestSprings) { compare_at_rest(springs); }
 TEST(RestTangent, EqualsNewtonTangentAtRestSpringsNonIntegerSpacing) { compare_at_rest(springs_mm); }

@@ -778,7 +778,7 @@ bool ForceModel::at_rest(const double* x) const {
 }
 
 int ForceModel::row_inputs(const double* x, int i, bool at_rest, std::vector<int>& ends,
-                           std::vector<double>& inputs) const {
+                           std::vector<double>& inputs, const std::array<int, 3>* lattice) const {
   const int first = tangent_.conn_start[i], count = tangent_.conn_start[i + 1] - first;
   ends.resize(count), inputs.resize(5 * static_cast<std::size_t>(count));
   // At the rest positions, a box lattice's separations from its lattice offsets, ((i' - i) h_x, ...): the doubles
@@ -786,15 +786,20 @@ int ForceModel::row_inputs(const double* x, int i, bool at_rest, std::vector<int
   // positions' differences vary in the last bits from place to place wherever h is not a power of two, and then
   // no row of a class had its first row's inputs (LatticeGalerkin's skip); the blocks differ at round-off.
   const BoxGeometry& box = model_.shape.part(model_.id[i]);
-  const bool lattice = at_rest && !box.unstructured();
-  const auto ii = lattice ? box.index(model_.id[i]) : std::array<long, 3>{};
+  const bool on_lattice = at_rest && !box.unstructured();
+  // The indices from `lattice` where given (three 64-bit divisions an end otherwise): the same offsets.
+  auto index = [&](int m) {
+    if (!lattice) return box.index(model_.id[m]);
+    return std::array<long, 3>{lattice[m][0], lattice[m][1], lattice[m][2]};
+  };
+  const auto ii = on_lattice ? index(i) : std::array<long, 3>{};
   // What Stretch and connection_row read, in their order.
   for (int q = 0; q < count; ++q) {
     const int c = tangent_.row_conns[first + q];
     const int j = model_.end_a[c] == i ? model_.end_b[c] : model_.end_a[c];
     double* in = inputs.data() + 5 * q;
-    if (lattice && model_.body[i] == model_.body[j]) {
-      const auto ij = box.index(model_.id[j]);
+    if (on_lattice && model_.body[i] == model_.body[j]) {
+      const auto ij = index(j);
       for (int r = 0; r < 3; ++r) in[r] = static_cast<double>(ij[r] - ii[r]) * box.h[r];
     } else {
       for (int r = 0; r < 3; ++r) in[r] = x[3 * j + r] - x[3 * i + r];
@@ -806,7 +811,7 @@ int ForceModel::row_inputs(const double* x, int i, bool at_rest, std::vector<int
 }
 
 PetscErrorCode ForceModel::tangent_blocks_unless(const double* x, Term::BlockAdd add, void* ctx, RowKnown known,
-                                                 void* known_ctx) const {
+                                                 void* known_ctx, const std::array<int, 3>* lattice) const {
   PetscFunctionBeginUser;
   const int n = model_.owned;
   if (static_cast<int>(tangent_.conn_start.size()) != n + 1) tangent_.create_rows(model_);
@@ -818,7 +823,7 @@ PetscErrorCode ForceModel::tangent_blocks_unless(const double* x, Term::BlockAdd
   std::vector<int> ends, columns;
   std::vector<double> inputs, key;
   for (int i = 0; i < n; ++i) {
-    const int count = row_inputs(x, i, rest, ends, inputs);
+    const int count = row_inputs(x, i, rest, ends, inputs, lattice);
     if (!terms_.empty()) {
       columns.clear(), key.clear();
       for (const auto& t : terms_) t->rest_row(i, columns, key);

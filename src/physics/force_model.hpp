@@ -6,6 +6,7 @@
 #include <petscmat.h>
 
 #include <cstdint>
+#include <array>
 #include <memory>
 #include <vector>
 
@@ -81,9 +82,11 @@ public:
   // stream: a box lattice's rows at its reference state). Springs only, or at the rest positions when every term
   // has rest rows (Term::rest_rows; then each streamed row's connection row and its terms' blocks together, in
   // owned order); otherwise tangent_blocks, known never asked.
+  // lattice (may be null): every local molecule's lattice index in its body (BoxGeometry::index; LatticeGalerkin's),
+  // read instead of computed from the ids at the rest positions (the same offsets).
   using RowKnown = bool (*)(void* ctx, int i, const int* ends, int n, const double* inputs, int m);
   PetscErrorCode tangent_blocks_unless(const double* x, Term::BlockAdd add, void* ctx, RowKnown known,
-                                       void* known_ctx) const;
+                                       void* known_ctx, const std::array<int, 3>* lattice = nullptr) const;
   // Collective: the smallest time step bound the terms impose by themselves (infinity: none; Term::critical_time_step).
   double terms_critical_time_step() const;
   // Adds each term's force scale per owned molecule (N) to scale (the residual's round-off floor).
@@ -196,7 +199,8 @@ private:
   bool at_rest(const double* x) const;
   // Owned molecule i's connection row's inputs (tangent_blocks_unless), ends and inputs resized to its count,
   // which is returned; at_rest: a box lattice's separations from its lattice offsets.
-  int row_inputs(const double* x, int i, bool at_rest, std::vector<int>& ends, std::vector<double>& inputs) const;
+  int row_inputs(const double* x, int i, bool at_rest, std::vector<int>& ends, std::vector<double>& inputs,
+                 const std::array<int, 3>* lattice = nullptr) const;
   // The tangent's block-row pattern and CSR storage (src/physics/tangent.hpp), built by create_tangent.
   mutable TangentStorage tangent_;
   // Terms whose tangent has rows of ghosts (Term::tangent_has_ghost_rows): the matrix-free product's and the

@@ -974,7 +974,7 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     auto ask = [](void* ctx, int i, const int* ends, int n, const double* inputs, int m) -> bool {
       return (*static_cast<Known*>(ctx))(i, ends, n, inputs, m);
     };
-    PetscCall(stream->forces->tangent_blocks_unless(stream->x, add, &put, ask, &known));
+    PetscCall(stream->forces->tangent_blocks_unless(stream->x, add, &put, ask, &known, ijk_.data()));
     PetscCall(known_error);
     PetscCall(flush());
     jacobi_bound_ = bound;

@@ -54,6 +54,7 @@ void check_tissue_options() {
   boolean("-static_fused_chebyshev");
   boolean("-static_rest_smoother");
   boolean("-static_rest_pull");
+  boolean("-static_cell_pull");
   boolean("-static_reuse_residual");
   boolean("-static_estimate_on_idle");
   whole("-static_cell_coarse_steps", 0);

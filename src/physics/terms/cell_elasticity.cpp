@@ -25,6 +25,8 @@
 #include <stdexcept>
 #include <unordered_map>
 
+#include <petscsys.h>
+
 #include "src/model/cell_law.hpp"
 #include "src/physics/continuum_law.hpp"
 #include "src/physics/term.hpp"
@@ -500,6 +502,76 @@ __attribute__((always_inline)) inline void split_row(const double* __restrict r,
                                                      double* __restrict y, double* __restrict z) {
   for (int j = 0; j <= n; ++j) x[j] = r[3 * j], y[j] = r[3 * j + 1], z[j] = r[3 * j + 2];
 }
+// The F = I form's Q from the four corner rows' molecules split into x, y, z (xs[r][j]: row r's molecule j): tr dF
+// with corner_gradient's differences in its order, then Q = -V0 kappa tr dF g.
+__attribute__((always_inline)) inline void rest_split_q(int n, const double* const* xs, const double* const* ys,
+                                                        const double* const* zs, double kappa, double volume,
+                                                        double gx, double gy, double gz, double* __restrict Q) {
+  const double *__restrict y0 = ys[0], *__restrict y1 = ys[1], *__restrict y2 = ys[2], *__restrict y3 = ys[3];
+  const double *__restrict z0 = zs[0], *__restrict z1 = zs[1], *__restrict z2 = zs[2], *__restrict z3 = zs[3];
+  alignas(64) double dy[2][kCellBlock + 1], dz[2][kCellBlock + 1];
+  for (int j = 0; j <= n; ++j) {
+    dy[0][j] = y1[j] - y0[j], dy[1][j] = y3[j] - y2[j];
+    dz[0][j] = z2[j] - z0[j], dz[1][j] = z3[j] - z1[j];
+  }
+  const double* const* ux = xs;
+  alignas(64) double tr[kCellBlock];
+  for (int i = 0; i < n; ++i) {
+    const double tx = ((ux[0][i + 1] - ux[0][i]) + (ux[1][i + 1] - ux[1][i]) + (ux[2][i + 1] - ux[2][i]) +
+                       (ux[3][i + 1] - ux[3][i])) * gx;
+    const double ty = (dy[0][i] + dy[0][i + 1] + dy[1][i] + dy[1][i + 1]) * gy;
+    const double tz = (dz[0][i] + dz[0][i + 1] + dz[1][i] + dz[1][i + 1]) * gz;
+    tr[i] = tx + ty + tz;
+  }
+  const double stiff = 0.5 * kappa * 2.0;  // half (1 + 1 / J^2) at J = 1, as volumetric_block_tangent's
+  for (int i = 0; i < n; ++i) {
+    const double sv = -volume * (stiff * tr[i]);  // add_cell_products' -volume dP g, dP = dvol I
+    Q[3 * i] = sv * gx, Q[3 * i + 1] = sv * gy, Q[3 * i + 2] = sv * gz;
+  }
+}
+
+// The F = I form's Q of a row block's n cells (Q[3i + d] = cell i's -V0 dP g, d's entry; dP = kappa tr(dF) I),
+// interleaved as the molecules: volumetric_block_tangent's rest rows, and the pull form's cell rows (below).
+__attribute__((always_inline)) inline void rest_rows_q(int n, const int* __restrict base,
+                                                       const int* __restrict offset, const double* __restrict u,
+                                                       double kappa, double volume, double gx, double gy, double gz,
+                                                       RestRows* cache, double* __restrict Q) {
+  const double* r0 = u + 3 * (base[0] + offset[0]);
+  const double* r1 = u + 3 * (base[0] + offset[2]);
+  const double* r2 = u + 3 * (base[0] + offset[4]);
+  const double* r3 = u + 3 * (base[0] + offset[6]);
+  // corner_gradient's entries a of x, b of y, c of z, with the same differences in the same order: each row's
+  // molecules read once, not twice (as corner a of cell i and corner b of cell i - 1), rows 0 and 2 from the
+  // cache when the block before in the same x range split them, and the cells' sums from contiguous arrays
+  // instead of the rows' interleaved components.
+  RestRows::Entry local[2];
+  const RestRows::Entry* hit = nullptr;
+  if (cache)
+    for (const RestRows::Entry& e : cache->entry)
+      if (e.n == n && e.row[0] == r0 && e.row[1] == r2) hit = &e;
+  const double *x0, *y0, *z0, *x2, *y2, *z2;
+  if (hit) {
+    x0 = hit->x[0], y0 = hit->y[0], z0 = hit->z[0], x2 = hit->x[1], y2 = hit->y[1], z2 = hit->z[1];
+  } else {
+    split_row(r0, n, local[0].x[0], local[0].y[0], local[0].z[0]);
+    split_row(r2, n, local[0].x[1], local[0].y[1], local[0].z[1]);
+    x0 = local[0].x[0], y0 = local[0].y[0], z0 = local[0].z[0];
+    x2 = local[0].x[1], y2 = local[0].y[1], z2 = local[0].z[1];
+  }
+  RestRows::Entry* keep = &local[1];
+  if (cache) {
+    if (&cache->entry[cache->next] == hit) cache->next = (cache->next + 1) % RestRows::kEntries;
+    keep = &cache->entry[cache->next];
+    cache->next = (cache->next + 1) % RestRows::kEntries;
+  }
+  split_row(r1, n, keep->x[0], keep->y[0], keep->z[0]);
+  split_row(r3, n, keep->x[1], keep->y[1], keep->z[1]);
+  keep->row[0] = r1, keep->row[1] = r3, keep->n = n;
+  const double* const xs[4] = {x0, keep->x[0], x2, keep->x[1]};
+  const double* const ys[4] = {y0, keep->y[0], y2, keep->y[1]};
+  const double* const zs[4] = {z0, keep->z[0], z2, keep->z[1]};
+  rest_split_q(n, xs, ys, zs, kappa, volume, gx, gy, gz, Q);
+}
 TISSUE_CELL_CLONES
 void volumetric_block_tangent(int n, const int* __restrict base, const int* __restrict offset, bool rows,
                               const RowRest* rest, const double* __restrict u, const double* __restrict x,
@@ -510,58 +582,8 @@ void volumetric_block_tangent(int n, const int* __restrict base, const int* __re
   if (at_rest) {
     if (rows) {
       // Only tr dF is read (dF's diagonal), then the diagonal Q's corner sums.
-      const double* r0 = u + 3 * (base[0] + offset[0]);
-      const double* r1 = u + 3 * (base[0] + offset[2]);
-      const double* r2 = u + 3 * (base[0] + offset[4]);
-      const double* r3 = u + 3 * (base[0] + offset[6]);
-      // corner_gradient's entries a of x, b of y, c of z, with the same differences in the same order: each row's
-      // molecules read once, not twice (as corner a of cell i and corner b of cell i - 1), rows 0 and 2 from the
-      // cache when the block before in the same x range split them, and the cells' sums from contiguous arrays
-      // instead of the rows' interleaved components.
-      RestRows::Entry local[2];
-      const RestRows::Entry* hit = nullptr;
-      if (cache)
-        for (const RestRows::Entry& e : cache->entry)
-          if (e.n == n && e.row[0] == r0 && e.row[1] == r2) hit = &e;
-      const double *x0, *y0, *z0, *x2, *y2, *z2;
-      if (hit) {
-        x0 = hit->x[0], y0 = hit->y[0], z0 = hit->z[0], x2 = hit->x[1], y2 = hit->y[1], z2 = hit->z[1];
-      } else {
-        split_row(r0, n, local[0].x[0], local[0].y[0], local[0].z[0]);
-        split_row(r2, n, local[0].x[1], local[0].y[1], local[0].z[1]);
-        x0 = local[0].x[0], y0 = local[0].y[0], z0 = local[0].z[0];
-        x2 = local[0].x[1], y2 = local[0].y[1], z2 = local[0].z[1];
-      }
-      RestRows::Entry* keep = &local[1];
-      if (cache) {
-        if (&cache->entry[cache->next] == hit) cache->next = (cache->next + 1) % RestRows::kEntries;
-        keep = &cache->entry[cache->next];
-        cache->next = (cache->next + 1) % RestRows::kEntries;
-      }
-      split_row(r1, n, keep->x[0], keep->y[0], keep->z[0]);
-      split_row(r3, n, keep->x[1], keep->y[1], keep->z[1]);
-      keep->row[0] = r1, keep->row[1] = r3, keep->n = n;
-      const double *x1 = keep->x[0], *y1 = keep->y[0], *z1 = keep->z[0];
-      const double *x3 = keep->x[1], *y3 = keep->y[1], *z3 = keep->z[1];
-      alignas(64) double dy[2][kCellBlock + 1], dz[2][kCellBlock + 1];
-      for (int j = 0; j <= n; ++j) {
-        dy[0][j] = y1[j] - y0[j], dy[1][j] = y3[j] - y2[j];
-        dz[0][j] = z2[j] - z0[j], dz[1][j] = z3[j] - z1[j];
-      }
-      const double* const ux[4] = {x0, x1, x2, x3};
-      alignas(64) double tr[kCellBlock], Q[3 * kCellBlock];
-      for (int i = 0; i < n; ++i) {
-        const double tx = ((ux[0][i + 1] - ux[0][i]) + (ux[1][i + 1] - ux[1][i]) + (ux[2][i + 1] - ux[2][i]) +
-                           (ux[3][i + 1] - ux[3][i])) * gx;
-        const double ty = (dy[0][i] + dy[0][i + 1] + dy[1][i] + dy[1][i + 1]) * gy;
-        const double tz = (dz[0][i] + dz[0][i + 1] + dz[1][i] + dz[1][i + 1]) * gz;
-        tr[i] = tx + ty + tz;
-      }
-      const double stiff = 0.5 * kappa * 2.0;  // as below
-      for (int i = 0; i < n; ++i) {
-        const double sv = -volume * (stiff * tr[i]);  // add_cell_products' -volume dP g, dP = dvol I
-        Q[3 * i] = sv * gx, Q[3 * i + 1] = sv * gy, Q[3 * i + 2] = sv * gz;
-      }
+      alignas(64) double Q[3 * kCellBlock];
+      rest_rows_q(n, base, offset, u, kappa, volume, gx, gy, gz, cache, Q);
       add_row_corners_at_rest(Q, n, base, offset, owned, out);
       return;
     } else {
@@ -629,6 +651,111 @@ void volumetric_block_tangent(int n, const int* __restrict base, const int* __re
     for (int q = 0; q < 9; ++q) dP[q][i] = dvol * cof[q] + vol * dcof[q];
   }
   add_cell_products(dP, n, volume, gx, gy, gz, rows, base, offset, owned, out);
+}
+
+// The pull form of the rest rows (CellElasticity::pull_rows_): a row block's Q into a cell row's slot of the ring.
+TISSUE_CELL_CLONES
+void rest_block_q(int n, const int* __restrict base, const int* __restrict offset, const double* __restrict u,
+                  double kappa, double volume, const double g[3], RestRows* cache, double* __restrict Q) {
+  rest_rows_q(n, base, offset, u, kappa, volume, g[0], g[1], g[2], cache, Q);
+}
+
+// Four doubles; V4u at any double's address (unaligned loads and stores, aliasing doubles).
+typedef double V4 __attribute__((vector_size(32)));
+typedef double V4u __attribute__((vector_size(32), aligned(8), may_alias));
+#define TISSUE_LOAD4(p) (*reinterpret_cast<const V4u*>(p))
+
+// The pull form with its molecule rows split once a product (CellElasticity::pull_cells_to): a molecule row into
+// x, y, z, and a block's Q from its four rows' split molecules.
+TISSUE_CELL_CLONES
+void split_molecule_row(const double* __restrict r, int n, double* __restrict x, double* __restrict y,
+                        double* __restrict z) {
+  split_row(r, n, x, y, z);
+}
+TISSUE_CELL_CLONES
+void rest_split_block_q(int n, const double* const* xs, const double* const* ys, const double* const* zs,
+                        double kappa, double volume, const double g[3], double* __restrict Q) {
+  rest_split_q(n, xs, ys, zs, kappa, volume, g[0], g[1], g[2], Q);
+}
+
+// The sign tables' period: 3 components, so a row longer than a block's is taken in chunks of kSignSpan entries
+// (a multiple of 3) whose table index restarts at 3.
+constexpr int kSignSpan = 3 * kCellBlock;
+
+// One cell row's terms (Q, as its corner row r) added to a molecule row of n + 1 molecules, the first `touched`
+// owned: add_row_corners_at_rest's operations for one r, over the whole cell row at once (its blocks' ends
+// included: a molecule between two blocks took the first's cell before, then the second's cell after).
+__attribute__((always_inline)) inline void pull_one_row(const double* __restrict Q, int r, int n, int touched,
+                                                        double* __restrict fr) {
+  const double* __restrict at = kRestCornerSigns.s[r][0];
+  const double* __restrict next = kRestCornerSigns.s[r][1];
+  const int m = 3 * std::min(n, touched), t = 3 * touched;
+  for (int k = 0; k < std::min(3, m); ++k) fr[k] += at[k] * Q[k];
+  for (int c = 3; c < m; c += kSignSpan) {
+    const int e = std::min(m, c + kSignSpan), o = c - 3;
+    for (int k = c; k < e; ++k) fr[k] = (fr[k] + next[k - o] * Q[k - 3]) + at[k - o] * Q[k];
+  }
+  for (int k = std::max(3, m); k < t; ++k) fr[k] += next[k % 3] * Q[k - 3];
+}
+
+// A molecule row's cells' terms, pulled: out's n + 1 molecules (touched of them owned) take their cell rows'
+// Q[e] (as corner rows r[e]) in the cell rows' order, e = 0 .. count - 1, each molecule its cell before and then
+// its cell after from each: the terms and their order of the push form (each block's add_row_corners_at_rest),
+// so the same bits. A whole interior row (4 cell rows) reads and writes each molecule once.
+TISSUE_CELL_CLONES
+void pull_row_at_rest(const double* const* Q, const int* r, int count, int n, int touched, double* __restrict fr) {
+  if (count != 4 || touched != n + 1 || r[0] != 3 || r[1] != 2 || r[2] != 1 || r[3] != 0) {
+    for (int e = 0; e < count; ++e) pull_one_row(Q[e], r[e], n, touched, fr);
+    return;
+  }
+  // An interior row: its cell rows (j - 1, k - 1), (j, k - 1), (j - 1, k), (j, k) as corner rows 3, 2, 1, 0, whose
+  // signs (kRestCornerSigns) are written out: x takes -q of the cell before and +q of the cell after from each,
+  // y -q, +q, -q, +q of the four rows' cells (both cells), z -q, -q, +q, +q (a + (-1 q) is a - q, a + 1 q is a + q).
+  const double *__restrict q3 = Q[0], *__restrict q2 = Q[1], *__restrict q1 = Q[2], *__restrict q0 = Q[3];
+  fr[0] = (((fr[0] + q3[0]) + q2[0]) + q1[0]) + q0[0];
+  fr[1] = (((fr[1] - q3[1]) + q2[1]) - q1[1]) + q0[1];
+  fr[2] = (((fr[2] - q3[2]) - q2[2]) + q1[2]) + q0[2];
+  // Four molecules (12 doubles, three vectors) a step: the mixed signs as +-(P q) with P one of three patterns by
+  // component, P0 = (-, +, +), P1 = (-, -, +), P2 = (-, +, -) (n3 = -1, a3 = -P0, n2 = P2, a2 = -P1, n1 = P1,
+  // a1 = -P2, n0 = P0, a0 = 1): P q is +-q exactly, so each sum is the one above; the nine vectors P of the three
+  // phases stay in registers (the compiler's own vectorization blended an addition and a subtraction per term).
+  V4 P[3][3];
+  for (int j = 0; j < 3; ++j)
+    for (int l = 0; l < 4; ++l) {
+      const int d = (4 * j + l) % 3;
+      P[0][j][l] = d == 0 ? -1.0 : 1.0, P[1][j][l] = d == 2 ? 1.0 : -1.0, P[2][j][l] = d == 1 ? 1.0 : -1.0;
+    }
+  int i = 1;
+  for (; i + 4 <= n; i += 4) {
+    const int k0 = 3 * i;
+    for (int j = 0; j < 3; ++j) {
+      const int k = k0 + 4 * j;
+      V4 v = TISSUE_LOAD4(fr + k);
+      v = v - TISSUE_LOAD4(q3 + k - 3);
+      v = v - P[0][j] * TISSUE_LOAD4(q3 + k);
+      v = v + P[2][j] * TISSUE_LOAD4(q2 + k - 3);
+      v = v - P[1][j] * TISSUE_LOAD4(q2 + k);
+      v = v + P[1][j] * TISSUE_LOAD4(q1 + k - 3);
+      v = v - P[2][j] * TISSUE_LOAD4(q1 + k);
+      v = v + P[0][j] * TISSUE_LOAD4(q0 + k - 3);
+      v = v + TISSUE_LOAD4(q0 + k);
+      *reinterpret_cast<V4u*>(fr + k) = v;
+    }
+  }
+  for (; i < n; ++i) {
+    double* __restrict f = fr + 3 * i;
+    const int k = 3 * i;
+    double x = f[0], y = f[1], z = f[2];
+    x = (x - q3[k - 3]) + q3[k], y = (y - q3[k - 2]) - q3[k + 1], z = (z - q3[k - 1]) - q3[k + 2];
+    x = (x - q2[k - 3]) + q2[k], y = (y + q2[k - 2]) + q2[k + 1], z = (z - q2[k - 1]) - q2[k + 2];
+    x = (x - q1[k - 3]) + q1[k], y = (y - q1[k - 2]) - q1[k + 1], z = (z + q1[k - 1]) + q1[k + 2];
+    x = (x - q0[k - 3]) + q0[k], y = (y + q0[k - 2]) + q0[k + 1], z = (z + q0[k - 1]) + q0[k + 2];
+    f[0] = x, f[1] = y, f[2] = z;
+  }
+  const int m = 3 * n;
+  fr[m] = (((fr[m] - q3[m - 3]) - q2[m - 3]) - q1[m - 3]) - q0[m - 3];
+  fr[m + 1] = (((fr[m + 1] - q3[m - 2]) + q2[m - 2]) - q1[m - 2]) + q0[m - 2];
+  fr[m + 2] = (((fr[m + 2] - q3[m - 1]) - q2[m - 1]) + q1[m - 1]) + q0[m - 1];
 }
 
 // The entries of dP/dF the tangent's diagonal reads, for a block's plain cells as vector lanes (the tangent
@@ -1279,6 +1406,11 @@ public:
     const double* state = state_with_width + 1;
     if (!blocks_.empty()) {
       rest_rows_.reset();  // a new product: u's rows not yet split
+      if (pulled(w, x)) {
+        pull_reset();
+        pull_below(u, m_.owned, 0, out);
+        return;
+      }
       for (const Block& b : blocks_) block_tangent(b, w, x, state, u, out);
       return;
     }
@@ -1297,6 +1429,10 @@ public:
     const int w = static_cast<int>(state_with_width[0]);
     const int nb = static_cast<int>(blocks_.size());
     if (from == 0) rest_rows_.reset();  // a product's first piece: u's rows not yet split
+    if (pulled(w, x)) {  // pieces: the pull form's molecule rows
+      if (from == 0) pull_reset();
+      return pull_below(u, below, from, out);
+    }
     for (; from < nb && blocks_[from].reach <= below; ++from) block_tangent(blocks_[from], w, x, state_with_width + 1, u, out);
     return from;
   }
@@ -1627,6 +1763,204 @@ private:
   };
   std::vector<Block> blocks_;  // in cell order; empty with fibres (no block ever runs then)
   mutable RestRows rest_rows_;  // the rest form's split rows within one product (volumetric_block_tangent)
+
+  // The rest form's pull by molecule rows (at rest, every block a row block): where each block added its Q to its
+  // four corner rows of out (four read-modify-write passes a molecule, at four times), each molecule row of out
+  // is read and written once, taking the Q of its (up to four) cell rows from a ring of the last plane of cell
+  // rows' Q, in the cell rows' order: the push form's terms in its order, so the same bits.
+  // A cell row: consecutive row blocks that continue each other along x (cells [first_cell, + cells)).
+  struct CellRow {
+    int first_block, blocks, first_cell, cells;
+    int q_at;  // its Q's offset in pull_ring_
+  };
+  // A molecule row: molecules [start, start + cells + 1), corner row r[e] of cell row cell_row[e], e < count.
+  struct PullRow {
+    int start, cells, count;
+    int cell_row[4], r[4];
+    int q_at[4];  // their Q's offsets in pull_ring_
+  };
+  mutable std::vector<CellRow> cell_rows_;
+  mutable std::vector<PullRow> pull_rows_;     // those with an owned molecule, by start; empty: the push form
+  mutable std::vector<char> row_needed_;       // per cell row: some pull row reads it
+  mutable int ring_rows_ = 0, ring_stride_ = 0;  // the ring's cell rows (slot c % ring_rows_), 3 x its longest row
+  mutable std::vector<double> pull_ring_;
+  mutable int pull_computed_ = 0;  // this product's cell rows [0, pull_computed_) are in the ring
+  // The molecule rows the needed cell rows read (ghosts' too), split into x, y, z once a product: numbered by
+  // first use (run_start_: first molecule), per cell row its four (run_of_), in a ring of split_rows_ slots
+  // (3 (cells + 1) doubles each); split_holds_: the run a slot holds in this product (-1: none). 0 slots: each
+  // block splits its rows itself (RestRows).
+  mutable std::vector<int> run_of_, run_at_, run_start_;  // run_at_: run_of_'s slot
+  mutable int split_rows_ = 0, split_stride_ = 0;
+  mutable std::vector<double> split_ring_;
+  mutable std::vector<int> split_holds_;
+  void pull_reset() const {
+    pull_computed_ = 0;
+    std::fill(split_holds_.begin(), split_holds_.end(), -1);
+  }
+
+  // The rest form with every block a row block (w < 0: the rest state; w = 0 at the rest array itself).
+  bool pulled(int w, const double* x) const {
+    if (!(w < 0 || (w == 0 && x == m_.rest.data()))) return false;
+    if (!pull_made_) make_pull(), pull_made_ = true;
+    return !pull_rows_.empty();
+  }
+  // The pull form's arrays are made at the first rest product, not with the term: among the set-up's arrays they
+  // raised the 10^6 static solve's peak by 12 MB (docs/benchmarks.md), after it by nothing.
+  mutable bool pull_made_ = false;
+  bool pull_on_ = true;  // -static_cell_pull, read with the term
+  // The cell rows up to c (those needed) into the ring, in order (RestRows' split rows carried block to block).
+  void pull_cells_to(const double* u, int c) const {
+    for (; pull_computed_ <= c; ++pull_computed_) {
+      if (!row_needed_[pull_computed_]) continue;
+      const CellRow& row = cell_rows_[pull_computed_];
+      double* slot = pull_ring_.data() + row.q_at;
+      if (split_rows_ > 0) {
+        // Its four molecule rows from the split ring, each split at its first use in this product.
+        const double *xs[4], *ys[4], *zs[4];
+        const std::size_t len = static_cast<std::size_t>(row.cells) + 1;
+        for (int r = 0; r < 4; ++r) {
+          const std::size_t q = 4 * static_cast<std::size_t>(pull_computed_) + r;
+          const int id = run_of_[q], at = run_at_[q];
+          double* x = split_ring_.data() + static_cast<std::size_t>(at) * split_stride_;
+          if (split_holds_[at] != id) {
+            split_molecule_row(u + 3 * static_cast<std::size_t>(run_start_[id]), row.cells, x, x + len, x + 2 * len);
+            split_holds_[at] = id;
+          }
+          xs[r] = x, ys[r] = x + len, zs[r] = x + 2 * len;
+        }
+        for (int q = row.first_block; q < row.first_block + row.blocks; ++q) {
+          const Block& b = blocks_[q];
+          const Kind& kind = kinds_[b.kind];
+          const Geometry& geo = geometry_[kind.body];
+          const double g[3] = {geo.g[1][0], geo.g[2][1], geo.g[4][2]};
+          const int o = b.first - row.first_cell;
+          const double* bx[4] = {xs[0] + o, xs[1] + o, xs[2] + o, xs[3] + o};
+          const double* by[4] = {ys[0] + o, ys[1] + o, ys[2] + o, ys[3] + o};
+          const double* bz[4] = {zs[0] + o, zs[1] + o, zs[2] + o, zs[3] + o};
+          rest_split_block_q(b.n, bx, by, bz, kind.moduli.kappa, geo.volume, g, slot + 3 * o);
+        }
+        continue;
+      }
+      for (int q = row.first_block; q < row.first_block + row.blocks; ++q) {
+        const Block& b = blocks_[q];
+        const Kind& kind = kinds_[b.kind];
+        const Geometry& geo = geometry_[kind.body];
+        const double g[3] = {geo.g[1][0], geo.g[2][1], geo.g[4][2]};
+        rest_block_q(b.n, &b.base0, patterns_[b.pattern].data(), u, kind.moduli.kappa, geo.volume, g, &rest_rows_,
+                     slot + 3 * (b.first - row.first_cell));
+      }
+    }
+  }
+  // Molecule rows [from, ...) whose owned molecules are all below `below`; the next one.
+  int pull_below(const double* u, int below, int from, double* out) const {
+    const int nr = static_cast<int>(pull_rows_.size()), owned = m_.owned;
+    for (; from < nr; ++from) {
+      const PullRow& p = pull_rows_[from];
+      const int touched = std::min(p.cells + 1, owned - p.start);
+      if (p.start + touched > below) break;
+      pull_cells_to(u, p.cell_row[p.count - 1]);
+      const double* Q[4];
+      for (int e = 0; e < p.count; ++e) Q[e] = pull_ring_.data() + p.q_at[e];
+      pull_row_at_rest(Q, p.r, p.count, p.cells, touched, out + 3 * static_cast<std::size_t>(p.start));
+    }
+    return from;
+  }
+  // The split ring's runs and size, by the cell rows' order of computation (the needed ones); none where a
+  // molecule row is read with two lengths.
+  void make_split_ring() const {
+    std::map<int, int> id_of;
+    std::vector<int> run_of(4 * cell_rows_.size(), -1), start, length;
+    int newest = -1, ring = 1;
+    std::size_t longest = 0;
+    for (int c = 0; c < static_cast<int>(cell_rows_.size()); ++c) {
+      if (!row_needed_[c]) continue;
+      const CellRow& row = cell_rows_[c];
+      const Block& b = blocks_[row.first_block];
+      const int* p = patterns_[b.pattern].data();
+      int oldest = newest + 1;
+      for (int r = 0; r < 4; ++r) {
+        const int first = b.base0 + p[2 * r];
+        auto found = id_of.emplace(first, static_cast<int>(start.size()));
+        if (found.second) start.push_back(first), length.push_back(row.cells);
+        const int id = found.first->second;
+        if (length[id] != row.cells) return;
+        run_of[4 * static_cast<std::size_t>(c) + r] = id;
+        newest = std::max(newest, id), oldest = std::min(oldest, id);
+      }
+      ring = std::max(ring, newest - oldest + 1);
+      longest = std::max<std::size_t>(longest, row.cells + 1);
+    }
+    const std::size_t doubles = static_cast<std::size_t>(ring) * 3 * longest;
+    if (doubles > (std::size_t{1} << 22)) return;
+    run_at_.resize(run_of.size());
+    for (std::size_t q = 0; q < run_of.size(); ++q) run_at_[q] = run_of[q] < 0 ? -1 : run_of[q] % ring;
+    run_of_ = std::move(run_of), run_start_ = std::move(start);
+    split_rows_ = ring, split_stride_ = static_cast<int>(3 * longest);
+    split_ring_.assign(doubles, 0.0);
+    split_holds_.assign(ring, -1);
+  }
+  // The pull form's rows, where every block is a row block and the molecule rows are disjoint (each molecule in
+  // one, from the same cell rows as in the push form); otherwise (gathered blocks: a row's last cells, a rank's
+  // edge) pull_rows_ stays empty and the push form runs. -static_cell_pull false: the push form always.
+  void make_pull() const {
+    if (!pull_on_ || blocks_.empty()) return;
+    for (const Block& b : blocks_)
+      if (!b.rows) return;
+    std::vector<CellRow> rows;
+    for (int q = 0; q < static_cast<int>(blocks_.size()); ++q) {
+      const Block& b = blocks_[q];
+      if (!rows.empty()) {
+        CellRow& last = rows.back();
+        const Block& prev = blocks_[q - 1];
+        if (b.pattern == prev.pattern && b.first == prev.first + prev.n && b.base0 == prev.base0 + prev.n) {
+          ++last.blocks, last.cells += b.n;
+          continue;
+        }
+      }
+      rows.push_back({q, 1, b.first, b.n, 0});
+    }
+    std::map<int, PullRow> by_start;
+    for (int c = 0; c < static_cast<int>(rows.size()); ++c) {
+      const int* p = patterns_[blocks_[rows[c].first_block].pattern].data();
+      for (int r = 0; r < 4; ++r) {
+        const int start = blocks_[rows[c].first_block].base0 + p[2 * r];
+        if (start >= m_.owned) continue;
+        auto found = by_start.emplace(start, PullRow{start, rows[c].cells, 0, {}, {}, {}});
+        PullRow& row = found.first->second;
+        if (row.cells != rows[c].cells || row.count == 4 || (row.count > 0 && row.cell_row[row.count - 1] == c))
+          return;
+        row.cell_row[row.count] = c, row.r[row.count] = r, ++row.count;
+      }
+    }
+    std::vector<PullRow> pull;
+    for (const auto& [start, row] : by_start) {
+      if (!pull.empty() && pull.back().start + pull.back().cells + 1 > start) return;  // overlapping rows
+      pull.push_back(row);
+    }
+    // The ring: when a row is pulled, the cell rows up to its last are computed; each of its cell rows must still
+    // be in its slot (none R or more after it computed yet).
+    int computed = -1, ring = 1, longest = 0;
+    for (const PullRow& row : pull) {
+      computed = std::max(computed, row.cell_row[row.count - 1]);
+      ring = std::max(ring, computed - row.cell_row[0] + 1);
+      longest = std::max(longest, row.cells);
+    }
+    const std::size_t doubles = static_cast<std::size_t>(ring) * 3 * static_cast<std::size_t>(longest);
+    if (pull.empty() || doubles > (std::size_t{1} << 22)) return;
+    row_needed_.assign(rows.size(), 0);
+    for (const PullRow& row : pull)
+      for (int e = 0; e < row.count; ++e) row_needed_[row.cell_row[e]] = 1;
+    for (int c = 0; c < static_cast<int>(rows.size()); ++c) rows[c].q_at = (c % ring) * 3 * longest;
+    for (PullRow& row : pull)
+      for (int e = 0; e < row.count; ++e) row.q_at[e] = rows[row.cell_row[e]].q_at;
+    cell_rows_ = std::move(rows), pull_rows_ = std::move(pull);
+    ring_rows_ = ring, ring_stride_ = 3 * longest;
+    pull_ring_.assign(doubles, 0.0);
+    make_split_ring();
+    // Inside a product (no error code to return): a failure aborts every rank.
+    PetscCallAbort(PETSC_COMM_SELF, PetscInfo(nullptr, "cell term: the rest rows pulled, %zu molecule rows, %zu cell "
+                                              "rows, a ring of %d\n", pull_rows_.size(), cell_rows_.size(), ring_rows_));
+  }
   // add_tangent's ring of dP/dF: the most cells between a molecule's first and last cell (ids x-fastest).
   std::size_t ring_ = 1;
 
@@ -1653,6 +1987,10 @@ private:
       k += n;
     }
     blocks_.shrink_to_fit();
+    PetscBool on = PETSC_TRUE;
+    if (PetscOptionsGetBool(nullptr, nullptr, "-static_cell_pull", &on, nullptr))
+      throw InputError("PETSc options", "-static_cell_pull", "expects true or false");
+    pull_on_ = on;
   }
 
   // Block b's product (state of width w: 0 volumetric-only, from x, -1 the same at the rest positions; 10 F and

@@ -341,6 +341,12 @@ class ColourSweep:
         return x
 
 
+KIND = ["first"]
+OPT4 = {1: [1.125], 2: [1.02387287570313, 1.26408905371085],
+        3: [1.00842544782028, 1.08867839208730, 1.33753125909618],
+        4: [1.00391310427285, 1.04035811188593, 1.14863498546254, 1.38268869241000]}
+
+
 class Chebyshev:
     def __init__(self, a, m, fraction, steps):
         self.a, self.steps = a, steps
@@ -359,6 +365,17 @@ class Chebyshev:
 
     def __call__(self, b, x, steps=None):
         steps = self.steps if steps is None else steps
+        if KIND[0] != "first":  # Lottes's fourth kind on [0, hi] (optionally with his optimal weights)
+            r = b - self.a @ x
+            d = 4.0 / (3.0 * self.hi) * self.apply(r)
+            for i in range(steps):
+                x = x + (OPT4[steps][i] if KIND[0] == "opt4" else 1.0) * d
+                if i == steps - 1:
+                    break
+                r = r - self.a @ d
+                j = i + 1
+                d = (2 * j - 1) / (2 * j + 3) * d + (8 * j + 4) / ((2 * j + 3) * self.hi) * self.apply(r)
+            return x
         theta, delta = (self.hi + self.lo) / 2, (self.hi - self.lo) / 2
         sigma = theta / delta
         rho = 1 / sigma
@@ -527,9 +544,11 @@ def main():
     ap.add_argument("--macro", type=int, default=0, help="the volumetric part per macro-cell of M^3 cells")
     ap.add_argument("--macro-product", type=float, default=None, help="--cost: the macro-cells' product (fine springs products)")
     ap.add_argument("--schur", type=float, default=1.5, help="--mixed: w in the Schur complement V (1/w + 1/lambda_c)")
+    ap.add_argument("--kind", choices=("first", "fourth", "opt4"), default="first", help="Chebyshev's kind")
     ap.add_argument("--cost", action="store_true", help="print the work of the solves in the C++ code's costs")
     args = ap.parse_args()
     MACRO[0] = args.macro
+    KIND[0] = args.kind
     args.coarse_steps = args.steps if args.coarse_steps is None else args.coarse_steps
     args.pre = args.steps if args.pre is None else args.pre
     args.post = args.steps if args.post is None else args.post

@@ -38,6 +38,10 @@ macro-cell, of its mean divergence, i.e. the mean of its cells' one-point diverg
 coarse levels' cells for M = 2, whose Galerkin operator is then the per-coarse-cell term: --coarse macro instead
 rediscretizes the coarse levels per macro-cell of theirs). --coarse-steps S: Chebyshev steps on the coarse levels.
 
+--kind first|fourth|opt4: Chebyshev of the first kind on [f, 1.1] x the largest eigenvalue (the C++ smoother), or
+Lottes's fourth kind on [0, 1.1] x it (PETSc 3.19's -ksp_chebyshev_kind fourth, not in 3.18), plain or with his
+optimal step weights (opt4).
+
 --mixed [minres|gmres] instead solves the mixed form with one pressure per cell (per macro-cell with --macro),
 p = lambda_c div u (the volumetric part kept out of the multigrid): MINRES preconditioned by diag(one V-cycle of the
 springs-only, nu = 1/4, operator with the smoother above, the diagonal Schur complement V (1 / w + 1 / lambda_c)),
@@ -51,7 +55,7 @@ Needs numpy and scipy (Debian: python3-numpy python3-scipy). About a minute at N
   /usr/bin/python3 run_scripts/mg_near_incompressible.py [N] [--smoother jacobi|cell|star|cellsm|bs]
       [--coarse galerkin|redisc] [--steps S] [--fraction F] [--mixed [--schur W]] [--weight pou|count|X]
       [--theta T] [--schur-steps M] [--schur-block B] [--sm-levels all|finest|coarse] [--pre S1] [--post S2]
-      [--w-levels K] [--colours C,C,...] [--macro M] [--coarse-steps S] [--mixed minres|gmres] [--cost
+      [--w-levels K] [--colours C,C,...] [--kind K] [--macro M] [--coarse-steps S] [--mixed minres|gmres] [--cost
       [--macro-product X]]
 """
 import argparse

@@ -2,6 +2,7 @@
 // molecule-molecule contact, several bodies. Checked against closed forms (free fall, terminal velocity), force
 // balance at equilibrium (contact force against the load or the weight), and the same run on one rank
 // (MPI_COMM_SELF, computed on every rank as the reference). Run at 1, 2 and 3 ranks.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <petscsys.h>
 
@@ -457,6 +458,44 @@ TEST(Physics, FusedStepInARingOnEveryRankWhenThePartitionCutsTheRows) {
 // relative to its rest length, the first in connection order on a tie (the smallest id over the ranks): two
 // connections squeezed to the same 2^-14 m (rest 0.1 m), against the check's plain loop over the connections
 // (the reference here), at every rank count.
+// An unstable time step in a fused run with the guards on. Its kReduceEvery-th steps drift on into the next step's
+// half kick, so a check one of them finds due (energy growth, a non-finite value) is made at the next step, whole
+// (StepGuard::check_pending). The failure is caught at a check (a periodic full check, every 128 steps, or one step
+// after a multiple of kReduceEvery); the kinetic energy's doublings on the way made checks that passed, the last one
+// deferred (one step after a multiple of kReduceEvery), and the last good state it kept and put back is an unguarded
+// run's of as many steps, bit for bit (at every rank count).
+TEST(Physics, FusedRunCatchesGrowthAtTheStepAfterItsDriftedGuardStep) {
+  auto probe = run(springs_only, PETSC_COMM_WORLD, {}, false);
+  const double dt = 1.6 * probe->sim->critical_time_step();
+  ASSERT_GT(dt, 0.0);
+  const std::vector<std::string> unstable = {"solver.time_step=" + fmt::format("{:.17g}", dt),
+                                             "solver.allow_unstable_time_step=true", "solver.steps=2000"};
+  auto r = run(springs_only, PETSC_COMM_WORLD, unstable, false, perturb);
+  ASSERT_TRUE(r->forces->springs_only());
+  r->sim->solve(SolverHooks{});
+  ASSERT_EQ(r->sim->outcome(), Simulation::Outcome::solver_failure);
+  const std::string what = r->sim->failure();
+  const std::size_t at = what.find(" at step ");
+  ASSERT_NE(at, std::string::npos) << what;
+  const long named = std::stol(what.substr(at + 9));
+  EXPECT_TRUE(named % 128 == 0 || named % kReduceEvery == 1) << what;
+  EXPECT_NE(what.find("last good state: step"), std::string::npos) << what;
+  const long good = r->state->step;
+  EXPECT_EQ(good % kReduceEvery, 1) << what;  // a check found due at a drifted step, made (and passed) at the next
+  ASSERT_GT(good, 0);
+  ASSERT_LT(good, named);
+  ASSERT_EQ(PetscOptionsSetValue(nullptr, "-tissue_guards", "false"), 0);
+  std::vector<std::string> upto = unstable;
+  upto.back() = "solver.steps=" + std::to_string(good);
+  auto reference = run(springs_only, PETSC_COMM_WORLD, upto, true, perturb);
+  ASSERT_EQ(PetscOptionsClearValue(nullptr, "-tissue_guards"), 0);
+  long differ = 0, all = 0;
+  for (int j = 0; j < 3 * r->model.owned; ++j)
+    differ += r->state->x.array()[j] != reference->state->x.array()[j] || r->state->v[j] != reference->state->v[j];
+  MPI_Allreduce(&differ, &all, 1, MPI_LONG, MPI_SUM, PETSC_COMM_WORLD);
+  EXPECT_EQ(all, 0) << what;
+}
+
 TEST(Physics, LengthCheckNamesTheFirstShortestConnection) {
   const char* text = R"(
 [body]

@@ -455,21 +455,25 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
       expose();
       hooks.checkpoint(s);
     };
-  // With the guards off, the signal check is the only reader of a kReduceEvery-th step's state (a stop writes a
-  // checkpoint of the whole step): its reduction is made before that step instead, so the step drifts on into the
-  // next one's half kick like any other unless a stop was asked for (then it ends at the whole step, as before).
-  // A signal that arrives after the check is seen at the next one, kReduceEvery steps on.
-  const bool check_ahead = !guard.enabled();
+  // A kReduceEvery-th step's state is read by the signal check (a stop writes a checkpoint of the whole step) and
+  // by the guard when it finds a check due there (growth, a non-finite value; the periodic full checks are known
+  // ahead). The signal check's reduction is made before that step instead, and the guard, told that the step
+  // drifted on, makes a check it finds due at the next step, which then ends at its whole state
+  // (StepGuard::check_pending): so the step drifts on into the next one's half kick like any other unless a stop
+  // was asked for or a full check is due (then it ends at the whole step, as before). A signal that arrives after
+  // the check is seen at the next one, kReduceEvery steps on.
+  const long full_every = guard.enabled() ? guard.every() : 0;
   while (state.step < total) {
     const long next = state.step + 1;
-    const bool ahead = check_ahead && next % kReduceEvery == 0 && next < total;
+    const bool ahead = next % kReduceEvery == 0 && next < total;
     bool stop_ahead = false;
     if (ahead) {
       int mine = stop_requested ? 1 : 0, any = 0;
       MPI_Allreduce(&mine, &any, 1, MPI_INT, MPI_MAX, model.comm);
       stop_ahead = any != 0;
     }
-    const bool next_unobserved = ahead ? unread(next) && !stop_ahead : unobserved(next);
+    const bool next_unobserved = (ahead ? unread(next) && !stop_ahead : unobserved(next)) && !guard.check_pending() &&
+                                 !(full_every > 0 && next % full_every == 0);
     const bool fused = fuse && unread(state.step + 1);
     // (the layout the last step left: a fused step that ended at an observed state kept the streams)
     if (!drifted) {
@@ -519,7 +523,7 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
     }
     ++state.step;
     state.time += dt;
-    guard.dynamic_step(0.5 * kinetic);
+    guard.dynamic_step(0.5 * kinetic, /*whole=*/!drifted);
     if (state.step == total) guard.full_check();
     progress.update(state.step, -1, 0, total);
     if (rows > 0 && (state.step % rows == 0 || state.step == total)) hooks.record(state);

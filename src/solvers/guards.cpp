@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <limits>
+#include <stdexcept>
 
 #include "partition/agreement.hpp"
 #include "src/physics/force_model.hpp"
@@ -172,18 +173,27 @@ void StepGuard::full_check_as_made() {
   check_lengths(/*from_energy=*/copy_);  // no copy: the constructor made no pass (no energies)
 }
 
-void StepGuard::dynamic_step(double local_kinetic) {
+void StepGuard::dynamic_step(double local_kinetic, bool whole) {
   if (!enabled_) return;
   Timer timer{seconds_};
   if (!std::isfinite(local_kinetic) && first_bad_step_ < 0) first_bad_step_ = state_.step;
-  if (state_.step % kReduceEvery != 0) return;  // the solver's full_check() at the last step covers the rest
+  // (a pending check is made at the next whole step, whatever its number: every rank has it pending, from the
+  // same reduced values)
+  if (state_.step % kReduceEvery != 0 && !pending_) return;  // the solver's full_check() at the last step covers the rest
+  if (pending_ && !whole) throw std::logic_error("StepGuard: a pending check needs a whole step");
+  pending_ = false;
   const std::exception_ptr error = attempt([&] { fault_point("guard", model_.comm); });
   double local[3] = {first_bad_step_ >= 0 ? 0.0 : local_kinetic, first_bad_step_ >= 0 ? 1.0 : 0.0,
                      error ? 1.0 : 0.0}, global[3];
   MPI_Allreduce(local, global, 3, MPI_DOUBLE, MPI_SUM, model_.comm);
   if (global[2] > 0) agree_on(model_.comm, error);
   kinetic_ = global[0];
-  if (global[1] > 0 || !std::isfinite(kinetic_)) {
+  const bool bad = global[1] > 0 || !std::isfinite(kinetic_);
+  if (!whole && (bad || kinetic_ > 2.0 * kinetic_checked_ || state_.step % every_ == 0)) {
+    pending_ = true;  // the state is not this step's: checked at the next, whole, step
+    return;
+  }
+  if (bad) {
     long mine = first_bad_step_ >= 0 ? first_bad_step_ : state_.step, first = 0;
     MPI_Allreduce(&mine, &first, 1, MPI_LONG, MPI_MIN, model_.comm);
     first_seen_ = fmt::format(" (first non-finite kinetic energy at step {})", first);

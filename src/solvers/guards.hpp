@@ -2,7 +2,8 @@
 // made once at set-up (the time step, the connections) are src/solvers/setup_checks.hpp, the reports naming a
 // molecule src/solvers/molecule_report.hpp.
 //
-//  - during the solve (StepGuard): NaN or Inf caught within kReduceEvery (16) steps and the step where it first
+//  - during the solve (StepGuard): NaN or Inf caught within kReduceEvery (16) steps (one more where the solver's
+//    16th step drifted on: the check is then made at the next, whole, step) and the step where it first
 //    appeared named (dynamic: each rank notes the first step its kinetic energy is non-finite, at no cost; the
 //    ranks compare notes every 16 steps, the cadence of the signal check; relaxation: every iteration),
 //    energy growth (dynamic, within 16 steps) and divergence (relaxation) caught early, a connection shorter than 1e-3 of its rest length (inverted, collapsed) caught

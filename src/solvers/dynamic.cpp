@@ -169,53 +169,21 @@ struct MassTypes {
   }
 };
 
-// kick_kick_drift_only_streams with the half kick by type: the types' half kicks in two zmm registers and each
-// row's picked by its type byte (vpermt2pd: a table lookup without a gather), 8 rows an iteration; the same
-// operations on the same doubles in the same order (no contraction: -ffp-contract=off), so the same bits.
-__attribute__((target("avx512f"))) void kick_kick_drift_only_typed_avx512(
-    int n, double dt, const std::uint8_t* __restrict type, const double* __restrict half_kick,
-    const double* __restrict f0, const double* __restrict f1, const double* __restrict f2, double* __restrict v0,
-    double* __restrict v1, double* __restrict v2, double* __restrict x0, double* __restrict x1,
-    double* __restrict x2) {
-  const __m512d lo = _mm512_loadu_pd(half_kick), hi = _mm512_loadu_pd(half_kick + 8), h = _mm512_set1_pd(dt);
-  const double* f[3] = {f0, f1, f2};
-  double* v[3] = {v0, v1, v2};
-  double* x[3] = {x0, x1, x2};
-  int i = 0;
-  for (; i + 8 <= n; i += 8) {
-    std::uint64_t t8;
-    std::memcpy(&t8, type + i, sizeof t8);
-    // (the zero-masked widening: the same instruction, without GCC 12's false uninitialized warning)
-    const __m512i t = _mm512_maskz_cvtepu8_epi64(0xff, _mm_cvtsi64_si128(static_cast<long long>(t8)));
-    const __m512d kick = _mm512_permutex2var_pd(lo, t, hi);
-    for (int d = 0; d < 3; ++d) {
-      const __m512d kf = _mm512_mul_pd(kick, _mm512_loadu_pd(f[d] + i));
-      const __m512d w = _mm512_add_pd(_mm512_add_pd(_mm512_loadu_pd(v[d] + i), kf), kf);
-      _mm512_storeu_pd(v[d] + i, w);
-      _mm512_storeu_pd(x[d] + i, _mm512_add_pd(_mm512_loadu_pd(x[d] + i), _mm512_mul_pd(h, w)));
-    }
-  }
-  for (; i < n; ++i) {
-    const double kick = half_kick[type[i]];
-    for (int d = 0; d < 3; ++d) {
-      v[d][i] = (v[d][i] + kick * f[d][i]) + kick * f[d][i];
-      x[d][i] += dt * v[d][i];
-    }
-  }
-}
-
-// The same with the whole step's kinetic energy for the guards (kick_kick_drift_streams's): each row's m v^2 as
-// there (m from the types' table), summed in 8 lanes, added to `kinetic` at the end in a fixed order. The kicks and
-// drift are kick_kick_drift_streams's operations on the same doubles (the same bits); the sum's order is not
-// molecule order, so its last bits may differ from that function's: only the guards read it (a non-finite value,
-// growth against factors of 2), and a chain of dependent additions a molecule is what the lanes save.
+// The drifting kicks (kick_kick_drift_only_streams, or with Sum kick_kick_drift_streams's kinetic energy) with the
+// half kick by type: the types' half kicks in two zmm registers and each row's picked by its type byte (vpermt2pd:
+// a table lookup without a gather), 8 rows an iteration; the same operations on the same doubles in the same order
+// (no contraction: -ffp-contract=off), so the same bits. With Sum, each row's m v^2 (m from the types' table) is
+// summed in 8 lanes, added to `kinetic` at the end in a fixed order: not molecule order, so the sum's last bits may
+// differ from kick_kick_drift_streams's; only the guards read it (a non-finite value, growth against factors of 2),
+// and a chain of dependent additions a molecule is what the lanes save.
+template <bool Sum>
 __attribute__((target("avx512f"))) double kick_kick_drift_typed_avx512(
-    int n, double dt, const std::uint8_t* __restrict type, const double* __restrict half_kick,
-    const double* __restrict mass, const double* __restrict f0, const double* __restrict f1,
-    const double* __restrict f2, double* __restrict v0, double* __restrict v1, double* __restrict v2,
-    double* __restrict x0, double* __restrict x1, double* __restrict x2, double kinetic) {
+    int n, double dt, const MassTypes& types, const std::uint8_t* __restrict type, const double* __restrict f0,
+    const double* __restrict f1, const double* __restrict f2, double* __restrict v0, double* __restrict v1,
+    double* __restrict v2, double* __restrict x0, double* __restrict x1, double* __restrict x2, double kinetic) {
+  const double* half_kick = types.half_kick;
   const __m512d lo = _mm512_loadu_pd(half_kick), hi = _mm512_loadu_pd(half_kick + 8), h = _mm512_set1_pd(dt);
-  const __m512d mlo = _mm512_loadu_pd(mass), mhi = _mm512_loadu_pd(mass + 8);
+  const __m512d mlo = _mm512_loadu_pd(types.mass), mhi = _mm512_loadu_pd(types.mass + 8);
   const double* f[3] = {f0, f1, f2};
   double* v[3] = {v0, v1, v2};
   double* x[3] = {x0, x1, x2};
@@ -224,22 +192,25 @@ __attribute__((target("avx512f"))) double kick_kick_drift_typed_avx512(
   for (; i + 8 <= n; i += 8) {
     std::uint64_t t8;
     std::memcpy(&t8, type + i, sizeof t8);
+    // (the zero-masked widening: the same instruction, without GCC 12's false uninitialized warning)
     const __m512i t = _mm512_maskz_cvtepu8_epi64(0xff, _mm_cvtsi64_si128(static_cast<long long>(t8)));
-    const __m512d kick = _mm512_permutex2var_pd(lo, t, hi), m = _mm512_permutex2var_pd(mlo, t, mhi);
+    const __m512d kick = _mm512_permutex2var_pd(lo, t, hi);
     __m512d vv = _mm512_setzero_pd();
     for (int d = 0; d < 3; ++d) {
       const __m512d kf = _mm512_mul_pd(kick, _mm512_loadu_pd(f[d] + i));
-      const __m512d whole = _mm512_add_pd(_mm512_loadu_pd(v[d] + i), kf);
-      vv = _mm512_add_pd(vv, _mm512_mul_pd(whole, whole));
+      const __m512d whole = _mm512_add_pd(_mm512_loadu_pd(v[d] + i), kf);  // the half kick to the whole step
+      if (Sum) vv = _mm512_add_pd(vv, _mm512_mul_pd(whole, whole));
       const __m512d w = _mm512_add_pd(whole, kf);
       _mm512_storeu_pd(v[d] + i, w);
       _mm512_storeu_pd(x[d] + i, _mm512_add_pd(_mm512_loadu_pd(x[d] + i), _mm512_mul_pd(h, w)));
     }
-    sum = _mm512_add_pd(sum, _mm512_mul_pd(m, vv));
+    if (Sum) sum = _mm512_add_pd(sum, _mm512_mul_pd(_mm512_permutex2var_pd(mlo, t, mhi), vv));
   }
-  alignas(64) double lanes[8];
-  _mm512_store_pd(lanes, sum);
-  for (double l : lanes) kinetic += l;
+  if (Sum) {
+    alignas(64) double lanes[8];
+    _mm512_store_pd(lanes, sum);
+    for (double l : lanes) kinetic += l;
+  }
   for (; i < n; ++i) {
     const double kick = half_kick[type[i]];
     double vv = 0;
@@ -249,7 +220,7 @@ __attribute__((target("avx512f"))) double kick_kick_drift_typed_avx512(
       v[d][i] = whole + kick * f[d][i];
       x[d][i] += dt * v[d][i];
     }
-    kinetic += mass[type[i]] * vv;
+    if (Sum) kinetic += types.mass[type[i]] * vv;
   }
   return kinetic;
 }
@@ -315,15 +286,10 @@ void fused_rows_streams(void* context, int begin, int end) {
       kick_only_streams(end - begin, s.dt, s.m + begin, p.f[0], p.f[1], p.f[2], p.v[0], p.v[1], p.v[2]);
     return;
   }
-  if (s.types && !s.sum) {
-    kick_kick_drift_only_typed_avx512(end - begin, s.dt, s.types->type.data() + begin, s.types->half_kick, p.f[0],
-                                      p.f[1], p.f[2], p.v[0], p.v[1], p.v[2], p.x[0], p.x[1], p.x[2]);
-    return;
-  }
   if (s.types) {
-    s.kinetic = kick_kick_drift_typed_avx512(end - begin, s.dt, s.types->type.data() + begin, s.types->half_kick,
-                                             s.types->mass, p.f[0], p.f[1], p.f[2], p.v[0], p.v[1], p.v[2], p.x[0],
-                                             p.x[1], p.x[2], s.kinetic);
+    auto kicks = s.sum ? kick_kick_drift_typed_avx512<true> : kick_kick_drift_typed_avx512<false>;
+    s.kinetic = kicks(end - begin, s.dt, *s.types, s.types->type.data() + begin, p.f[0], p.f[1], p.f[2], p.v[0],
+                      p.v[1], p.v[2], p.x[0], p.x[1], p.x[2], s.kinetic);
     return;
   }
   if (s.sum)

@@ -496,6 +496,61 @@ TEST(Physics, FusedRunCatchesGrowthAtTheStepAfterItsDriftedGuardStep) {
   EXPECT_EQ(all, 0) << what;
 }
 
+// The guards' connection pass on the spring kernel's segments (SpringKernel::energy_and_shortest) against the walk
+// over every written connection it replaces: the energy to round-off (another order), the smallest length / rest
+// length the same double, on every rank; a lattice with a stiffer region (two materials: the segments end where they
+// meet), every topology, perturbed, the partition's ghosts at 2 and 3 ranks; and a squeezed spring inside a segment.
+TEST(Physics, KernelEnergyAndShortestEqualWrittenConnectionsWalk) {
+  // (manual stiffnesses: the segments run past the row ends, whose missing directions are masked)
+  const std::string manual = "[calibration]\nmethod = \"manual\"\nstiffness = { edge = 100.0, face = 50.0 }\n";
+  for (const char* topology : {"rectangular", "face-diagonals", "body-diagonals", "tetrahedral", "manual"}) {
+    const bool by_hand = std::string(topology) == "manual";
+    const std::string text = (by_hand ? manual : std::string()) + std::string(R"(
+[body]
+molecules = [9, 7, 11]
+spacing = [0.1, 0.13, 0.07]
+youngs_modulus = 1.0e5
+density = 1100.0
+topology = ")") + (by_hand ? "face-diagonals" : topology) + R"("
+[[body.region]]
+lo = [0.0, 0.0, 0.0]
+hi = [0.45, 0.5, 0.4]
+youngs_modulus = 3.0e6
+density = 1900.0
+[solver]
+kind = "dynamic"
+steps = 1
+)";
+    auto r = run(text, PETSC_COMM_WORLD, {}, false, perturb);
+    const LocalModel& m = r->model;
+    double* x = r->state->x.array();
+    for (int squeeze = 0; squeeze < 2; ++squeeze) {
+      if (squeeze)  // molecule 3 + 9 * (2 + 7 * 4) put next to its +x neighbour: one short spring
+        for (int i = 0; i < m.local; ++i)
+          if (m.id[i] == 3 + 9 * (2 + 7 * 4))
+            for (int j = 0; j < m.local; ++j)
+              if (m.id[j] == m.id[i] + 1)
+                for (int d = 0; d < 3; ++d) x[3 * i + d] = x[3 * j + d] - (d == 0 ? 1e-5 : 0.0);
+      double energy = 0, worst = std::numeric_limits<double>::infinity();
+      m.for_each_written([&](int c, int a, int b) {
+        const double length = length_of(x, a, b), stretch = length - m.l0(c), ratio = length / m.l0(c);
+        energy += 0.5 * m.k(c) * stretch * stretch;
+        if (ratio < worst) worst = ratio;
+      });
+      double fast_energy = 0, fast_worst = 0;
+      r->forces->kernel().energy_and_shortest(x, &fast_energy, &fast_worst);
+      EXPECT_NEAR(fast_energy, energy, 1e-12 * energy) << topology << " squeeze " << squeeze;
+      EXPECT_EQ(fast_worst, worst) << topology << " squeeze " << squeeze;
+      long structured = r->forces->kernel().structured_connections(), all = 0;
+      double least = 0;
+      MPI_Allreduce(&structured, &all, 1, MPI_LONG, MPI_SUM, PETSC_COMM_WORLD);
+      MPI_Allreduce(&worst, &least, 1, MPI_DOUBLE, MPI_MIN, PETSC_COMM_WORLD);
+      if (std::string(topology) == "face-diagonals") EXPECT_GT(all, 0);  // the segments' path ran (any ranks)
+      if (squeeze) EXPECT_LT(least, 1e-3) << topology;  // the squeezed spring is the shortest
+    }
+  }
+}
+
 TEST(Physics, LengthCheckNamesTheFirstShortestConnection) {
   const char* text = R"(
 [body]

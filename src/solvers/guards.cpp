@@ -86,13 +86,8 @@ double StepGuard::energy(double* spring, double* work) {
   const double* x = state_.x.array();
   double sums[3] = {0, 0, 0};
   const std::exception_ptr error = attempt([&] {
-    worst_ratio_ = std::numeric_limits<double>::infinity(), worst_id_ = -1, worst_c_ = -1;
-    model_.for_each_written([&](int c, int a, int b) {
-      const double length = length_of(x, a, b);
-      const double stretch = length - model_.l0(c), ratio = length / model_.l0(c);
-      sums[0] += 0.5 * model_.k(c) * stretch * stretch;
-      if (ratio < worst_ratio_) worst_ratio_ = ratio, worst_id_ = model_.connection_id(c), worst_c_ = c;
-    });
+    // (the connection with the smallest ratio is named by check_lengths, only when it fails)
+    forces_.kernel().energy_and_shortest(x, &sums[0], &worst_ratio_);
     for (const auto& a : forces_.applied()) sums[1] += a.value * (x[a.component] - model_.rest[a.component]);
     if (const auto& g = scene_.physics.gravity)
       for (int i = 0; i < model_.owned; ++i)
@@ -133,13 +128,11 @@ void StepGuard::check_lengths(bool from_energy) {
   int worst_c = -1;
   std::exception_ptr error;
   if (from_energy) {
-    worst = worst_ratio_, worst_id = worst_id_, worst_c = worst_c_;
+    worst = worst_ratio_;
   } else {
     error = attempt([&] {
-      model_.for_each_written([&](int c, int a, int b) {
-        const double ratio = length_of(x, a, b) / model_.l0(c);
-        if (ratio < worst) worst = ratio, worst_id = model_.connection_id(c), worst_c = c;
-      });
+      double unused;
+      forces_.kernel().energy_and_shortest(x, &unused, &worst);
     });
   }
   double mins[2] = {worst, error ? -1.0 : 0.0}, reduced[2];  // MIN: the flag is -1 when a rank failed
@@ -147,6 +140,13 @@ void StepGuard::check_lengths(bool from_energy) {
   if (reduced[1] < 0) agree_on(model_.comm, error);
   const double global = reduced[0];
   if (!(global < kCollapsedLengthRatio)) return;
+  // A failure (rare): the first connection in this rank's order with the smallest ratio (the same doubles as the
+  // kernel's pass), named.
+  worst = std::numeric_limits<double>::infinity();
+  model_.for_each_written([&](int c, int a, int b) {
+    const double ratio = length_of(x, a, b) / model_.l0(c);
+    if (ratio < worst) worst = ratio, worst_id = model_.connection_id(c), worst_c = c;
+  });
   long long mine = worst == global ? worst_id : std::numeric_limits<long long>::max(), first = 0;
   MPI_Allreduce(&mine, &first, 1, MPI_LONG_LONG, MPI_MIN, model_.comm);
   long long molecule = mine == first && worst_c >= 0 ? model_.id[model_.end_a[worst_c]] : -1, m = -1;

@@ -108,8 +108,6 @@ private:
   bool pending_ = false;      // dynamic: a check due at a step that was not whole (dynamic_step)
   std::string first_seen_;     // " (first non-finite kinetic energy at step S)", once the ranks compared notes
   double worst_ratio_ = 0.0;   // from energy(): the shortest connection's length / rest length on this rank
-  long long worst_id_ = -1;
-  int worst_c_ = -1;
   double seconds_ = 0.0;
   double good_time_ = 0.0;
   std::function<void()> prepare_;

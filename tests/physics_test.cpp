@@ -2,6 +2,7 @@
 // molecule-molecule contact, several bodies. Checked against closed forms (free fall, terminal velocity), force
 // balance at equilibrium (contact force against the load or the weight), and the same run on one rank
 // (MPI_COMM_SELF, computed on every rank as the reference). Run at 1, 2 and 3 ranks.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <petscsys.h>
 
@@ -457,6 +458,99 @@ TEST(Physics, FusedStepInARingOnEveryRankWhenThePartitionCutsTheRows) {
 // relative to its rest length, the first in connection order on a tie (the smallest id over the ranks): two
 // connections squeezed to the same 2^-14 m (rest 0.1 m), against the check's plain loop over the connections
 // (the reference here), at every rank count.
+// An unstable time step in a fused run with the guards on. Its kReduceEvery-th steps drift on into the next step's
+// half kick, so a check one of them finds due (energy growth, a non-finite value) is made at the next step, whole
+// (StepGuard::check_pending). The failure is caught at a check (a periodic full check, every 128 steps, or one step
+// after a multiple of kReduceEvery); the kinetic energy's doublings on the way made checks that passed, the last one
+// deferred (one step after a multiple of kReduceEvery), and the last good state it kept and put back is an unguarded
+// run's of as many steps, bit for bit (at every rank count).
+TEST(Physics, FusedRunCatchesGrowthAtTheStepAfterItsDriftedGuardStep) {
+  auto probe = run(springs_only, PETSC_COMM_WORLD, {}, false);
+  const double dt = 1.6 * probe->sim->critical_time_step();
+  ASSERT_GT(dt, 0.0);
+  const std::vector<std::string> unstable = {"solver.time_step=" + fmt::format("{:.17g}", dt),
+                                             "solver.allow_unstable_time_step=true", "solver.steps=2000"};
+  auto r = run(springs_only, PETSC_COMM_WORLD, unstable, false, perturb);
+  ASSERT_TRUE(r->forces->springs_only());
+  r->sim->solve(SolverHooks{});
+  ASSERT_EQ(r->sim->outcome(), Simulation::Outcome::solver_failure);
+  const std::string what = r->sim->failure();
+  const std::size_t at = what.find(" at step ");
+  ASSERT_NE(at, std::string::npos) << what;
+  const long named = std::stol(what.substr(at + 9));
+  EXPECT_TRUE(named % 128 == 0 || named % kReduceEvery == 1) << what;
+  EXPECT_NE(what.find("last good state: step"), std::string::npos) << what;
+  const long good = r->state->step;
+  EXPECT_EQ(good % kReduceEvery, 1) << what;  // a check found due at a drifted step, made (and passed) at the next
+  ASSERT_GT(good, 0);
+  ASSERT_LT(good, named);
+  ASSERT_EQ(PetscOptionsSetValue(nullptr, "-tissue_guards", "false"), 0);
+  std::vector<std::string> upto = unstable;
+  upto.back() = "solver.steps=" + std::to_string(good);
+  auto reference = run(springs_only, PETSC_COMM_WORLD, upto, true, perturb);
+  ASSERT_EQ(PetscOptionsClearValue(nullptr, "-tissue_guards"), 0);
+  long differ = 0, all = 0;
+  for (int j = 0; j < 3 * r->model.owned; ++j)
+    differ += r->state->x.array()[j] != reference->state->x.array()[j] || r->state->v[j] != reference->state->v[j];
+  MPI_Allreduce(&differ, &all, 1, MPI_LONG, MPI_SUM, PETSC_COMM_WORLD);
+  EXPECT_EQ(all, 0) << what;
+}
+
+// The guards' connection pass on the spring kernel's segments (SpringKernel::energy_and_shortest) against the walk
+// over every written connection it replaces: the energy to round-off (another order), the smallest length / rest
+// length the same double, on every rank; a lattice with a stiffer region (two materials: the segments end where they
+// meet), every topology, perturbed, the partition's ghosts at 2 and 3 ranks; and a squeezed spring inside a segment.
+TEST(Physics, KernelEnergyAndShortestEqualWrittenConnectionsWalk) {
+  // (manual stiffnesses: the segments run past the row ends, whose missing directions are masked)
+  const std::string manual = "[calibration]\nmethod = \"manual\"\nstiffness = { edge = 100.0, face = 50.0 }\n";
+  for (const char* topology : {"rectangular", "face-diagonals", "body-diagonals", "tetrahedral", "manual"}) {
+    const bool by_hand = std::string(topology) == "manual";
+    const std::string text = (by_hand ? manual : std::string()) + std::string(R"(
+[body]
+molecules = [9, 7, 11]
+spacing = [0.1, 0.13, 0.07]
+youngs_modulus = 1.0e5
+density = 1100.0
+topology = ")") + (by_hand ? "face-diagonals" : topology) + R"("
+[[body.region]]
+lo = [0.0, 0.0, 0.0]
+hi = [0.45, 0.5, 0.4]
+youngs_modulus = 3.0e6
+density = 1900.0
+[solver]
+kind = "dynamic"
+steps = 1
+)";
+    auto r = run(text, PETSC_COMM_WORLD, {}, false, perturb);
+    const LocalModel& m = r->model;
+    double* x = r->state->x.array();
+    for (int squeeze = 0; squeeze < 2; ++squeeze) {
+      if (squeeze)  // molecule 3 + 9 * (2 + 7 * 4) put next to its +x neighbour: one short spring
+        for (int i = 0; i < m.local; ++i)
+          if (m.id[i] == 3 + 9 * (2 + 7 * 4))
+            for (int j = 0; j < m.local; ++j)
+              if (m.id[j] == m.id[i] + 1)
+                for (int d = 0; d < 3; ++d) x[3 * i + d] = x[3 * j + d] - (d == 0 ? 1e-5 : 0.0);
+      double energy = 0, worst = std::numeric_limits<double>::infinity();
+      m.for_each_written([&](int c, int a, int b) {
+        const double length = length_of(x, a, b), stretch = length - m.l0(c), ratio = length / m.l0(c);
+        energy += 0.5 * m.k(c) * stretch * stretch;
+        if (ratio < worst) worst = ratio;
+      });
+      double fast_energy = 0, fast_worst = 0;
+      r->forces->kernel().energy_and_shortest(x, &fast_energy, &fast_worst);
+      EXPECT_NEAR(fast_energy, energy, 1e-12 * energy) << topology << " squeeze " << squeeze;
+      EXPECT_EQ(fast_worst, worst) << topology << " squeeze " << squeeze;
+      long structured = r->forces->kernel().structured_connections(), all = 0;
+      double least = 0;
+      MPI_Allreduce(&structured, &all, 1, MPI_LONG, MPI_SUM, PETSC_COMM_WORLD);
+      MPI_Allreduce(&worst, &least, 1, MPI_DOUBLE, MPI_MIN, PETSC_COMM_WORLD);
+      if (std::string(topology) == "face-diagonals") EXPECT_GT(all, 0);  // the segments' path ran (any ranks)
+      if (squeeze) EXPECT_LT(least, 1e-3) << topology;  // the squeezed spring is the shortest
+    }
+  }
+}
+
 TEST(Physics, LengthCheckNamesTheFirstShortestConnection) {
   const char* text = R"(
 [body]

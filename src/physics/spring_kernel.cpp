@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <type_traits>
 
 namespace tissue {
@@ -1176,6 +1177,68 @@ void SpringKernel::tangent_sweep(const double* x, const double* u, double* out, 
   }
   zero_ahead(out, Interlaced{}, zeroed, m.owned);
   finish(m.owned);
+}
+
+namespace {
+// One direction of energy_and_shortest's block: end a's rows [a0, a0 + n) (x interlaced) to a0 + offset.
+TISSUE_CLONES
+void energy_direction(int n, const double* __restrict xa, const double* __restrict xb, double k, double l0,
+                      double* __restrict energy, double* __restrict ratio) {
+  for (int i = 0; i < n; ++i) {
+    const double d0 = xb[3 * i] - xa[3 * i], d1 = xb[3 * i + 1] - xa[3 * i + 1], d2 = xb[3 * i + 2] - xa[3 * i + 2];
+    const double length = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2), stretch = length - l0;
+    energy[i] = 0.5 * k * stretch * stretch;
+    ratio[i] = length / l0;
+  }
+}
+}  // namespace
+
+void SpringKernel::energy_and_shortest(const double* x, double* energy, double* shortest) const {
+  const LocalModel& m = model_;
+  const int owned = m.owned;
+  const ConnectionColumn kc = m.table.stiffness_column(), lc = m.table.rest_length_column();
+  double e = 0, w = std::numeric_limits<double>::infinity();
+  auto spring = [&](int c, int a, int b) {  // LocalModel::for_each_written's connection, as the guard computes it
+    if (a >= owned) return;
+    const double d0 = x[3 * b] - x[3 * a], d1 = x[3 * b + 1] - x[3 * a + 1], d2 = x[3 * b + 2] - x[3 * a + 2];
+    const double length = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2), l0 = lc[c], stretch = length - l0;
+    e += 0.5 * kc[c] * stretch * stretch;
+    const double ratio = length / l0;
+    if (ratio < w) w = ratio;
+  };
+  auto generic = [&](int c0, int c1, int at) {
+    if (m.end_a.plain()) {
+      for (int c = c0; c < c1; ++c) spring(c, m.end_a.data()[c], m.end_b.data()[c]);
+      return;
+    }
+    for (int c = c0; c < c1; ++c) spring(c, generic_a_[at + c - c0], generic_b_[at + c - c0]);
+  };
+  alignas(64) double en[kStencilBlock], ra[kStencilBlock];
+  int c = 0;
+  for (const Segment& seg : segments_) {
+    if (c < seg.first_connection) generic(c, seg.first_connection, seg.generic_at);
+    const int p = seg.pattern, start = pattern_start_[p], directions = directions_[p];
+    const StencilException* exceptions = exceptions_.data() + seg.first_exception;
+    const int last = std::min(seg.first_molecule + seg.molecules, owned);
+    int e0 = 0;
+    for (int a0 = seg.first_molecule; a0 < last; a0 += kStencilBlock) {
+      const int n = std::min(kStencilBlock, last - a0);
+      int e1 = e0;
+      while (e1 < seg.exceptions && exceptions[e1].molecule < a0 + n) ++e1;
+      for (int s = 0; s < directions; ++s) {
+        energy_direction(n, x + 3 * static_cast<std::size_t>(a0), x + 3 * static_cast<std::size_t>(a0 + offsets_[start + s]),
+                         k_[start + s], l0_[start + s], en, ra);
+        for (int q = e0; q < e1; ++q)  // a molecule without this direction: no spring
+          if (!(exceptions[q].present >> s & 1u)) en[exceptions[q].molecule - a0] = 0.0, ra[exceptions[q].molecule - a0] = w;
+        for (int i = 0; i < n; ++i) e += en[i];
+        for (int i = 0; i < n; ++i) w = ra[i] < w ? ra[i] : w;
+      }
+      e0 = e1;
+    }
+    c = seg.first_connection + seg.connections;
+  }
+  if (c < m.connections()) generic(c, m.connections(), tail_at_);
+  *energy = e, *shortest = w;
 }
 
 void SpringKernel::tangent(const double* x, const double* u, double* out, double* ghost, FinalRows final_rows,

@@ -145,6 +145,11 @@ public:
   // blocks, the same bits), so that a term can add its part while they are in cache (the cell term's product).
   void tangent(const double* x, const double* u, double* out, double* ghost, FinalRows final_rows = nullptr,
                void* context = nullptr) const;
+  // The guards' pass over the connections whose end a is owned (LocalModel::for_each_written's): the sum of their
+  // energies k (l - l0)^2 / 2 (in another order than that walk's: the last bits may differ) and their smallest
+  // l / l0 (the same double as that walk's: l and the ratio computed as there; non-finite ratios skipped as there),
+  // on the stencil segments (per direction a constant k and l0, contiguous rows) and the generic connections.
+  void energy_and_shortest(const double* x, double* energy, double* shortest) const;
   // The constants of the tangent at the rest positions (model.rest), found from the first spring of each segment's
   // direction and checked against every other (RestStencil::exact).
   RestStencil rest_stencil() const;

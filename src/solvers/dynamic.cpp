@@ -147,6 +147,7 @@ constexpr int kMassTypes = 16;  // two zmm registers of half kicks
 struct MassTypes {
   std::vector<std::uint8_t> type;
   double half_kick[kMassTypes] = {};
+  double mass[kMassTypes] = {};  // each type's m (the kinetic energy's)
   MassTypes(int n, const double* m, double dt) {
     std::uint64_t bits[kMassTypes];
     int types = 0, last = 0;
@@ -159,7 +160,7 @@ struct MassTypes {
         while (last < types && bits[last] != b) ++last;
         if (last == types) {
           if (types == kMassTypes) return;
-          bits[types] = b, half_kick[types] = 0.5 * dt / m[i], ++types;
+          bits[types] = b, half_kick[types] = 0.5 * dt / m[i], mass[types] = m[i], ++types;
         }
       }
       t[i] = static_cast<std::uint8_t>(last);
@@ -168,18 +169,25 @@ struct MassTypes {
   }
 };
 
-// kick_kick_drift_only_streams with the half kick by type: the types' half kicks in two zmm registers and each
-// row's picked by its type byte (vpermt2pd: a table lookup without a gather), 8 rows an iteration; the same
-// operations on the same doubles in the same order (no contraction: -ffp-contract=off), so the same bits.
-__attribute__((target("avx512f"))) void kick_kick_drift_only_typed_avx512(
-    int n, double dt, const std::uint8_t* __restrict type, const double* __restrict half_kick,
-    const double* __restrict f0, const double* __restrict f1, const double* __restrict f2, double* __restrict v0,
-    double* __restrict v1, double* __restrict v2, double* __restrict x0, double* __restrict x1,
-    double* __restrict x2) {
+// The drifting kicks (kick_kick_drift_only_streams, or with Sum kick_kick_drift_streams's kinetic energy) with the
+// half kick by type: the types' half kicks in two zmm registers and each row's picked by its type byte (vpermt2pd:
+// a table lookup without a gather), 8 rows an iteration; the same operations on the same doubles in the same order
+// (no contraction: -ffp-contract=off), so the same bits. With Sum, each row's m v^2 (m from the types' table) is
+// summed in 8 lanes, added to `kinetic` at the end in a fixed order: not molecule order, so the sum's last bits may
+// differ from kick_kick_drift_streams's; only the guards read it (a non-finite value, growth against factors of 2),
+// and a chain of dependent additions a molecule is what the lanes save.
+template <bool Sum>
+__attribute__((target("avx512f"))) double kick_kick_drift_typed_avx512(
+    int n, double dt, const MassTypes& types, const std::uint8_t* __restrict type, const double* __restrict f0,
+    const double* __restrict f1, const double* __restrict f2, double* __restrict v0, double* __restrict v1,
+    double* __restrict v2, double* __restrict x0, double* __restrict x1, double* __restrict x2, double kinetic) {
+  const double* half_kick = types.half_kick;
   const __m512d lo = _mm512_loadu_pd(half_kick), hi = _mm512_loadu_pd(half_kick + 8), h = _mm512_set1_pd(dt);
+  const __m512d mlo = _mm512_loadu_pd(types.mass), mhi = _mm512_loadu_pd(types.mass + 8);
   const double* f[3] = {f0, f1, f2};
   double* v[3] = {v0, v1, v2};
   double* x[3] = {x0, x1, x2};
+  __m512d sum = _mm512_setzero_pd();
   int i = 0;
   for (; i + 8 <= n; i += 8) {
     std::uint64_t t8;
@@ -187,20 +195,34 @@ __attribute__((target("avx512f"))) void kick_kick_drift_only_typed_avx512(
     // (the zero-masked widening: the same instruction, without GCC 12's false uninitialized warning)
     const __m512i t = _mm512_maskz_cvtepu8_epi64(0xff, _mm_cvtsi64_si128(static_cast<long long>(t8)));
     const __m512d kick = _mm512_permutex2var_pd(lo, t, hi);
+    __m512d vv = _mm512_setzero_pd();
     for (int d = 0; d < 3; ++d) {
       const __m512d kf = _mm512_mul_pd(kick, _mm512_loadu_pd(f[d] + i));
-      const __m512d w = _mm512_add_pd(_mm512_add_pd(_mm512_loadu_pd(v[d] + i), kf), kf);
+      const __m512d whole = _mm512_add_pd(_mm512_loadu_pd(v[d] + i), kf);  // the half kick to the whole step
+      if (Sum) vv = _mm512_add_pd(vv, _mm512_mul_pd(whole, whole));
+      const __m512d w = _mm512_add_pd(whole, kf);
       _mm512_storeu_pd(v[d] + i, w);
       _mm512_storeu_pd(x[d] + i, _mm512_add_pd(_mm512_loadu_pd(x[d] + i), _mm512_mul_pd(h, w)));
     }
+    if (Sum) sum = _mm512_add_pd(sum, _mm512_mul_pd(_mm512_permutex2var_pd(mlo, t, mhi), vv));
+  }
+  if (Sum) {
+    alignas(64) double lanes[8];
+    _mm512_store_pd(lanes, sum);
+    for (double l : lanes) kinetic += l;
   }
   for (; i < n; ++i) {
     const double kick = half_kick[type[i]];
+    double vv = 0;
     for (int d = 0; d < 3; ++d) {
-      v[d][i] = (v[d][i] + kick * f[d][i]) + kick * f[d][i];
+      const double whole = v[d][i] + kick * f[d][i];
+      vv += whole * whole;
+      v[d][i] = whole + kick * f[d][i];
       x[d][i] += dt * v[d][i];
     }
+    if (Sum) kinetic += types.mass[type[i]] * vv;
   }
+  return kinetic;
 }
 
 // The half kick to the whole step alone (the step before an observed state) and the half kick and drift that
@@ -249,7 +271,7 @@ struct FusedStreams {
   bool sum;  // whether anything reads the kinetic energy (the guards)
   bool drift;  // false: the step ends at an observed whole step (the half kick to it alone)
   std::size_t ring = 0;  // f's rows in a ring of this many (SpringKernel::forces_ring); 0: f has every row
-  const MassTypes* types = nullptr;  // the unsummed drifting kicks' masses by type (null: from m)
+  const MassTypes* types = nullptr;  // the drifting kicks' masses by type (null: from m)
 };
 void fused_rows_streams(void* context, int begin, int end) {
   FusedStreams& s = *static_cast<FusedStreams*>(context);
@@ -264,9 +286,10 @@ void fused_rows_streams(void* context, int begin, int end) {
       kick_only_streams(end - begin, s.dt, s.m + begin, p.f[0], p.f[1], p.f[2], p.v[0], p.v[1], p.v[2]);
     return;
   }
-  if (s.types && !s.sum) {
-    kick_kick_drift_only_typed_avx512(end - begin, s.dt, s.types->type.data() + begin, s.types->half_kick, p.f[0],
-                                      p.f[1], p.f[2], p.v[0], p.v[1], p.v[2], p.x[0], p.x[1], p.x[2]);
+  if (s.types) {
+    auto kicks = s.sum ? kick_kick_drift_typed_avx512<true> : kick_kick_drift_typed_avx512<false>;
+    s.kinetic = kicks(end - begin, s.dt, *s.types, s.types->type.data() + begin, p.f[0], p.f[1], p.f[2], p.v[0],
+                      p.v[1], p.v[2], p.x[0], p.x[1], p.x[2], s.kinetic);
     return;
   }
   if (s.sum)
@@ -370,9 +393,9 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
   // whole step keep every row's force in f (the next step's half kick reads it, and the state may be read).
   const std::size_t ring_rows = fuse ? static_cast<std::size_t>(forces.kernel().ring_rows()) : 0;
   std::vector<double> ring(ring_rows ? 3 * (ring_rows + static_cast<std::size_t>(model.local - model.owned)) : 0);
-  // (the kicks by mass type: a run without guards, on a CPU with AVX-512; everywhere else from m)
+  // (the drifting kicks by mass type on a CPU with AVX-512; everywhere else from m)
   std::optional<MassTypes> mass_types;
-  if (fuse && !guard.enabled() && __builtin_cpu_supports("avx512f")) mass_types.emplace(n, m, dt);
+  if (fuse && __builtin_cpu_supports("avx512f")) mass_types.emplace(n, m, dt);
   const MassTypes* types = mass_types && !mass_types->type.empty() ? &*mass_types : nullptr;
   bool streams = false;  // x, v, f hold three streams each (x and f: stride local, v: stride n)
   auto set_streams = [&](bool on) {
@@ -398,21 +421,25 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
       expose();
       hooks.checkpoint(s);
     };
-  // With the guards off, the signal check is the only reader of a kReduceEvery-th step's state (a stop writes a
-  // checkpoint of the whole step): its reduction is made before that step instead, so the step drifts on into the
-  // next one's half kick like any other unless a stop was asked for (then it ends at the whole step, as before).
-  // A signal that arrives after the check is seen at the next one, kReduceEvery steps on.
-  const bool check_ahead = !guard.enabled();
+  // A kReduceEvery-th step's state is read by the signal check (a stop writes a checkpoint of the whole step) and
+  // by the guard when it finds a check due there (growth, a non-finite value; the periodic full checks are known
+  // ahead). The signal check's reduction is made before that step instead, and the guard, told that the step
+  // drifted on, makes a check it finds due at the next step, which then ends at its whole state
+  // (StepGuard::check_pending): so the step drifts on into the next one's half kick like any other unless a stop
+  // was asked for or a full check is due (then it ends at the whole step, as before). A signal that arrives after
+  // the check is seen at the next one, kReduceEvery steps on.
+  const long full_every = guard.enabled() ? guard.every() : 0;
   while (state.step < total) {
     const long next = state.step + 1;
-    const bool ahead = check_ahead && next % kReduceEvery == 0 && next < total;
+    const bool ahead = next % kReduceEvery == 0 && next < total;
     bool stop_ahead = false;
     if (ahead) {
       int mine = stop_requested ? 1 : 0, any = 0;
       MPI_Allreduce(&mine, &any, 1, MPI_INT, MPI_MAX, model.comm);
       stop_ahead = any != 0;
     }
-    const bool next_unobserved = ahead ? unread(next) && !stop_ahead : unobserved(next);
+    const bool next_unobserved = (ahead ? unread(next) && !stop_ahead : unobserved(next)) && !guard.check_pending() &&
+                                 !(full_every > 0 && next % full_every == 0);
     const bool fused = fuse && unread(state.step + 1);
     // (the layout the last step left: a fused step that ended at an observed state kept the streams)
     if (!drifted) {
@@ -462,7 +489,7 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
     }
     ++state.step;
     state.time += dt;
-    guard.dynamic_step(0.5 * kinetic);
+    guard.dynamic_step(0.5 * kinetic, /*whole=*/!drifted);
     if (state.step == total) guard.full_check();
     progress.update(state.step, -1, 0, total);
     if (rows > 0 && (state.step % rows == 0 || state.step == total)) hooks.record(state);

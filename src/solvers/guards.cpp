@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <limits>
+#include <stdexcept>
 
 #include "partition/agreement.hpp"
 #include "src/physics/force_model.hpp"
@@ -85,13 +86,8 @@ double StepGuard::energy(double* spring, double* work) {
   const double* x = state_.x.array();
   double sums[3] = {0, 0, 0};
   const std::exception_ptr error = attempt([&] {
-    worst_ratio_ = std::numeric_limits<double>::infinity(), worst_id_ = -1, worst_c_ = -1;
-    model_.for_each_written([&](int c, int a, int b) {
-      const double length = length_of(x, a, b);
-      const double stretch = length - model_.l0(c), ratio = length / model_.l0(c);
-      sums[0] += 0.5 * model_.k(c) * stretch * stretch;
-      if (ratio < worst_ratio_) worst_ratio_ = ratio, worst_id_ = model_.connection_id(c), worst_c_ = c;
-    });
+    // (the connection with the smallest ratio is named by check_lengths, only when it fails)
+    forces_.kernel().energy_and_shortest(x, &sums[0], &worst_ratio_);
     for (const auto& a : forces_.applied()) sums[1] += a.value * (x[a.component] - model_.rest[a.component]);
     if (const auto& g = scene_.physics.gravity)
       for (int i = 0; i < model_.owned; ++i)
@@ -109,18 +105,28 @@ void StepGuard::check_finite_state() {
   const double* x = state_.x.array();
   std::vector<double> bad;
   int any[2] = {0, 0}, all[2];
+  const double* v = state_.v.data();
+  const double* f = state_.f.data();
+  auto finite = [&](int j) { return std::isfinite(x[j]) && std::isfinite(v[j]) && std::isfinite(f[j]); };
   const std::exception_ptr error = attempt([&] {
     fault_point("guard", model_.comm);
-    bad.assign(model_.owned, 0.0);
-    for (int i = 0; i < model_.owned; ++i)
-      for (int d = 0; d < 3; ++d)
-        if (!std::isfinite(x[3 * i + d]) || !std::isfinite(state_.v[3 * i + d]) || !std::isfinite(state_.f[3 * i + d]))
-          bad[i] = 1.0, any[0] = 1;
+    // (an integer OR over the components: a reduction the compiler vectorizes, no branch a component)
+    constexpr double largest = std::numeric_limits<double>::max();
+    int flag = 0;
+    for (int j = 0; j < 3 * model_.owned; ++j)
+      flag |= static_cast<int>(!(std::fabs(x[j]) <= largest)) | static_cast<int>(!(std::fabs(v[j]) <= largest)) |
+              static_cast<int>(!(std::fabs(f[j]) <= largest));
+    any[0] = flag;
   });
   any[1] = error ? 1 : 0;
   MPI_Allreduce(any, all, 2, MPI_INT, MPI_MAX, model_.comm);
   if (all[1]) agree_on(model_.comm, error);
   if (!all[0]) return;
+  // A failure: the molecules named (the per-molecule flags only now)
+  bad.assign(model_.owned, 0.0);
+  for (int i = 0; i < model_.owned; ++i)
+    for (int d = 0; d < 3; ++d)
+      if (!finite(3 * i + d)) bad[i] = 1.0;
   // The first non-finite molecule: bad = 1 is the largest value, ties go to the smallest id.
   fail("non-finite position, velocity or force" + first_seen_, argmax_molecule(model_, bad));
 }
@@ -132,13 +138,11 @@ void StepGuard::check_lengths(bool from_energy) {
   int worst_c = -1;
   std::exception_ptr error;
   if (from_energy) {
-    worst = worst_ratio_, worst_id = worst_id_, worst_c = worst_c_;
+    worst = worst_ratio_;
   } else {
     error = attempt([&] {
-      model_.for_each_written([&](int c, int a, int b) {
-        const double ratio = length_of(x, a, b) / model_.l0(c);
-        if (ratio < worst) worst = ratio, worst_id = model_.connection_id(c), worst_c = c;
-      });
+      double unused;
+      forces_.kernel().energy_and_shortest(x, &unused, &worst);
     });
   }
   double mins[2] = {worst, error ? -1.0 : 0.0}, reduced[2];  // MIN: the flag is -1 when a rank failed
@@ -146,6 +150,13 @@ void StepGuard::check_lengths(bool from_energy) {
   if (reduced[1] < 0) agree_on(model_.comm, error);
   const double global = reduced[0];
   if (!(global < kCollapsedLengthRatio)) return;
+  // A failure (rare): the first connection in this rank's order with the smallest ratio (the same doubles as the
+  // kernel's pass), named.
+  worst = std::numeric_limits<double>::infinity();
+  model_.for_each_written([&](int c, int a, int b) {
+    const double ratio = length_of(x, a, b) / model_.l0(c);
+    if (ratio < worst) worst = ratio, worst_id = model_.connection_id(c), worst_c = c;
+  });
   long long mine = worst == global ? worst_id : std::numeric_limits<long long>::max(), first = 0;
   MPI_Allreduce(&mine, &first, 1, MPI_LONG_LONG, MPI_MIN, model_.comm);
   long long molecule = mine == first && worst_c >= 0 ? model_.id[model_.end_a[worst_c]] : -1, m = -1;
@@ -172,18 +183,27 @@ void StepGuard::full_check_as_made() {
   check_lengths(/*from_energy=*/copy_);  // no copy: the constructor made no pass (no energies)
 }
 
-void StepGuard::dynamic_step(double local_kinetic) {
+void StepGuard::dynamic_step(double local_kinetic, bool whole) {
   if (!enabled_) return;
   Timer timer{seconds_};
   if (!std::isfinite(local_kinetic) && first_bad_step_ < 0) first_bad_step_ = state_.step;
-  if (state_.step % kReduceEvery != 0) return;  // the solver's full_check() at the last step covers the rest
+  // (a pending check is made at the next whole step, whatever its number: every rank has it pending, from the
+  // same reduced values)
+  if (state_.step % kReduceEvery != 0 && !pending_) return;  // the solver's full_check() at the last step covers the rest
+  if (pending_ && !whole) throw std::logic_error("StepGuard: a pending check needs a whole step");
+  pending_ = false;
   const std::exception_ptr error = attempt([&] { fault_point("guard", model_.comm); });
   double local[3] = {first_bad_step_ >= 0 ? 0.0 : local_kinetic, first_bad_step_ >= 0 ? 1.0 : 0.0,
                      error ? 1.0 : 0.0}, global[3];
   MPI_Allreduce(local, global, 3, MPI_DOUBLE, MPI_SUM, model_.comm);
   if (global[2] > 0) agree_on(model_.comm, error);
   kinetic_ = global[0];
-  if (global[1] > 0 || !std::isfinite(kinetic_)) {
+  const bool bad = global[1] > 0 || !std::isfinite(kinetic_);
+  if (!whole && (bad || kinetic_ > 2.0 * kinetic_checked_ || state_.step % every_ == 0)) {
+    pending_ = true;  // the state is not this step's: checked at the next, whole, step
+    return;
+  }
+  if (bad) {
     long mine = first_bad_step_ >= 0 ? first_bad_step_ : state_.step, first = 0;
     MPI_Allreduce(&mine, &first, 1, MPI_LONG, MPI_MIN, model_.comm);
     first_seen_ = fmt::format(" (first non-finite kinetic energy at step {})", first);

@@ -2,7 +2,8 @@
 // made once at set-up (the time step, the connections) are src/solvers/setup_checks.hpp, the reports naming a
 // molecule src/solvers/molecule_report.hpp.
 //
-//  - during the solve (StepGuard): NaN or Inf caught within kReduceEvery (16) steps and the step where it first
+//  - during the solve (StepGuard): NaN or Inf caught within kReduceEvery (16) steps (one more where the solver's
+//    16th step drifted on: the check is then made at the next, whole, step) and the step where it first
 //    appeared named (dynamic: each rank notes the first step its kinetic energy is non-finite, at no cost; the
 //    ranks compare notes every 16 steps, the cadence of the signal check; relaxation: every iteration),
 //    energy growth (dynamic, within 16 steps) and divergence (relaxation) caught early, a connection shorter than 1e-3 of its rest length (inverted, collapsed) caught
@@ -44,7 +45,16 @@ public:
   // doubles). Throws SolverFailure on a non-finite state (naming the step where a rank first saw it) or on
   // energy growth; runs the full check every `every` steps and whenever the kinetic energy exceeds twice the
   // largest kinetic energy of any earlier check.
-  void dynamic_step(double local_kinetic);
+  //
+  // `whole` false: the solver's state is not at this whole step (a fused step that drifted on into the next one's
+  // half kick; only the kinetic energy is of this step): a check this step needs (non-finite, growth) is not made
+  // here but pending, and the solver must end the next step at its whole state (check_pending()) and call this
+  // again, which then makes it, one step later (no step between the checks reads the state).
+  void dynamic_step(double local_kinetic, bool whole = true);
+  // A check found due at a step that was not whole (above): the next step must be.
+  bool check_pending() const { return pending_; }
+  // Steps between the periodic full checks (their steps must be whole).
+  long every() const { return every_; }
   // Relaxation, after every iteration with the (global) relative residual already reduced: no communication
   // unless a check is due. Throws SolverFailure on a non-finite or exploding residual.
   void relaxation_step(double residual);
@@ -95,10 +105,9 @@ private:
   long good_step_ = 0;
   long checks_ = 0;
   long first_bad_step_ = -1;  // dynamic: the first step this rank's kinetic energy was non-finite
+  bool pending_ = false;      // dynamic: a check due at a step that was not whole (dynamic_step)
   std::string first_seen_;     // " (first non-finite kinetic energy at step S)", once the ranks compared notes
   double worst_ratio_ = 0.0;   // from energy(): the shortest connection's length / rest length on this rank
-  long long worst_id_ = -1;
-  int worst_c_ = -1;
   double seconds_ = 0.0;
   double good_time_ = 0.0;
   std::function<void()> prepare_;

@@ -1191,6 +1191,23 @@ void energy_direction(int n, const double* __restrict xa, const double* __restri
     ratio[i] = length / l0;
   }
 }
+// A block's energies and ratios into 8 lanes (sums; smallest ratios, a NaN never taken): independent chains, where
+// one running sum and minimum were a chain of dependent operations a connection.
+constexpr int kLanes = 8;
+TISSUE_CLONES
+void accumulate_lanes(int n, const double* __restrict energy, const double* __restrict ratio,
+                      double* __restrict sums, double* __restrict smallest) {
+  int i = 0;
+  for (; i + kLanes <= n; i += kLanes)
+    for (int j = 0; j < kLanes; ++j) {
+      sums[j] += energy[i + j];
+      smallest[j] = ratio[i + j] < smallest[j] ? ratio[i + j] : smallest[j];
+    }
+  for (; i < n; ++i) {
+    sums[0] += energy[i];
+    smallest[0] = ratio[i] < smallest[0] ? ratio[i] : smallest[0];
+  }
+}
 }  // namespace
 
 void SpringKernel::energy_and_shortest(const double* x, double* energy, double* shortest) const {
@@ -1213,7 +1230,8 @@ void SpringKernel::energy_and_shortest(const double* x, double* energy, double* 
     }
     for (int c = c0; c < c1; ++c) spring(c, generic_a_[at + c - c0], generic_b_[at + c - c0]);
   };
-  alignas(64) double en[kStencilBlock], ra[kStencilBlock];
+  alignas(64) double en[kStencilBlock], ra[kStencilBlock], sums[kLanes] = {}, smallest[kLanes];
+  std::fill(smallest, smallest + kLanes, std::numeric_limits<double>::infinity());
   int c = 0;
   for (const Segment& seg : segments_) {
     if (c < seg.first_connection) generic(c, seg.first_connection, seg.generic_at);
@@ -1229,15 +1247,16 @@ void SpringKernel::energy_and_shortest(const double* x, double* energy, double* 
         energy_direction(n, x + 3 * static_cast<std::size_t>(a0), x + 3 * static_cast<std::size_t>(a0 + offsets_[start + s]),
                          k_[start + s], l0_[start + s], en, ra);
         for (int q = e0; q < e1; ++q)  // a molecule without this direction: no spring
-          if (!(exceptions[q].present >> s & 1u)) en[exceptions[q].molecule - a0] = 0.0, ra[exceptions[q].molecule - a0] = w;
-        for (int i = 0; i < n; ++i) e += en[i];
-        for (int i = 0; i < n; ++i) w = ra[i] < w ? ra[i] : w;
+          if (!(exceptions[q].present >> s & 1u))
+            en[exceptions[q].molecule - a0] = 0.0, ra[exceptions[q].molecule - a0] = std::numeric_limits<double>::infinity();
+        accumulate_lanes(n, en, ra, sums, smallest);
       }
       e0 = e1;
     }
     c = seg.first_connection + seg.connections;
   }
   if (c < m.connections()) generic(c, m.connections(), tail_at_);
+  for (int j = 0; j < kLanes; ++j) e += sums[j], w = smallest[j] < w ? smallest[j] : w;  // the lanes in a fixed order
   *energy = e, *shortest = w;
 }
 

@@ -1244,11 +1244,14 @@ void SpringKernel::energy_and_shortest(const double* x, double* energy, double* 
       int e1 = e0;
       while (e1 < seg.exceptions && exceptions[e1].molecule < a0 + n) ++e1;
       for (int s = 0; s < directions; ++s) {
-        energy_direction(n, x + 3 * static_cast<std::size_t>(a0), x + 3 * static_cast<std::size_t>(a0 + offsets_[start + s]),
-                         k_[start + s], l0_[start + s], en, ra);
+        const double* xa = x + 3 * static_cast<std::size_t>(a0);
+        energy_direction(n, xa, xa + 3 * static_cast<std::ptrdiff_t>(offsets_[start + s]), k_[start + s],
+                         l0_[start + s], en, ra);
         for (int q = e0; q < e1; ++q)  // a molecule without this direction: no spring
-          if (!(exceptions[q].present >> s & 1u))
-            en[exceptions[q].molecule - a0] = 0.0, ra[exceptions[q].molecule - a0] = std::numeric_limits<double>::infinity();
+          if (!(exceptions[q].present >> s & 1u)) {
+            const int i = exceptions[q].molecule - a0;
+            en[i] = 0.0, ra[i] = std::numeric_limits<double>::infinity();
+          }
         accumulate_lanes(n, en, ra, sums, smallest);
       }
       e0 = e1;

@@ -189,7 +189,8 @@ void StepGuard::dynamic_step(double local_kinetic, bool whole) {
   if (!std::isfinite(local_kinetic) && first_bad_step_ < 0) first_bad_step_ = state_.step;
   // (a pending check is made at the next whole step, whatever its number: every rank has it pending, from the
   // same reduced values)
-  if (state_.step % kReduceEvery != 0 && !pending_) return;  // the solver's full_check() at the last step covers the rest
+  // (the solver's full_check() at the last step covers the steps after the last kReduceEvery-th)
+  if (state_.step % kReduceEvery != 0 && !pending_) return;
   if (pending_ && !whole) throw std::logic_error("StepGuard: a pending check needs a whole step");
   pending_ = false;
   const std::exception_ptr error = attempt([&] { fault_point("guard", model_.comm); });

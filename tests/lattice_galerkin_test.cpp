@@ -7,6 +7,7 @@
 #include <petscksp.h>
 
 #include <cmath>
+#include <cstring>
 #include <memory>
 #include <vector>
 
@@ -311,3 +312,74 @@ TEST(LatticeGalerkin, EveryLevelWithTwoCellKindsAtRest) {
               "[[body.region]]\nlo = [0.0, 0.0, 0.0]\nhi = [4.0e-3, 1.0, 1.0]\nyoungs_modulus = 2.413793103448276\npoisson_ratio = 0.4\n[calibration]");
   compare_every_level(0.0, two);
 }
+
+// Level 1's pulled nodes (summed in registers 8 at a time where the rows are one shared row's: a box's interior
+// at rest) against the push form alone (-static_level_one_pull false): the same product and transposed product
+// to the bit, on the faces' masked rows as well, and at an iterate, where every row differs and nothing is pulled.
+void compare_pull_with_push(double amplitude, const std::string& scene_text, bool expect_pulled) {
+  std::vector<Vec> results;
+  std::size_t pulled[2] = {0, 0};
+  Vec u = nullptr;
+  for (int pull = 0; pull < 2; ++pull) {
+    ASSERT_EQ(PetscOptionsSetValue(nullptr, "-static_level_one_pull", pull ? "true" : "false"), 0);
+    TwoHierarchies h;
+    build_hierarchies(amplitude, scene_text, true, &h);
+    ASSERT_EQ(PetscOptionsClearValue(nullptr, "-static_level_one_pull"), 0);
+    if (::testing::Test::HasFatalFailure()) return;
+    pulled[pull] = h.galerkin->level_one_pulled();
+    KSP smoother;
+    Mat ours;
+    ASSERT_EQ(PCMGGetSmoother(h.ours, h.levels - 2, &smoother), 0);
+    ASSERT_EQ(KSPGetOperators(smoother, &ours, nullptr), 0);
+    if (!u) {
+      ASSERT_EQ(MatCreateVecs(ours, &u, nullptr), 0);
+      PetscRandom rnd;
+      ASSERT_EQ(PetscRandomCreate(PETSC_COMM_WORLD, &rnd), 0);
+      ASSERT_EQ(VecSetRandom(u, rnd), 0);
+      PetscRandomDestroy(&rnd);
+    }
+    for (int transposed = 0; transposed < 2; ++transposed) {
+      Vec y;
+      ASSERT_EQ(VecDuplicate(u, &y), 0);
+      ASSERT_EQ(transposed ? MatMultTranspose(ours, u, y) : MatMult(ours, u, y), 0);
+      results.push_back(y);
+    }
+  }
+  unsigned long long counts[2] = {pulled[0], pulled[1]}, sums[2];
+  MPI_Allreduce(counts, sums, 2, MPI_UNSIGNED_LONG_LONG, MPI_SUM, PETSC_COMM_WORLD);
+  EXPECT_EQ(sums[0], 0u) << "-static_level_one_pull false pulls nothing";
+  int size = 1;
+  MPI_Comm_size(PETSC_COMM_WORLD, &size);
+  if (expect_pulled && size == 1)  // (on more ranks the test pipeline's partitions need not leave whole rows)
+    EXPECT_GT(sums[1], 0u) << "the box's interior at rest is pulled";
+  else if (!expect_pulled)
+    EXPECT_EQ(sums[1], 0u);
+  for (int transposed = 0; transposed < 2; ++transposed) {
+    const PetscScalar *push, *pull;
+    PetscInt n = 0;
+    ASSERT_EQ(VecGetLocalSize(u, &n), 0);
+    ASSERT_EQ(VecGetArrayRead(results[transposed], &push), 0);
+    ASSERT_EQ(VecGetArrayRead(results[2 + transposed], &pull), 0);
+    int differ = 0, first = -1;
+    for (PetscInt i = 0; i < n; ++i)
+      if (std::memcmp(push + i, pull + i, sizeof(double)) != 0) differ += 1, first = first < 0 ? static_cast<int>(i) : first;
+    EXPECT_EQ(differ, 0) << (transposed ? "transposed product" : "product") << ": first differing entry " << first
+                         << " (" << (first >= 0 ? push[first] : 0.0) << " against " << (first >= 0 ? pull[first] : 0.0)
+                         << ")";
+    VecRestoreArrayRead(results[transposed], &push);
+    VecRestoreArrayRead(results[2 + transposed], &pull);
+  }
+  for (Vec& v : results) VecDestroy(&v);
+  VecDestroy(&u);
+}
+TEST(LatticeGalerkin, LevelOnePullEqualsPushBitForBitWithCells) {
+  std::string big = cell_scene;
+  big.replace(big.find("[10, 7, 12]"), 11, "[33, 27, 35]");
+  compare_pull_with_push(0.0, big, true);
+}
+TEST(LatticeGalerkin, LevelOnePullEqualsPushBitForBitSprings) {
+  std::string big = scene;
+  big.replace(big.find("[10, 7, 12]"), 11, "[35, 29, 33]");
+  compare_pull_with_push(0.0, big, true);
+}
+TEST(LatticeGalerkin, LevelOnePullAtAnIterateIsThePushForm) { compare_pull_with_push(0.08, cell_scene, false); }

@@ -6,8 +6,10 @@
 #include <algorithm>
 #include <array>
 #include <climits>
+#include <map>
 #include <cstdlib>
 #include <cstring>
+#include <type_traits>
 #include <unordered_map>
 
 #include <sys/mman.h>  // madvise: the halved level-1 rows' pages
@@ -154,12 +156,144 @@ using Lanes = double __attribute__((vector_size(32)));
 
 enum class Columns { kRows, kCopy, kGathered };  // where A_ij u_j's columns come from (stencil_product)
 
+// Level 1's pulled nodes (LatticeGalerkin::pull_runs): runs of consecutive wholly free nodes whose 14 upper
+// blocks and whose 13 lower neighbours' are one shared row's, with the neighbours at the same node offsets
+// (a box lattice's interior at its reference state). Such a node's value is summed in registers, 8 nodes at a
+// time, from the input by component: the transposed blocks its lower neighbours would add to it (by increasing
+// neighbour, the order the push form adds them in), then its own blocks' sum, and stored. What the push form's
+// nodes add to it before (all its lower neighbours come before it) is overwritten; nothing is added after. Every
+// value is the push form's expression on the same operands in the same order, so the same bits.
+struct PullRuns {
+  struct Run {
+    int c0, c1, row;
+    int p0, p1;  // its pushes: pushes[p0 .. p1)
+  };
+  const Run* runs = nullptr;
+  std::size_t count = 0;
+  const int* delta = nullptr;          // kHalf node offsets of the upper slots (delta[0] = 0)
+  const int* lower = nullptr;          // slots 1 .. kHalf - 1 by decreasing offset (the lower neighbours by increasing node)
+  // Pulled nodes' upper slots whose node is not pulled: 16 x the pulled node's first unknown + the slot, then
+  // the other node's first unknown (so that the push reads neither the node's nor the columns' arrays).
+  const std::uint32_t* pushes = nullptr;
+  const double* soa[3] = {};           // the input by component, per node
+};
+
+using Lanes8 = double __attribute__((vector_size(64)));
+using Select8 = std::int64_t __attribute__((vector_size(64)));
+
+template <class V>
+inline void load(V& v, const double* p) {
+  if constexpr (std::is_same_v<V, double>) v = *p;
+  else std::memcpy(&v, p, sizeof v);
+}
+
+// W nodes from node c (V: double or Lanes8) into Y[k] (their row k values); kColumns as stencil_product's.
+template <Columns kColumns, class V>
+__attribute__((always_inline)) inline void pull_nodes(int c, const PullRuns& pr, const double* blk, const double* tblk,
+                                                     V Y[3]) {
+  const double *X0 = pr.soa[0], *X1 = pr.soa[1], *X2 = pr.soa[2];
+  V y0 = {}, y1 = {}, y2 = {};
+  for (int q = 0; q < kHalf - 1; ++q) {  // A_ji^T u_j from each lower neighbour j, by increasing j
+    const int s = pr.lower[q], j = c - pr.delta[s];
+    const double* r = blk + kBlock * s;
+    V u0, u1, u2;
+    load(u0, X0 + j), load(u1, X1 + j), load(u2, X2 + j);
+    y0 += r[0] * u0 + r[3] * u1 + r[6] * u2;
+    y1 += r[1] * u0 + r[4] * u1 + r[7] * u2;
+    y2 += r[2] * u0 + r[5] * u1 + r[8] * u2;
+  }
+  V a0 = {}, a1 = {}, a2 = {};
+  for (int s = 0; s < kHalf; ++s) {  // A_ij u_j over the node's own blocks, in slot order
+    const int j = c + pr.delta[s];
+    const double* b = (kColumns == Columns::kCopy ? tblk : blk) + kBlock * s;
+    V u0, u1, u2;
+    load(u0, X0 + j), load(u1, X1 + j), load(u2, X2 + j);
+    if (kColumns == Columns::kGathered) {  // column m of row k is b[3 k + m]
+      a0 += b[0] * u0 + b[1] * u1 + b[2] * u2;
+      a1 += b[3] * u0 + b[4] * u1 + b[5] * u2;
+      a2 += b[6] * u0 + b[7] * u1 + b[8] * u2;
+    } else {  // the lanes of row m are b[3 m ..]: lane k is b[3 m + k]
+      a0 += b[0] * u0 + b[3] * u1 + b[6] * u2;
+      a1 += b[1] * u0 + b[4] * u1 + b[7] * u2;
+      a2 += b[2] * u0 + b[5] * u1 + b[8] * u2;
+    }
+  }
+  Y[0] = y0 + a0, Y[1] = y1 + a1, Y[2] = y2 + a2;
+}
+
+// 8 nodes' three components interleaved into 24 consecutive values (two shuffles a vector).
+__attribute__((always_inline)) inline void store_interleaved(double* to, Lanes8 y0, Lanes8 y1, Lanes8 y2) {
+  const Lanes8 t0 = __builtin_shuffle(y0, y1, Select8{0, 8, 0, 1, 9, 0, 2, 10});
+  const Lanes8 t1 = __builtin_shuffle(y0, y1, Select8{0, 3, 11, 0, 4, 12, 0, 5});
+  const Lanes8 t2 = __builtin_shuffle(y0, y1, Select8{13, 0, 6, 14, 0, 7, 15, 0});
+  const Lanes8 o0 = __builtin_shuffle(t0, y2, Select8{0, 1, 8, 3, 4, 9, 6, 7});
+  const Lanes8 o1 = __builtin_shuffle(t1, y2, Select8{10, 1, 2, 11, 4, 5, 12, 7});
+  const Lanes8 o2 = __builtin_shuffle(t2, y2, Select8{0, 13, 2, 3, 14, 5, 6, 15});
+  std::memcpy(to, &o0, sizeof o0), std::memcpy(to + 8, &o1, sizeof o1), std::memcpy(to + 16, &o2, sizeof o2);
+}
+__attribute__((always_inline)) inline void store_nodes(double* to, const Lanes8 Y[3]) {
+  store_interleaved(to, Y[0], Y[1], Y[2]);
+}
+__attribute__((always_inline)) inline void store_nodes(double* to, const double Y[3]) {
+  to[0] = Y[0], to[1] = Y[1], to[2] = Y[2];
+}
+
+// The run's nodes W at a time from c to its end; the last W end at the run's end (nodes computed twice get the
+// same values: a pulled node's value is only stored). Returns where it stopped (the run's end, or c when the run
+// is shorter than W).
+template <Columns kColumns, class V>
+__attribute__((always_inline)) inline int pull_blocks(int c, const PullRuns::Run& run, const PullRuns& pr,
+                                                      const PetscInt* first, const double* blk, const double* tblk,
+                                                      double* y) {
+  constexpr int W = sizeof(V) / sizeof(double);
+  if (run.c1 - c < W) return c;
+  for (; c < run.c1; c += W) {
+    const int cw = std::min(c, run.c1 - W);
+    V Y[3];
+    pull_nodes<kColumns>(cw, pr, blk, tblk, Y);
+    store_nodes(y + first[cw] / 8, Y);  // W wholly free nodes: 3 W consecutive values
+  }
+  return run.c1;
+}
+
+template <Columns kColumns>
+__attribute__((always_inline)) inline void pull_run(const PullRuns::Run& run, const PullRuns& pr, const PetscInt* first,
+                                                   const double* a, const double* columns, const double* u,
+                                                   double* y) {
+  const double* blk = a + kHalf * kBlock * static_cast<std::size_t>(run.row);
+  const double* tblk = columns + kHalf * kBlock * static_cast<std::size_t>(run.row);
+  // (16 nodes at a time measured slower than 8: GCC spills the 16-lane sums.)
+  const int c = pull_blocks<kColumns, Lanes8>(run.c0, run, pr, first, blk, tblk, y);
+  pull_blocks<kColumns, double>(c, run, pr, first, blk, tblk, y);
+  // Then its blocks to upper neighbours that are not pulled, A_ij^T u_i added there as the push form adds it: by
+  // increasing i, as the push form's, and no other node writes to them while the run is summed.
+  for (int p = run.p0; p < run.p1; ++p) {
+    const std::uint32_t from = pr.pushes[2 * p], to = pr.pushes[2 * p + 1];
+    const double* ui = u + (from >> 4);
+    const double* r = blk + kBlock * (from & 15u);
+    double* back = y + to;
+    Lanes r0, r1, r2;
+    std::memcpy(&r0, r, sizeof r0), std::memcpy(&r1, r + 3, sizeof r1), std::memcpy(&r2, r + 6, sizeof r2);
+    const Lanes t = r0 * ui[0] + r1 * ui[1] + r2 * ui[2];
+    back[0] += t[0], back[1] += t[1], back[2] += t[2];
+  }
+}
+
 template <Columns kColumns>
 __attribute__((always_inline)) inline void stencil_product(std::size_t nodes, const PetscInt* first, const int* row,
                                                            const double* a, const double* columns,
                                                            const PetscInt* cols, PetscInt n, const double* u,
-                                                           const double* g, double* y, double* h) {
+                                                           const double* g, double* y, double* h,
+                                                           const PullRuns& pr) {
+  const PullRuns::Run* run = pr.runs;
+  const PullRuns::Run* runs_end = pr.runs + pr.count;
   for (std::size_t c = 0; c < nodes; ++c) {
+    if (run < runs_end && static_cast<int>(c) == run->c0) {  // a pulled run, then on after it
+      pull_run<kColumns>(*run, pr, first, a, columns, u, y);
+      c = static_cast<std::size_t>(run->c1) - 1;
+      ++run;
+      continue;
+    }
     const int mask = static_cast<int>(first[c] % 8);
     if (!mask) continue;
     const double* blk = a + kHalf * kBlock * static_cast<std::size_t>(row[c]);
@@ -204,17 +338,18 @@ __attribute__((always_inline)) inline void stencil_product(std::size_t nodes, co
 
 TISSUE_CLONES void symmetric_stencil_product(std::size_t nodes, const PetscInt* first, const int* row,
                                              const double* a, const PetscInt* cols, PetscInt n, const double* u,
-                                             const double* g, double* y, double* h) {
-  stencil_product<Columns::kRows>(nodes, first, row, a, a, cols, n, u, g, y, h);
+                                             const double* g, double* y, double* h, const PullRuns& pr) {
+  stencil_product<Columns::kRows>(nodes, first, row, a, a, cols, n, u, g, y, h, pr);
 }
 
 TISSUE_CLONES void general_stencil_product(std::size_t nodes, const PetscInt* first, const int* row,
                                            const double* a, const double* columns, const PetscInt* cols, PetscInt n,
-                                           const double* u, const double* g, double* y, double* h) {
+                                           const double* u, const double* g, double* y, double* h,
+                                           const PullRuns& pr) {
   if (columns)
-    stencil_product<Columns::kCopy>(nodes, first, row, a, columns, cols, n, u, g, y, h);
+    stencil_product<Columns::kCopy>(nodes, first, row, a, columns, cols, n, u, g, y, h, pr);
   else
-    stencil_product<Columns::kGathered>(nodes, first, row, a, a, cols, n, u, g, y, h);
+    stencil_product<Columns::kGathered>(nodes, first, row, a, a, cols, n, u, g, y, h, pr);
 }
 
 // Pages about to be written from scratch, faulted in by one call instead of one trap a 4 kB page at first touch:
@@ -371,6 +506,13 @@ struct LatticeGalerkin::StencilOperator {
   Vec ghosts = nullptr;         // the neighbours' values owned elsewhere
   Vec shares = nullptr;         // what the transposed blocks add to them (a product's reverse scatter)
   VecScatter scatter = nullptr;
+  // The pulled runs (pull_runs; stencil_product): none when -static_level_one_pull false or no node qualifies.
+  std::vector<PullRuns::Run> runs;
+  std::array<int, kHalf> delta{};
+  std::array<int, kHalf - 1> lower{};
+  std::vector<std::uint32_t> pushes;
+  std::vector<double> soa;           // 3 x nodes: a product's input by component
+  std::size_t pulled_nodes = 0;
   void release() {
     (void)VecDestroy(&ghosts);
     (void)VecDestroy(&shares);
@@ -1568,7 +1710,95 @@ void LatticeGalerkin::halve_level_one() {
       for (int r = 0; r < 3; ++r)
         for (int k = 0; k < 3; ++k) op.columns[b * kBlock + 3 * k + r] = a[b * kBlock + 3 * r + k];
   }
+  pull_runs();
 }
+
+// Level 1's pulled runs (PullRuns; stencil_product): a node is pulled when it is wholly free, its 14 upper slots'
+// nodes are wholly free, owned here and at the same node offsets as everywhere else (`delta`, from the first such
+// node), and its 13 lower neighbours are such nodes with the same row of blocks. A box lattice's interior at its
+// reference state, where the rows are a few shared ones, is nearly all pulled; a deformed state (every row
+// distinct) or another numbering pulls nothing, and the push form runs as before.
+void LatticeGalerkin::pull_runs() {
+  StencilOperator& op = *level_one_;
+  op.runs.clear();
+  free_storage(op.pushes);
+  free_storage(op.soa);
+  op.pulled_nodes = 0;
+  PetscBool on = PETSC_TRUE;
+  (void)PetscOptionsGetBool(nullptr, nullptr, "-static_level_one_pull", &on, nullptr);
+  const std::size_t nodes = op.first.size();
+  const PetscInt n = op.n;
+  if (!on || nodes == 0 || n >= (PetscInt{1} << 27)) return;  // (pushes keep 16 x a position in 32 bits)
+  std::vector<int> node_at(static_cast<std::size_t>(n), -1);  // the node whose first unknown is there
+  for (std::size_t c = 0; c < nodes; ++c)
+    if (op.first[c] % 8) node_at[op.first[c] / 8] = static_cast<int>(c);
+  auto upper = [&](std::size_t c, int s) {  // slot s's node if wholly free and owned here, else -1
+    const PetscInt cq = op.col[kHalf * c + s];
+    return cq < 0 || (cq & 7) != 7 || (cq >> 3) >= n ? -1 : node_at[cq >> 3];
+  };
+  auto full = [&](std::size_t c) {
+    if (op.first[c] % 8 != 7) return false;
+    for (int s = 0; s < kHalf; ++s)
+      if (upper(c, s) < 0) return false;
+    return true;
+  };
+  // The offsets most wholly free nodes have (a rank's nodes need not all be numbered alike: the first one's can be
+  // a cut's).
+  std::map<std::array<int, kHalf>, std::size_t> seen;
+  for (std::size_t c = 0; c < nodes; ++c) {
+    if (!full(c)) continue;
+    std::array<int, kHalf> d;
+    for (int s = 0; s < kHalf; ++s) d[s] = upper(c, s) - static_cast<int>(c);
+    ++seen[d];
+  }
+  if (seen.empty()) return;
+  op.delta = std::max_element(seen.begin(), seen.end(), [](const auto& p, const auto& q) {
+               return p.second < q.second;
+             })->first;
+  for (int s = 1; s < kHalf; ++s) op.lower[s - 1] = s;
+  std::sort(op.lower.begin(), op.lower.end(), [&](int p, int q) { return op.delta[p] > op.delta[q]; });
+  if (op.delta[0] != 0 || op.delta[op.lower.back()] <= 0) return;
+  for (int q = 1; q < kHalf - 1; ++q)
+    if (op.delta[op.lower[q]] == op.delta[op.lower[q - 1]]) return;
+  std::vector<std::uint8_t> canon(nodes, 0), pure(nodes, 0);
+  for (std::size_t c = 0; c < nodes; ++c) {
+    bool ok = full(c);
+    for (int s = 0; s < kHalf && ok; ++s) ok = upper(c, s) == static_cast<int>(c) + op.delta[s];
+    canon[c] = ok;
+  }
+  const int* row = op.rows.row.data();
+  for (std::size_t c = 0; c < nodes; ++c) {
+    bool ok = canon[c];
+    for (int s = 1; s < kHalf && ok; ++s) {
+      const long j = static_cast<long>(c) - op.delta[s];
+      ok = j >= 0 && canon[j] && row[j] == row[c];
+    }
+    pure[c] = ok;
+    op.pulled_nodes += ok;
+  }
+  (void)PetscInfo(nullptr, "lattice Galerkin: level 1 pulls %zu of %zu nodes\n", op.pulled_nodes, nodes);
+  if (!op.pulled_nodes) return;
+  for (std::size_t c = 0; c < nodes;) {
+    if (!pure[c]) {
+      ++c;
+      continue;
+    }
+    std::size_t e = c + 1;
+    while (e < nodes && pure[e] && row[e] == row[c]) ++e;
+    const int p0 = static_cast<int>(op.pushes.size());
+    for (std::size_t i = c; i < e; ++i)
+      for (int s = 1; s < kHalf; ++s)
+        if (!pure[i + op.delta[s]]) {
+          op.pushes.push_back(static_cast<std::uint32_t>(16 * (op.first[i] / 8) + s));
+          op.pushes.push_back(static_cast<std::uint32_t>(op.col[kHalf * i + s] >> 3));
+        }
+    op.runs.push_back({static_cast<int>(c), static_cast<int>(e), row[c], p0 / 2, static_cast<int>(op.pushes.size() / 2)});
+    c = e;
+  }
+  op.soa.assign(3 * nodes, 0.0);
+}
+
+std::size_t LatticeGalerkin::level_one_pulled() const { return level_one_ ? level_one_->pulled_nodes : 0; }
 
 // y = A u over the halved rows: each kept block A_ij adds A_ij u_j to row i and A_ij^T u_i to row j, whose
 // shares for nodes owned elsewhere go back to their owners through the reverse scatter.
@@ -1587,12 +1817,23 @@ PetscErrorCode LatticeGalerkin::stencil_mult(Mat A, Vec in, Vec out) {
   PetscCall(VecGetArray(out, &y));
   PetscCall(VecGetArray(op->shares, &h));
   const PetscInt n = op->n;
+  const std::size_t nodes = op->first.size();
+  PullRuns pr;
+  if (!op->runs.empty()) {
+    double* soa = op->soa.data();
+    for (std::size_t c = 0; c < nodes; ++c)  // the wholly free nodes' values by component (the pulled nodes read)
+      if (op->first[c] % 8 == 7) {
+        const double* from = u + op->first[c] / 8;
+        soa[c] = from[0], soa[nodes + c] = from[1], soa[2 * nodes + c] = from[2];
+      }
+    pr = PullRuns{op->runs.data(), op->runs.size(), op->delta.data(), op->lower.data(), op->pushes.data(), {soa, soa + nodes, soa + 2 * nodes}};
+  }
   if (op->symmetric)
-    symmetric_stencil_product(op->first.size(), op->first.data(), op->rows.row.data(), op->rows.a.data(),
-                              op->col.data(), n, u, g, y, h);
+    symmetric_stencil_product(nodes, op->first.data(), op->rows.row.data(), op->rows.a.data(), op->col.data(), n,
+                              u, g, y, h, pr);
   else
-    general_stencil_product(op->first.size(), op->first.data(), op->rows.row.data(), op->rows.a.data(),
-                            op->columns.empty() ? nullptr : op->columns.data(), op->col.data(), n, u, g, y, h);
+    general_stencil_product(nodes, op->first.data(), op->rows.row.data(), op->rows.a.data(),
+                            op->columns.empty() ? nullptr : op->columns.data(), op->col.data(), n, u, g, y, h, pr);
   PetscCall(VecRestoreArray(op->shares, &h));
   PetscCall(VecRestoreArray(out, &y));
   PetscCall(VecRestoreArrayRead(op->ghosts, &g));

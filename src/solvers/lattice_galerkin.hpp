@@ -49,6 +49,9 @@ public:
   // stream (the same numbers as ForceModel::jacobi_gershgorin's own pass when the force model has no terms and no
   // cached tangent, which then need not stream the blocks again).
   double jacobi_bound() const { return jacobi_bound_; }
+  // Level 1's nodes on this rank whose product is pulled (summed in registers, 8 at a time; 0 without the shell,
+  // with -static_level_one_pull false, or where no node qualifies): the same bits as the push form either way.
+  std::size_t level_one_pulled() const;
 
 private:
   struct Rows;
@@ -72,6 +75,7 @@ private:
   void neighbours(int l, const Numbers& num, const Rows& acc, std::size_t c, Neighbours& nb) const;
   PetscErrorCode stencil_operator(const Numbers& num, const Rows& acc);
   void halve_level_one();
+  void pull_runs();
   static PetscErrorCode stencil_mult(Mat A, Vec in, Vec out);
   static PetscErrorCode stencil_diagonal(Mat A, Vec d);
 

@@ -6,8 +6,12 @@
 
 #include <petscksp.h>
 
+#include <algorithm>
 #include <cmath>
+#include <complex>
 #include <cstring>
+
+#include <Eigen/Dense>
 #include <memory>
 #include <vector>
 
@@ -383,3 +387,108 @@ TEST(LatticeGalerkin, LevelOnePullEqualsPushBitForBitSprings) {
   compare_pull_with_push(0.0, big, true);
 }
 TEST(LatticeGalerkin, LevelOnePullAtAnIterateIsThePushForm) { compare_pull_with_push(0.08, cell_scene, false); }
+
+// The interior rows' symbol (LatticeGalerkin::symbol_bound, the finest Chebyshev interval with a term's blocks)
+// against its closed form for springs at rest: each direction d of stiffness k adds k n n^T (2 - 2 cos theta.d) to
+// the symbol and k n n^T twice to the diagonal; the largest eigenvalue of the Jacobi-scaled 3x3 matrix, over a
+// grid four times finer than the code's. Edges k_e = 1, the faces' diagonals k_f = 0.7 (tangent_scenes::springs),
+// on cells 1 x 1.3 x 0.8 (no two axes alike, so that an axis mixed up or a scaling by the wrong component shows).
+TEST(LatticeGalerkin, SymbolBoundEqualsSpringsClosedForm) {
+  const double h[3] = {1.0, 1.3, 0.8};
+  std::string big = scene;
+  big.replace(big.find("[10, 7, 12]"), 11, "[14, 13, 15]");
+  big.replace(big.find("[1.0, 1.0, 1.0]"), 15, "[1.0, 1.3, 0.8]");
+  TwoHierarchies run;
+  build_hierarchies(0.0, big, true, &run);
+  if (::testing::Test::HasFatalFailure()) return;
+  std::vector<std::array<int, 3>> dirs = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  std::vector<double> k = {1.0, 1.0, 1.0};
+  for (int a = 0; a < 3; ++a)
+    for (int sgn : {1, -1}) {  // the faces' two diagonals in the plane normal to axis a
+      std::array<int, 3> d{};
+      d[(a + 1) % 3] = 1, d[(a + 2) % 3] = sgn;
+      dirs.push_back(d), k.push_back(0.7);
+    }
+  Eigen::Matrix3d D = Eigen::Matrix3d::Zero();
+  std::vector<Eigen::Matrix3d> nn;
+  for (std::size_t q = 0; q < dirs.size(); ++q) {
+    const Eigen::Vector3d n = Eigen::Vector3d(dirs[q][0] * h[0], dirs[q][1] * h[1], dirs[q][2] * h[2]).normalized();
+    nn.push_back(k[q] * n * n.transpose());
+    D += 2.0 * nn.back();
+  }
+  double best = 0.0;
+  constexpr int kSteps = 32;
+  for (int a = 0; a <= kSteps; ++a)
+    for (int b = -kSteps + 1; b <= kSteps; ++b)
+      for (int c = -kSteps + 1; c <= kSteps; ++c) {
+        const double t[3] = {M_PI * a / kSteps, M_PI * b / kSteps, M_PI * c / kSteps};
+        Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+        for (std::size_t q = 0; q < dirs.size(); ++q)
+          A += (2.0 - 2.0 * std::cos(t[0] * dirs[q][0] + t[1] * dirs[q][1] + t[2] * dirs[q][2])) * nn[q];
+        Eigen::Matrix3d S;
+        for (int r = 0; r < 3; ++r)
+          for (int s = 0; s < 3; ++s) S(r, s) = A(r, s) / std::sqrt(D(r, r) * D(s, s));
+        best = std::max(best, Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(S, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff());
+      }
+  EXPECT_NEAR(run.galerkin->symbol_bound(), best, 1e-12 * best);
+  EXPECT_GT(best, 1.0);
+}
+
+// The same with the cell term (cubic cells at nu = 0.45, homogenized: springs and a volumetric part), against the
+// symbol of the assembled tangent's row of the molecule nearest the box's centre (MatGetValues: not the coarse
+// operators' block stream the code reads), on a grid four times finer than the code's.
+TEST(LatticeGalerkin, SymbolBoundWithCellsEqualsAssembledRows) {
+  std::string big = cell_scene;
+  big.replace(big.find("[10, 7, 12]"), 11, "[15, 14, 16]");
+  TwoHierarchies run;
+  build_hierarchies(0.0, big, true, &run);
+  if (::testing::Test::HasFatalFailure()) return;
+  const auto& m = run.run->model;
+  // The centre molecule (lattice spacing 1, molecules at integer positions from the origin).
+  const double centre[3] = {7.0, 6.0, 7.0};
+  double mine = 0.0;
+  for (int i = 0; i < m.owned; ++i) {
+    if (std::abs(m.rest[3 * i] - centre[0]) > 1e-9 || std::abs(m.rest[3 * i + 1] - centre[1]) > 1e-9 ||
+        std::abs(m.rest[3 * i + 2] - centre[2]) > 1e-9)
+      continue;
+    std::vector<std::array<double, 9>> blocks(27);
+    std::vector<bool> found(27, false);
+    for (int j = 0; j < m.local; ++j) {
+      int d[3];
+      bool near = true;
+      for (int a = 0; a < 3; ++a) {
+        const double off = m.rest[3 * j + a] - m.rest[3 * i + a];
+        d[a] = static_cast<int>(std::lround(off));
+        near = near && std::abs(off - d[a]) < 1e-9 && std::abs(d[a]) <= 1;
+      }
+      if (!near) continue;
+      const int slot = (d[0] + 1) + 3 * (d[1] + 1) + 9 * (d[2] + 1);
+      PetscInt rows[3], cols[3];
+      for (int r = 0; r < 3; ++r) rows[r] = 3 * m.block[i] + r, cols[r] = 3 * m.block[j] + r;
+      ASSERT_EQ(MatGetValues(run.J, 3, rows, 3, cols, blocks[slot].data()), 0);
+      found[slot] = true;
+    }
+    ASSERT_EQ(std::count(found.begin(), found.end(), true), 27);
+    const std::array<double, 9>& dg = blocks[13];
+    const double scale[3] = {1 / std::sqrt(dg[0]), 1 / std::sqrt(dg[4]), 1 / std::sqrt(dg[8])};
+    constexpr int kSteps = 32;
+    for (int a = 0; a <= kSteps; ++a)
+      for (int b = -kSteps + 1; b <= kSteps; ++b)
+        for (int c = -kSteps + 1; c <= kSteps; ++c) {
+          const double t[3] = {M_PI * a / kSteps, M_PI * b / kSteps, M_PI * c / kSteps};
+          Eigen::Matrix3cd A = Eigen::Matrix3cd::Zero();
+          for (int s = 0; s < 27; ++s) {
+            const double phase = t[0] * (s % 3 - 1) + t[1] * (s / 3 % 3 - 1) + t[2] * (s / 9 - 1);
+            for (int r = 0; r < 3; ++r)
+              for (int q = 0; q < 3; ++q)
+                A(r, q) += blocks[s][3 * r + q] * scale[r] * scale[q] * std::complex<double>(std::cos(phase), std::sin(phase));
+          }
+          const Eigen::Matrix3cd H = 0.5 * (A + A.adjoint());
+          mine = std::max(mine, Eigen::SelfAdjointEigenSolver<Eigen::Matrix3cd>(H, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff());
+        }
+  }
+  double best = 0.0;
+  MPI_Allreduce(&mine, &best, 1, MPI_DOUBLE, MPI_MAX, PETSC_COMM_WORLD);
+  ASSERT_GT(best, 2.0);  // the cells' volumetric part raises it above the springs' 2
+  EXPECT_NEAR(run.galerkin->symbol_bound(), best, 1e-12 * best);
+}

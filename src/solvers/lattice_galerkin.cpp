@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <array>
 #include <climits>
+#include <cmath>
+#include <complex>
 #include <map>
 #include <cstdlib>
 #include <cstring>
@@ -14,6 +16,8 @@
 
 #include <sys/mman.h>  // madvise: the halved level-1 rows' pages
 #include <unistd.h>    // sysconf
+
+#include <Eigen/Dense>
 
 #include "partition/exchange.hpp"
 
@@ -350,6 +354,34 @@ TISSUE_CLONES void general_stencil_product(std::size_t nodes, const PetscInt* fi
     stencil_product<Columns::kCopy>(nodes, first, row, a, columns, cols, n, u, g, y, h, pr);
   else
     stencil_product<Columns::kGathered>(nodes, first, row, a, a, cols, n, u, g, y, h, pr);
+}
+
+// The largest eigenvalue of D^-1/2 A(theta) D^-1/2 over wave vectors theta, A(theta) = sum_s A_s e^(i theta.d_s)
+// the symbol of a row of 27 blocks repeated over an infinite lattice (d_s: slot s's offset), D its diagonal
+// block's diagonal. On a grid of pi/8 a component (theta and -theta give the same eigenvalues: the first component
+// in [0, pi]); a row's symbol peaks at such points on the lattices here (checked against a grid of pi/32).
+constexpr std::size_t kSymbolRows = 64;  // at most this many distinct interior rows are looked at
+double jacobi_symbol_max(const double* blocks) {
+  const double* diag = blocks + kBlock * slot_of(0, 0, 0);
+  if (!(diag[0] > 0.0 && diag[4] > 0.0 && diag[8] > 0.0)) return 0.0;
+  const double scale[3] = {1.0 / std::sqrt(diag[0]), 1.0 / std::sqrt(diag[4]), 1.0 / std::sqrt(diag[8])};
+  constexpr int kSteps = 8;  // pi / kSteps
+  double best = 0.0;
+  for (int a = 0; a <= kSteps; ++a)
+    for (int b = -kSteps + 1; b <= kSteps; ++b)
+      for (int c = -kSteps + 1; c <= kSteps; ++c) {
+        const double theta[3] = {M_PI * a / kSteps, M_PI * b / kSteps, M_PI * c / kSteps};
+        Eigen::Matrix3cd H = Eigen::Matrix3cd::Zero();
+        for (int s = 0; s < kSlots; ++s) {
+          const double phase = theta[0] * (s % 3 - 1) + theta[1] * (s / 3 % 3 - 1) + theta[2] * (s / 9 - 1);
+          const std::complex<double> e(std::cos(phase), std::sin(phase));
+          for (int r = 0; r < 3; ++r)
+            for (int k = 0; k < 3; ++k) H(r, k) += blocks[kBlock * s + 3 * r + k] * scale[r] * scale[k] * e;
+        }
+        const Eigen::Matrix3cd He = 0.5 * (H + H.adjoint());  // Hermitian to round-off
+        best = std::max(best, Eigen::SelfAdjointEigenSolver<Eigen::Matrix3cd>(He, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff());
+      }
+  return best;
 }
 
 // Pages about to be written from scratch, faulted in by one call instead of one trap a 4 kB page at first touch:
@@ -1120,6 +1152,19 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     PetscCall(known_error);
     PetscCall(flush());
     jacobi_bound_ = bound;
+    // The symbol of the interior rows (symbol_bound): the classes' first rows whose blocks all join wholly free
+    // molecules and fill the stencil's whole pattern (every slot any such row has), a few dozen at a box's
+    // reference state, thousands at a deformed one (then none is looked at).
+    std::uint32_t pattern = 0;
+    for (const RowClass& rc : row_classes)
+      if (rc.has_inputs) pattern |= rc.present;
+    std::size_t interior = 0;
+    for (const RowClass& rc : row_classes) interior += rc.has_inputs && rc.present == pattern;
+    symbol_bound_ = interior > kSymbolRows ? -1.0 : 0.0;
+    if (interior <= kSymbolRows)
+      for (const RowClass& rc : row_classes)
+        if (rc.has_inputs && rc.present == pattern)
+          symbol_bound_ = std::max(symbol_bound_, jacobi_symbol_max(rc.src.data()));
     PetscCheck(!off_stencil, PETSC_COMM_SELF, PETSC_ERR_SUP,
                "lattice Galerkin product: the tangent has a block beyond the lattice stencil");
   }
@@ -1545,8 +1590,12 @@ PetscErrorCode LatticeGalerkin::update(Mat fine, const Stream* stream, PC pc) {
   }
   if (level_one_) halve_level_one();  // level 2 has been summed from the whole rows
   if (stream) {
-    const double mine = jacobi_bound_;
-    PetscCallMPI(MPI_Allreduce(&mine, &jacobi_bound_, 1, MPI_DOUBLE, MPI_MAX, model_.comm));
+    const double mine[3] = {jacobi_bound_, symbol_bound_, -symbol_bound_};
+    double all[3];
+    PetscCallMPI(MPI_Allreduce(mine, all, 3, MPI_DOUBLE, MPI_MAX, model_.comm));
+    jacobi_bound_ = all[0];
+    symbol_bound_ = all[2] > 0.0 ? 0.0 : all[1];  // a rank with too many rows: none
+    (void)PetscInfo(nullptr, "lattice Galerkin: the Jacobi-scaled symbol's largest eigenvalue %g\n", symbol_bound_);
   }
   free_storage(ijk_);
   PetscCall(PetscLogEventEnd(galerkin_event(), pc, fine, 0, 0));

@@ -49,6 +49,12 @@ public:
   // stream (the same numbers as ForceModel::jacobi_gershgorin's own pass when the force model has no terms and no
   // cached tangent, which then need not stream the blocks again).
   double jacobi_bound() const { return jacobi_bound_; }
+  // After update(forces, x, pc): the largest eigenvalue of the Jacobi-scaled fine operator's symbol (its
+  // Fourier transform, a 3x3 Hermitian matrix a wave vector), the largest over the fine rows whose 27 blocks are
+  // all present between wholly free molecules, as if each such row were repeated over an infinite lattice
+  // (every rank's; 0 when there is no such row, or too many distinct ones to look at: a deformed state). What an
+  // eigenvalue estimate of the interior would give, without its products (docs/poisson.md).
+  double symbol_bound() const { return symbol_bound_; }
   // Level 1's nodes on this rank whose product is pulled (summed in registers, 8 at a time; 0 without the shell,
   // with -static_level_one_pull false, or where no node qualifies): the same bits as the push form either way.
   std::size_t level_one_pulled() const;
@@ -91,6 +97,7 @@ private:
   std::vector<Csr> csr_;     // the storage of coarse_ (PETSc does not copy it): destroyed after the matrices
   std::vector<Mat> coarse_;  // coarse_[l]: the operator of level l (l >= 1; coarse_[0] unused)
   bool stencil_level_one_ = false;
+  mutable double symbol_bound_ = 0.0;  // this rank's while the stream runs, then every rank's (-1: too many rows)
   mutable double jacobi_bound_ = 0.0;  // this rank's while the stream runs (accumulate_rows), then every rank's
   std::unique_ptr<StencilOperator> level_one_;  // when level 1 is a shell: its rows, columns and ghost scatter
 };

@@ -11,6 +11,7 @@
 #include <petscsnes.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <cmath>
 #include <cstring>
 #include <memory>
@@ -65,6 +66,10 @@ struct Context {
   // 0.2: on the peer problem at 97,336 molecules the Krylov iterations of the estimate's [0.1, 1.1] x lambda
   // (15) with 0.15 and 0.2; 16 with 0.1 and 0.3, 17 with 0.05 (the bound exceeds lambda_max by about 1.3x).
   double chebyshev_fraction = 0.2;
+  // With a term's blocks: the finest interval's upper end as a multiple of the interior symbol's largest eigenvalue
+  // (LatticeGalerkin::symbol_bound; -static_symbol_upper U, 0: PETSc's estimate), its lower end kSymbolFraction
+  // of it (fine_chebyshev).
+  double symbol_upper = 1.15;
   // The last residual evaluation (residual()): the output vector's id and state just after it was written, and the
   // load factor; valid within one SNESSolve, until the next Newton step (see same_as_last).
   bool reuse = true;  // -static_reuse_residual false: evaluate every time
@@ -389,6 +394,7 @@ PetscErrorCode idle_vectors(void* p, PetscInt max, PetscInt* count, Vec* vecs) {
 // (ForceModel::jacobi_gershgorin, one pass over the connections, no storage) instead of PETSc's estimate: no
 // estimator CG on the finest level (its work vectors, 4 a molecule, and 6 products at every rebuild). Where the
 // bound is not exact (a term adds blocks) the estimate as on the coarser levels.
+constexpr double kSymbolFraction = 0.1 / 1.1;  // the estimate's [0.1, 1.1]: the same lower end a symbol's upper
 PetscErrorCode fine_chebyshev(Context* ctx, PC pc) {
   PetscFunctionBeginUser;
   PetscInt levels;
@@ -406,6 +412,16 @@ PetscErrorCode fine_chebyshev(Context* ctx, PC pc) {
   }
   PC jacobi;
   PetscCall(KSPGetPC(smoother, &jacobi));
+  double fraction = ctx->chebyshev_fraction;
+  const double symbol = ctx->galerkin->symbol_bound();
+  if (!exact && ctx->symbol_upper > 0.0 && symbol > 0.0) {
+    // A term's blocks (the cell term): the interval [0.1 / 1.1, 1] x 1.15 x the interior rows' symbol's largest
+    // eigenvalue instead of PETSc's estimate (6 CG steps with the term's product, and their vectors). That
+    // estimate lands just under the symbol's value (4.37 against 4.40 at nu = 0.45), at the edge of a cliff: the
+    // Krylov count at 60^3 is flat for an upper end of 1.1-1.2 x the symbol at nu = 0.3, 0.45 and 0.49 and
+    // rises steeply below it (0.45: 22 at 1.05, 41 at 0.91); 1.15 is the middle (docs/poisson.md).
+    bound = ctx->symbol_upper * symbol, fraction = kSymbolFraction, exact = true;
+  }
   if (exact) {
     if (ctx->fused) {
       PetscCall(register_fused_chebyshev());
@@ -414,7 +430,7 @@ PetscErrorCode fine_chebyshev(Context* ctx, PC pc) {
     } else {
       PetscCall(KSPChebyshevEstEigSet(smoother, 0, 0, 0, 0));  // no estimator (it is destroyed)
     }
-    PetscCall(KSPChebyshevSetEigenvalues(smoother, bound, ctx->chebyshev_fraction * bound));
+    PetscCall(KSPChebyshevSetEigenvalues(smoother, bound, fraction * bound));
     ctx->estimating = false;
   } else if (!ctx->estimating || (ctx->fused && !ctx->fused_estimating)) {
     if (ctx->fused) {
@@ -804,6 +820,7 @@ PetscErrorCode NewtonEquilibrium::Impl::use_matrix_free(bool user_pc, bool user_
     // options may need its entries (SOR, ILU, ...).
     if (!user_smoother) galerkin->keep_level_one_as_stencil();
     PetscCall(PetscOptionsGetReal(nullptr, nullptr, "-static_chebyshev_fraction", &ctx.chebyshev_fraction, nullptr));
+    PetscCall(PetscOptionsGetReal(nullptr, nullptr, "-static_symbol_upper", &ctx.symbol_upper, nullptr));
     PetscBool fused = PETSC_TRUE;
     PetscCall(PetscOptionsGetBool(nullptr, nullptr, "-static_fused_chebyshev", &fused, nullptr));
     ctx.fused = fused == PETSC_TRUE;

@@ -183,7 +183,6 @@ struct PullRuns {
 };
 
 using Lanes8 = double __attribute__((vector_size(64)));
-using Select8 = std::int64_t __attribute__((vector_size(64)));
 
 template <class V>
 inline void load(V& v, const double* p) {
@@ -227,12 +226,12 @@ __attribute__((always_inline)) inline void pull_nodes(int c, const PullRuns& pr,
 
 // 8 nodes' three components interleaved into 24 consecutive values (two shuffles a vector).
 __attribute__((always_inline)) inline void store_interleaved(double* to, Lanes8 y0, Lanes8 y1, Lanes8 y2) {
-  const Lanes8 t0 = __builtin_shuffle(y0, y1, Select8{0, 8, 0, 1, 9, 0, 2, 10});
-  const Lanes8 t1 = __builtin_shuffle(y0, y1, Select8{0, 3, 11, 0, 4, 12, 0, 5});
-  const Lanes8 t2 = __builtin_shuffle(y0, y1, Select8{13, 0, 6, 14, 0, 7, 15, 0});
-  const Lanes8 o0 = __builtin_shuffle(t0, y2, Select8{0, 1, 8, 3, 4, 9, 6, 7});
-  const Lanes8 o1 = __builtin_shuffle(t1, y2, Select8{10, 1, 2, 11, 4, 5, 12, 7});
-  const Lanes8 o2 = __builtin_shuffle(t2, y2, Select8{0, 13, 2, 3, 14, 5, 6, 15});
+  const Lanes8 t0 = __builtin_shufflevector(y0, y1, 0, 8, 0, 1, 9, 0, 2, 10);
+  const Lanes8 t1 = __builtin_shufflevector(y0, y1, 0, 3, 11, 0, 4, 12, 0, 5);
+  const Lanes8 t2 = __builtin_shufflevector(y0, y1, 13, 0, 6, 14, 0, 7, 15, 0);
+  const Lanes8 o0 = __builtin_shufflevector(t0, y2, 0, 1, 8, 3, 4, 9, 6, 7);
+  const Lanes8 o1 = __builtin_shufflevector(t1, y2, 10, 1, 2, 11, 4, 5, 12, 7);
+  const Lanes8 o2 = __builtin_shufflevector(t2, y2, 0, 13, 2, 3, 14, 5, 6, 15);
   std::memcpy(to, &o0, sizeof o0), std::memcpy(to + 8, &o1, sizeof o1), std::memcpy(to + 16, &o2, sizeof o2);
 }
 __attribute__((always_inline)) inline void store_nodes(double* to, const Lanes8 Y[3]) {

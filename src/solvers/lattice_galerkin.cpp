@@ -1160,10 +1160,17 @@ PetscErrorCode LatticeGalerkin::accumulate_rows(int l, Mat fine, const Stream* s
     std::size_t interior = 0;
     for (const RowClass& rc : row_classes) interior += rc.has_inputs && rc.present == pattern;
     symbol_bound_ = interior > kSymbolRows ? -1.0 : 0.0;
-    if (interior <= kSymbolRows)
-      for (const RowClass& rc : row_classes)
-        if (rc.has_inputs && rc.present == pattern)
-          symbol_bound_ = std::max(symbol_bound_, jacobi_symbol_max(rc.src.data()));
+    if (interior <= kSymbolRows) {
+      std::vector<const RowClass*> distinct;  // classes of other axis positions often have the same blocks
+      for (const RowClass& rc : row_classes) {
+        if (!rc.has_inputs || rc.present != pattern) continue;
+        if (std::any_of(distinct.begin(), distinct.end(), [&](const RowClass* d) { return d->src == rc.src; }))
+          continue;
+        distinct.push_back(&rc);
+        symbol_bound_ = std::max(symbol_bound_, jacobi_symbol_max(rc.src.data()));
+      }
+      (void)PetscInfo(nullptr, "lattice Galerkin: the symbol of %zu distinct interior rows\n", distinct.size());
+    }
     PetscCheck(!off_stencil, PETSC_COMM_SELF, PETSC_ERR_SUP,
                "lattice Galerkin product: the tangent has a block beyond the lattice stencil");
   }

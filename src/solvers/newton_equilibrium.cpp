@@ -11,7 +11,6 @@
 #include <petscsnes.h>
 
 #include <algorithm>
-#include <cstdlib>
 #include <cmath>
 #include <cstring>
 #include <memory>

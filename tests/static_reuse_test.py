@@ -7,8 +7,10 @@ ranks:
   - every number of the summary's solve equal to the bit: elongation, the measured E and Poisson ratio, the
     residual, Newton and Krylov counts;
   - the residual at the positions of the last evaluation was kept, not evaluated again, where the cp line search
-    takes lambda = 1 exactly after evaluating there (24^3: Newton 2, once a solve), and evaluated again where the
-    lambda it takes differs from 1 by a few ulps of the positions (16^3: 1 - 3e-8 in Newton 2; -info); the
+    takes lambda = 1 exactly after evaluating there: with its full-step rule (the slope at lambda = 1 below 1e-3
+    of its start) in both Newton steps of both blocks; with the secant always taken (-snes_linesearch_rtol 1e-8,
+    PETSc's default) once a solve at 24^3 (Newton 2), and evaluated again where the lambda it takes differs from
+    1 by a few ulps of the positions (16^3: 1 - 3e-8 in Newton 2; -info); the
     estimate's work vectors placed on idle arrays (-info: 5 of them: the outer CG's 3 and the finest smoother's 2);
     without the options neither.
 And the springs-only block (nu = 1/4: no cell term, basic line search, Gershgorin's interval): neither happens, the
@@ -35,16 +37,20 @@ def main():
     a, work = arguments_and_work("static_reuse")
     scene = os.path.join(a.source, "run_scripts", "scenes", "poisson_block.toml")
     # (name, ranks, --set, cells, evaluations kept)
-    cases = [("cells16", ranks, ["body.poisson_ratio=0.45"], True, 0) for ranks in (1, 2, 3)]
-    cases += [("cells24", ranks, ["body.poisson_ratio=0.45", "body.molecules=[24,24,24]", "load.0.force=[0,0,0.529]"],
-               True, 1) for ranks in (1, 3)]
-    cases += [("springs16", 2, [], False, 0)]
-    for name, ranks, sets, cells, kept in cases:
+    # (name, ranks, --set, cells, evaluations kept, PETSc options of both runs)
+    secant = ["-snes_linesearch_rtol", "1e-8"]
+    cells24 = ["body.poisson_ratio=0.45", "body.molecules=[24,24,24]", "load.0.force=[0,0,0.529]"]
+    cases = [("cells16", ranks, ["body.poisson_ratio=0.45"], True, 2, []) for ranks in (1, 3)]
+    cases += [("cells16 secant", ranks, ["body.poisson_ratio=0.45"], True, 0, secant) for ranks in (1, 2, 3)]
+    cases += [("cells24", 2, cells24, True, 2, [])]
+    cases += [("cells24 secant", ranks, cells24, True, 1, secant) for ranks in (1, 3)]
+    cases += [("springs16", 2, [], False, 0, [])]
+    for name, ranks, sets, cells, kept, both in cases:
         runs, out_text = {}, {}
-        for label, options in (("new", ["-static_symbol_upper", "0"]),
+        for label, options in (("new", ["-static_symbol_upper", "0", *both]),
                                ("old", ["-static_symbol_upper", "0", "-static_reuse_residual", "false",
-                                        "-static_estimate_on_idle", "false"])):
-            out = os.path.join(work, f"{name}_{label}_np{ranks}")
+                                        "-static_estimate_on_idle", "false", *both])):
+            out = os.path.join(work, f"{name.replace(' ', '_')}_{label}_np{ranks}")
             extra = [arg for s in sets for arg in ("--set", s)]
             r = tissue(a.build, ranks, "run", scene, *extra, "--set", "output.fields=[]", "--set",
                        "output.progress=false", "--output", out, "--", "-info", *options)

@@ -32,7 +32,13 @@ namespace tissue {
 
 namespace {
 
+// The energy line search (cp) keeps the full Newton step when the energy slope along it at lambda = 1 is below
+// this fraction of the slope at lambda = 0 (SNESLineSearchSetTolerances' rtol; -snes_linesearch_rtol wins).
+constexpr double kFullStepSlope = 1e-3;
 constexpr double kFirstRtol = 1e-4;  // Krylov tolerance of a load step's first Newton step (see NewtonEquilibrium::setup)
+// A later Newton step's Krylov solve may leave this share of the Newton tolerance minus the step's predicted
+// nonlinear remainder (before_newton_step; at least Context::enough_fraction of the tolerance).
+constexpr double kEnoughShare = 0.5;
 
 struct Context {
   const LocalModel* model;
@@ -49,6 +55,8 @@ struct Context {
   // force norm SNES tests, is below this fraction of the Newton tolerance (see converged_or_enough).
   double enough_fraction = 0.1;
   double enough = 0.0;  // that bound in N for the current Newton step (0: not this step)
+  double previous_norm = 0.0;  // the residual norm at the start of the last Newton step (before_newton_step)
+  double enough_share = kEnoughShare;  // -static_enough_share S (0: the fixed fraction alone)
   // The lattice multigrid's coarse operators from the lattice structure (null: PCMG's own Galerkin product).
   LatticeGalerkin* galerkin = nullptr;
   // The matrix-free tangent (solver.operator = "matrix-free"): J is its shell, and no fine matrix exists.
@@ -240,11 +248,22 @@ PetscErrorCode before_newton_step(SNES snes, PetscInt step) {
     PetscCall(SNESGetKSP(snes, &ksp));
     PetscCall(KSPSetTolerances(ksp, rtol, PETSC_DEFAULT, PETSC_DEFAULT, 10000));
     ctx->enough = 0.0;
+    PetscReal now;
+    PetscCall(SNESGetFunctionNorm(snes, &now));
     if (step > 0 && ctx->enough_fraction > 0) {
       PetscReal atol;
       PetscCall(SNESGetTolerances(snes, &atol, nullptr, nullptr, nullptr, nullptr));
-      ctx->enough = ctx->enough_fraction * atol;
+      // The step's nonlinear remainder predicted from the last step's quadratic constant, K = r_k / r_(k-1)^2,
+      // as K r_k^2 (an overestimate while the last step's linear residual was part of r_k): the solve may leave
+      // kEnoughShare of what the Newton tolerance has room for beyond it, and never less than the fixed fraction.
+      double fraction = ctx->enough_fraction;
+      if (ctx->enough_share > 0 && ctx->previous_norm > 0 && now > 0) {
+        const double ratio = now / ctx->previous_norm, remainder = now * ratio * ratio;
+        fraction = std::max(fraction, ctx->enough_share * (1.0 - remainder / atol));
+      }
+      ctx->enough = fraction * atol;
     }
+    ctx->previous_norm = now;
   }
   PetscFunctionReturn(0);
 }
@@ -715,7 +734,8 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
   // 1.0e-6 on 2 ranks). -static_first_rtol R sets it (0: off), -ksp_rtol or -snes_ksp_ew end it.
   // The later steps' solves also end once the residual they leave is far below what Newton tests
   // (converged_or_enough: 0.1 of the Newton tolerance; -static_enough_fraction F, 0: off), with the same Newton
-  // count.
+  // count; or below kEnoughShare of the room the step's predicted nonlinear remainder leaves, when that is more
+  // (before_newton_step; -static_enough_share S, 0: off).
   PetscCall(KSPSetTolerances(ksp, ctx.rtol, PETSC_DEFAULT, PETSC_DEFAULT, 10000));
   {
     PetscBool user_rtol = PETSC_FALSE, user_ew = PETSC_FALSE;
@@ -725,6 +745,7 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
     PetscCall(PetscOptionsGetReal(nullptr, nullptr, "-static_first_rtol", &first, nullptr));
     if (!user_rtol && !user_ew && lattice_mg && tolerance >= 1e-9) ctx.first_rtol = first;
     PetscCall(PetscOptionsGetReal(nullptr, nullptr, "-static_enough_fraction", &ctx.enough_fraction, nullptr));
+    PetscCall(PetscOptionsGetReal(nullptr, nullptr, "-static_enough_share", &ctx.enough_share, nullptr));
     if (user_rtol || user_ew) ctx.enough_fraction = 0.0;
     if (ctx.enough_fraction > 0) {
       auto* test = new KrylovTest{&ctx};
@@ -755,7 +776,10 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
     PetscCall(SNESLineSearchSetType(line_search, SNESLINESEARCHCP));
     // Its default stop when the step's energy slope is below 1e-15 |step| left the last step of a strain-1e-7
     // test untaken (and SNES still said converged); the slope is what the step is for, however small.
-    PetscCall(SNESLineSearchSetTolerances(line_search, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT, 0.0,
+    // And the full step is kept once the energy slope there is below kFullStepSlope of the slope at its start:
+    // the secant's lambda is then within about that fraction of 1, and the residual at lambda = 1, already
+    // evaluated, is the step's (the default 1e-8 took lambda = 0.999995 at strain 1e-4 and one more residual).
+    PetscCall(SNESLineSearchSetTolerances(line_search, PETSC_DEFAULT, PETSC_DEFAULT, kFullStepSlope, 0.0,
                                           PETSC_DEFAULT, PETSC_DEFAULT));
   }
   if (gamg_reuse) PetscCall(PCGAMGSetNSmooths(pc, kGamgSmooths));  // before SNESSetFromOptions: the user's wins

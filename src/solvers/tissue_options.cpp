@@ -50,6 +50,7 @@ void check_tissue_options() {
   whole("-tissue_fuse_rows", 1);
   fraction("-static_first_rtol", true);
   fraction("-static_enough_fraction", true);
+  fraction("-static_enough_share", true);
   fraction("-static_chebyshev_fraction", false);
   boolean("-static_fused_chebyshev");
   boolean("-static_rest_smoother");

@@ -37,6 +37,7 @@ constexpr int kBlock = 9;   // a 3x3 block, row-major
 constexpr int slot_of(int dx, int dy, int dz) { return (dx + 1) + 3 * (dy + 1) + 9 * (dz + 1); }
 // The diagonal slot, and the upper half of the stencil from it (slot 26 - s is the opposite neighbour of slot s).
 constexpr int kHalf0 = slot_of(0, 0, 0), kHalf = kSlots - kHalf0;
+constexpr std::size_t kMinPullRun = 8;  // level 1's shortest pulled run (pull_runs): one 8-lane vector
 
 // Box index t = x + 4 y + 16 z (0..3 each) as a slot offset: x + 3 y + 9 z, so that slot = shift + kBoxToSlot[t].
 constexpr std::array<int, 64> box_to_slot() {
@@ -160,17 +161,21 @@ using Lanes = double __attribute__((vector_size(32)));
 
 enum class Columns { kRows, kCopy, kGathered };  // where A_ij u_j's columns come from (stencil_product)
 
-// Level 1's pulled nodes (LatticeGalerkin::pull_runs): runs of consecutive wholly free nodes whose 14 upper
-// blocks and whose 13 lower neighbours' are one shared row's, with the neighbours at the same node offsets
-// (a box lattice's interior at its reference state). Such a node's value is summed in registers, 8 nodes at a
+// Level 1's pulled nodes (LatticeGalerkin::pull_runs): runs of consecutive wholly free nodes with one row, whose
+// upper neighbours are wholly free and local at the usual node offsets (or absent), and whose lower neighbours
+// (those whose blocks reach them) are at the usual offsets with one row each along the run (or absent): a box
+// lattice's interior and faces at its reference state. Such a node's value is summed in registers, 8 nodes at a
 // time, from the input by component: the transposed blocks its lower neighbours would add to it (by increasing
-// neighbour, the order the push form adds them in), then its own blocks' sum, and stored. What the push form's
-// nodes add to it before (all its lower neighbours come before it) is overwritten; nothing is added after. Every
-// value is the push form's expression on the same operands in the same order, so the same bits.
+// neighbour, the order the push form adds them in; a held component reads +0, as the push form's), then its own
+// blocks' sum, and stored. What the push form's nodes add to it before (all its lower neighbours come before it) is
+// overwritten; nothing is added after. Every value is the push form's expression on the same operands in the same
+// order, so the same bits.
 struct PullRuns {
   struct Run {
     int c0, c1, row;
-    int p0, p1;  // its pushes: pushes[p0 .. p1)
+    int p0, p1;                // its pushes: pushes[p0 .. p1)
+    int lower_row[kHalf - 1];  // by slot s - 1: the row of the lower neighbour c - delta[s] (-1: none reaches c)
+    std::uint32_t absent;      // bit s: no block in upper slot s
   };
   const Run* runs = nullptr;
   std::size_t count = 0;
@@ -190,15 +195,18 @@ inline void load(V& v, const double* p) {
   else std::memcpy(&v, p, sizeof v);
 }
 
-// W nodes from node c (V: double or Lanes8) into Y[k] (their row k values); kColumns as stencil_product's.
+// W nodes from node c (V: double or Lanes8) into Y[k] (their row k values); kColumns as stencil_product's; lb[s]:
+// the lower neighbour's block of slot s (null: none), absent: the upper slots without a block.
 template <Columns kColumns, class V>
-__attribute__((always_inline)) inline void pull_nodes(int c, const PullRuns& pr, const double* blk, const double* tblk,
+__attribute__((always_inline)) inline void pull_nodes(int c, const PullRuns& pr, const double* const* lb,
+                                                     std::uint32_t absent, const double* blk, const double* tblk,
                                                      V Y[3]) {
   const double *X0 = pr.soa[0], *X1 = pr.soa[1], *X2 = pr.soa[2];
   V y0 = {}, y1 = {}, y2 = {};
   for (int q = 0; q < kHalf - 1; ++q) {  // A_ji^T u_j from each lower neighbour j, by increasing j
     const int s = pr.lower[q], j = c - pr.delta[s];
-    const double* r = blk + kBlock * s;
+    const double* r = lb[s];
+    if (!r) continue;
     V u0, u1, u2;
     load(u0, X0 + j), load(u1, X1 + j), load(u2, X2 + j);
     y0 += r[0] * u0 + r[3] * u1 + r[6] * u2;
@@ -207,6 +215,7 @@ __attribute__((always_inline)) inline void pull_nodes(int c, const PullRuns& pr,
   }
   V a0 = {}, a1 = {}, a2 = {};
   for (int s = 0; s < kHalf; ++s) {  // A_ij u_j over the node's own blocks, in slot order
+    if (absent >> s & 1u) continue;
     const int j = c + pr.delta[s];
     const double* b = (kColumns == Columns::kCopy ? tblk : blk) + kBlock * s;
     V u0, u1, u2;
@@ -246,14 +255,14 @@ __attribute__((always_inline)) inline void store_nodes(double* to, const double 
 // is shorter than W).
 template <Columns kColumns, class V>
 __attribute__((always_inline)) inline int pull_blocks(int c, const PullRuns::Run& run, const PullRuns& pr,
-                                                      const PetscInt* first, const double* blk, const double* tblk,
-                                                      double* y) {
+                                                      const PetscInt* first, const double* const* lb,
+                                                      const double* blk, const double* tblk, double* y) {
   constexpr int W = sizeof(V) / sizeof(double);
   if (run.c1 - c < W) return c;
   for (; c < run.c1; c += W) {
     const int cw = std::min(c, run.c1 - W);
     V Y[3];
-    pull_nodes<kColumns>(cw, pr, blk, tblk, Y);
+    pull_nodes<kColumns>(cw, pr, lb, run.absent, blk, tblk, Y);
     store_nodes(y + first[cw] / 8, Y);  // W wholly free nodes: 3 W consecutive values
   }
   return run.c1;
@@ -265,9 +274,12 @@ __attribute__((always_inline)) inline void pull_run(const PullRuns::Run& run, co
                                                    double* y) {
   const double* blk = a + kHalf * kBlock * static_cast<std::size_t>(run.row);
   const double* tblk = columns + kHalf * kBlock * static_cast<std::size_t>(run.row);
+  const double* lb[kHalf] = {};
+  for (int s = 1; s < kHalf; ++s)
+    if (run.lower_row[s - 1] >= 0) lb[s] = a + kHalf * kBlock * static_cast<std::size_t>(run.lower_row[s - 1]) + kBlock * s;
   // (16 nodes at a time measured slower than 8: GCC spills the 16-lane sums.)
-  const int c = pull_blocks<kColumns, Lanes8>(run.c0, run, pr, first, blk, tblk, y);
-  pull_blocks<kColumns, double>(c, run, pr, first, blk, tblk, y);
+  const int c = pull_blocks<kColumns, Lanes8>(run.c0, run, pr, first, lb, blk, tblk, y);
+  pull_blocks<kColumns, double>(c, run, pr, first, lb, blk, tblk, y);
   // Then its blocks to upper neighbours that are not pulled, A_ij^T u_i added there as the push form adds it: by
   // increasing i, as the push form's, and no other node writes to them while the run is summed.
   for (int p = run.p0; p < run.p1; ++p) {
@@ -1815,40 +1827,76 @@ void LatticeGalerkin::pull_runs() {
   if (op.delta[0] != 0 || op.delta[op.lower.back()] <= 0) return;
   for (int q = 1; q < kHalf - 1; ++q)
     if (op.delta[op.lower[q]] == op.delta[op.lower[q - 1]]) return;
-  std::vector<std::uint8_t> canon(nodes, 0), pure(nodes, 0);
-  for (std::size_t c = 0; c < nodes; ++c) {
-    bool ok = full(c);
-    for (int s = 0; s < kHalf && ok; ++s) ok = upper(c, s) == static_cast<int>(c) + op.delta[s];
-    canon[c] = ok;
-  }
+  // A node is pulled when it is wholly free, each upper slot has no block or a wholly free local node at its usual
+  // offset, and every block that reaches it from a node before it comes from a lower slot's usual offset: the
+  // lower neighbour c - delta[s] with unknowns and a block of slot s at it (any mask: its held components read +0).
   const int* row = op.rows.row.data();
+  const PetscInt* col = op.col.data();
+  auto reaches = [&](long j, int s, std::size_t c) {  // node j's slot s is a block that adds to node c
+    if (j < 0 || op.first[j] % 8 == 0) return false;
+    const PetscInt cq = col[kHalf * j + s];
+    return cq >= 0 && (cq & 7) != 0 && (cq >> 3) == op.first[c] / 8;
+  };
+  std::vector<std::uint8_t> incoming(nodes, 0);  // the blocks reaching each node from nodes before it
+  for (std::size_t j = 0; j < nodes; ++j) {
+    if (op.first[j] % 8 == 0) continue;
+    for (int s = 1; s < kHalf; ++s) {
+      const PetscInt cq = col[kHalf * j + s];
+      if (cq < 0 || (cq & 7) == 0 || (cq >> 3) >= n) continue;
+      const int t = node_at[cq >> 3];
+      if (t > static_cast<int>(j) && incoming[t] < 255) ++incoming[t];
+    }
+  }
+  std::vector<std::uint8_t> pure(nodes, 0);
+  std::vector<PullRuns::Run> key(nodes);  // each pulled node's rows and absent slots (c0, c1, p0, p1 unused)
   for (std::size_t c = 0; c < nodes; ++c) {
-    bool ok = canon[c];
+    if (op.first[c] % 8 != 7) continue;
+    PullRuns::Run& k = key[c];
+    k.row = row[c], k.absent = 0;
+    bool ok = true;
+    for (int s = 0; s < kHalf && ok; ++s) {
+      if (col[kHalf * c + s] < 0) k.absent |= 1u << s;
+      else ok = upper(c, s) == static_cast<int>(c) + op.delta[s];
+    }
+    int reached = 0;
     for (int s = 1; s < kHalf && ok; ++s) {
       const long j = static_cast<long>(c) - op.delta[s];
-      ok = j >= 0 && canon[j] && row[j] == row[c];
+      const bool from = reaches(j, s, c);
+      k.lower_row[s - 1] = from ? row[j] : -1;
+      reached += from;
     }
-    pure[c] = ok;
-    op.pulled_nodes += ok;
+    pure[c] = ok && reached == incoming[c];
   }
-  (void)PetscInfo(nullptr, "lattice Galerkin: level 1 pulls %zu of %zu nodes\n", op.pulled_nodes, nodes);
-  if (!op.pulled_nodes) return;
+  // Runs: consecutive such nodes with the same rows and absent slots; those shorter than 8 nodes (one vector) stay
+  // in the push form, whose 4-lane blocks beat the scalar pull (a face's ends, every row of a deformed state).
+  auto same = [&](std::size_t p, std::size_t q) {
+    return key[p].row == key[q].row && key[p].absent == key[q].absent &&
+           std::equal(key[p].lower_row, key[p].lower_row + kHalf - 1, key[q].lower_row);
+  };
+  std::vector<std::pair<std::size_t, std::size_t>> spans;
   for (std::size_t c = 0; c < nodes;) {
-    if (!pure[c]) {
-      ++c;
-      continue;
-    }
     std::size_t e = c + 1;
-    while (e < nodes && pure[e] && row[e] == row[c]) ++e;
+    if (pure[c])
+      while (e < nodes && pure[e] && same(e, c)) ++e;
+    if (pure[c] && e - c >= kMinPullRun) spans.emplace_back(c, e), op.pulled_nodes += e - c;
+    else std::fill(pure.begin() + c, pure.begin() + e, 0);
+    c = e;
+  }
+  (void)PetscInfo(nullptr, "lattice Galerkin: level 1 pulls %zu of %zu nodes in %zu runs\n", op.pulled_nodes, nodes,
+                  spans.size());
+  if (!op.pulled_nodes) return;
+  for (auto [c, e] : spans) {
     const int p0 = static_cast<int>(op.pushes.size());
     for (std::size_t i = c; i < e; ++i)
       for (int s = 1; s < kHalf; ++s)
-        if (!pure[i + op.delta[s]]) {
+        if (!(key[c].absent >> s & 1u) && !pure[i + op.delta[s]]) {
           op.pushes.push_back(static_cast<std::uint32_t>(16 * (op.first[i] / 8) + s));
           op.pushes.push_back(static_cast<std::uint32_t>(op.col[kHalf * i + s] >> 3));
         }
-    op.runs.push_back({static_cast<int>(c), static_cast<int>(e), row[c], p0 / 2, static_cast<int>(op.pushes.size() / 2)});
-    c = e;
+    PullRuns::Run run = key[c];
+    run.c0 = static_cast<int>(c), run.c1 = static_cast<int>(e);
+    run.p0 = p0 / 2, run.p1 = static_cast<int>(op.pushes.size() / 2);
+    op.runs.push_back(run);
   }
   op.soa.assign(3 * nodes, 0.0);
 }
@@ -1876,11 +1924,15 @@ PetscErrorCode LatticeGalerkin::stencil_mult(Mat A, Vec in, Vec out) {
   PullRuns pr;
   if (!op->runs.empty()) {
     double* soa = op->soa.data();
-    for (std::size_t c = 0; c < nodes; ++c)  // the wholly free nodes' values by component (the pulled nodes read)
-      if (op->first[c] % 8 == 7) {
-        const double* from = u + op->first[c] / 8;
+    for (std::size_t c = 0; c < nodes; ++c) {  // the nodes' values by component (the pulled nodes read), held +0
+      const int mask = static_cast<int>(op->first[c] % 8);
+      const double* from = u + op->first[c] / 8;
+      if (mask == 7) {
         soa[c] = from[0], soa[nodes + c] = from[1], soa[2 * nodes + c] = from[2];
+      } else if (mask) {
+        for (int m = 0, q = 0; m < 3; ++m) soa[m * nodes + c] = mask >> m & 1 ? from[q++] : 0.0;
       }
+    }
     pr = PullRuns{op->runs.data(), op->runs.size(), op->delta.data(), op->lower.data(), op->pushes.data(), {soa, soa + nodes, soa + 2 * nodes}};
   }
   if (op->symmetric)

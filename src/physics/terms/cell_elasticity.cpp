@@ -663,10 +663,7 @@ void rest_block_q(int n, const int* __restrict base, const int* __restrict offse
 // Four doubles; V4u at any double's address (unaligned loads and stores, aliasing doubles).
 typedef double V4 __attribute__((vector_size(32)));
 typedef double V4u __attribute__((vector_size(32), aligned(8), may_alias));
-#define TISSUE_LOAD4(p) (*reinterpret_cast<const V4u*>(p))
-typedef double V8 __attribute__((vector_size(64)));
-typedef double V8u __attribute__((vector_size(64), aligned(8), may_alias));
-#define TISSUE_LOAD8(p) (*reinterpret_cast<const V8u*>(p))
+#define TISSUE_LOADV(p) (*reinterpret_cast<const Vu*>(p))  // a V at any double's address (pull_row_vectors)
 
 // The pull form with its molecule rows split once a product (CellElasticity::pull_cells_to): a molecule row into
 // x, y, z, and a block's Q from its four rows' split molecules.
@@ -701,6 +698,56 @@ __attribute__((always_inline)) inline void pull_one_row(const double* __restrict
   for (int k = std::max(3, m); k < t; ++k) fr[k] += next[k % 3] * Q[k - 3];
 }
 
+// pull_row_at_rest's interior molecules from i on, L = the lanes of V molecules a step (3 L doubles, three vectors),
+// while L fit before n; returns where it stopped. The mixed signs as +-(P q) with P one of three patterns by
+// component, P0 = (-, +, +), P1 = (-, -, +), P2 = (-, +, -) (n3 = -1, a3 = -P0, n2 = P2, a2 = -P1, n1 = P1,
+// a1 = -P2, n0 = P0, a0 = 1): P q is +-q exactly, so each sum is the scalar loop's; the nine vectors P of the three
+// phases stay in registers (the compiler's own vectorization blended an addition and a subtraction per term).
+// (The lane count, not the vector types, is the template's argument: an aligned(8) typedef passed as one loses
+// its attribute, and the loads then assume the vector's own alignment; RowLanes holds both types by count.)
+template <int L>
+struct RowLanes;
+template <>
+struct RowLanes<8> {
+  typedef double V __attribute__((vector_size(64)));
+  typedef double Vu __attribute__((vector_size(64), aligned(8), may_alias));
+};
+template <>
+struct RowLanes<4> {
+  typedef V4 V;
+  typedef V4u Vu;
+};
+template <int L>
+__attribute__((always_inline)) inline int pull_row_vectors(int i, int n, const double* __restrict q3,
+                                                           const double* __restrict q2, const double* __restrict q1,
+                                                           const double* __restrict q0, double* __restrict fr) {
+  typedef typename RowLanes<L>::V V;
+  typedef typename RowLanes<L>::Vu Vu;
+  V P[3][3];
+  for (int j = 0; j < 3; ++j)
+    for (int l = 0; l < L; ++l) {
+      const int d = (L * j + l) % 3;
+      P[0][j][l] = d == 0 ? -1.0 : 1.0, P[1][j][l] = d == 2 ? 1.0 : -1.0, P[2][j][l] = d == 1 ? 1.0 : -1.0;
+    }
+  for (; i + L <= n; i += L) {
+    const int k0 = 3 * i;
+    for (int j = 0; j < 3; ++j) {
+      const int k = k0 + L * j;
+      V v = TISSUE_LOADV(fr + k);
+      v = v - TISSUE_LOADV(q3 + k - 3);
+      v = v - P[0][j] * TISSUE_LOADV(q3 + k);
+      v = v + P[2][j] * TISSUE_LOADV(q2 + k - 3);
+      v = v - P[1][j] * TISSUE_LOADV(q2 + k);
+      v = v + P[1][j] * TISSUE_LOADV(q1 + k - 3);
+      v = v - P[2][j] * TISSUE_LOADV(q1 + k);
+      v = v + P[0][j] * TISSUE_LOADV(q0 + k - 3);
+      v = v + TISSUE_LOADV(q0 + k);
+      *reinterpret_cast<Vu*>(fr + k) = v;
+    }
+  }
+  return i;
+}
+
 // A molecule row's cells' terms, pulled: out's n + 1 molecules (touched of them owned) take their cell rows'
 // Q[e] (as corner rows r[e]) in the cell rows' order, e = 0 .. count - 1, each molecule its cell before and then
 // its cell after from each: the terms and their order of the push form (each block's add_row_corners_at_rest),
@@ -718,56 +765,9 @@ void pull_row_at_rest(const double* const* Q, const int* r, int count, int n, in
   fr[0] = (((fr[0] + q3[0]) + q2[0]) + q1[0]) + q0[0];
   fr[1] = (((fr[1] - q3[1]) + q2[1]) - q1[1]) + q0[1];
   fr[2] = (((fr[2] - q3[2]) - q2[2]) + q1[2]) + q0[2];
-  // Four molecules (12 doubles, three vectors) a step: the mixed signs as +-(P q) with P one of three patterns by
-  // component, P0 = (-, +, +), P1 = (-, -, +), P2 = (-, +, -) (n3 = -1, a3 = -P0, n2 = P2, a2 = -P1, n1 = P1,
-  // a1 = -P2, n0 = P0, a0 = 1): P q is +-q exactly, so each sum is the one above; the nine vectors P of the three
-  // phases stay in registers (the compiler's own vectorization blended an addition and a subtraction per term).
-  // Eight molecules (24 doubles, three 8-lane vectors) a step first, the same patterns by lane, then four.
-  V8 P8[3][3];
-  for (int j = 0; j < 3; ++j)
-    for (int l = 0; l < 8; ++l) {
-      const int d = (8 * j + l) % 3;
-      P8[0][j][l] = d == 0 ? -1.0 : 1.0, P8[1][j][l] = d == 2 ? 1.0 : -1.0, P8[2][j][l] = d == 1 ? 1.0 : -1.0;
-    }
-  int i = 1;
-  for (; i + 8 <= n; i += 8) {
-    const int k0 = 3 * i;
-    for (int j = 0; j < 3; ++j) {
-      const int k = k0 + 8 * j;
-      V8 v = TISSUE_LOAD8(fr + k);
-      v = v - TISSUE_LOAD8(q3 + k - 3);
-      v = v - P8[0][j] * TISSUE_LOAD8(q3 + k);
-      v = v + P8[2][j] * TISSUE_LOAD8(q2 + k - 3);
-      v = v - P8[1][j] * TISSUE_LOAD8(q2 + k);
-      v = v + P8[1][j] * TISSUE_LOAD8(q1 + k - 3);
-      v = v - P8[2][j] * TISSUE_LOAD8(q1 + k);
-      v = v + P8[0][j] * TISSUE_LOAD8(q0 + k - 3);
-      v = v + TISSUE_LOAD8(q0 + k);
-      *reinterpret_cast<V8u*>(fr + k) = v;
-    }
-  }
-  V4 P[3][3];
-  for (int j = 0; j < 3; ++j)
-    for (int l = 0; l < 4; ++l) {
-      const int d = (4 * j + l) % 3;
-      P[0][j][l] = d == 0 ? -1.0 : 1.0, P[1][j][l] = d == 2 ? 1.0 : -1.0, P[2][j][l] = d == 1 ? 1.0 : -1.0;
-    }
-  for (; i + 4 <= n; i += 4) {
-    const int k0 = 3 * i;
-    for (int j = 0; j < 3; ++j) {
-      const int k = k0 + 4 * j;
-      V4 v = TISSUE_LOAD4(fr + k);
-      v = v - TISSUE_LOAD4(q3 + k - 3);
-      v = v - P[0][j] * TISSUE_LOAD4(q3 + k);
-      v = v + P[2][j] * TISSUE_LOAD4(q2 + k - 3);
-      v = v - P[1][j] * TISSUE_LOAD4(q2 + k);
-      v = v + P[1][j] * TISSUE_LOAD4(q1 + k - 3);
-      v = v - P[2][j] * TISSUE_LOAD4(q1 + k);
-      v = v + P[0][j] * TISSUE_LOAD4(q0 + k - 3);
-      v = v + TISSUE_LOAD4(q0 + k);
-      *reinterpret_cast<V4u*>(fr + k) = v;
-    }
-  }
+  // Eight molecules a step (three 8-lane vectors), then four (three 4-lane vectors): pull_row_vectors.
+  int i = pull_row_vectors<8>(1, n, q3, q2, q1, q0, fr);
+  i = pull_row_vectors<4>(i, n, q3, q2, q1, q0, fr);
   for (; i < n; ++i) {
     double* __restrict f = fr + 3 * i;
     const int k = 3 * i;

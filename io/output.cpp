@@ -305,7 +305,9 @@ std::string Output::checkpoint(const SolverState& state, const ForceModel* force
 }
 
 void Output::history_row(const SolverState& state, const ForceModel& forces, const TensionTest& test) {
-  const Measurements m = measure(scene_, model_, test, state.x.array(), state.v.data());
+  // (a dynamic run's state may be its three streams: measure() reads either layout)
+  const Measurements m =
+      measure(scene_, model_, test, state.x.array(), state.v.data(), state.x_streams, state.v_streams);
   // Dynamic runs and the static solve's last row: the reactions of the step's own force evaluation (no second one
   // per row; src/solvers/solver.hpp, forces_final). Static load steps:
   // the step's fraction of the loads; their rows count the load steps, and `time` is that fraction (pseudo-time).

@@ -10,6 +10,7 @@
 #include <functional>
 #include <limits>
 #include <string>
+#include <vector>
 
 #include "tests/pipeline.hpp"
 #include "io/scene.hpp"
@@ -399,6 +400,48 @@ TEST(Physics, FusedStepEqualsSeparatePassesBitForBit) {
   }
 }
 
+// history.csv's rows in a fused run read the state as the solver keeps it between steps, three streams
+// (SolverState::x_streams), without turning it back into PETSc's interlaced blocks: measure() there gives the
+// separate passes' numbers bit for bit (step, kinetic energy, centre of mass) at every row, every 10 steps, at
+// every rank count; and the run itself is the same bits as without rows.
+TEST(Physics, FusedRunsHistoryRowsReadTheStreams) {
+  struct Rows {
+    std::vector<double> values;
+    int streamed = 0;
+  };
+  auto solve_with_rows = [](RunResult& r, Rows& rows) {
+    SolverHooks hooks;
+    hooks.record = [&](const SolverState& s) {
+      const Measurements m = measure(r.scene, r.model, r.test, s.x.array(), s.v.data(), s.x_streams, s.v_streams);
+      rows.values.push_back(static_cast<double>(s.step));
+      rows.values.push_back(m.kinetic_energy);
+      for (double c : m.center_of_mass) rows.values.push_back(c);
+      rows.streamed += s.x_streams != 0;
+    };
+    r.sim->solve(hooks);
+    ASSERT_NE(r.sim->outcome(), Simulation::Outcome::solver_failure) << r.sim->failure();
+  };
+  const std::vector<std::string> every = {ring_molecules, "output.history_every=10"};
+  std::vector<std::string> zero_gravity = every;
+  zero_gravity.push_back("physics.gravity=[0.0, 0.0, 0.0]");
+  auto fused = run(springs_only, PETSC_COMM_WORLD, every, false, perturb);
+  auto separate = run(springs_only, PETSC_COMM_WORLD, zero_gravity, false, perturb);
+  Rows a, b;
+  solve_with_rows(*fused, a);
+  solve_with_rows(*separate, b);
+  ASSERT_TRUE(fused->forces->springs_only());
+  ASSERT_EQ(a.values.size(), 5u * 31);  // steps 0, 10, ..., 300
+  ASSERT_EQ(a.values.size(), b.values.size());
+  for (std::size_t j = 0; j < a.values.size(); ++j) EXPECT_EQ(a.values[j], b.values[j]) << "row " << j / 5;
+  EXPECT_EQ(a.streamed, 29);  // every row but the first (before the streams) and the last (interlaced)
+  EXPECT_EQ(b.streamed, 0);
+  EXPECT_GT(a.values[5 * 15 + 1], 0.0);  // the springs moved the molecules
+  double all = 0;
+  auto plain = run(springs_only, PETSC_COMM_WORLD, {ring_molecules, "physics.gravity=[0.0, 0.0, 0.0]"}, true, perturb);
+  expect_same_state(*fused, *plain, &all);
+  EXPECT_GT(all, 1e-3);
+}
+
 // The fused steps with their forces in a ring of rows (the ring is reused every few planes: a row handed over too
 // late or zeroed too early changes the bits) against the separate passes, guards on: equal bits at every rank
 // count; the ring is in use on every rank, a quarter of the owned rows or less on one rank.
@@ -541,6 +584,16 @@ steps = 1
       r->forces->kernel().energy_and_shortest(x, &fast_energy, &fast_worst);
       EXPECT_NEAR(fast_energy, energy, 1e-12 * energy) << topology << " squeeze " << squeeze;
       EXPECT_EQ(fast_worst, worst) << topology << " squeeze " << squeeze;
+      // The same pass over x as three streams (the dynamic solver's layout between steps, ghosts' rows included,
+      // a stride of more than the local rows): the same doubles.
+      const std::size_t stride = m.local + 5;
+      std::vector<double> streams(3 * stride, std::numeric_limits<double>::quiet_NaN());
+      for (int i = 0; i < m.local; ++i)
+        for (int d = 0; d < 3; ++d) streams[d * stride + i] = x[3 * i + d];
+      double stream_energy = 0, stream_worst = 0;
+      r->forces->kernel().energy_and_shortest(streams.data(), &stream_energy, &stream_worst, stride);
+      EXPECT_EQ(stream_energy, fast_energy) << topology << " squeeze " << squeeze;
+      EXPECT_EQ(stream_worst, fast_worst) << topology << " squeeze " << squeeze;
       long structured = r->forces->kernel().structured_connections(), all = 0;
       double least = 0;
       MPI_Allreduce(&structured, &all, 1, MPI_LONG, MPI_SUM, PETSC_COMM_WORLD);

@@ -21,7 +21,14 @@ bool confined(const Scene& scene, const Body& s, const TensionTest& test) {
 
 // Simple shear: a clamped face and, on the face opposite, a load along the face (other loads, such as the
 // complementary tractions on the side faces, may be present). Collective when the scene is one.
-std::optional<double> shear_modulus(const Scene& scene, const LocalModel& model, const double* x) {
+// Component d of molecule i in either layout (measure()'s x_streams: 0 interlaced, else the streams' stride).
+struct Layout {
+  const double* a;
+  std::size_t stride;
+  double operator()(std::size_t i, int d) const { return stride ? a[d * stride + i] : a[3 * i + d]; }
+};
+
+std::optional<double> shear_modulus(const Scene& scene, const LocalModel& model, Layout x) {
   const Body& s = model.shape;
   for (const auto& load : scene.loads) {
     const NamedFace* lf = s.named_face(load.body, load.face);
@@ -40,7 +47,7 @@ std::optional<double> shear_modulus(const Scene& scene, const LocalModel& model,
     for (int i = 0; i < model.owned; ++i) {
       if (model.body[i] != load.body) continue;
       double along = 0;
-      for (int d = 0; d < 3; ++d) along += (x[3 * i + d] - model.rest[3 * i + d]) * F[d] / norm;
+      for (int d = 0; d < 3; ++d) along += (x(i, d) - model.rest[3 * i + d]) * F[d] / norm;
       if (lf->contains(model.id[i])) sum[0] += along, sum[1] += 1;
       if (ff->contains(model.id[i])) sum[2] += along, sum[3] += 1;
     }
@@ -54,8 +61,9 @@ std::optional<double> shear_modulus(const Scene& scene, const LocalModel& model,
 
 }  // namespace
 
-Measurements measure(const Scene& scene, const LocalModel& model, const TensionTest& test, const double* x,
-                     const double* v) {
+Measurements measure(const Scene& scene, const LocalModel& model, const TensionTest& test, const double* xs,
+                     const double* vs, std::size_t x_streams, std::size_t v_streams) {
+  const Layout x{xs, x_streams}, v{vs, v_streams};
   const Body& s = model.shape;
   // Sums reduced in one call: [0..2] m x, [3] m, [4] kinetic, [5..8] loaded/fixed sums and counts,
   // [9..16] lateral faces (u-, u+, v-, v+: sum of displacement along the axis, count).
@@ -92,12 +100,12 @@ Measurements measure(const Scene& scene, const LocalModel& model, const TensionT
     }
   }
   for (int i = 0; i < model.owned; ++i) {
-    const double* xi = x + 3 * i;
+    const double xi[3] = {x(i, 0), x(i, 1), x(i, 2)};
     const double* x0 = model.rest.data() + 3 * i;
     for (int d = 0; d < 3; ++d) sum[d] += model.mass[i] * xi[d];
     sum[3] += model.mass[i];
-    if (v)
-      for (int d = 0; d < 3; ++d) sum[4] += 0.5 * model.mass[i] * v[3 * i + d] * v[3 * i + d];
+    if (vs)
+      for (int d = 0; d < 3; ++d) sum[4] += 0.5 * model.mass[i] * v(i, d) * v(i, d);
     if (!test.valid || model.body[i] != test.body) continue;
     double along = 0;
     for (int d = 0; d < 3; ++d) along += (xi[d] - x0[d]) * test.direction[d];

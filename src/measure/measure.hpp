@@ -34,9 +34,10 @@ struct Measurements {
   std::vector<Vec3> reactions;            // per [[fix]], scene order: the total force the hold exerts on the body
 };
 
-// x: local positions (owned first); v: owned velocities, or nullptr.
+// x: local positions (owned first); v: owned velocities, or nullptr. x_streams, v_streams: 0 (interlaced,
+// component d of molecule i at [3 i + d]) or the stride of three streams ([d * stride + i]: SolverState's).
 Measurements measure(const Scene& scene, const LocalModel& model, const TensionTest& test, const double* x,
-                     const double* v);
+                     const double* v, std::size_t x_streams = 0, std::size_t v_streams = 0);
 // Collective: the contact forces of the force model's last evaluation (its state after the solve) into m.
 void measure_contact(const ForceModel& forces, Measurements& m);
 

@@ -1180,10 +1180,21 @@ void SpringKernel::tangent_sweep(const double* x, const double* u, double* out, 
 }
 
 namespace {
-// One direction of energy_and_shortest's block: end a's rows [a0, a0 + n) (x interlaced) to a0 + offset.
+// One direction of energy_and_shortest's block: end a's rows [a0, a0 + n) to a0 + offset; x interlaced (stride 0:
+// component c of row i at [3 i + c]) or as three streams ([c * stride + i]).
 TISSUE_CLONES
-void energy_direction(int n, const double* __restrict xa, const double* __restrict xb, double k, double l0,
-                      double* __restrict energy, double* __restrict ratio) {
+void energy_direction(int n, const double* __restrict xa, const double* __restrict xb, std::size_t stride, double k,
+                      double l0, double* __restrict energy, double* __restrict ratio) {
+  if (stride) {
+    const double *a1 = xa + stride, *a2 = xa + 2 * stride, *b1 = xb + stride, *b2 = xb + 2 * stride;
+    for (int i = 0; i < n; ++i) {
+      const double d0 = xb[i] - xa[i], d1 = b1[i] - a1[i], d2 = b2[i] - a2[i];
+      const double length = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2), stretch = length - l0;
+      energy[i] = 0.5 * k * stretch * stretch;
+      ratio[i] = length / l0;
+    }
+    return;
+  }
   for (int i = 0; i < n; ++i) {
     const double d0 = xb[3 * i] - xa[3 * i], d1 = xb[3 * i + 1] - xa[3 * i + 1], d2 = xb[3 * i + 2] - xa[3 * i + 2];
     const double length = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2), stretch = length - l0;
@@ -1210,14 +1221,17 @@ void accumulate_lanes(int n, const double* __restrict energy, const double* __re
 }
 }  // namespace
 
-void SpringKernel::energy_and_shortest(const double* x, double* energy, double* shortest) const {
+void SpringKernel::energy_and_shortest(const double* x, double* energy, double* shortest, std::size_t streams) const {
   const LocalModel& m = model_;
   const int owned = m.owned;
   const ConnectionColumn kc = m.table.stiffness_column(), lc = m.table.rest_length_column();
   double e = 0, w = std::numeric_limits<double>::infinity();
+  // component c of row i; a row's start (xa below): interlaced 3 i, streams i
+  auto at = [&](std::size_t i, int c) { return streams ? x[c * streams + i] : x[3 * i + c]; };
+  const std::size_t row = streams ? 1 : 3;
   auto spring = [&](int c, int a, int b) {  // LocalModel::for_each_written's connection, as the guard computes it
     if (a >= owned) return;
-    const double d0 = x[3 * b] - x[3 * a], d1 = x[3 * b + 1] - x[3 * a + 1], d2 = x[3 * b + 2] - x[3 * a + 2];
+    const double d0 = at(b, 0) - at(a, 0), d1 = at(b, 1) - at(a, 1), d2 = at(b, 2) - at(a, 2);
     const double length = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2), l0 = lc[c], stretch = length - l0;
     e += 0.5 * kc[c] * stretch * stretch;
     const double ratio = length / l0;
@@ -1244,8 +1258,8 @@ void SpringKernel::energy_and_shortest(const double* x, double* energy, double* 
       int e1 = e0;
       while (e1 < seg.exceptions && exceptions[e1].molecule < a0 + n) ++e1;
       for (int s = 0; s < directions; ++s) {
-        const double* xa = x + 3 * static_cast<std::size_t>(a0);
-        energy_direction(n, xa, xa + 3 * static_cast<std::ptrdiff_t>(offsets_[start + s]), k_[start + s],
+        const double* xa = x + row * static_cast<std::size_t>(a0);
+        energy_direction(n, xa, xa + static_cast<std::ptrdiff_t>(row) * offsets_[start + s], streams, k_[start + s],
                          l0_[start + s], en, ra);
         for (int q = e0; q < e1; ++q)  // a molecule without this direction: no spring
           if (!(exceptions[q].present >> s & 1u)) {

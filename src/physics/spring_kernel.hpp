@@ -149,7 +149,9 @@ public:
   // energies k (l - l0)^2 / 2 (in another order than that walk's: the last bits may differ) and their smallest
   // l / l0 (the same double as that walk's: l and the ratio computed as there; non-finite ratios skipped as there),
   // on the stencil segments (per direction a constant k and l0, contiguous rows) and the generic connections.
-  void energy_and_shortest(const double* x, double* energy, double* shortest) const;
+  // streams: 0 (x interlaced) or the stride of x's three streams (the dynamic solver's layout between steps): the
+  // same doubles either way.
+  void energy_and_shortest(const double* x, double* energy, double* shortest, std::size_t streams = 0) const;
   // The constants of the tangent at the rest positions (model.rest), found from the first spring of each segment's
   // direction and checked against every other (RestStencil::exact).
   RestStencil rest_stencil() const;

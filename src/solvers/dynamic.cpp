@@ -364,15 +364,17 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
   // loops then read no held flags.
   for (int j : forces.held_owned()) v[j] = 0.0;
   const int n = model.owned;
-  // Whether nothing but the guard's reductions and the signal check reads the state at whole step s (snapshots,
-  // checkpoints and history.csv's rows come at multiples of their cadences): then the fused streams may end
-  // there; and whether not even those do: then the half kick that ends step s, the one that starts step s + 1
-  // and its drift are one pass over the molecules instead of two, with the same arithmetic.
+  // Whether nothing reads the state at whole step s interlaced (snapshots and checkpoints come at multiples of
+  // their cadences; history.csv's rows and the guard's periodic checks read the streams as they are: SolverState
+  // ::x_streams): then the fused streams may end there; whether nothing but the guard's reductions and the
+  // signal check reads it at all (no row either): then the half kick that ends step s, the one that starts step
+  // s + 1 and its drift are one pass over the molecules instead of two, with the same arithmetic.
   const long rows = hooks.record ? scene.output.history_every : 0;  // history.csv's cadence
-  auto unread = [&](long s) {
+  auto streams_read = [&](long s) {
     const long snap = hooks.snapshot ? scene.output.snapshot_every : 0, ckpt = scene.output.checkpoint_every;
-    return s < total && !(snap > 0 && s % snap == 0) && !(ckpt > 0 && s % ckpt == 0) && !(rows > 0 && s % rows == 0);
+    return s < total && !(snap > 0 && s % snap == 0) && !(ckpt > 0 && s % ckpt == 0);
   };
+  auto unread = [&](long s) { return streams_read(s) && !(rows > 0 && s % rows == 0); };
   auto unobserved = [&](long s) { return unread(s) && s % kReduceEvery != 0; };
   if (rows > 0 && !state.restarted) hooks.record(state);  // history.csv's first row: the state at t = 0
   const bool history = forces.has_history();
@@ -404,6 +406,8 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
     if (on) to_streams(x, local, f), to_streams(v, n, f);
     else to_interlaced(x, local, f), to_interlaced(v, n, f);
     streams = on;
+    state.x_streams = on ? static_cast<std::size_t>(local) : 0;  // (what the guard and history rows read)
+    state.v_streams = on ? static_cast<std::size_t>(n) : 0;
   };
   bool drifted = false;  // the last pass already did this step's half kick and drift
   // The state at a whole step, interlaced, for whatever reads it (the guard, a checkpoint): the conversion spends
@@ -440,7 +444,7 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
     }
     const bool next_unobserved = (ahead ? unread(next) && !stop_ahead : unobserved(next)) && !guard.check_pending() &&
                                  !(full_every > 0 && next % full_every == 0);
-    const bool fused = fuse && unread(state.step + 1);
+    const bool fused = fuse && streams_read(state.step + 1);
     // (the layout the last step left: a fused step that ended at an observed state kept the streams)
     if (!drifted) {
       if (streams) {

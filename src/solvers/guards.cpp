@@ -73,8 +73,17 @@ void StepGuard::keep() {
   // With the guards off (benchmarks) no copy: 48 bytes a molecule that a run without checks would never restore.
   if (!enabled_) return;
   if (copy_) {
-    good_x_.assign(state_.x.array(), state_.x.array() + 3 * model_.owned);
-    good_v_ = state_.v;
+    const std::size_t xs = state_.x_streams, vs = state_.v_streams, n = model_.owned;
+    if (xs) {  // the dynamic solver's streams: kept interlaced, as fail() puts them back
+      const double* x = state_.x.array();
+      const double* v = state_.v.data();
+      good_x_.resize(3 * n), good_v_.resize(3 * n);
+      for (std::size_t i = 0; i < n; ++i)
+        for (int d = 0; d < 3; ++d) good_x_[3 * i + d] = x[d * xs + i], good_v_[3 * i + d] = v[d * vs + i];
+    } else {
+      good_x_.assign(state_.x.array(), state_.x.array() + 3 * n);
+      good_v_ = state_.v;
+    }
   }
   good_step_ = state_.step;
   good_time_ = state_.time;
@@ -84,14 +93,17 @@ void StepGuard::keep() {
 // returns spring - work. Each connection is counted once over all ranks (written_here).
 double StepGuard::energy(double* spring, double* work) {
   const double* x = state_.x.array();
+  const std::size_t xs = state_.x_streams;  // (either layout: SolverState)
+  auto at = [&](std::size_t i, int d) { return xs ? x[d * xs + i] : x[3 * i + d]; };
   double sums[3] = {0, 0, 0};
   const std::exception_ptr error = attempt([&] {
     // (the connection with the smallest ratio is named by check_lengths, only when it fails)
-    forces_.kernel().energy_and_shortest(x, &sums[0], &worst_ratio_);
-    for (const auto& a : forces_.applied()) sums[1] += a.value * (x[a.component] - model_.rest[a.component]);
+    forces_.kernel().energy_and_shortest(x, &sums[0], &worst_ratio_, xs);
+    for (const auto& a : forces_.applied())
+      sums[1] += a.value * (at(a.component / 3, a.component % 3) - model_.rest[a.component]);
     if (const auto& g = scene_.physics.gravity)
       for (int i = 0; i < model_.owned; ++i)
-        for (int d = 0; d < 3; ++d) sums[1] += model_.mass[i] * (*g)[d] * (x[3 * i + d] - model_.rest[3 * i + d]);
+        for (int d = 0; d < 3; ++d) sums[1] += model_.mass[i] * (*g)[d] * (at(i, d) - model_.rest[3 * i + d]);
   });
   sums[2] = error ? 1.0 : 0.0;
   double global[3];
@@ -102,27 +114,35 @@ double StepGuard::energy(double* spring, double* work) {
 }
 
 void StepGuard::check_finite_state() {
-  const double* x = state_.x.array();
   std::vector<double> bad;
   int any[2] = {0, 0}, all[2];
-  const double* v = state_.v.data();
-  const double* f = state_.f.data();
-  auto finite = [&](int j) { return std::isfinite(x[j]) && std::isfinite(v[j]) && std::isfinite(f[j]); };
   const std::exception_ptr error = attempt([&] {
     fault_point("guard", model_.comm);
     // (an integer OR over the components: a reduction the compiler vectorizes, no branch a component)
     constexpr double largest = std::numeric_limits<double>::max();
     int flag = 0;
-    for (int j = 0; j < 3 * model_.owned; ++j)
-      flag |= static_cast<int>(!(std::fabs(x[j]) <= largest)) | static_cast<int>(!(std::fabs(v[j]) <= largest)) |
-              static_cast<int>(!(std::fabs(f[j]) <= largest));
+    auto scan = [&](const double* a, std::size_t n) {
+      for (std::size_t j = 0; j < n; ++j) flag |= static_cast<int>(!(std::fabs(a[j]) <= largest));
+    };
+    const std::size_t n = model_.owned, xs = state_.x_streams, vs = state_.v_streams;
+    if (xs) {  // the dynamic solver's streams (SolverState): each stream's owned rows
+      for (int d = 0; d < 3; ++d)
+        scan(state_.x.array() + d * xs, n), scan(state_.v.data() + d * vs, n), scan(state_.f.data() + d * xs, n);
+    } else {
+      scan(state_.x.array(), 3 * n), scan(state_.v.data(), 3 * n), scan(state_.f.data(), 3 * n);
+    }
     any[0] = flag;
   });
   any[1] = error ? 1 : 0;
   MPI_Allreduce(any, all, 2, MPI_INT, MPI_MAX, model_.comm);
   if (all[1]) agree_on(model_.comm, error);
   if (!all[0]) return;
-  // A failure: the molecules named (the per-molecule flags only now)
+  // A failure: the molecules named (the per-molecule flags only now), from the state interlaced
+  read_state();
+  const double* x = state_.x.array();
+  const double* v = state_.v.data();
+  const double* f = state_.f.data();
+  auto finite = [&](int j) { return std::isfinite(x[j]) && std::isfinite(v[j]) && std::isfinite(f[j]); };
   bad.assign(model_.owned, 0.0);
   for (int i = 0; i < model_.owned; ++i)
     for (int d = 0; d < 3; ++d)
@@ -133,6 +153,7 @@ void StepGuard::check_finite_state() {
 
 void StepGuard::check_lengths(bool from_energy) {
   const double* x = state_.x.array();
+  const std::size_t xs = state_.x_streams;
   double worst = std::numeric_limits<double>::infinity();
   long long worst_id = -1;
   int worst_c = -1;
@@ -142,7 +163,7 @@ void StepGuard::check_lengths(bool from_energy) {
   } else {
     error = attempt([&] {
       double unused;
-      forces_.kernel().energy_and_shortest(x, &unused, &worst);
+      forces_.kernel().energy_and_shortest(x, &unused, &worst, xs);
     });
   }
   double mins[2] = {worst, error ? -1.0 : 0.0}, reduced[2];  // MIN: the flag is -1 when a rank failed
@@ -151,7 +172,9 @@ void StepGuard::check_lengths(bool from_energy) {
   const double global = reduced[0];
   if (!(global < kCollapsedLengthRatio)) return;
   // A failure (rare): the first connection in this rank's order with the smallest ratio (the same doubles as the
-  // kernel's pass), named.
+  // kernel's pass), named, from the state interlaced.
+  read_state();
+  x = state_.x.array();
   worst = std::numeric_limits<double>::infinity();
   model_.for_each_written([&](int c, int a, int b) {
     const double ratio = length_of(x, a, b) / model_.l0(c);
@@ -223,11 +246,12 @@ void StepGuard::dynamic_step(double local_kinetic, bool whole) {
   // passed near rest re-armed a dozen checks: 25 checks per 1000 steps of a loaded 40^3 box, now 11; each costs
   // about one force evaluation. docs/stability.md.)
   kinetic_checked_ = std::max(kinetic_checked_, kinetic_);
-  read_state();
+  // (the state as the solver keeps it: interlaced or its streams; the failures below read it interlaced)
   double spring, work;
   const double e = kinetic_ + energy(&spring, &work);
   const double scale = kinetic_ + spring + std::fabs(work) + std::fabs(energy0_);
   if (energy_check_ && e - energy0_ > 0.5 * scale && scale > 0) {
+    read_state();
     std::vector<double> ke(model_.owned);
     for (int i = 0; i < model_.owned; ++i)
       ke[i] = model_.mass[i] * (state_.v[3 * i] * state_.v[3 * i] + state_.v[3 * i + 1] * state_.v[3 * i + 1] +

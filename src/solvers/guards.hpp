@@ -70,8 +70,10 @@ public:
   // Restores the last good state into the SolverState and throws SolverFailure with `problem` at `molecule`.
   [[noreturn]] void fail(const std::string& problem, std::int64_t molecule);
 
-  // Called before the guard reads the state (x, v, f) at a whole step: a solver that keeps its state in another
-  // layout between steps puts it back there (the dynamic solver's streams). Empty: nothing to do.
+  // Called before the guard reads the state (x, v, f) at a whole step interlaced: a solver that keeps its state
+  // in another layout between steps puts it back there (the dynamic solver's streams). Empty: nothing to do. The
+  // periodic checks of dynamic_step read the streams as they are (SolverState::x_streams); a failure, a final
+  // check and the relaxation's checks read the state interlaced.
   void on_read(std::function<void()> prepare) { prepare_ = std::move(prepare); }
 
   double kinetic_energy() const { return kinetic_; }

@@ -57,6 +57,11 @@ struct SolverState {
   // evaluation read; empty otherwise. A checkpoint keeps them: velocity Verlet's forces at step n read
   // v(n - 1/2), not the whole-step v(n) that the checkpoint's velocities hold.
   std::vector<double> v_half;
+  // The dynamic solver keeps x, v and f as three streams each between steps (component d of molecule i at
+  // x[d * x_streams + i], v[d * v_streams + i], f[d * x_streams + i]). Nonzero only while its history rows and
+  // its guard's periodic checks read the state in that layout (measure() and StepGuard take either); 0:
+  // interlaced (3 i + d), what everything else reads (a snapshot or checkpoint gets the state interlaced).
+  std::size_t x_streams = 0, v_streams = 0;
 };
 
 struct SolverStyle;

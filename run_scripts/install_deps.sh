@@ -12,7 +12,8 @@ pkgs=(build-essential cmake pkg-config git
       libtoml11-dev libcli11-dev nlohmann-json3-dev libfmt-dev
       libcgal-dev gmsh libgmsh-dev   # libgmsh-dev: meshes through the Gmsh library (io/gmsh_mesh.cpp)
       python3 python3-h5py python3-meshio python3-numpy python3-matplotlib
-      clang-14 libclang-rt-14-dev)   # the libFuzzer targets that test.sh runs (run_scripts/fuzz.sh)
+      clang-14 libclang-rt-14-dev    # the libFuzzer targets that test.sh runs (run_scripts/fuzz.sh)
+      valgrind)                      # runs the kernels' AVX2 clones in tests (tests/CMakeLists.txt)
 if [ "${TISSUE_EXTRAS:-0}" = 1 ]; then pkgs+=(paraview python3-paraview xvfb python3-scipy); fi
 missing=()
 for p in "${pkgs[@]}"; do

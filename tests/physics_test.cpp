@@ -539,6 +539,53 @@ TEST(Physics, FusedRunCatchesGrowthAtTheStepAfterItsDriftedGuardStep) {
   EXPECT_EQ(all, 0) << what;
 }
 
+// A non-finite state in a fused run with the guards on, found from the kinetic energy the drifting kicks sum on the
+// streams: one molecule thrown at 1e300 m/s overflows its springs' lengths, and NaN forces spread from it. Every rank
+// fails with the same message, which names the first non-finite molecule and the step of the first non-finite kinetic
+// energy; the last good state put back is an unguarded run's of as many steps, bit for bit (1, 2 and 3 ranks: the
+// failure found on the streams is turned back to PETSc's layout on every rank together).
+TEST(Physics, FusedRunCatchesANonFiniteStateOnEveryRankAlike) {
+  const std::vector<std::string> set = {ring_molecules, "solver.steps=300"};
+  auto throw_one = [](RunResult& r) {
+    perturb(r);
+    for (int i = 0; i < r.model.owned; ++i)
+      if (r.model.id[i] == 1234) r.state->v[3 * i + 2] = 1e300;
+  };
+  auto r = run(springs_only, PETSC_COMM_WORLD, set, false, throw_one);
+  ASSERT_TRUE(r->forces->springs_only());
+  r->sim->solve(SolverHooks{});
+  ASSERT_EQ(r->sim->outcome(), Simulation::Outcome::solver_failure);
+  const std::string what = r->sim->failure();
+  EXPECT_NE(what.find("non-finite"), std::string::npos) << what;
+  EXPECT_NE(what.find("first non-finite kinetic energy at step"), std::string::npos) << what;
+  EXPECT_NE(what.find("molecule "), std::string::npos) << what;
+  // the same text on every rank: its length and a hash, the smallest and largest over the ranks
+  long mine[2] = {static_cast<long>(what.size()), static_cast<long>(std::hash<std::string>{}(what) >> 1)};
+  long low[2], high[2];
+  MPI_Allreduce(mine, low, 2, MPI_LONG, MPI_MIN, PETSC_COMM_WORLD);
+  MPI_Allreduce(mine, high, 2, MPI_LONG, MPI_MAX, PETSC_COMM_WORLD);
+  EXPECT_EQ(low[0], high[0]) << what;
+  EXPECT_EQ(low[1], high[1]) << what;
+  const std::size_t at = what.find(" at step ");
+  ASSERT_NE(at, std::string::npos) << what;
+  const long named = std::stol(what.substr(at + 9));
+  // found mid-run by the kinetic energy the drifted kicks summed at a kReduceEvery-th step, checked at the next, whole
+  EXPECT_EQ(named % kReduceEvery, 1) << what;
+  const long good = r->state->step;
+  ASSERT_LT(good, named) << what;
+  ASSERT_EQ(PetscOptionsSetValue(nullptr, "-tissue_guards", "false"), 0);
+  std::vector<std::string> upto = set;
+  upto.back() = "solver.steps=" + std::to_string(good);
+  auto reference = run(springs_only, PETSC_COMM_WORLD, upto, false, throw_one);
+  if (good > 0) reference->sim->solve(SolverHooks{});
+  ASSERT_EQ(PetscOptionsClearValue(nullptr, "-tissue_guards"), 0);
+  long differ = 0, all = 0;
+  for (int j = 0; j < 3 * r->model.owned; ++j)
+    differ += r->state->x.array()[j] != reference->state->x.array()[j] || r->state->v[j] != reference->state->v[j];
+  MPI_Allreduce(&differ, &all, 1, MPI_LONG, MPI_SUM, PETSC_COMM_WORLD);
+  EXPECT_EQ(all, 0) << what;
+}
+
 // The guards' connection pass on the spring kernel's segments (SpringKernel::energy_and_shortest) against the walk
 // over every written connection it replaces: the energy to round-off (another order), the smallest length / rest
 // length the same double, on every rank; a lattice with a stiffer region (two materials: the segments end where they

@@ -20,15 +20,8 @@ bool confined(const Scene& scene, const Body& s, const TensionTest& test) {
 }
 
 // Simple shear: a clamped face and, on the face opposite, a load along the face (other loads, such as the
-// complementary tractions on the side faces, may be present). Collective when the scene is one.
-// Component d of molecule i in either layout (measure()'s x_streams: 0 interlaced, else the streams' stride).
-struct Layout {
-  const double* a;
-  std::size_t stride;
-  double operator()(std::size_t i, int d) const { return stride ? a[d * stride + i] : a[3 * i + d]; }
-};
-
-std::optional<double> shear_modulus(const Scene& scene, const LocalModel& model, Layout x) {
+// complementary tractions on the side faces, may be present). Collective when the scene is one. x in either layout.
+std::optional<double> shear_modulus(const Scene& scene, const LocalModel& model, Components x) {
   const Body& s = model.shape;
   for (const auto& load : scene.loads) {
     const NamedFace* lf = s.named_face(load.body, load.face);
@@ -63,7 +56,7 @@ std::optional<double> shear_modulus(const Scene& scene, const LocalModel& model,
 
 Measurements measure(const Scene& scene, const LocalModel& model, const TensionTest& test, const double* xs,
                      const double* vs, std::size_t x_streams, std::size_t v_streams) {
-  const Layout x{xs, x_streams}, v{vs, v_streams};
+  const Components x{xs, x_streams}, v{vs, v_streams};
   const Body& s = model.shape;
   // Sums reduced in one call: [0..2] m x, [3] m, [4] kinetic, [5..8] loaded/fixed sums and counts,
   // [9..16] lateral faces (u-, u+, v-, v+: sum of displacement along the axis, count).

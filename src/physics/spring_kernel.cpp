@@ -1241,7 +1241,7 @@ void SpringKernel::energy_and_shortest(const double* x, double* energy, double* 
   const ConnectionColumn kc = m.table.stiffness_column(), lc = m.table.rest_length_column();
   double e = 0, w = std::numeric_limits<double>::infinity();
   // component c of row i; a row's start (xa below): interlaced 3 i, streams i
-  auto at = [&](std::size_t i, int c) { return streams ? x[c * streams + i] : x[3 * i + c]; };
+  const Components at{x, streams};
   const std::size_t row = streams ? 1 : 3;
   auto spring = [&](int c, int a, int b) {  // LocalModel::for_each_written's connection, as the guard computes it
     if (a >= owned) return;

@@ -73,6 +73,14 @@ struct RingStreams {
   }
 };
 
+// Component d of molecule i of a position, velocity or force array in either of those layouts, read: stride 0 for
+// interlaced (a[3 i + d]), else the streams' stride (a[d * stride + i]); SolverState::x_streams gives it.
+struct Components {
+  const double* a;
+  std::size_t stride;
+  double operator()(std::size_t i, int d) const { return stride ? a[d * stride + i] : a[3 * i + d]; }
+};
+
 // Streams of one double a row that the FinalRows callback reads (the kicks' velocities and masses): the stencil
 // kernel asks for each block's rows of them as it computes that block, so that they come from memory while it
 // computes, not when the callback reads them (hints only: nothing changes but when the memory is read).

@@ -94,7 +94,7 @@ void StepGuard::keep() {
 double StepGuard::energy(double* spring, double* work) {
   const double* x = state_.x.array();
   const std::size_t xs = state_.x_streams;  // (either layout: SolverState)
-  auto at = [&](std::size_t i, int d) { return xs ? x[d * xs + i] : x[3 * i + d]; };
+  const Components at{x, xs};
   double sums[3] = {0, 0, 0};
   const std::exception_ptr error = attempt([&] {
     // (the connection with the smallest ratio is named by check_lengths, only when it fails)

@@ -8,6 +8,8 @@
 #include <cerrno>
 #include <cstring>
 
+#include "src/vector_clones.hpp"
+
 namespace tissue {
 
 namespace {
@@ -22,7 +24,7 @@ constexpr std::size_t kWritingBlocks = 2 * kLanes;
 // (1.5-2.5x the bytes a second of 8 scalar lanes on a loaded machine: docs/benchmarks.md, "Snapshot writes at half
 // of dd").
 using Lanes8 = std::uint64_t __attribute__((vector_size(64)));
-__attribute__((target_clones("arch=x86-64-v4", "default"))) void fnv_16_lanes(std::uint64_t* h,
+TISSUE_CLONES_V4 void fnv_16_lanes(std::uint64_t* h,
                                                                               const unsigned char* const* lane,
                                                                               std::size_t n) {
   Lanes8 lo, hi;

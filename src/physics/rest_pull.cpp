@@ -6,13 +6,15 @@
 #include <map>
 #include <unordered_map>
 
+#include "src/vector_clones.hpp"
+
 namespace tissue {
 
 namespace {
 
-// As the force kernels (src/physics/spring_kernel.cpp): AVX-512, AVX2 and baseline clones, picked at run time; no
-// fused multiply-adds (CMakeLists.txt), so the clones give the same bits.
-#define TISSUE_REST_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+// As the force kernels (src/physics/spring_kernel.cpp): AVX-512, AVX2 and baseline clones, picked at run time, the
+// same bits (src/vector_clones.hpp).
+#define TISSUE_REST_CLONES TISSUE_CLONES
 
 constexpr int kMaxDirections = 16;     // the masks' bits: forward s, backward 16 + s
 constexpr int kMaxPattern = 13;        // 16 + s below make()'s flag bits (29, 30, 31)

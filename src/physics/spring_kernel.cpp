@@ -1,6 +1,7 @@
 #include "src/physics/spring_kernel.hpp"
 
 #include "src/physics/rest_pull.hpp"
+#include "src/vector_clones.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -12,11 +13,9 @@ namespace tissue {
 
 namespace {
 
-// Each kernel is compiled for AVX-512, AVX2 and the baseline, and the loader picks the best the CPU has: the
-// square roots and divisions are the slow instructions, and wider vectors do more of them at once. IEEE sqrt and
-// division round the same at any width, and fused multiply-adds are off (CMakeLists.txt), so every clone gives
-// the same bits.
-#define TISSUE_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+// Each kernel is compiled for AVX-512, AVX2 and the baseline (TISSUE_CLONES, src/vector_clones.hpp), and the
+// loader picks the best the CPU has: the square roots and divisions are the slow instructions, and wider vectors
+// do more of them at once.
 
 // Generic: connections [begin, end) of any list, sorted by end a. k comes through the type table ks when
 // `ktype` is given, else per connection; l0 likewise through `ltype` and ls.

@@ -12,7 +12,9 @@
 #include <optional>
 #include <vector>
 
+#if defined(__x86_64__)
 #include <immintrin.h>
+#endif
 #include <mpi.h>
 
 #include "partition/ghosted_vector.hpp"
@@ -20,6 +22,7 @@
 #include "src/solvers/progress.hpp"
 #include "src/solvers/setup_checks.hpp"
 #include "src/solvers/solver.hpp"
+#include "src/vector_clones.hpp"
 
 namespace tissue {
 
@@ -42,8 +45,8 @@ std::size_t v_size(const LocalModel& model) { return 3 * static_cast<std::size_t
 // as the spring kernel's): each molecule's half kick dt / 2m is computed in the pass (the same doubles as a
 // stored array, without its 8 bytes a molecule), and a pass that sums the kinetic energy first writes each
 // molecule's m v^2 to a small block and then adds the block in molecule order, so that the loop over the
-// molecules vectorizes and the sum keeps the order (and bits) of a plain loop.
-#define TISSUE_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+// molecules vectorizes and the sum keeps the order (and bits) of a plain loop. (TISSUE_CLONES:
+// src/vector_clones.hpp)
 constexpr int kBlock = 256;
 
 // Half kick and drift: v += dt/2m f, x += dt v.
@@ -176,6 +179,7 @@ struct MassTypes {
 // summed in 8 lanes, added to `kinetic` at the end in a fixed order: not molecule order, so the sum's last bits may
 // differ from kick_kick_drift_streams's; only the guards read it (a non-finite value, growth against factors of 2),
 // and a chain of dependent additions a molecule is what the lanes save.
+#if defined(__x86_64__)
 template <bool Sum>
 __attribute__((target("avx512f"))) double kick_kick_drift_typed_avx512(
     int n, double dt, const MassTypes& types, const std::uint8_t* __restrict type, const double* __restrict f0,
@@ -224,6 +228,7 @@ __attribute__((target("avx512f"))) double kick_kick_drift_typed_avx512(
   }
   return kinetic;
 }
+#endif  // __x86_64__
 
 // The half kick to the whole step alone (the step before an observed state) and the half kick and drift that
 // follow it, on the streams: kick() and kick_drift()'s arithmetic, on other addresses.
@@ -286,12 +291,14 @@ void fused_rows_streams(void* context, int begin, int end) {
       kick_only_streams(end - begin, s.dt, s.m + begin, p.f[0], p.f[1], p.f[2], p.v[0], p.v[1], p.v[2]);
     return;
   }
+#if defined(__x86_64__)
   if (s.types) {
     auto kicks = s.sum ? kick_kick_drift_typed_avx512<true> : kick_kick_drift_typed_avx512<false>;
     s.kinetic = kicks(end - begin, s.dt, *s.types, s.types->type.data() + begin, p.f[0], p.f[1], p.f[2], p.v[0],
                       p.v[1], p.v[2], p.x[0], p.x[1], p.x[2], s.kinetic);
     return;
   }
+#endif
   if (s.sum)
     s.kinetic = kick_kick_drift_streams(end - begin, s.dt, s.m + begin, p.f[0], p.f[1], p.f[2], p.v[0], p.v[1],
                                         p.v[2], p.x[0], p.x[1], p.x[2], s.kinetic);
@@ -397,7 +404,9 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
   std::vector<double> ring(ring_rows ? 3 * (ring_rows + static_cast<std::size_t>(model.local - model.owned)) : 0);
   // (the drifting kicks by mass type on a CPU with AVX-512; everywhere else from m)
   std::optional<MassTypes> mass_types;
+#if defined(__x86_64__)
   if (fuse && __builtin_cpu_supports("avx512f")) mass_types.emplace(n, m, dt);
+#endif
   const MassTypes* types = mass_types && !mass_types->type.empty() ? &*mass_types : nullptr;
   bool streams = false;  // x, v, f hold three streams each (x and f: stride local, v: stride n)
   auto set_streams = [&](bool on) {

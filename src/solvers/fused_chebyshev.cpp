@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <vector>
 
+#include "src/vector_clones.hpp"
+
 namespace tissue {
 
 namespace {
@@ -234,7 +236,7 @@ PetscErrorCode update_inverse_diagonal(Data* d, Mat P) {
 // The passes below, compiled for AVX-512, AVX2 and the baseline (picked at run time, as the spring kernel's): each
 // element's expression is the same in every clone (no fused multiply-adds in this build), so every clone rounds
 // alike; the baseline's 2 doubles an instruction were ~2 % of a nu = 0.45 solve's instructions (40^3).
-#define TISSUE_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+// (TISSUE_CLONES: src/vector_clones.hpp)
 
 // The first step, x_1 = x_0 + s D^-1 (b - A x_0), PETSc's VecAYPX(r, -1, b), VecPointwiseMult and VecAYPX(p, s, x_0)
 // in one pass (from a zero guess r = b and x_0 = +0, which PETSc's KSPSolve set).

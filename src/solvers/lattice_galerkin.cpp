@@ -20,6 +20,7 @@
 #include <Eigen/Dense>
 
 #include "partition/exchange.hpp"
+#include "src/vector_clones.hpp"
 
 namespace tissue {
 
@@ -89,8 +90,7 @@ using AxisSteps = std::array<std::array<AxisStep, 3>, 3>;  // [axis][d]
 
 // The coarsening's two inner loops, compiled for AVX-512, AVX2 and the baseline (picked at run time, as the
 // spring kernel's; no fused multiply-adds in this build, so every clone rounds alike). A 3x3 block's 9 products
-// are one vector operation and a remainder.
-#define TISSUE_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+// are one vector operation and a remainder. (TISSUE_CLONES: src/vector_clones.hpp)
 
 // Stage 1 of a fine row: T_J = sum_s w_J(s) A_s over the present slots s (ascending) and the coarse nodes J of
 // each slot's neighbour, into the 4x4x4 box T; returns which J were touched (the others are not written).

@@ -30,6 +30,7 @@
 #include "src/model/cell_law.hpp"
 #include "src/physics/continuum_law.hpp"
 #include "src/physics/term.hpp"
+#include "src/vector_clones.hpp"
 
 namespace tissue {
 
@@ -54,9 +55,9 @@ bool cell_pk2(const T F[9], const Moduli& m, const Fibre* fibres, int nfibres, T
   return true;
 }
 
-// Each kernel is compiled for AVX-512, AVX2 and the baseline, the loader picking the best the CPU has; with no
-// fused multiply-add (CMakeLists.txt) every clone rounds as the baseline does (as src/physics/spring_kernel.cpp).
-#define TISSUE_CELL_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+// Each kernel is compiled for AVX-512, AVX2 and the baseline, the loader picking the best the CPU has; every clone
+// rounds as the baseline does (src/vector_clones.hpp).
+#define TISSUE_CELL_CLONES TISSUE_CLONES
 constexpr int kCellBlock = 64;
 
 // One cell's one-point gradient row along component d from its eight corners' values u[c] (corner c's offsets

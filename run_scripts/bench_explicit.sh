@@ -69,6 +69,17 @@ esac
 [[ -x "$TISSUE" ]] || { echo "bench_explicit: $TISSUE not built (see the header)" >&2; exit 1; }
 command -v "$LMP" >/dev/null || { echo "bench_explicit: $LMP not found (apt-get install -y lammps)" >&2; exit 1; }
 mkdir -p "$WORK" "$(dirname "$CSV")"
+# The processor, printed with the table: the ratio depends on it (docs/benchmarks.md, "A Zen 4 host": its slower
+# divider makes our step 1.3x slower than on Zen 5, LAMMPS's hardly).
+HOST_CPU=$("$PYTHON" -c "
+f = {}
+for line in open('/proc/cpuinfo'):
+    k, _, v = line.partition(':')
+    f.setdefault(k.strip(), v.strip())
+vec = 'AVX-512' if 'avx512f' in f.get('flags', '').split() else 'AVX2' if 'avx2' in f.get('flags', '').split() else 'no AVX2'
+print(f\"{f.get('model name', '?')}, family {f.get('cpu family', '?')} model {f.get('model', '?')}, {vec}\")
+")
+echo "bench_explicit: processor $HOST_CPU"
 echo "code,N,molecules,springs,ranks,steps,wall_s,setup_s,loop_s,steps_per_s,spring_evals_per_s_per_core,peak_bytes,bytes_per_molecule,process_s,loadavg,guards,fields,triad_GBps,triad_when" > "$CSV"
 # The triad, built here (mpicxx) so that it runs on the same machine in the same run.
 TRIAD="$WORK/triad"
@@ -155,6 +166,8 @@ done
 triad after
 
 # 3. The table.
+echo
+echo "processor: $HOST_CPU"
 "$PYTHON" - "$CSV" "$BYTES_PER_MOLECULE" <<'EOF'
 import csv, statistics, sys
 from collections import defaultdict

@@ -76,7 +76,8 @@ f = {}
 for line in open('/proc/cpuinfo'):
     k, _, v = line.partition(':')
     f.setdefault(k.strip(), v.strip())
-vec = 'AVX-512' if 'avx512f' in f.get('flags', '').split() else 'AVX2' if 'avx2' in f.get('flags', '').split() else 'no AVX2'
+flags = f.get('flags', '').split()
+vec = 'AVX-512' if 'avx512f' in flags else 'AVX2' if 'avx2' in flags else 'no AVX2'
 print(f\"{f.get('model name', '?')}, family {f.get('cpu family', '?')} model {f.get('model', '?')}, {vec}\")
 ")
 echo "bench_explicit: processor $HOST_CPU"

@@ -19,12 +19,19 @@ cd "$(dirname "$0")/.."
 
 # 1. The compiler, and the include directories of the native build (its compile_commands.json would do as well).
 CXX_AARCH64=${CXX_AARCH64:-aarch64-linux-gnu-g++}
-command -v "$CXX_AARCH64" >/dev/null || { echo "check_aarch64: $CXX_AARCH64 not found (apt-get install -y g++-aarch64-linux-gnu)" >&2; exit 1; }
-[[ -d build/generated ]] || { echo "check_aarch64: build/generated missing: build natively first (bash run_scripts/build.sh tissue)" >&2; exit 1; }
+if ! command -v "$CXX_AARCH64" >/dev/null; then
+  echo "check_aarch64: $CXX_AARCH64 not found (apt-get install -y g++-aarch64-linux-gnu)" >&2
+  exit 1
+fi
+if [[ ! -d build/generated ]]; then
+  echo "check_aarch64: build/generated missing: build natively first (bash run_scripts/build.sh tissue)" >&2
+  exit 1
+fi
 shim=$(mktemp -d)
 trap 'rm -rf "$shim"' EXIT
 : > "$shim/xmmintrin.h"
-petsc=$(pkg-config --variable=includedir PETSc 2>/dev/null || echo /usr/lib/petscdir/petsc3.18/x86_64-linux-gnu-real/include)
+petsc=$(pkg-config --variable=includedir PETSc 2>/dev/null ||
+        echo /usr/lib/petscdir/petsc3.18/x86_64-linux-gnu-real/include)
 flags=(-std=gnu++17 -O1 -Wall -Wextra -Wno-unused-parameter -fno-math-errno -ffp-contract=off -DFMT_SHARED
        '-DTISSUE_VERSION="aarch64-check"' '-DTISSUE_GMSH_MODULE="libtissue_gmsh.so"'
        -I. -Ibuild/generated -isystem /usr/lib/x86_64-linux-gnu/openmpi/include
@@ -50,4 +57,8 @@ printf '%s\n' $files | xargs -P "${JOBS:-$(nproc)}" -I{} bash -c 'compile {}' ||
 
 # 3. The count.
 n=$(printf '%s\n' $files | wc -l)
-if [[ $failed == 0 ]]; then echo "check_aarch64: $n files compile for aarch64"; else echo "check_aarch64: failures above (of $n files)"; exit 1; fi
+if [[ $failed != 0 ]]; then
+  echo "check_aarch64: failures above (of $n files)"
+  exit 1
+fi
+echo "check_aarch64: $n files compile for aarch64"

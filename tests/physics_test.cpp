@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <petscsys.h>
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <limits>
@@ -497,10 +498,24 @@ TEST(Physics, FusedStepInARingOnEveryRankWhenThePartitionCutsTheRows) {
   fused_in_a_ring_equals_separate_passes("body.molecules=[48, 12, 24]");
 }
 
-// The guard's connection-length check (StepGuard::check_lengths at a full check) names the shortest connection
-// relative to its rest length, the first in connection order on a tie (the smallest id over the ranks): two
-// connections squeezed to the same 2^-14 m (rest 0.1 m), against the check's plain loop over the connections
-// (the reference here), at every rank count.
+// The state a failed guarded run put back (its last good state, r.state->step) against an unguarded run of the
+// scene `set` to that step from the same start: x and v equal bit for bit on every rank.
+void expect_last_good_state_of_unguarded_run(const RunResult& r, std::vector<std::string> set,
+                                             const std::function<void(RunResult&)>& start, const std::string& what) {
+  const long good = r.state->step;
+  auto steps = [](const std::string& s) { return s.rfind("solver.steps=", 0) == 0; };
+  set.erase(std::remove_if(set.begin(), set.end(), steps), set.end());
+  set.push_back("solver.steps=" + std::to_string(good));
+  ASSERT_EQ(PetscOptionsSetValue(nullptr, "-tissue_guards", "false"), 0);
+  auto reference = run(springs_only, PETSC_COMM_WORLD, set, /*do_solve=*/good > 0, start);
+  ASSERT_EQ(PetscOptionsClearValue(nullptr, "-tissue_guards"), 0);
+  long differ = 0, all = 0;
+  for (int j = 0; j < 3 * r.model.owned; ++j)
+    differ += r.state->x.array()[j] != reference->state->x.array()[j] || r.state->v[j] != reference->state->v[j];
+  MPI_Allreduce(&differ, &all, 1, MPI_LONG, MPI_SUM, PETSC_COMM_WORLD);
+  EXPECT_EQ(all, 0) << what;
+}
+
 // An unstable time step in a fused run with the guards on. Its kReduceEvery-th steps drift on into the next step's
 // half kick, so a check one of them finds due (energy growth, a non-finite value) is made at the next step, whole
 // (StepGuard::check_pending). The failure is caught at a check (a periodic full check, every 128 steps, or one step
@@ -527,16 +542,7 @@ TEST(Physics, FusedRunCatchesGrowthAtTheStepAfterItsDriftedGuardStep) {
   EXPECT_EQ(good % kReduceEvery, 1) << what;  // a check found due at a drifted step, made (and passed) at the next
   ASSERT_GT(good, 0);
   ASSERT_LT(good, named);
-  ASSERT_EQ(PetscOptionsSetValue(nullptr, "-tissue_guards", "false"), 0);
-  std::vector<std::string> upto = unstable;
-  upto.back() = "solver.steps=" + std::to_string(good);
-  auto reference = run(springs_only, PETSC_COMM_WORLD, upto, true, perturb);
-  ASSERT_EQ(PetscOptionsClearValue(nullptr, "-tissue_guards"), 0);
-  long differ = 0, all = 0;
-  for (int j = 0; j < 3 * r->model.owned; ++j)
-    differ += r->state->x.array()[j] != reference->state->x.array()[j] || r->state->v[j] != reference->state->v[j];
-  MPI_Allreduce(&differ, &all, 1, MPI_LONG, MPI_SUM, PETSC_COMM_WORLD);
-  EXPECT_EQ(all, 0) << what;
+  expect_last_good_state_of_unguarded_run(*r, unstable, perturb, what);
 }
 
 // A non-finite state in a fused run with the guards on, found from the kinetic energy the drifting kicks sum on the
@@ -571,19 +577,8 @@ TEST(Physics, FusedRunCatchesANonFiniteStateOnEveryRankAlike) {
   const long named = std::stol(what.substr(at + 9));
   // found mid-run by the kinetic energy the drifted kicks summed at a kReduceEvery-th step, checked at the next, whole
   EXPECT_EQ(named % kReduceEvery, 1) << what;
-  const long good = r->state->step;
-  ASSERT_LT(good, named) << what;
-  ASSERT_EQ(PetscOptionsSetValue(nullptr, "-tissue_guards", "false"), 0);
-  std::vector<std::string> upto = set;
-  upto.back() = "solver.steps=" + std::to_string(good);
-  auto reference = run(springs_only, PETSC_COMM_WORLD, upto, false, throw_one);
-  if (good > 0) reference->sim->solve(SolverHooks{});
-  ASSERT_EQ(PetscOptionsClearValue(nullptr, "-tissue_guards"), 0);
-  long differ = 0, all = 0;
-  for (int j = 0; j < 3 * r->model.owned; ++j)
-    differ += r->state->x.array()[j] != reference->state->x.array()[j] || r->state->v[j] != reference->state->v[j];
-  MPI_Allreduce(&differ, &all, 1, MPI_LONG, MPI_SUM, PETSC_COMM_WORLD);
-  EXPECT_EQ(all, 0) << what;
+  ASSERT_LT(r->state->step, named) << what;
+  expect_last_good_state_of_unguarded_run(*r, set, throw_one, what);
 }
 
 // The guards' connection pass on the spring kernel's segments (SpringKernel::energy_and_shortest) against the walk
@@ -651,6 +646,10 @@ steps = 1
   }
 }
 
+// The guard's connection-length check (StepGuard::check_lengths at a full check) names the shortest connection
+// relative to its rest length, the first in connection order on a tie (the smallest id over the ranks): two
+// connections squeezed to the same 2^-14 m (rest 0.1 m), against the check's plain loop over the connections
+// (the reference here), at every rank count.
 TEST(Physics, LengthCheckNamesTheFirstShortestConnection) {
   const char* text = R"(
 [body]

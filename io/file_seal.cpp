@@ -24,9 +24,7 @@ constexpr std::size_t kWritingBlocks = 2 * kLanes;
 // (1.5-2.5x the bytes a second of 8 scalar lanes on a loaded machine: docs/benchmarks.md, "Snapshot writes at half
 // of dd").
 using Lanes8 = std::uint64_t __attribute__((vector_size(64)));
-TISSUE_CLONES_V4 void fnv_16_lanes(std::uint64_t* h,
-                                                                              const unsigned char* const* lane,
-                                                                              std::size_t n) {
+TISSUE_CLONES_V4 void fnv_16_lanes(std::uint64_t* h, const unsigned char* const* lane, std::size_t n) {
   Lanes8 lo, hi;
   std::memcpy(&lo, h, sizeof lo);
   std::memcpy(&hi, h + 8, sizeof hi);

@@ -12,9 +12,8 @@ namespace tissue {
 
 namespace {
 
-// As the force kernels (src/physics/spring_kernel.cpp): AVX-512, AVX2 and baseline clones, picked at run time, the
-// same bits (src/vector_clones.hpp).
-#define TISSUE_REST_CLONES TISSUE_CLONES
+// The kernels below (TISSUE_CLONES) come in AVX-512, AVX2 and baseline clones, picked at run time, with the same
+// bits, as the force kernels' (src/vector_clones.hpp).
 
 constexpr int kMaxDirections = 16;     // the masks' bits: forward s, backward 16 + s
 constexpr int kMaxPattern = 13;        // 16 + s below make()'s flag bits (29, 30, 31)
@@ -122,23 +121,23 @@ __attribute__((always_inline)) inline void masked_body(int begin, int end, int d
   }
 }
 
-TISSUE_REST_CLONES void full3(int b, int e, int d, const int* o, const double* a, const double* u, double* out) {
+TISSUE_CLONES void full3(int b, int e, int d, const int* o, const double* a, const double* u, double* out) {
   full_body<3>(b, e, d, o, a, u, out);
 }
-TISSUE_REST_CLONES void full9(int b, int e, int d, const int* o, const double* a, const double* u, double* out) {
+TISSUE_CLONES void full9(int b, int e, int d, const int* o, const double* a, const double* u, double* out) {
   full_body<9>(b, e, d, o, a, u, out);
 }
-TISSUE_REST_CLONES void full13(int b, int e, int d, const int* o, const double* a, const double* u, double* out) {
+TISSUE_CLONES void full13(int b, int e, int d, const int* o, const double* a, const double* u, double* out) {
   full_body<13>(b, e, d, o, a, u, out);
 }
-TISSUE_REST_CLONES void full_any(int b, int e, int d, const int* o, const double* a, const double* u, double* out) {
+TISSUE_CLONES void full_any(int b, int e, int d, const int* o, const double* a, const double* u, double* out) {
   full_body<0>(b, e, d, o, a, u, out);
 }
-TISSUE_REST_CLONES void masked9(int b, int e, int d, const int* o, const double* a, const std::uint32_t* m,
+TISSUE_CLONES void masked9(int b, int e, int d, const int* o, const double* a, const std::uint32_t* m,
                                 const double* u, double* out) {
   masked_body<9>(b, e, d, o, a, m, u, out);
 }
-TISSUE_REST_CLONES void masked_any(int b, int e, int d, const int* o, const double* a, const std::uint32_t* m,
+TISSUE_CLONES void masked_any(int b, int e, int d, const int* o, const double* a, const std::uint32_t* m,
                                    const double* u, double* out) {
   masked_body<0>(b, e, d, o, a, m, u, out);
 }

@@ -510,8 +510,20 @@ private:
 
 // A pull row's present springs (bit q: the q-th backward / own forward one; at most 13 directions). 32 bits: the
 // compiler vectorizes pull_body over 16 rows a zmm iteration (two registers a double); 64-bit bits (8 rows, half
-// the spills) ran faster at 40^3 but slower at 10^6 (docs/benchmarks.md, kern18l).
+// the spills) ran faster at 40^3 but slower at 10^6 on Zen 5 (docs/benchmarks.md, kern18l), 1.04-1.05x faster on
+// Zen 4 (docs/benchmarks.md, "A Zen 4 host").
 using PullBits = std::uint32_t;
+
+// v where bit q of bits is set, +0.0 where it is not: the select as a bitwise and, which every vector instruction
+// set has. Written as `bit ? v : 0.0` after a division, GCC 12 keeps a branch around the division and vectorizes the
+// loop only with AVX-512's masks: the AVX2 and SSE2 clones of the pull ran scalar, 3.2x slower (docs/benchmarks.md).
+__attribute__((always_inline)) inline double kept(double v, PullBits bits, int q) {
+  std::uint64_t u;
+  std::memcpy(&u, &v, sizeof u);
+  u &= 0 - static_cast<std::uint64_t>(bits >> q & 1u);
+  std::memcpy(&v, &u, sizeof v);
+  return v;
+}
 
 // The pull form (SpringKernel::pull_segment): each row's force summed in registers from every spring on it, its
 // backward ones (end b: from the molecules at offset bo[q] below, by decreasing offset, i.e. by increasing end a)
@@ -527,17 +539,6 @@ using PullBits = std::uint32_t;
 // kRingBack (bits q) and kRingOwn (bits s), the force ring: own spring s's force sc (x_b - x_a) is stored at
 // wf_[3 s + c][i] as the own sum adds it, and backward spring q reads it at rb_[3 q + c][i] (end a's row) instead
 // of computing it again: the same product, so the same bits (a missing one subtracts +0.0 instead of +-0.0).
-// v where bit q of bits is set, +0.0 where it is not: the select as a bitwise and, which every vector instruction
-// set has. Written as `bit ? v : 0.0` after a division, GCC 12 keeps a branch around the division and vectorizes the
-// loop only with AVX-512's masks: the AVX2 and SSE2 clones of the pull ran scalar, 3.2x slower (docs/benchmarks.md).
-__attribute__((always_inline)) inline double kept(double v, PullBits bits, int q) {
-  std::uint64_t u;
-  std::memcpy(&u, &v, sizeof u);
-  u &= 0 - static_cast<std::uint64_t>(bits >> q & 1u);
-  std::memcpy(&v, &u, sizeof v);
-  return v;
-}
-
 template <int D, bool kOwn, unsigned kRingBack = 0u, unsigned kRingOwn = 0u>
 __attribute__((always_inline)) inline void pull_body(int n, const double* __restrict x0, const double* __restrict x1,
                                                      const double* __restrict x2, double* __restrict f0,

@@ -55,9 +55,8 @@ bool cell_pk2(const T F[9], const Moduli& m, const Fibre* fibres, int nfibres, T
   return true;
 }
 
-// Each kernel is compiled for AVX-512, AVX2 and the baseline, the loader picking the best the CPU has; every clone
-// rounds as the baseline does (src/vector_clones.hpp).
-#define TISSUE_CELL_CLONES TISSUE_CLONES
+// The kernels below (TISSUE_CLONES) are compiled for AVX-512, AVX2 and the baseline, the loader picking the best the
+// CPU has; every clone rounds as the baseline does (src/vector_clones.hpp).
 constexpr int kCellBlock = 64;
 
 // One cell's one-point gradient row along component d from its eight corners' values u[c] (corner c's offsets
@@ -242,7 +241,7 @@ __attribute__((always_inline)) inline void row_displacements(int n, const int* _
     }
   }
 }
-TISSUE_CELL_CLONES
+TISSUE_CLONES
 void cell_block_forces(int n, const int* __restrict base, const int* __restrict offset, bool rows,
                        const RowRest* rest, const double* __restrict x, const double* __restrict X,
                        const Moduli& m, double volume, const double g[3], int owned, double* __restrict f) {
@@ -408,7 +407,7 @@ __attribute__((always_inline)) inline void face_diagonal_stress_direction(const 
 // (state[q n + i], q = 0..8 F's, 9 the scale: 80 B a cell) and dP is stress()'s derivative along dF in closed
 // form (below); without, D = dP/dF (state[(9 p + q) n + i] = dP_q / dF_p: 648 B a cell). An inverted cell's
 // state is F = I, scale 0 (adds a finite value; the residual is NaN already) or D = 0.
-TISSUE_CELL_CLONES
+TISSUE_CLONES
 void cell_block_tangent(int n, const int* __restrict base, const int* __restrict offset, bool rows,
                         const double* __restrict u, const double* __restrict D, const Moduli* m, double volume,
                         const double g[3], int owned, double* __restrict out) {
@@ -573,7 +572,7 @@ __attribute__((always_inline)) inline void rest_rows_q(int n, const int* __restr
   const double* const zs[4] = {z0, keep->z[0], z2, keep->z[1]};
   rest_split_q(n, xs, ys, zs, kappa, volume, gx, gy, gz, Q);
 }
-TISSUE_CELL_CLONES
+TISSUE_CLONES
 void volumetric_block_tangent(int n, const int* __restrict base, const int* __restrict offset, bool rows,
                               const RowRest* rest, const double* __restrict u, const double* __restrict x,
                               const double* __restrict X, double kappa, double volume, const double g[3], int owned,
@@ -655,7 +654,7 @@ void volumetric_block_tangent(int n, const int* __restrict base, const int* __re
 }
 
 // The pull form of the rest rows (CellElasticity::pull_rows_): a row block's Q into a cell row's slot of the ring.
-TISSUE_CELL_CLONES
+TISSUE_CLONES
 void rest_block_q(int n, const int* __restrict base, const int* __restrict offset, const double* __restrict u,
                   double kappa, double volume, const double g[3], RestRows* cache, double* __restrict Q) {
   rest_rows_q(n, base, offset, u, kappa, volume, g[0], g[1], g[2], cache, Q);
@@ -668,12 +667,12 @@ typedef double V4u __attribute__((vector_size(32), aligned(8), may_alias));
 
 // The pull form with its molecule rows split once a product (CellElasticity::pull_cells_to): a molecule row into
 // x, y, z, and a block's Q from its four rows' split molecules.
-TISSUE_CELL_CLONES
+TISSUE_CLONES
 void split_molecule_row(const double* __restrict r, int n, double* __restrict x, double* __restrict y,
                         double* __restrict z) {
   split_row(r, n, x, y, z);
 }
-TISSUE_CELL_CLONES
+TISSUE_CLONES
 void rest_split_block_q(int n, const double* const* xs, const double* const* ys, const double* const* zs,
                         double kappa, double volume, const double g[3], double* __restrict Q) {
   rest_split_q(n, xs, ys, zs, kappa, volume, g[0], g[1], g[2], Q);
@@ -753,7 +752,7 @@ __attribute__((always_inline)) inline int pull_row_vectors(int i, int n, const d
 // Q[e] (as corner rows r[e]) in the cell rows' order, e = 0 .. count - 1, each molecule its cell before and then
 // its cell after from each: the terms and their order of the push form (each block's add_row_corners_at_rest),
 // so the same bits. A whole interior row (4 cell rows) reads and writes each molecule once.
-TISSUE_CELL_CLONES
+TISSUE_CLONES
 void pull_row_at_rest(const double* const* Q, const int* r, int count, int n, int touched, double* __restrict fr) {
   if (count != 4 || touched != n + 1 || r[0] != 3 || r[1] != 2 || r[2] != 1 || r[3] != 0) {
     for (int e = 0; e < count; ++e) pull_one_row(Q[e], r[e], n, touched, fr);
@@ -788,7 +787,7 @@ void pull_row_at_rest(const double* const* Q, const int* r, int count, int n, in
 // The entries of dP/dF the tangent's diagonal reads, for a block's plain cells as vector lanes (the tangent
 // state's layout: F's and the scale mu J^(-2/3), Fs[q n + c]): Dd[3p + j][c] = dP_(3i + j) / dF_p with i = p / 3
 // (row i of P along direction p), the product's arithmetic (isotropic part, then the face diagonals) along e_p.
-TISSUE_CELL_CLONES
+TISSUE_CLONES
 void plain_block_diagonal_tangent(int n, const double* __restrict Fs, const Moduli* m,
                                   double (*__restrict Dd)[kCellBlock]) {
   const std::size_t sn = static_cast<std::size_t>(n);

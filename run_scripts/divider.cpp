@@ -28,44 +28,26 @@ int main() {
     d[j] = _mm256_set1_pd(1.0 + j), e[j] = _mm512_set1_pd(1.0 + j);
   }
   const __m512d m = _mm512_set1_pd(1.0000001);
-  const auto t0 = Clock::now();
-  for (int i = 0; i < kRounds; ++i)
-    for (int j = 0; j < kChains; ++j) {
-      a[j] = _mm512_sqrt_pd(a[j]);
-      __asm__ volatile("" : "+v"(a[j]));
-    }
-  const auto t1 = Clock::now();
-  for (int i = 0; i < kRounds; ++i)
-    for (int j = 0; j < kChains; ++j) {
-      b[j] = _mm512_div_pd(b[j], a[j]);
-      __asm__ volatile("" : "+v"(b[j]));
-    }
-  const auto t2 = Clock::now();
-  for (int i = 0; i < kRounds; ++i)
-    for (int j = 0; j < kChains; ++j) {
-      c[j] = _mm512_rsqrt14_pd(c[j]);
-      __asm__ volatile("" : "+v"(c[j]));
-    }
-  const auto t3 = Clock::now();
-  for (int i = 0; i < kRounds; ++i)
-    for (int j = 0; j < kChains; ++j) {
-      d[j] = _mm256_sqrt_pd(d[j]);
-      __asm__ volatile("" : "+v"(d[j]));
-    }
-  const auto t4 = Clock::now();
-  for (int i = 0; i < kRounds; ++i)
-    for (int j = 0; j < kChains; ++j) {
-      e[j] = _mm512_fmadd_pd(e[j], m, m);
-      __asm__ volatile("" : "+v"(e[j]));
-    }
-  const auto t5 = Clock::now();
+  // ns an instruction of op applied to each chain of v, round after round
+  auto time = [&](auto* v, auto op) {
+    const auto t0 = Clock::now();
+    for (int i = 0; i < kRounds; ++i)
+      for (int j = 0; j < kChains; ++j) {
+        v[j] = op(v[j]);
+        __asm__ volatile("" : "+v"(v[j]));
+      }
+    const double ns = std::chrono::duration<double, std::nano>(Clock::now() - t0).count();
+    return ns / (static_cast<double>(kChains) * kRounds);
+  };
+  const double sqrt_zmm = time(a, [](__m512d x) { return _mm512_sqrt_pd(x); });
+  const double div_zmm = time(b, [&](__m512d x) { return _mm512_div_pd(x, a[0]); });
+  const double rsqrt_zmm = time(c, [](__m512d x) { return _mm512_rsqrt14_pd(x); });
+  const double sqrt_ymm = time(d, [](__m256d x) { return _mm256_sqrt_pd(x); });
+  const double fma_zmm = time(e, [&](__m512d x) { return _mm512_fmadd_pd(x, m, m); });
   // 2. The times an instruction (and a checksum, so that nothing is optimized away).
   double sum = 0;
   for (int j = 0; j < kChains; ++j) sum += a[j][0] + b[j][0] + c[j][0] + d[j][0] + e[j][0];
-  auto ns = [&](Clock::time_point x, Clock::time_point y) {
-    return std::chrono::duration<double, std::nano>(y - x).count() / (static_cast<double>(kChains) * kRounds);
-  };
   std::printf("vsqrtpd zmm %.3f  vdivpd zmm %.3f  vrsqrt14pd zmm %.3f  vsqrtpd ymm %.3f  vfmadd zmm %.3f "
               "(ns an instruction; checksum %g)\n",
-              ns(t0, t1), ns(t1, t2), ns(t2, t3), ns(t3, t4), ns(t4, t5), sum);
+              sqrt_zmm, div_zmm, rsqrt_zmm, sqrt_ymm, fma_zmm, sum);
 }

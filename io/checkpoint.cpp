@@ -1,6 +1,7 @@
 #include "io/checkpoint.hpp"
 
 #include <dirent.h>
+#include <fmt/format.h>
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -201,14 +202,19 @@ CheckpointHeader header_metadata(const Hdf5File& f, const std::string& path, std
   h.ranks = static_cast<int>(f.int64_attribute("/", "ranks"));
   h.molecules = f.int64_attribute("/", "molecules");
   h.connections = f.int64_attribute("/", "connections");
+  // Read by read_checkpoint_state; checked here: a state that no run writes (a time that is not finite or is
+  // negative, a negative count) would go on silently from nowhere.
   for (const char* a : {"time", "time_step", "divisor", "fire_dt", "fire_alpha"}) {
     need(a);
-    f.double_attribute("/", a);  // read by read_checkpoint_state
+    const double v = f.double_attribute("/", a);
+    if (!std::isfinite(v) || v < 0)
+      throw InputError(path, a, fmt::format("is {}, not a finite number >= 0", v));
   }
   for (const char* a : {"calibration_updates", "fire_positive"}) {
     need(a);
-    f.int64_attribute("/", a);
+    if (f.int64_attribute("/", a) < 0) throw InputError(path, a, "is negative");
   }
+  if (h.step < 0) throw InputError(path, "step", "is negative");
   if (h.molecules < 1 || h.connections < 0)
     throw InputError(path, h.molecules < 1 ? "molecules" : "connections", "is out of range");
   // Our datasets are contiguous and uncompressed: 48 bytes per molecule and 32 per connection must fit in the

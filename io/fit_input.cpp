@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -24,6 +25,8 @@ namespace {
 std::string read_text(const std::string& path) {
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec)) throw InputError(path, "", "is a directory, not a file");
+  if (std::filesystem::is_character_file(path, ec) || std::filesystem::is_block_file(path, ec))
+    throw InputError(path, "", "a device, not a file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, "", std::string("cannot open: ") + std::strerror(errno));
   std::ostringstream text;
@@ -56,6 +59,7 @@ void read_columns(const std::string& path, const std::string& x, const std::vect
   std::string line;
   if (!std::getline(in, line)) fail("", "empty: a header line is needed");
   const std::vector<std::string> header = split_csv_line(line);
+  const auto header_fields = std::count(line.begin(), line.end(), ',') + 1;
   auto column = [&](const std::string& name) {
     for (std::size_t i = 0; i < header.size(); ++i)
       if (header[i] == name) return static_cast<int>(i);
@@ -71,6 +75,10 @@ void read_columns(const std::string& path, const std::string& x, const std::vect
     ++row;
     if (line.empty() || line == "\r") continue;
     const auto cells = split_csv_line(line);
+    // (a row cut short is a damaged file, not cells left empty: refused, never dropped)
+    const auto fields = std::count(line.begin(), line.end(), ',') + 1;
+    if (fields < header_fields)
+      fail(fmt::format("line {}", row), fmt::format("{} cells, the header has {}", fields, header_fields));
     std::vector<double> v(width);
     bool skip = false;
     for (int k = 0; k < width; ++k) {
@@ -202,10 +210,12 @@ FitInput read_fit_input(const std::string& path, const std::vector<std::string>&
                                                number(p.lower), number(p.upper)));
     in.parameters.push_back(p);
   }
-  // Every parameter must reach the scene: set each to its bounds and read the scene (a key the schema does not
-  // know, or a value it refuses at a bound, is bad input now, not a failed forward run later).
+  // Every parameter must reach the scene: set each to its bounds and to a value between them that is no whole
+  // number, and read the scene (a key the schema does not know, a value it refuses at a bound, or a key that takes
+  // whole numbers only, which no fit moves continuously, is bad input now, not failed forward runs later).
   for (std::size_t i = 0; i < in.parameters.size(); ++i)
-    for (double b : {in.parameters[i].lower, in.parameters[i].upper}) {
+    for (double b : {in.parameters[i].lower, in.parameters[i].upper,
+                     in.parameters[i].lower + 0.3819660112501051 * (in.parameters[i].upper - in.parameters[i].lower)}) {
       std::vector<double> values;
       for (const auto& p : in.parameters) values.push_back(p.start);
       values[i] = b;
@@ -213,7 +223,7 @@ FitInput read_fit_input(const std::string& path, const std::vector<std::string>&
         parse_scene(in.scene_text, path, fit_overrides(in, values));
       } catch (const InputError& e) {
         throw InputError(path, "fit.parameters." + in.parameters[i].key,
-                         fmt::format("the scene refuses the bound {}: {}", number(b), e.what()));
+                         fmt::format("the scene refuses the value {} in its bounds: {}", number(b), e.what()));
       }
     }
 

@@ -4,6 +4,7 @@
 #include <gmsh.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <exception>
 
 namespace {
@@ -49,6 +50,19 @@ void read(const std::string& path, double mesh_size, bool geometry, Model& out, 
   if (geometry) {
     stage = "Gmsh cannot mesh it";
     if (mesh_size > 0) gmsh::option::setNumber("Mesh.MeshSizeMax", mesh_size);  // over the .geo's own
+    // A size that would give more molecules than the program takes is refused before meshing, which would take
+    // hours: about one node per h^3 of the geometry's bounding box (an overestimate for all but boxes).
+    double h = 0, x0, y0, z0, x1, y1, z1;
+    gmsh::option::getNumber("Mesh.MeshSizeMax", h);
+    gmsh::model::getBoundingBox(-1, -1, x0, y0, z0, x1, y1, z1);
+    const double nodes = (x1 - x0) * (y1 - y0) * (z1 - z0) / (h * h * h);
+    if (h > 0 && nodes > 2e9) {
+      char why[256];
+      std::snprintf(why, sizeof why,
+                    "an element size of %g m would mesh its %g x %g x %g m bounding box into about %.3g molecules, "
+                    "more than the 2e9 supported (mesh_size)", h, x1 - x0, y1 - y0, z1 - z0, nodes);
+      throw std::string(why);
+    }
     gmsh::model::mesh::generate(3);
     stage = "Gmsh cannot read it";
   }

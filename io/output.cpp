@@ -472,10 +472,11 @@ void Output::write_summary(const TensionTest& test, const Measurements& measured
                  {"critical_time_step", report.critical_time_step > 0 ? json(report.critical_time_step)
                                                                       : json(nullptr)},
                  {"note", report.note},
-                 {"seconds", report.seconds},
-                 {"cpu_seconds", report.cpu_seconds},
-                 {"guard_checks", kind->explicit_steps ? json(report.guard_checks) : json(nullptr)},
-                 {"guard_seconds", kind->explicit_steps ? json(report.guard_seconds) : json(nullptr)},
+                 // (unknown at a checkpoint, while the solve goes on)
+                 {"seconds", report.running ? json(nullptr) : json(report.seconds)},
+                 {"cpu_seconds", report.running ? json(nullptr) : json(report.cpu_seconds)},
+                 {"guard_checks", kind->explicit_steps && !report.running ? json(report.guard_checks) : json(nullptr)},
+                 {"guard_seconds", kind->explicit_steps && !report.running ? json(report.guard_seconds) : json(nullptr)},
                  {"failure", failure.empty() ? json(nullptr) : json(failure)}};
   s["time"] = kind->time_line ? json(state.time) : json(nullptr);
   s["steps"] = kind->time_line ? json(state.step) : json(nullptr);
@@ -492,6 +493,7 @@ void Output::write_summary(const TensionTest& test, const Measurements& measured
   s["partition"] = {{"edge_cut", model_.partition.edge_cut},
                     {"imbalance", model_.partition.imbalance},
                     {"ghosts_per_owned", model_.partition.surface_to_volume}};
+  s["running"] = report.running;
   s["wall_seconds"] = wall_seconds;
   s["peak_memory_bytes"] = peak_max;
   write_json_atomically(scene_.output.directory + "/summary.json", s);

@@ -248,6 +248,12 @@ PronySpec read_viscoelastic(const Section& s) {
   if (p.gamma.size() != p.tau.size())
     s.fail("tau", fmt::format("{} time constants for {} weights (gamma)", p.tau.size(), p.gamma.size()));
   for (double g : p.gamma) s.non_negative("gamma", g);
+  // (the instantaneous modulus E (1 + sum gamma) must stay a number: 1e300 overflowed into a misleading failure)
+  double sum = 0;
+  for (double g : p.gamma) sum += g;
+  if (sum > 1e6)
+    s.fail("gamma", fmt::format("sums to {:g}: the instantaneous modulus would be more than 1e6 times the relaxed "
+                                "one (no tissue is)", sum));
   for (double t : p.tau) s.positive("tau", t);
   return p;
 }
@@ -262,7 +268,11 @@ BodySpec read_mesh_body(const Section& s, BodySpec b) {
   namespace fs = std::filesystem;
   if (fs::path(b.file).is_relative()) b.file = (fs::path(s.file()).parent_path() / b.file).lexically_normal().string();
   std::error_code ec;
-  if (!fs::is_regular_file(b.file, ec)) s.fail("file", fmt::format("cannot open \"{}\": no such file", b.file));
+  if (!fs::is_regular_file(b.file, ec))
+    s.fail("file", fmt::format("cannot open \"{}\": {}", b.file,
+                               !fs::exists(b.file, ec) ? "no such file"
+                               : fs::is_directory(b.file, ec) ? "a directory, not a mesh file"
+                                                              : "not a regular file"));
   // A .geo is meshed at run time (io/gmsh_mesh.hpp); mesh_size (m) caps its elements' size, over the .geo's own.
   if (s.has("mesh_size") && fs::path(b.file).extension() != ".geo")
     s.fail("mesh_size", "only a .geo geometry is meshed at run time; a mesh file is used as it is");
@@ -634,6 +644,20 @@ Scene build_scene(const Value& root, const std::string& file) {
                                  scene.obstacles.empty() ? ""
                                                          : fmt::format("; {} may rest on obstacles instead",
                                                                        join(settling, " or "))));
+  // Each loaded body of several (a [[load]] on it, or gravity): held by its own [[fix]], unless contact between
+  // the bodies may hold it. (An unloaded, unheld body stays where it is.)
+  const bool gravity = scene.physics.gravity && *scene.physics.gravity != Vec3{0.0, 0.0, 0.0};
+  if (!solver.integrates_time && !held_by_contact && !scene.physics.contact && scene.bodies.size() > 1)
+    for (std::size_t b = 0; b < scene.bodies.size(); ++b) {
+      const auto on_b = [&](const auto& spec) { return spec.body == static_cast<int>(b); };
+      if (std::none_of(scene.fixes.begin(), scene.fixes.end(), on_b) &&
+          (gravity || std::any_of(scene.loads.begin(), scene.loads.end(), on_b)))
+        throw InputError(file, fmt::format("body[{}]", b),
+                         fmt::format("a {} solve needs a [[fix]] on every loaded body (rigid motion of this one "
+                                     "under its load is unbounded; with physics.contact = true bodies may hold "
+                                     "each other)",
+                                     scene.solver.kind));
+    }
   for (std::size_t i = 0; i < scene.loads.size(); ++i)
     if (scene.loads[i].period > 0 && !solver.integrates_time)
       throw InputError(file, fmt::format("load[{}].period", i),
@@ -705,16 +729,24 @@ Scene parse_scene(const std::string& text, const std::string& name, const std::v
 Scene read_scene(const std::string& path, const std::vector<std::string>& overrides) {
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec)) throw InputError(path, "", "is a directory, not a scene file");
+  // (a device would be read without end: /dev/zero; a pipe is read to its end, as `tissue run <(make_scene)`)
+  if (std::filesystem::is_character_file(path, ec) || std::filesystem::is_block_file(path, ec))
+    throw InputError(path, "", "a device, not a scene file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, "", std::string("cannot open: ") + std::strerror(errno));
   auto size = std::filesystem::file_size(path, ec);
   if (!ec && size > max_scene_bytes)
     throw InputError(path, "",
                      fmt::format("not a scene: {} bytes (a scene is at most {})", size, max_scene_bytes));
-  std::ostringstream text;
-  text << in.rdbuf();
+  // Read in pieces, at most one byte more than a scene may have (a pipe has no size to check first).
+  std::string text;
+  char piece[1 << 16];
+  while (text.size() <= max_scene_bytes && in.read(piece, sizeof piece).gcount() > 0)
+    text.append(piece, static_cast<std::size_t>(in.gcount()));
   if (in.bad()) throw InputError(path, "", std::string("cannot read: ") + std::strerror(errno));
-  return parse_scene(text.str(), path, overrides);
+  if (text.size() > max_scene_bytes)
+    throw InputError(path, "", fmt::format("not a scene: more than {} bytes", max_scene_bytes));
+  return parse_scene(text, path, overrides);
 }
 
 }  // namespace tissue

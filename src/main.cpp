@@ -18,6 +18,7 @@
 // failed or a file could not be written (one line naming the file and the system error).
 
 #include <malloc.h>
+#include <unistd.h>
 #include <petscsys.h>
 
 #include <CLI/CLI.hpp>
@@ -45,6 +46,7 @@
 #include "src/driver/fit.hpp"
 #include "src/driver/simulation.hpp"
 #include "src/model/cell_law.hpp"
+#include "src/solvers/petsc_errors.hpp"
 #include "src/solvers/tissue_options.hpp"
 
 using namespace tissue;
@@ -187,7 +189,11 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
   SolverHooks hooks;
   hooks.snapshot = [&](const SolverState& s) { out.snapshot(s, sim.forces()); };
   std::string last_checkpoint;
-  hooks.checkpoint = [&](const SolverState& s) { last_checkpoint = out.checkpoint(s, &sim.forces()); };
+  hooks.checkpoint = [&](const SolverState& s) {
+    last_checkpoint = out.checkpoint(s, &sim.forces());
+    sim.write_checkpoint_summary(out, s, last_checkpoint,
+                                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+  };
   hooks.record = [&](const SolverState& s) { out.history_row(s, sim.forces(), sim.test()); };
   {
     LogStage stage("Solve");
@@ -360,37 +366,59 @@ int main(int argc, char** argv) {
   });
   std::string scene_path, checkpoint_path, info_path, output;
   std::vector<std::string> overrides;
+  // (given, --output names a directory: "" would fall back to the scene's without a word)
+  const CLI::Validator directory_name(
+      [](std::string& d) { return d.empty() ? std::string("an empty directory name") : std::string(); },
+      "DIR");
   auto* run_cmd = app.add_subcommand("run", "run a scene");
   run_cmd->add_option("scene", scene_path, "scene file (TOML)")->required();
   run_cmd->add_option("--set", overrides, "override a scene key: --set body.molecules=[20,20,20]");
-  run_cmd->add_option("--output", output, "output directory (default: the scene's output.directory)");
+  run_cmd->add_option("--output", output, "output directory (default: the scene's output.directory)")
+      ->check(directory_name);
   auto* restart_cmd = app.add_subcommand("restart", "continue a run from its checkpoint, on any number of ranks");
   restart_cmd->add_option("checkpoint", checkpoint_path, "checkpoint file (HDF5)")->required();
   restart_cmd->add_option("--set", overrides, "change solver.steps, solver.max_iterations or output.*");
-  restart_cmd->add_option("--output", output, "output directory (default: the scene's output.directory)");
+  restart_cmd->add_option("--output", output, "output directory (default: the scene's output.directory)")
+      ->check(directory_name);
   auto* fit_cmd = app.add_subcommand("fit", "fit material parameters so that the scene reproduces a measured curve");
   fit_cmd->add_option("fit", scene_path, "the scene plus a [fit] table (TOML)")->required();
   fit_cmd->add_option("--set", overrides, "override a key of FIT.toml");
-  fit_cmd->add_option("--output", output, "output directory (default: the scene's output.directory)");
+  fit_cmd->add_option("--output", output, "output directory (default: the scene's output.directory)")
+      ->check(directory_name);
   auto* info_cmd = app.add_subcommand("info", "say what a snapshot or checkpoint holds");
   info_cmd->add_option("file", info_path, "HDF5 file")->required();
+  // Bad input before MPI is up: one line, from one rank (the launcher's rank variable tells).
+  auto refuse = [](const std::string& line) {
+    const char* rank = std::getenv("OMPI_COMM_WORLD_RANK");
+    if (!rank) rank = std::getenv("PMI_RANK");
+    if (!rank || std::string(rank) == "0") std::fprintf(stderr, "tissue: %s\n", line.c_str());
+    return 2;
+  };
   try {
     app.parse(static_cast<int>(ours.size()), ours.data());
   } catch (const CLI::ParseError& e) {
     if (e.get_exit_code() == 0) return app.exit(e);  // --help
-    // Bad input: one line, from one rank (MPI is not up yet: the launcher's rank variable tells).
-    const char* rank = std::getenv("OMPI_COMM_WORLD_RANK");
-    if (!rank) rank = std::getenv("PMI_RANK");
-    if (!rank || std::string(rank) == "0")
-      std::fprintf(stderr, "tissue: command line: %s (see tissue --help)\n", e.what());
-    return 2;
+    return refuse(std::string("command line: ") + e.what() + " (see tissue --help)");
   }
+  // PETSc reads -options_file in PetscInitialize, where a file it cannot read ends the job with a traceback.
+  for (std::size_t i = 1; i + 1 < petsc.size(); ++i)
+    if (std::string(petsc[i]) == "-options_file" || std::string(petsc[i]) == "-options_file_yaml") {
+      std::error_code ec;
+      if (!std::filesystem::is_regular_file(petsc[i + 1], ec) || access(petsc[i + 1], R_OK) != 0)
+        return refuse(std::string("PETSc options: ") + petsc[i] + ": cannot read \"" + petsc[i + 1] + "\"");
+    }
 
   // argv ends in a null pointer, as main's does: MPI walks it to the end (Open MPI's MPI_Init crashed without).
   int petsc_argc = static_cast<int>(petsc.size());
   petsc.push_back(nullptr);
   char** petsc_argv = petsc.data();
   PetscCall(PetscInitialize(&petsc_argc, &petsc_argv, nullptr, nullptr));
+  install_petsc_error_handler();  // PETSc's errors end in our one line, on every rank alike
+  {
+    std::string given = std::getenv("PETSC_OPTIONS") ? std::getenv("PETSC_OPTIONS") : "";
+    for (std::size_t i = 1; i + 1 < petsc.size(); ++i) given += (given.empty() ? "" : " ") + std::string(petsc[i]);
+    remember_user_options(given);
+  }
   // Large arrays (model set-up temporaries, tens of MB) in their own mappings, so freeing one gives its memory
   // back at once: in the heap, freed pages stay resident and raise the peak. Arrays up to 8 MB stay in the heap:
   // those freed and allocated again between the stages (vectors, per-molecule arrays) then reuse pages already

@@ -6,6 +6,7 @@ the key, takes under 5 s and leaves no output directory behind.
 Each file in tests/bad_scenes starts with `# expect: TEXT`: the text the message must contain (usually the
 dotted key)."""
 import argparse
+import re
 import os
 import resource
 import subprocess
@@ -46,13 +47,14 @@ class Runner:
         self.passed = 0
         self.failed = []
 
-    def check(self, label, scene, expects, extra=(), workdir=None, args=None, petsc=()):
-        """Runs `tissue run SCENE [extra] --output DIR/out [-- PETSC]` (or `tissue ARGS --output DIR/out`) and
-        checks the one-line failure."""
+    def check(self, label, scene, expects, extra=(), workdir=None, args=None, petsc=(), output=True):
+        """Runs `tissue run SCENE [extra] --output DIR/out [-- PETSC]` (or `tissue ARGS --output DIR/out`; without
+        --output when `output` is false) and checks the one-line failure."""
         out = Path(workdir) / "out"
         if args is None:
             args = ["run", str(scene), *extra]
-        cmd = self.launcher + [str(self.tissue), *args, "--output", str(out)] + (["--", *petsc] if petsc else [])
+        cmd = self.launcher + [str(self.tissue), *args] + (["--output", str(out)] if output else []) + \
+            (["--", *petsc] if petsc else [])
         env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
         # The limit is on the CPU seconds of the process tree (its children are all waited for), not the wall
         # clock: rejecting bad input must not need the solve's work, and a loaded machine must not fail the test.
@@ -101,7 +103,8 @@ def main():
         print(f"{tissue} does not exist: build it first")
         return 1
     runner = Runner(tissue.resolve(), args.launcher.split())
-    bad_dir = Path(args.source) / "tests" / "bad_scenes"
+    source = Path(args.source)
+    bad_dir = source / "tests" / "bad_scenes"
     scenes = sorted(bad_dir.glob("*.toml"))
     if len(scenes) < 10:
         print(f"only {len(scenes)} scenes in {bad_dir}")
@@ -145,6 +148,8 @@ def main():
         ]
         for label, args, expects in cli_cases:
             runner.check(f"cli {label}", None, expects, workdir=tmp, args=args)
+        runner.check("cli empty --output", None, ["--output", "empty"], workdir=tmp,
+                     args=["run", str(valid), "--output", ""], output=False)
 
         # the project's own PETSc options (src/solvers/tissue_options.cpp): malformed or out of range
         option_cases = [
@@ -153,9 +158,20 @@ def main():
             ("-static_volume_smoother_steps", "0"), ("-tissue_guards", "maybe"), ("-tissue_fuse_rows", "x"),
             ("-static_fused_chebyshev", "sometimes"),
         ]
+        # every -static_* / -tissue_* option the sources read, with a value no option takes (one that a new
+        # option's reader forgets to check shows here)
+        read = set()
+        for path in list(source.glob("src/**/*.cpp")) + list(source.glob("io/*.cpp")):
+            read |= set(re.findall(r'"(-(?:static|tissue)_[a-z_]+)"', path.read_text()))
+        option_cases += [(name, "x@y") for name in sorted(read)]
+        option_cases += [("-static_symbol_upper", "-1"), ("-static_level_one_pull", "maybe")]
+        # PETSc's own options, refused by PETSc when the solver reads them (exit 2, one line, nothing written)
+        option_cases += [("-ksp_type", "nosuchksp"), ("-pc_type", "nosuchpc"), ("-ksp_rtol", "abc"),
+                         ("-options_file", str(Path(tmp) / "no_such_options"))]
         for name, value in option_cases:
             runner.check(f"option {name} {value}", valid, ["PETSc options", name], workdir=tmp, petsc=[name, value])
 
+        runner.check("a device", Path("/dev/zero"), ["/dev/zero", "device"], workdir=tmp)  # read, it never ends
         missing = Path(tmp) / "no_such_scene.toml"
         runner.check("missing file", missing, ["no_such_scene.toml"], workdir=tmp)
         directory = Path(tmp) / "a_directory.toml"

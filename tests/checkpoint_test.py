@@ -9,9 +9,10 @@ b. relaxation (FIRE state in the checkpoint): the restart converges to the same 
    count; across rank counts within 1e-12 relative (the global reductions of FIRE may round differently).
 c. kill -9 of the tissue processes at random moments (0.3 - 2 s) of a run that checkpoints often, 10 times: the
    newest checkpoint_*.h5 always loads (`tissue info` exits 0) and `tissue restart` ends in the state of the
-   uninterrupted run, bitwise.
+   uninterrupted run, bitwise; summary.json is the one written with a checkpoint on disk ("running": true), its
+   elongation and kinetic energy those of the uninterrupted run's history.csv at that step, bit for bit.
 d. SIGTERM to the tissue processes (as srun does, not to mpirun): exit 0, a message naming the checkpoint, and the
-   restart ends in the uninterrupted run's state.
+   restart ends in the uninterrupted run's state; summary.json is the stopped run's own ("running": false).
 e. damaged, foreign and mismatched files: exit 2 with one stderr line naming the file and the dataset or
    attribute, no output directory left, in under 5 s; the crafted file that crashed HDF5 (issue #8) at 1 and 2
    ranks.
@@ -19,7 +20,9 @@ f. `tissue info` on a snapshot and a checkpoint: title, step, time, molecules, r
 
 Usage: checkpoint_test.py --build BUILD_DIR --source SOURCE_DIR [--seed S]      Prints 'N passed, M failed'."""
 import argparse
+import csv
 import glob
+import json
 import os
 import random
 import re
@@ -294,6 +297,26 @@ def main():
                  err.strip()[-300:] if code else ""):
             restarts.append((label, target, res + "/final.h5"))
 
+    # The summary.json a killed run leaves: the one written with one of its checkpoints (the newest, or the one
+    # before when the kill fell between a checkpoint and its summary), "running", and the state of that step as the
+    # uninterrupted run's history.csv has it (compared below, bit for bit).
+    at_checkpoints = []  # (label, step, elongation, kinetic energy)
+
+    def summary_of_checkpoint(label, d, cks):
+        try:
+            with open(d + "/summary.json") as f:
+                s = json.load(f)
+        except (OSError, ValueError) as e:
+            check(False, label + ": summary.json of a checkpoint is on disk", str(e))
+            return
+        steps = [int(os.path.basename(c)[len("checkpoint_"):-3]) for c in cks]
+        named = s["solver"]["note"].startswith("written with " + d + "/checkpoint_%010d.h5" % s["steps"])
+        if check(s["running"] is True and s["steps"] in steps and named,
+                 label + ": summary.json is the one of a checkpoint on disk (step %s, running)" % s["steps"],
+                 "running %s, steps %s, checkpoints %s, note %r" % (s["running"], s["steps"], steps,
+                                                                   s["solver"]["note"])):
+            at_checkpoints.append((label, s["steps"], s["elongation"], s["kinetic_energy"]))
+
     for trial in range(10):
         d = "%s/kill%02d" % (out, trial)
         p = start_long(d)
@@ -305,6 +328,7 @@ def main():
                                                                        "; a .tmp was left" if tmp else "")
         if check(len(cks) > 0 and len(pids) == 2, label + ": a checkpoint is on disk"):
             restart(label, cks[-1])
+            summary_of_checkpoint(label, d, cks)
 
     d = out + "/term"
     p = start_long(d)
@@ -316,14 +340,25 @@ def main():
     check(len(named) == 1 and named[0] == cks[-1], "d. the message names the newest checkpoint",
           err.strip().splitlines()[-1] if err.strip() else "(no message)")
     check(not os.path.exists(d + "/final.h5"), "d. no final.h5 after a stop")
+    with open(d + "/summary.json") as f:
+        check(json.load(f)["running"] is False, "d. after a stop, summary.json is the run's own (running false)")
     if named:
         restart("d. SIGTERM", named[0])
 
     farthest = max([r[1] for r in restarts] + [S])
     code, _, err, wall = run(mpi(exe, 2, ["run", long_scene, "--set", "solver.steps=%d" % farthest,
                                           "--set", "output.checkpoint_every=0", "--set", "output.snapshot_every=%d" % S,
-                                          "--output", out + "/reference"]), timeout=600)
+                                          "--set", "output.history_every=%d" % C, "--output", out + "/reference"]),
+                             timeout=600)
     check(code == 0, "c. the uninterrupted run to step %d" % farthest, "%.1f s" % wall)
+    with open(out + "/reference/history.csv") as f:
+        history = {int(r["step"]): r for r in csv.DictReader(f)}
+    for label, step, elongation, kinetic in at_checkpoints:
+        row = history.get(step)
+        check(row is not None and float(row["elongation"]) == elongation and
+              float(row["kinetic_energy"]) == kinetic,
+              label + ": the summary's elongation and kinetic energy at step %d are the uninterrupted run's" % step,
+              "summary %r %r, history %r" % (elongation, kinetic, row and (row["elongation"], row["kinetic_energy"])))
     for label, target, final in restarts:
         ref = "%s/reference/%s" % (out, "final.h5" if target == farthest else "snapshot_%08d.h5" % target)
         bitwise, rel = compare(state(final), state(ref))
@@ -433,6 +468,15 @@ def main():
         f["/molecules/velocities"].attrs["checksum"] = np.int64(fnv_checksum(v[:-1]))
     reseal(p_)
     cases.append(("a dataset of the wrong shape", p_, [], "/molecules/velocities"))
+    # attributes no run writes: a time that is not finite or negative, a negative step (a restart would go on from
+    # nowhere, or write NaN times)
+    for name, value, label in (("time", np.nan, "a NaN time"), ("time", np.inf, "an infinite time"),
+                               ("time", -5.0, "a negative time"), ("step", np.int64(-5), "a negative step")):
+        p_ = copy("attr_%s_%s.h5" % (name, label.split()[1]))
+        with h5py.File(p_, "r+") as f:
+            f.attrs[name] = value
+        reseal(p_)
+        cases.append((label, p_, [], name))
     # (the line names the option, --set, and the key, rather than the checkpoint)
     cases.append(("--set body.molecules on restart", good, ["--set", "body.molecules=[3,3,3]"], "body.molecules"))
     cases.append(("a missing file", os.path.join(bad, "no_such.h5"), [], None))

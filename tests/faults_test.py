@@ -4,7 +4,8 @@
 A dynamic run of a tiny box (table2.toml with 4 x 4 x 4 molecules, 20 steps, a snapshot and a checkpoint every 5
 steps) under an LD_PRELOAD shim (tests/fault_inject.c) that fails one file system call as a full disk (ENOSPC),
 an exhausted quota (EDQUOT) or a failing device (EIO) does, on rank 0, rank 1 or every rank, while it writes a
-snapshot, a checkpoint, final.h5, summary.json, the XDMF index or a row of history.csv, at 1, 2 and 3 ranks.
+snapshot, a checkpoint, final.h5, summary.json (a checkpoint's or the end's), the XDMF index or a row of
+history.csv, at 1, 2 and 3 ranks.
 Every case must:
   - end within 30 s with the documented exit code: 3 when the faulted rank writes that file, 0 when it does not
     (rank 1 writes neither summary.json nor the XDMF index);
@@ -57,8 +58,12 @@ TARGETS = {
                    ["snapshot_00000005.h5", "snapshot_00000010.h5", "checkpoint_0000000005.h5", "tissue.xdmf"]),
     "final": ("pwrite", "EIO", "final.h5", 0,
               ["snapshot_00000015.h5", "checkpoint_0000000010.h5", "checkpoint_0000000015.h5", "tissue.xdmf"]),
-    "summary": ("write", "ENOSPC", "summary.json", 0,
-                ["final.h5", "snapshot_00000015.h5", "checkpoint_0000000015.h5", "tissue.xdmf"]),
+    # summary.json is written with every checkpoint (the first at step 5) and at the end: the checkpoint's, then
+    # the end's (after the three checkpoints' summaries: the bytes let through are set from the fault-free run's)
+    "summary": ("write", "ENOSPC", "summary.json", 0, ["snapshot_00000005.h5", "checkpoint_0000000005.h5",
+                                                       "tissue.xdmf"]),
+    "final summary": ("write", "ENOSPC", "summary.json", None,
+                      ["final.h5", "snapshot_00000015.h5", "checkpoint_0000000015.h5", "tissue.xdmf"]),
     # the second XDMF index (after snapshot 10) cannot be renamed into place: the first stays
     "xdmf": ("rename", "EIO", "tissue.xdmf", 1, ["snapshot_00000005.h5", "checkpoint_0000000005.h5", "tissue.xdmf"]),
     # history.csv (rank 0 appends a row a step): the write of a row after the first 1000 bytes (about 4 rows)
@@ -71,7 +76,7 @@ TARGETS = {
                       ["snapshot_00000005.h5", "checkpoint_0000000005.h5", "tissue.xdmf"]),
 }
 RANKS = {"checkpoint fsync": (2, 3), "snapshot open": (2, 3)}  # the others: 1, 2, 3
-NOT_RANK_1 = ("summary", "xdmf", "checkpoint fsync", "history")  # files (or calls) rank 1 never writes (makes)
+NOT_RANK_1 = ("summary", "final summary", "xdmf", "checkpoint fsync", "history")  # files (or calls) rank 1 never writes (makes)
 STRERROR = {"ENOSPC": "No space left on device", "EDQUOT": "Disk quota exceeded", "EIO": "Input/output error"}
 
 passed, failed, rows = 0, 0, []
@@ -161,6 +166,8 @@ def main():
 
     def fault_case(target, who, np_):
         call, errno_name, file_name, after, kept = TARGETS[target]
+        if after is None:  # the end's summary.json: past the three checkpoints' (each a little shorter)
+            after = int(3.5 * os.path.getsize(os.path.join(reference[np_], "summary.json")))
         name = "%s rank %s at %d ranks (%s %s)" % (target, who, np_, call, errno_name)
         out = os.path.join(work, "%s_r%s_np%d" % (target.replace(" ", "_"), who, np_))
         fault = {"TISSUE_FAULT_CALL": call, "TISSUE_FAULT_ERRNO": errno_name, "TISSUE_FAULT_RANK": who,

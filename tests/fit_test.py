@@ -16,7 +16,7 @@ f. E and nu from a static tension test's elongation and lateral contraction fitt
 g. A toe-law ligament curve (issue 17's exp-linear toe on fibres along the load, a static tension through the toe
    in 10 load steps, the elongation against the load fraction): the toe's stretch and exponent (1.03, 40) fitted
    back from (1.05, 20) at 1 and 2 ranks: to 1e-3.
-d. Bad input: no [fit], a CSV without the column, x not increasing, a start value outside its bounds, a key that
+d. Bad input: no [fit], a CSV without the column, a row cut short, x not increasing, a start value outside its bounds, a key that
    is not a number in the scene: exit 2, one stderr line naming the file, and no forward run (nothing written).
 
 Usage: fit_test.py --build BUILD_DIR --source SOURCE_DIR      Prints 'N passed, M failed'."""
@@ -359,7 +359,12 @@ def main():
     # d. bad input: exit 2, one line, nothing run
     with open(os.path.join(out, "backwards.csv"), "w") as f:
         f.write("time,elongation\n0,0\n2,1\n1,2\n")
+    with open(os.path.join(out, "clean.csv")) as f:  # a row cut short in the middle: refused, not dropped
+        rows = f.read().splitlines()
+    with open(os.path.join(out, "ragged.csv"), "w") as f:
+        f.write("\n".join(rows[:3] + [rows[3].split(",")[0]] + rows[4:]) + "\n")
     cases = [
+        ("a row cut short", fit_scene("bad5", "ragged.csv"), [], "line 4"),
         ("no [fit]", os.path.join(out, "truth.toml"), [], "fit"),
         ("no such column", fit_scene("bad1", "clean.csv"), ["--set", "fit.y=reaction0_z"], "reaction0_z"),
         ("x not increasing", fit_scene("bad2", "backwards.csv"), [], "not strictly increasing"),

@@ -98,4 +98,20 @@ void Simulation::write(Output& out, double wall_seconds) {
   out.summary(test_, measured_, initial_, report_, *state_, wall_seconds, failure_);
 }
 
+void Simulation::write_checkpoint_summary(Output& out, const SolverState& state, const std::string& checkpoint,
+                                          double wall_seconds) {
+  // (a dynamic run's state may be its three streams: measure() reads either layout)
+  const Measurements now =
+      tissue::measure(scene_, model_, test_, state.x.array(), state.v.data(), state.x_streams, state.v_streams);
+  const Measurements initial = tissue::measure(scene_, model_, test_, model_.rest.data(), nullptr);
+  SolveReport so_far;  // what is known before the solver returns: the kind, its steps, its time step
+  so_far.kind = find_solver(scene_.solver.kind);
+  so_far.iterations = state.step;
+  so_far.time_step = state.time_step;
+  so_far.critical_time_step = dt_critical_;
+  so_far.running = true;
+  so_far.note = "written with " + checkpoint + "; the run goes on";
+  out.summary(test_, now, initial, so_far, state, wall_seconds, "");
+}
+
 }  // namespace tissue

@@ -56,6 +56,11 @@ public:
   // 8. The final state (final.h5; last_good.h5 when the guards put the last good state back; nothing when it is
   //    not finite or the run was interrupted) and summary.json.
   void write(Output& out, double wall_seconds);
+  // At each checkpoint of step 6 (collective): summary.json of the state the checkpoint holds, "running": true, so
+  // that a job killed later (a node lost, a time limit without warning) leaves the summary of its newest checkpoint
+  // beside it (../shared/interface.md). Step 8's summary replaces it.
+  void write_checkpoint_summary(Output& out, const SolverState& state, const std::string& checkpoint,
+                                double wall_seconds);
 
   const Scene& scene() const { return scene_; }
   Scene& scene() { return scene_; }

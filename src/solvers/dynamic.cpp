@@ -502,7 +502,8 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
     }
     ++state.step;
     state.time += dt;
-    guard.dynamic_step(0.5 * kinetic, /*whole=*/!drifted);
+    // (a step whose state is written is whole: it did not drift on)
+    guard.dynamic_step(0.5 * kinetic, /*whole=*/!drifted, /*observed=*/!unread(state.step));
     if (state.step == total) guard.full_check();
     progress.update(state.step, -1, 0, total);
     if (rows > 0 && (state.step % rows == 0 || state.step == total)) hooks.record(state);

@@ -206,14 +206,14 @@ void StepGuard::full_check_as_made() {
   check_lengths(/*from_energy=*/copy_);  // no copy: the constructor made no pass (no energies)
 }
 
-void StepGuard::dynamic_step(double local_kinetic, bool whole) {
+void StepGuard::dynamic_step(double local_kinetic, bool whole, bool observed) {
   if (!enabled_) return;
   Timer timer{seconds_};
   if (!std::isfinite(local_kinetic) && first_bad_step_ < 0) first_bad_step_ = state_.step;
   // (a pending check is made at the next whole step, whatever its number: every rank has it pending, from the
   // same reduced values)
   // (the solver's full_check() at the last step covers the steps after the last kReduceEvery-th)
-  if (state_.step % kReduceEvery != 0 && !pending_) return;
+  if (state_.step % kReduceEvery != 0 && !pending_ && !observed) return;
   if (pending_ && !whole) throw std::logic_error("StepGuard: a pending check needs a whole step");
   pending_ = false;
   const std::exception_ptr error = attempt([&] { fault_point("guard", model_.comm); });

@@ -50,7 +50,10 @@ public:
   // half kick; only the kinetic energy is of this step): a check this step needs (non-finite, growth) is not made
   // here but pending, and the solver must end the next step at its whole state (check_pending()) and call this
   // again, which then makes it, one step later (no step between the checks reads the state).
-  void dynamic_step(double local_kinetic, bool whole = true);
+  //
+  // `observed`: this step's state is written (a history row, snapshot or checkpoint follows): the reduction is
+  // made now whatever the step, so that a non-finite state is reported, never written (1 reduction a row).
+  void dynamic_step(double local_kinetic, bool whole = true, bool observed = false);
   // A check found due at a step that was not whole (above): the next step must be.
   bool check_pending() const { return pending_; }
   // Steps between the periodic full checks (their steps must be whole).

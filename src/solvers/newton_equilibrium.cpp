@@ -19,6 +19,7 @@
 
 #include "src/solvers/fused_chebyshev.hpp"
 #include "src/solvers/guards.hpp"
+#include "src/solvers/petsc_errors.hpp"
 #include "src/solvers/lattice_galerkin.hpp"
 #include "src/solvers/lattice_mg.hpp"
 #include "src/solvers/matrix_free.hpp"
@@ -612,7 +613,7 @@ struct NewtonEquilibrium::Impl {
   std::unique_ptr<LatticeGalerkin> galerkin;
   std::unique_ptr<MatrixFreeTangent> shell;  // kept to the end once made (PETSc objects may still refer to it)
   std::unique_ptr<RestTangent> rest;          // likewise
-  PetscErrorCode use_matrix_free(bool user_pc, bool user_lag, LatticeLevels& hierarchy);
+  PetscErrorCode use_matrix_free(bool user_pc, bool user_lag, bool user_galerkin, LatticeLevels& hierarchy);
   double reference = 1.0, tolerance = 0.0;
   Reuse reuse;
   bool record = false;  // record_load_steps()
@@ -637,16 +638,18 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
   PetscFunctionBeginUser;
   PetscCall(VecDuplicate(state.x.global(), &X));
   PetscCall(VecCopy(state.x.global(), X));
-  PetscBool user_pc = PETSC_FALSE, user_lag = PETSC_FALSE;
+  PetscBool user_pc = PETSC_FALSE, user_lag = PETSC_FALSE, user_galerkin = PETSC_FALSE;
   PetscCall(PetscOptionsHasName(nullptr, nullptr, "-pc_type", &user_pc));
   PetscCall(PetscOptionsHasName(nullptr, nullptr, "-snes_lag_preconditioner", &user_lag));
+  // -pc_mg_galerkin: PCMG forms the coarse operators as products with the fine matrix, which a shell has not
+  PetscCall(PetscOptionsHasName(nullptr, nullptr, "-pc_mg_galerkin", &user_galerkin));
   // The matrix-free tangent is decided once the lattice multigrid is known (use_matrix_free); the assembled one
   // is made here. Not given, it is matrix-free where that was measured never slower and 3.8x smaller (box lattices,
   // springs only: docs/benchmarks.md, "The static solve at 1 kB a molecule"; with terms that apply their own
   // product, the cell term: "The cell term's tangent product on its blocks"), and falls back without a note.
   const std::string& op = scene.solver.tangent_operator;
   const auto& terms = forces.terms();
-  by_default = op.empty() && !user_pc && !user_lag &&
+  by_default = op.empty() && !user_pc && !user_lag && !user_galerkin &&
                std::all_of(terms.begin(), terms.end(), [](const auto& t) { return t->tangent_state_fast(); }) &&
                std::none_of(scene.bodies.begin(), scene.bodies.end(), [](const BodySpec& b) { return b.unstructured(); });
   const bool want_matrix_free = op == "matrix-free" || by_default;
@@ -677,7 +680,7 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
   if (!user_pc)
     PetscCall(setup_lattice_mg(model, forces.held(), pc, 1000, &mg_levels, &hierarchy, want_matrix_free));
   lattice_mg = mg_levels > 1;
-  if (want_matrix_free) PetscCall(use_matrix_free(user_pc, user_lag, hierarchy));
+  if (want_matrix_free) PetscCall(use_matrix_free(user_pc, user_lag, user_galerkin, hierarchy));
   if (lattice_mg) PetscCall(use_volume_smoother(model, forces, pc, false));  // the cells' volume coupling
   // The coarse operators from the lattice structure (lattice_galerkin.hpp) when the tangent is a lattice stencil
   // and the preconditioner's rebuilds are ours (Reuse): cheaper than hypre's triple product (docs/benchmarks.md).
@@ -783,7 +786,21 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
                                           PETSC_DEFAULT, PETSC_DEFAULT));
   }
   if (gamg_reuse) PetscCall(PCGAMGSetNSmooths(pc, kGamgSmooths));  // before SNESSetFromOptions: the user's wins
-  PetscCall(SNESSetFromOptions(snes));  // the user's -snes_*, -ksp_*, -pc_* options win
+  {
+    // The user's -snes_*, -ksp_*, -pc_* options win. One that PETSc refuses here (an unknown type, a malformed
+    // number) is bad input: one line and exit 2, the same on every rank (every rank reads the same options), not
+    // PETSc's traceback and a failed solve.
+    PetscCall(PetscPushErrorHandler(PetscIgnoreErrorHandler, nullptr));
+    const PetscErrorCode refused = SNESSetFromOptions(snes);
+    PetscCall(PetscPopErrorHandler());
+    if (refused) {
+      const char* text = nullptr;
+      char* specific = nullptr;
+      PetscErrorMessage(refused, &text, &specific);
+      throw InputError("PETSc options", user_options(),
+                       std::string("refused by PETSc: ") + (specific && *specific ? specific : text ? text : "error"));
+    }
+  }
   {
     PetscBool gamg = PETSC_FALSE;
     PetscCall(PetscObjectTypeCompare(reinterpret_cast<PetscObject>(pc), PCGAMG, &gamg));
@@ -800,11 +817,14 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
 // operators come from the force model's block stream, so no fine matrix is stored (docs/benchmarks.md). Only with
 // the lattice multigrid and our preconditioner reuse, and when every tangent block stays within the lattice
 // stencil (not molecule-molecule contact); otherwise the assembled tangent, with a one-line note.
-PetscErrorCode NewtonEquilibrium::Impl::use_matrix_free(bool user_pc, bool user_lag, LatticeLevels& hierarchy) {
+PetscErrorCode NewtonEquilibrium::Impl::use_matrix_free(bool user_pc, bool user_lag, bool user_galerkin,
+                                                        LatticeLevels& hierarchy) {
   PetscFunctionBeginUser;
   std::string why;
   if (user_pc)
     why = "a preconditioner is named (-pc_type) and needs the matrix";
+  else if (user_galerkin)
+    why = "-pc_mg_galerkin asks PCMG to form the coarse operators from the matrix";
   else if (!lattice_mg)
     why = "there is no lattice multigrid (a mesh or random cloud, or a lattice too small to coarsen)";
   else if (user_lag)
@@ -899,7 +919,7 @@ PetscErrorCode NewtonEquilibrium::Impl::solve(long steps) {
     const PetscErrorCode solved = SNESSolve(snes, nullptr, X);
     agree(model.comm, [&] {
       if (ctx.error) std::rethrow_exception(std::exchange(ctx.error, nullptr));
-      if (solved) throw std::runtime_error("static: SNESSolve failed (PETSc error " + std::to_string(solved) + ")");
+      if (solved) throw petsc_failure(kind);  // (thrown by every rank alike, a PETSc error is collective)
     });
     SNESConvergedReason reason;
     PetscInt its, lits;
@@ -1052,7 +1072,7 @@ NewtonEquilibrium::NewtonEquilibrium(const Scene& scene, const LocalModel& model
                                      SolverState& state, const SolverHooks& hooks, SolveReport& report,
                                      const char* kind, bool own_reference)
     : impl_(std::make_unique<Impl>(scene, model, forces, state, hooks, report, kind, own_reference)) {
-  if (impl_->setup()) throw SolverFailure(std::string(kind) + ": a PETSc call failed");
+  if (impl_->setup()) throw petsc_failure(kind);
 }
 
 NewtonEquilibrium::~NewtonEquilibrium() = default;
@@ -1067,14 +1087,14 @@ void NewtonEquilibrium::solve(long load_steps) {
   }
   if (failed) {
     impl_->restore_velocities();
-    throw SolverFailure(impl_->kind + ": a PETSc call failed");
+    throw petsc_failure(impl_->kind);
   }
 }
 
 void NewtonEquilibrium::release_velocities() { impl_->release_v = true; }
 
 void NewtonEquilibrium::finish() {
-  if (impl_->finish() || impl_->clear_ptap()) throw SolverFailure(impl_->kind + ": a PETSc call failed");
+  if (impl_->finish() || impl_->clear_ptap()) throw petsc_failure(impl_->kind);
 }
 
 Vec NewtonEquilibrium::solution() const { return impl_->X; }
@@ -1082,7 +1102,7 @@ Vec NewtonEquilibrium::solution() const { return impl_->X; }
 void NewtonEquilibrium::set_force_reference(double reference) {
   impl_->reference = reference;
   if (SNESSetTolerances(impl_->snes, impl_->tolerance * reference, 0.0, 0.0, PETSC_DEFAULT, PETSC_DEFAULT))
-    throw SolverFailure(impl_->kind + ": a PETSc call failed");
+    throw petsc_failure(impl_->kind);
 }
 
 double NewtonEquilibrium::tolerance() const { return impl_->tolerance; }
@@ -1093,20 +1113,20 @@ void NewtonEquilibrium::target_first_krylov(double fraction) {
   PetscBool user_rtol = PETSC_FALSE, user_ew = PETSC_FALSE;
   if (PetscOptionsHasName(nullptr, nullptr, "-ksp_rtol", &user_rtol) ||
       PetscOptionsHasName(nullptr, nullptr, "-snes_ksp_ew", &user_ew))
-    throw SolverFailure(impl_->kind + ": a PETSc call failed");
+    throw petsc_failure(impl_->kind);
   impl_->ctx.targeted = user_rtol || user_ew ? 0.0 : fraction;
 }
 
 void NewtonEquilibrium::rebuild_preconditioner() {
   if (impl_->reuse.active && rebuild_next(impl_->snes, &impl_->reuse))
-    throw SolverFailure(impl_->kind + ": a PETSc call failed");
+    throw petsc_failure(impl_->kind);
   // GAMG keeps the interpolation of its first set-up (PETSc's -pc_gamg_reuse_interpolation), which a restart
   // cannot know: from here on it aggregates every tangent afresh, in the run that writes checkpoints and in the
   // run restarted from one alike.
   PetscBool gamg = PETSC_FALSE;
   if (PetscObjectTypeCompare(reinterpret_cast<PetscObject>(impl_->pc), PCGAMG, &gamg) ||
       (gamg && PCGAMGSetReuseInterpolation(impl_->pc, PETSC_FALSE)))
-    throw SolverFailure(impl_->kind + ": a PETSc call failed");
+    throw petsc_failure(impl_->kind);
 }
 
 }  // namespace tissue

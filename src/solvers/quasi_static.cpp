@@ -18,6 +18,7 @@
 #include <petscsys.h>
 
 #include "src/solvers/newton_equilibrium.hpp"
+#include "src/solvers/petsc_errors.hpp"
 #include "src/solvers/progress.hpp"
 
 namespace tissue {
@@ -56,9 +57,9 @@ double norm(const std::vector<Vec3>& r) {
 // The owned positions of X into the state, ghosts refreshed.
 void load_state(Vec X, const LocalModel& model, SolverState& state) {
   const PetscScalar* xs;
-  if (VecGetArrayRead(X, &xs)) throw SolverFailure("quasi-static: a PETSc call failed");
+  if (VecGetArrayRead(X, &xs)) throw petsc_failure("quasi-static");
   std::memcpy(state.x.array(), xs, sizeof(double) * 3 * model.owned);
-  if (VecRestoreArrayRead(X, &xs)) throw SolverFailure("quasi-static: a PETSc call failed");
+  if (VecRestoreArrayRead(X, &xs)) throw petsc_failure("quasi-static");
   state.x.update_ghosts();
 }
 
@@ -77,7 +78,7 @@ public:
     PetscBool on = PETSC_TRUE;
     if (PetscOptionsGetBool(nullptr, nullptr, "-quasi_static_extrapolate", &on, nullptr) ||
         (on && VecDuplicate(like, &previous_)))
-      throw SolverFailure("quasi-static: a PETSc call failed");
+      throw petsc_failure("quasi-static");
   }
   ~Extrapolation() { VecDestroy(&previous_); }
   Extrapolation(const Extrapolation&) = delete;
@@ -89,7 +90,7 @@ public:
     PetscScalar *x, *p;
     PetscInt n;
     if (VecGetLocalSize(X, &n) || VecGetArray(X, &x) || VecGetArray(previous_, &p))
-      throw SolverFailure("quasi-static: a PETSc call failed");
+      throw petsc_failure("quasi-static");
     const double ratio = last_dt_ > 0 && dt > 0 ? dt / last_dt_ : 0.0;
     for (PetscInt j = 0; j < n; ++j) {
       if (held_[j]) continue;
@@ -98,7 +99,7 @@ public:
       p[j] = now;
     }
     if (VecRestoreArray(previous_, &p) || VecRestoreArray(X, &x))
-      throw SolverFailure("quasi-static: a PETSc call failed");
+      throw petsc_failure("quasi-static");
     last_dt_ = dt;
   }
   void reset() { last_dt_ = 0.0; }  // the next step starts from x_n
@@ -138,7 +139,7 @@ SolveReport solve_quasi_static(const Scene& scene, const LocalModel& model, cons
     // a tight last solve gives, and rank counts then differ by more than viscoelastic_test's 1e-10 (1.3e-10).
     PetscReal fraction = 0.0;
     if (PetscOptionsGetReal(nullptr, nullptr, "-quasi_static_targeted_krylov", &fraction, nullptr))
-      throw SolverFailure("quasi-static: a PETSc call failed");
+      throw petsc_failure("quasi-static");
     newton.target_first_krylov(fraction);
   }
   Progress progress("quasi-static", scene.output.progress, model.comm);
@@ -172,9 +173,9 @@ SolveReport solve_quasi_static(const Scene& scene, const LocalModel& model, cons
     if (history) forces.begin_step(next - state.time);
     // The holds move to where they are at `next`; the Newton solve starts from the last equilibrium.
     PetscScalar* xs;
-    if (VecGetArray(X, &xs)) throw SolverFailure("quasi-static: a PETSc call failed");
+    if (VecGetArray(X, &xs)) throw petsc_failure("quasi-static");
     forces.place_held(next, xs);
-    if (VecRestoreArray(X, &xs)) throw SolverFailure("quasi-static: a PETSc call failed");
+    if (VecRestoreArray(X, &xs)) throw petsc_failure("quasi-static");
     // The residual's reference: the largest of the unbalanced force the step starts with (the change of loads and
     // holds), the reactions of the last step (what the holds carry) and the loads at full value, so that a scene
     // driven only by displacements, or a hold whose history only creeps, is measured against the forces it carries.

@@ -80,6 +80,7 @@ struct SolveReport {
   std::optional<double> calibration_divisor;  // iterative calibration: the final C (else absent)
   long calibration_updates = 0;                // iterative calibration: updates of C made
   bool interrupted = false;                    // stopped by a signal after writing a checkpoint
+  bool running = false;  // a summary written at a checkpoint: the solve goes on (Simulation::write_checkpoint_summary)
   double seconds = 0.0;      // wall time of the solve alone (rank 0's; no set-up, calibration or output)
   double cpu_seconds = 0.0;  // CPU time of rank 0's process over the same span
   long guard_checks = 0;     // relaxation, dynamic: full guard checks made (each about one force evaluation)

@@ -41,6 +41,13 @@ void fraction(const char* name, bool zero_allowed) {
     bad(name, zero_allowed ? "a number in [0, 1) (0: off)" : "a number in (0, 1)");
 }
 
+void nonnegative(const char* name) {
+  PetscReal v = 0;
+  PetscBool given = PETSC_FALSE;
+  if (PetscOptionsGetReal(nullptr, nullptr, name, &v, &given) || (given && !(v >= 0)))
+    bad(name, "a number >= 0");
+}
+
 }  // namespace
 
 void check_tissue_options() {
@@ -62,6 +69,8 @@ void check_tissue_options() {
   boolean("-static_volume_smoother");
   whole("-static_volume_smoother_steps", 1);
   whole("-static_gamg_reuse_molecules", 0);
+  boolean("-static_level_one_pull");
+  nonnegative("-static_symbol_upper");
 }
 
 }  // namespace tissue

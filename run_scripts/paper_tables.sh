@@ -83,6 +83,12 @@ label = {"linear": "Linear case", "divided": "k / 3.75 (divided)", "angles": "An
          "angles-update": "Angles (update)", "statistical": "Statistical", "iterative": "Iterative",
          "homogenized": "Homogenized (ours)", "tetrahedral": "Tetrahedral (Eq. 5)", "lloyd": "Lloyd 2007",
          "manual": "Manual"}
+# A method registered since (README, "Adding a calibration method"): its runs in $WORK put it in the tables too,
+# under its own name (METHODS=name run_scripts/paper_tables.sh runs it alone).
+methods += sorted(m for m in (os.listdir(os.path.join(W, "table2", "clamped"))
+                              if os.path.isdir(os.path.join(W, "table2", "clamped")) else [])
+                  if m not in methods)
+label.update({m: m for m in methods if m not in label})
 # The paper's Table 1 (E in N/m^2, error %) and Table 2 (elongation mm, E, error %), as printed in the paper:
 # one copy for every script, run_scripts/paper_values.csv (main_job.sh reads it too).
 paper1, paper2 = {}, {}

@@ -26,6 +26,7 @@
 #include <hdf5.h>
 #include <chrono>
 #include <csignal>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -133,6 +134,19 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
     if (root)
       std::printf("tissue: restarting \"%s\" at step %ld (written by %d ranks) on %d ranks\n",
                    header.title.c_str(), header.step, header.ranks, ranks);
+  }
+  // Every rank read the scene itself: the same text on every rank, or bad input (a shared file system that shows
+  // the nodes different versions of the file, or a launcher that gave the ranks different arguments).
+  {
+    std::uint64_t digest = 1469598103934665603ull;  // FNV-1a of the scene text after --set
+    for (const char c : scene.text) digest = (digest ^ static_cast<unsigned char>(c)) * 1099511628211ull;
+    std::uint64_t low = 0, high = 0;
+    MPI_Allreduce(&digest, &low, 1, MPI_UINT64_T, MPI_MIN, comm);
+    MPI_Allreduce(&digest, &high, 1, MPI_UINT64_T, MPI_MAX, comm);
+    if (low != high)
+      throw InputError(checkpoint.empty() ? scene_path : checkpoint, "",
+                       "the ranks read different scenes (the file differs between nodes, or the ranks were given "
+                       "different --set or files)");
   }
   if (!output.empty()) scene.output.directory = output;
   if (quiet) scene.output.progress = false;

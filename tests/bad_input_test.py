@@ -172,6 +172,19 @@ def main():
             runner.check(f"option {name} {value}", valid, ["PETSc options", name], workdir=tmp, petsc=[name, value])
 
         runner.check("a device", Path("/dev/zero"), ["/dev/zero", "device"], workdir=tmp)  # read, it never ends
+        if "-np" in runner.launcher:  # two ranks given different scenes (MPMD: a stale file on one node alike)
+            mpiexec, out = runner.launcher[0], str(Path(tmp) / "out")
+            cmd = [mpiexec, "--quiet", "--oversubscribe", "-np", "1", str(runner.tissue), "run", str(valid),
+                   "--output", out, ":", "-np", "1", str(runner.tissue), "run", str(valid), "--set",
+                   "body.density=5.0", "--output", out]
+            p = subprocess.run(cmd, capture_output=True, text=True, timeout=60,
+                               env=dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1"))
+            lines = p.stderr.strip().splitlines()
+            if p.returncode == 2 and len(lines) == 1 and "different scenes" in lines[0] and not Path(out).exists():
+                runner.passed += 1
+                print(f"ok   ranks given different scenes: {lines[0]}")
+            else:
+                runner.failed.append(f"ranks given different scenes: exit {p.returncode}, stderr {p.stderr!r}")
         missing = Path(tmp) / "no_such_scene.toml"
         runner.check("missing file", missing, ["no_such_scene.toml"], workdir=tmp)
         directory = Path(tmp) / "a_directory.toml"

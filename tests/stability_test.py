@@ -6,7 +6,8 @@ Axes (each varied from a base cell, for every solver kind that applies): Young's
 thin sheet and a long ligament), stiffness ratio up to 1e6 inside one body ([[body.region]] of another E), time
 step 0.1 .. 1.5 x the critical one (relaxation, dynamic), load up to 50 % strain.
 
-Rule checked in every cell (the test fails otherwise): no silent NaN. Exit 0 means every number in summary.json
+Rule checked in every cell (the test fails otherwise): no silent NaN. Then: a state that turns non-finite between
+the dynamic guard's reductions is never written (written_states_are_finite). Exit 0 means every number in summary.json
 that the cell reports is finite; exit 3 means one stderr line names the step and the molecule; exit 2 (a time
 step above the critical one without solver.allow_unstable_time_step) means one stderr line naming
 solver.time_step. Any other outcome (a crash, a hang, exit 0 with a NaN) is a failure.
@@ -315,7 +316,36 @@ def main():
     write(partial=False)
     bad = [r for r in rows if r["verdict"] != "ok"]
     print(f"{len(rows) - len(bad)} cells ok, {len(bad)} failed the no-silent-failure rule")
-    return 1 if bad else 0
+    return 1 if bad or not written_states_are_finite(tissue, args.source) else 0
+
+
+def written_states_are_finite(tissue, source):
+    """A state that turns non-finite between the dynamic guard's periodic reductions is reported at the first step
+    whose state is written, never written: a 1e300 N load blows up at step 1, and with a history row every step and
+    a snapshot and a checkpoint every 5, the run must stop at step 1 (exit 3), with no snapshot or checkpoint and
+    every history.csv cell finite, at 1, 2 and 3 ranks (it wrote NaN rows, snapshots and a checkpoint up to step 17
+    before)."""
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    ok = True
+    for np_ in (1, 2, 3):
+        with tempfile.TemporaryDirectory() as tmp:
+            out = Path(tmp) / "out"
+            cmd = ["mpirun", "--quiet", "--oversubscribe", "-np", str(np_), str(tissue), "run",
+                   str(Path(source) / "run_scripts" / "scenes" / "table2.toml"), "--set", "body.molecules=[4,4,4]",
+                   "--set", "solver.kind=dynamic", "--set", "solver.steps=40", "--set", "load.0.force=[0,0,-1e300]",
+                   "--set", "output.history_every=1", "--set", "output.snapshot_every=5",
+                   "--set", "output.checkpoint_every=5", "--output", str(out)]
+            p = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=120)
+            written = sorted(f.name for f in list(out.glob("snapshot_*.h5")) + list(out.glob("checkpoint_*.h5")))
+            rows = list(csv.reader(open(out / "history.csv"))) if (out / "history.csv").exists() else []
+            cells = [c for r in rows[1:] for c in r if c]
+            finite = all(math.isfinite(float(c)) for c in cells)
+            good = p.returncode == 3 and "at step 1:" in p.stderr and not written and finite and len(rows) >= 2
+            ok = ok and good
+            print(f"{'ok' if good else 'FAIL'} non-finite at step 1, {np_} rank(s): exit {p.returncode}, "
+                  f"files {written}, {len(rows) - 1} history rows, finite {finite}: "
+                  f"{([l for l in p.stderr.splitlines() if l.startswith('tissue: ')] or [''])[-1][:160]}", flush=True)
+    return ok
 
 
 if __name__ == "__main__":

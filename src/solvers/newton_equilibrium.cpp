@@ -19,10 +19,10 @@
 
 #include "src/solvers/fused_chebyshev.hpp"
 #include "src/solvers/guards.hpp"
-#include "src/solvers/petsc_errors.hpp"
 #include "src/solvers/lattice_galerkin.hpp"
 #include "src/solvers/lattice_mg.hpp"
 #include "src/solvers/matrix_free.hpp"
+#include "src/solvers/petsc_errors.hpp"
 #include "src/solvers/rest_tangent.hpp"
 #include "src/solvers/volume_smoother.hpp"
 #include "src/solvers/molecule_report.hpp"
@@ -790,15 +790,10 @@ PetscErrorCode NewtonEquilibrium::Impl::setup() {
     // The user's -snes_*, -ksp_*, -pc_* options win. One that PETSc refuses here (an unknown type, a malformed
     // number) is bad input: one line and exit 2, the same on every rank (every rank reads the same options), not
     // PETSc's traceback and a failed solve.
-    PetscCall(PetscPushErrorHandler(PetscIgnoreErrorHandler, nullptr));
-    const PetscErrorCode refused = SNESSetFromOptions(snes);
-    PetscCall(PetscPopErrorHandler());
-    if (refused) {
-      const char* text = nullptr;
-      char* specific = nullptr;
-      PetscErrorMessage(refused, &text, &specific);
+    if (const PetscErrorCode refused = SNESSetFromOptions(snes)) {
+      const std::string why = last_petsc_error();  // (src/solvers/petsc_errors.hpp)
       throw InputError("PETSc options", user_options(),
-                       std::string("refused by PETSc: ") + (specific && *specific ? specific : text ? text : "error"));
+                       "refused by PETSc: " + (why.empty() ? "error " + std::to_string(refused) : why));
     }
   }
   {

@@ -62,7 +62,8 @@ double reachable_tolerance(double tolerance, double round_off, double reference,
   if (floor > 1e-3)
     throw SolverFailure(std::string("the ") + what + " are below the round-off of the spring forces (relative "
                         "residual floor " + std::to_string(floor) + "): no equilibrium can be resolved; apply a "
-                        "larger load or displacement");
+                        "larger load or displacement; last good state: the one the solve started from",
+                        SolverFailure::State::last_good);  // (nothing moved: last_good.h5, not a final.h5)
   if (warn && rank == 0)
     std::fprintf(stderr, "tissue: warning: solver.tolerance %.3g is below the round-off floor of the force "
                          "residual (%.3g for these springs and %s); using %.3g\n",

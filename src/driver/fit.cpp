@@ -9,6 +9,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "src/solvers/petsc_errors.hpp"
 
 namespace tissue {
 
@@ -167,7 +168,9 @@ PetscErrorCode tao_residual(Tao, Vec U, Vec R, void* ctx) {
 }
 
 void check(PetscErrorCode ierr, const char* what) {
-  if (ierr) throw std::runtime_error(std::string("fit: PETSc failed in ") + what);
+  if (!ierr) return;
+  const std::string why = last_petsc_error();  // (src/solvers/petsc_errors.hpp)
+  throw std::runtime_error(std::string("fit: PETSc failed in ") + what + (why.empty() ? "" : ": " + why));
 }
 
 }  // namespace

@@ -94,6 +94,7 @@ std::string write_checkpoint(const std::string& directory, int keep, const Scene
     f.set_attribute("/", "fire_dt", state.fire_dt);
     f.set_attribute("/", "fire_alpha", state.fire_alpha);
     f.set_attribute("/", "fire_positive", state.fire_positive);
+    if (std::isfinite(state.energy_initial)) f.set_attribute("/", "energy_initial", state.energy_initial);
     // Every dataset streamed in pieces (io/row_stream.hpp), with its row hash as the "checksum" attribute.
     auto copy = [](const double* from, int width) {
       return [from, width](std::int64_t k, double* row) { std::copy(from + width * k, from + width * (k + 1), row); };
@@ -215,6 +216,8 @@ CheckpointHeader header_metadata(const Hdf5File& f, const std::string& path, std
     if (f.int64_attribute("/", a) < 0) throw InputError(path, a, "is negative");
   }
   if (h.step < 0) throw InputError(path, "step", "is negative");
+  if (f.has_attribute("/", "energy_initial") && !std::isfinite(f.double_attribute("/", "energy_initial")))
+    throw InputError(path, "energy_initial", "is not a finite number");
   if (h.molecules < 1 || h.connections < 0)
     throw InputError(path, h.molecules < 1 ? "molecules" : "connections", "is out of range");
   // Our datasets are contiguous and uncompressed: 48 bytes per molecule and 32 per connection must fit in the
@@ -436,6 +439,8 @@ void read_checkpoint_state(const std::string& path, const LocalModel& model, con
       state.fire_dt = f.double_attribute("/", "fire_dt");
       state.fire_alpha = f.double_attribute("/", "fire_alpha");
       state.fire_positive = f.int64_attribute("/", "fire_positive");
+      // (optional: checkpoints written before it was kept restart with the energy at their step)
+      if (f.has_attribute("/", "energy_initial")) state.energy_initial = f.double_attribute("/", "energy_initial");
     });
     state.restarted = true;
     f.close();

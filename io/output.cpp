@@ -307,7 +307,7 @@ std::string Output::checkpoint(const SolverState& state, const ForceModel* force
 void Output::history_row(const SolverState& state, const ForceModel& forces, const TensionTest& test) {
   // (a dynamic run's state may be its three streams: measure() reads either layout)
   const Measurements m =
-      measure(scene_, model_, test, state.x.array(), state.v.data(), state.x_streams, state.v_streams);
+      measure(scene_, model_, test, state.x.array(), state.v.data(), state.x_streams, state.v_streams, state.time);
   // Dynamic runs and the static solve's last row: the reactions of the step's own force evaluation (no second one
   // per row; src/solvers/solver.hpp, forces_final). Static load steps:
   // the step's fraction of the loads; their rows count the load steps, and `time` is that fraction (pseudo-time).
@@ -438,7 +438,7 @@ void Output::write_summary(const TensionTest& test, const Measurements& measured
   s["elongation"] = opt(measured.elongation);
   s["rest_length"] = test.valid ? json(test.rest_length) : json(nullptr);
   s["cross_section"] = test.valid ? json(test.cross_section) : json(nullptr);
-  s["applied_force"] = test.valid ? json(test.force) : json(nullptr);
+  s["applied_force"] = opt(measured.applied_force);  // the load at the state's time (its history applied)
   s["poisson_ratio_measured"] = opt(measured.poisson_ratio);
   s["poisson_ratios_measured"] =
       measured.poisson_ratios ? json(*measured.poisson_ratios) : json(nullptr);

@@ -149,6 +149,12 @@ int run(const std::string& scene_path, const std::string& checkpoint, const std:
                        "different --set or files)");
   }
   if (!output.empty()) scene.output.directory = output;
+  // A restart goes on where its checkpoint is, whatever directory the scene names (the run may have had --output,
+  // or been started from another directory): `tissue restart DIR/checkpoint_S.h5` continues DIR.
+  else if (!checkpoint.empty())
+    scene.output.directory = std::filesystem::path(checkpoint).parent_path().empty()
+                                 ? std::string(".")
+                                 : std::filesystem::path(checkpoint).parent_path().string();
   if (quiet) scene.output.progress = false;
   // The output location is input: checked before any work (exists or can be created, a directory, writable by
   // every rank, room for the first file), so that a bad one is exit 2 in a second, not after the solve.
@@ -392,7 +398,7 @@ int main(int argc, char** argv) {
   auto* restart_cmd = app.add_subcommand("restart", "continue a run from its checkpoint, on any number of ranks");
   restart_cmd->add_option("checkpoint", checkpoint_path, "checkpoint file (HDF5)")->required();
   restart_cmd->add_option("--set", overrides, "change solver.steps, solver.max_iterations or output.*");
-  restart_cmd->add_option("--output", output, "output directory (default: the scene's output.directory)")
+  restart_cmd->add_option("--output", output, "output directory (default: the checkpoint's directory)")
       ->check(directory_name);
   auto* fit_cmd = app.add_subcommand("fit", "fit material parameters so that the scene reproduces a measured curve");
   fit_cmd->add_option("fit", scene_path, "the scene plus a [fit] table (TOML)")->required();

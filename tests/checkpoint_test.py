@@ -204,6 +204,23 @@ def main():
         else:
             check(rel <= 1e-12, "a. dynamic %d -> %d ranks: within 1e-12 of the straight run" % (src, dst),
                   "bitwise %s, relative difference %.3g" % (bitwise, rel))
+        # the run's step-0 energy, which the checkpoint keeps (it reported the energy at the checkpoint's step)
+        e0 = [json.load(open(d + "/summary.json"))["energy_initial"] for d in (res, "%s/dyn%d" % (out, src))]
+        check(e0[0] == e0[1], "a. dynamic %d -> %d ranks: energy_initial is the straight run's" % (src, dst),
+              "restart %r, straight %r" % tuple(e0))
+    # A restart without --output continues in the checkpoint's own directory (not the scene's output.directory):
+    # history.csv truncated and continued, final.h5 the straight run's.
+    inplace = "%s/dyn2_inplace" % out
+    shutil.copytree("%s/dyn2" % out, inplace)
+    for name in ("final.h5", "summary.json"):
+        os.remove(os.path.join(inplace, name))
+    code, _, err, _ = run(mpi(exe, 2, ["restart", "%s/checkpoint_%010d.h5" % (inplace, N)]))
+    same_history = os.path.exists(inplace + "/history.csv") and \
+        open(inplace + "/history.csv").read() == open("%s/dyn2/history.csv" % out).read()
+    check(code == 0 and os.path.exists(inplace + "/final.h5") and compare(state(inplace + "/final.h5"), straight[2])[0]
+          and same_history, "a. a restart without --output continues in the checkpoint's directory",
+          "exit %d, final.h5 %s, history.csv the straight run's %s: %s" %
+          (code, os.path.exists(inplace + "/final.h5"), same_history, err.strip()[-200:]))
 
     # ---- a2. dynamic with viscous friction: the forces at a step read the half-step velocity, which the
     # checkpoint must carry (its velocities are whole-step); before, the restart drifted from the straight run.

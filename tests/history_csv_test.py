@@ -88,7 +88,27 @@ def main():
               f"{ranks} ranks: the elongation starts at 0 and creeps: {[r[5] for r in data]}")
         check(summary["reactions"] == [data[-1][7:10]], f"{ranks} ranks: summary reactions {summary['reactions']}")
         check(summary["time"] == 1.0 and summary["steps"] == 5, f"{ranks} ranks: summary time and steps")
+        check(summary["applied_force"] == data[-1][4], f"{ranks} ranks: summary applied_force {summary['applied_force']}")
         curves[ranks] = data
+    # Eq. 3 reads the load applied at the run's end: stopped mid-ramp (t = 0.25 s: 5/6 of the force) and after an
+    # unloading (the force back to 0: no modulus). Before, summary.json read the nominal force: E 20 % off mid-ramp
+    # and a modulus from the creep left after unloading.
+    for label, sets, factor in (("mid-ramp", ["solver.end_time=0.25"], 0.25 / 0.3),
+                                ("unloaded", ["load.0.history=[[0.0,0.0],[0.3,1.0],[0.55,0.0]]"], 0.0)):
+        out = os.path.join(workdir, label)
+        cmd = ["mpirun", "--oversubscribe", "-np", "2", os.path.join(a.build, "tissue"), "run",
+               os.path.join(workdir, "scene.toml"), "--output", out] + sum((["--set", s] for s in sets), [])
+        r = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+        s = json.load(open(os.path.join(out, "summary.json"))) if r.returncode == 0 else {}
+        F = 4.0e-3 * factor
+        ok = r.returncode == 0 and abs(s["applied_force"] - F) <= 1e-15
+        if ok and factor == 0.0:
+            ok = s["youngs_modulus_measured"] is None
+        elif ok:
+            E = F * s["rest_length"] / (s["elongation"] * s["cross_section"])
+            ok = abs(s["youngs_modulus_measured"] - E) <= 1e-12 * E
+        check(ok, f"{label}: summary applied_force {s.get('applied_force')} (expected {F}), E "
+                  f"{s.get('youngs_modulus_measured')} from it: {r.stderr[-300:]}")
     check(all(abs(x - y) <= 1e-10 * abs(curves[1][-1][5]) for x, y in
               zip([r[5] for r in curves[1]], [r[5] for r in curves[2]])), "the same elongation at 1 and 2 ranks")
     # Relaxation (FIRE): one row, the equilibrium found: step 1, time 1, the elongation and reactions of the summary.

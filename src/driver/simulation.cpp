@@ -70,7 +70,7 @@ void Simulation::solve(SolverHooks hooks) {
 }
 
 void Simulation::measure() {
-  measured_ = tissue::measure(scene_, model_, test_, state_->x.array(), state_->v.data());
+  measured_ = tissue::measure(scene_, model_, test_, state_->x.array(), state_->v.data(), 0, 0, state_->time);
   initial_ = tissue::measure(scene_, model_, test_, model_.rest.data(), nullptr);
   measure_contact(*forces_, measured_);  // the contact forces of the final state's force evaluation
   if (scene_.fixes.empty()) return;
@@ -102,7 +102,8 @@ void Simulation::write_checkpoint_summary(Output& out, const SolverState& state,
                                           double wall_seconds) {
   // (a dynamic run's state may be its three streams: measure() reads either layout)
   const Measurements now =
-      tissue::measure(scene_, model_, test_, state.x.array(), state.v.data(), state.x_streams, state.v_streams);
+      tissue::measure(scene_, model_, test_, state.x.array(), state.v.data(), state.x_streams, state.v_streams,
+                      state.time);
   const Measurements initial = tissue::measure(scene_, model_, test_, model_.rest.data(), nullptr);
   SolveReport so_far;  // what is known before the solver returns: the kind, its steps, its time step
   so_far.kind = find_solver(scene_.solver.kind);

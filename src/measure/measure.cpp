@@ -55,7 +55,7 @@ std::optional<double> shear_modulus(const Scene& scene, const LocalModel& model,
 }  // namespace
 
 Measurements measure(const Scene& scene, const LocalModel& model, const TensionTest& test, const double* xs,
-                     const double* vs, std::size_t x_streams, std::size_t v_streams) {
+                     const double* vs, std::size_t x_streams, std::size_t v_streams, double time) {
   const Components x{xs, x_streams}, v{vs, v_streams};
   const Body& s = model.shape;
   // Sums reduced in one call: [0..2] m x, [3] m, [4] kinetic, [5..8] loaded/fixed sums and counts,
@@ -123,7 +123,9 @@ Measurements measure(const Scene& scene, const LocalModel& model, const TensionT
   if (test.valid) {
     const double dl = total[5] / total[6] - total[7] / total[8];
     m.elongation = dl;
-    if (dl != 0.0) m.youngs_modulus = test.force * test.rest_length / (dl * test.cross_section);
+    const double force = test.force_at(time);
+    m.applied_force = force;
+    if (dl != 0.0 && force != 0.0) m.youngs_modulus = force * test.rest_length / (dl * test.cross_section);
     auto lateral_length = [&](int l) { return std::fabs(lateral[2 * l + 1]->plane - lateral[2 * l]->plane); };
     if (free) {  // history.csv's lateral_strain: the mean strain of the two lateral axes
       double mean = 0;

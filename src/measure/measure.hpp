@@ -13,7 +13,8 @@ namespace tissue {
 
 struct Measurements {
   std::optional<double> elongation;        // m: mean displacement along the load, loaded face minus fixed face
-  std::optional<double> youngs_modulus;    // Eq. 3: F l0 / (dl A)
+  std::optional<double> youngs_modulus;    // Eq. 3: F l0 / (dl A), F the load at the measured time (none at F = 0)
+  std::optional<double> applied_force;     // N: that F (the load's force times its history factor)
   std::optional<double> poisson_ratio;     // lateral contraction / axial strain, when lateral faces are free
   // The same per lateral axis, (axis + 1) % 3 and (axis + 2) % 3: both differ on an anisotropic body.
   std::optional<std::array<double, 2>> poisson_ratios;
@@ -36,8 +37,9 @@ struct Measurements {
 
 // x: local positions (owned first); v: owned velocities, or nullptr. x_streams, v_streams: 0 (interlaced,
 // component d of molecule i at [3 i + d]) or the stride of three streams ([d * stride + i]: SolverState's).
+// time: the state's (s), where the load has a history; Eq. 3 reads the load applied then.
 Measurements measure(const Scene& scene, const LocalModel& model, const TensionTest& test, const double* x,
-                     const double* v, std::size_t x_streams = 0, std::size_t v_streams = 0);
+                     const double* v, std::size_t x_streams = 0, std::size_t v_streams = 0, double time = 0.0);
 // Collective: the contact forces of the force model's last evaluation (its state after the solve) into m.
 void measure_contact(const ForceModel& forces, Measurements& m);
 

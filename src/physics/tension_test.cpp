@@ -10,6 +10,7 @@ TensionTest tension_test(const Scene& scene, const Body& shape) {
   const LoadSpec& load = scene.loads[0];
   if (load.period > 0) return t;  // a cyclic load measures no modulus
   t.body = load.body;             // the summary's target modulus is the loaded body's, even without a test
+  t.history = load.history;
   const NamedFace* lf = shape.named_face(load.body, load.face);
   if (!lf) return t;
   for (const auto& fix : scene.fixes) {

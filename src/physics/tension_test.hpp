@@ -17,7 +17,9 @@ struct TensionTest {
   int body = 0;  // the body the load is on
   int axis = 2, load_side = 0, fixed_side = 1;
   Vec3 direction{0, 0, -1};  // unit vector of the load
-  double force = 0.0;        // N, total
+  double force = 0.0;        // N, total, the load's nominal force
+  TimeHistory history;       // its factor in time (empty: 1), as the load's
+  double force_at(double t) const { return force * history_factor(history, t); }  // N: applied at time t
   double rest_length = 0.0, cross_section = 0.0;
   int load_face = -1, fixed_face = -1;  // the two faces Eq. 3 reads: indices in Body::faces
   // measure()'s face membership of the owned molecules (src/measure/measure.cpp), found on its first call: a

@@ -362,7 +362,10 @@ SolveReport solve_dynamic(const Scene& scene, const LocalModel& model, const For
   forces.forces(x, restart_half ? state.v_half.data() : v, f);
   if (keep_half) state.v_half.assign(v_size(model), 0.0);
   double* v_half = keep_half ? state.v_half.data() : nullptr;
-  report.energy_initial = leapfrog_energy(model, forces, state, dt);
+  // (a restart reports the energy of the run's start, which its checkpoint keeps, not of the checkpoint's step)
+  if (!(state.restarted && std::isfinite(state.energy_initial)))
+    state.energy_initial = leapfrog_energy(model, forces, state, dt);
+  report.energy_initial = state.energy_initial;
   // NaN, Inf and energy growth caught within 16 steps (one reduction per 16 steps, the first non-finite step
   // named), connection lengths every 128 steps; the last good state is kept (guards.hpp).
   StepGuard guard("dynamic", scene, model, forces, state);

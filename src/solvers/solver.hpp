@@ -3,6 +3,7 @@
 #pragma once
 #include <csignal>
 #include <functional>
+#include <limits>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -48,6 +49,7 @@ struct SolverState {
   long calibration_updates = 0;  // iterative: updates of C made
   double fire_dt = 0.0, fire_alpha = 0.0;  // relaxation: FIRE's adaptive step and mixing
   long fire_positive = 0;                  // relaxation: steps since the power was last negative
+  double energy_initial = std::numeric_limits<double>::quiet_NaN();  // dynamic: the run's step-0 total energy
   bool restarted = false;                  // loaded from a checkpoint
   double load_factor = 1.0;  // static: the fraction of the loads the last converged load step reached
   // Static: the last ForceModel::forces() call was at x and v with the full loads (load factor 1) and nothing has

@@ -18,6 +18,8 @@ void Simulation::build(const MeshReader& read_mesh) {
     test_ = tension_test(scene_, model_.shape);
     fault_point("build", comm_);
   });
+  // The rest state's measurements, once (every summary reads them); collective, so after the stage agreed.
+  agree(comm_, [&] { initial_ = tissue::measure(scene_, model_, test_, model_.rest.data(), nullptr); });
 }
 
 void Simulation::calibrate() {
@@ -71,7 +73,6 @@ void Simulation::solve(SolverHooks hooks) {
 
 void Simulation::measure() {
   measured_ = tissue::measure(scene_, model_, test_, state_->x.array(), state_->v.data(), 0, 0, state_->time);
-  initial_ = tissue::measure(scene_, model_, test_, model_.rest.data(), nullptr);
   measure_contact(*forces_, measured_);  // the contact forces of the final state's force evaluation
   if (scene_.fixes.empty()) return;
   // The static solve's final evaluation was at this state with the full loads: its reactions, not a third
@@ -104,7 +105,6 @@ void Simulation::write_checkpoint_summary(Output& out, const SolverState& state,
   const Measurements now =
       tissue::measure(scene_, model_, test_, state.x.array(), state.v.data(), state.x_streams, state.v_streams,
                       state.time);
-  const Measurements initial = tissue::measure(scene_, model_, test_, model_.rest.data(), nullptr);
   SolveReport so_far;  // what is known before the solver returns: the kind, its steps, its time step
   so_far.kind = find_solver(scene_.solver.kind);
   so_far.iterations = state.step;
@@ -112,7 +112,7 @@ void Simulation::write_checkpoint_summary(Output& out, const SolverState& state,
   so_far.critical_time_step = dt_critical_;
   so_far.running = true;
   so_far.note = "written with " + checkpoint + "; the run goes on";
-  out.summary(test_, now, initial, so_far, state, wall_seconds, "");
+  out.summary(test_, now, initial_, so_far, state, wall_seconds, "");
 }
 
 }  // namespace tissue
